@@ -1,0 +1,7 @@
+"""hmodel: the micromechanical H-model of granular materials (Nicot & Darve 2011)."""
+
+from .errors import HModelError, InputError, SolverError
+from .params import Params
+
+__version__ = "0.1.0"
+__all__ = ["Params", "HModelError", "InputError", "SolverError", "__version__"]

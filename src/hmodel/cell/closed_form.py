@@ -1,0 +1,171 @@
+"""Closed-form incremental response of the H-cell (report eqs. 1.3-1.10, DESIGN.md steps 2-3).
+
+One increment of every cell of a batch is a compiled loop (Numba) over cells; each cell solves
+the 3x3 system of eq. 1.7 by Cramer's rule, first without sliding, then, if the trial
+tangential force leaves the Coulomb cone, again with the sliding closure (eqs. 1.8-1.10).
+Contacts that open (d > 2r) make the cell force-free (Fig. 1.5).
+
+The kernel takes the packed state (``values[..., 8]``, see :mod:`hmodel.cell.state`) and returns
+new arrays; it never writes its inputs.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..errors import SolverError
+from ..params import Params
+from .state import FIELDS, FLAGS, CellFlags, CellState
+
+# Positions in the packed parameter vector handed to the kernel.
+P_KN, P_KT, P_TAN, P_G2, P_R, P_CONSISTENT, P_EQ_RHS = range(7)
+
+
+def kernel_params(params: Params) -> np.ndarray:
+    """Pack the parameters the cell kernel needs into a float vector."""
+    return np.array([
+        params.kn, params.kt, params.tan_phi, float(params.g2), params.radius,
+        1.0 if params.volume == "hexagon-consistent" else 0.0,
+        1.0 if params.sliding_rhs == "equilibrium" else 0.0,
+    ])
+
+
+@njit(cache=True, inline="always")
+def _solve3(a11, a12, a13, a21, a22, a23, a31, a32, a33, b1, b2, b3):
+    """Cramer's rule for a 3x3 system; returns (x1, x2, x3, det)."""
+    c11 = a22 * a33 - a23 * a32
+    c12 = a23 * a31 - a21 * a33
+    c13 = a21 * a32 - a22 * a31
+    det = a11 * c11 + a12 * c12 + a13 * c13
+    x1 = (b1 * c11 + a12 * (a23 * b3 - b2 * a33) + a13 * (b2 * a32 - a22 * b3)) / det
+    x2 = (a11 * (b2 * a33 - a23 * b3) + b1 * c12 + a13 * (a21 * b3 - b2 * a31)) / det
+    x3 = (a11 * (a22 * b3 - b2 * a32) + a12 * (b2 * a31 - a21 * b3) + b1 * c13) / det
+    return x1, x2, x3, det
+
+
+@njit(cache=True, inline="always")
+def cell_increment(v, dl1, dl2, p, out, flags):
+    """Advance one cell by (dl1, dl2); write its new state into ``out`` and ``flags``.
+
+    Returns False when the system of eq. 1.7 is singular or the result is not finite.
+    """
+    kn = p[P_KN]
+    kt = p[P_KT]
+    tanphi = p[P_TAN]
+    g2 = p[P_G2]
+    two_r = 2.0 * p[P_R]
+    d1, d2, a, n1, n2, t1, l1, l2 = v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]
+    ca = math.cos(a)
+    sa = math.sin(a)
+    gs = g2 + sa
+    # Rows 1-2: geometric compatibility, eq. 1.2 differentiated (eq. 1.21: virtual rectangle).
+    if p[P_CONSISTENT] != 0.0:
+        a11 = ca
+        a13 = -d1 * sa
+    else:
+        a11 = 2.0 * ca
+        a13 = -2.0 * d1 * sa
+    a21 = 2.0 * sa
+    a23 = 2.0 * d1 * ca
+    # Row 3, no sliding (eqs. 1.8-1.9): equilibrium of grain 2 with dT1 = kt d1 dalpha.
+    a33 = (n1 * sa - t1 * ca - kt * d1 * gs) / kn
+    dd1, dd2, da, det = _solve3(a11, 1.0, a13, a21, 0.0, a23, ca, -1.0, a33, dl1, dl2, 0.0)
+    n1_new = n1 - kn * dd1
+    t1_new = t1 + kt * d1 * da
+    sliding = abs(t1_new) >= tanphi * n1_new
+    if sliding:
+        xi = 1.0 if t1_new >= 0.0 else -1.0
+        a31 = ca + xi * tanphi * gs
+        a33 = (n1 * sa - t1 * ca) / kn
+        if p[P_EQ_RHS] != 0.0:
+            lam = gs * (xi * tanphi * n1 - t1) / kn
+        else:  # eq. 1.10 as corrected in DESIGN.md (and as in the report's code)
+            lam = xi * gs * (tanphi * n1 - t1) / kn
+        dd1, dd2, da, det = _solve3(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33, dl1, dl2, lam)
+        n1_new = n1 - kn * dd1
+        t1_new = xi * tanphi * n1_new  # on the Coulomb cone (eq. 1.3)
+    d1_new = d1 + dd1
+    d2_new = d2 + dd2
+    a_new = a + da
+    n2_new = n2 - kn * dd2
+    if p[P_CONSISTENT] != 0.0:  # dl1 acted on l1* = l1 - d1 cos(alpha) (eq. 1.21)
+        l1_new = l1 - d1 * ca + dl1 + d1_new * math.cos(a_new)
+    else:
+        l1_new = l1 + dl1
+    l2_new = l2 + dl2
+    open1 = d1_new > two_r
+    open2 = d2_new > two_r
+    if open1 or open2:  # lost contact: the cell carries no force (Fig. 1.5)
+        n1_new = 0.0
+        n2_new = 0.0
+        t1_new = 0.0
+        sliding = False
+    out[0] = d1_new
+    out[1] = d2_new
+    out[2] = a_new
+    out[3] = n1_new
+    out[4] = n2_new
+    out[5] = t1_new
+    out[6] = l1_new
+    out[7] = l2_new
+    flags[0] = sliding
+    flags[1] = open1
+    flags[2] = open2
+    flags[3] = l1_new <= two_r  # grains 1 and 4 touch (Fig. 1.6)
+    flags[4] = l2_new <= two_r  # grains 2-6 and 3-5 touch
+    ok = det != 0.0 and math.isfinite(d1_new) and math.isfinite(d2_new) and math.isfinite(a_new)
+    return ok and math.isfinite(n1_new) and math.isfinite(n2_new) and math.isfinite(t1_new)
+
+
+@njit(cache=True)
+def step_kernel(values, dl, p, out, flags):
+    """Advance every cell; ``values``/``out`` (n, 8), ``dl`` (n, 2), ``flags`` (n, 5).
+
+    Returns the index of the first failed cell, or -1.
+    """
+    bad = -1
+    for i in range(values.shape[0]):
+        if not cell_increment(values[i], dl[i, 0], dl[i, 1], p, out[i], flags[i]) and bad < 0:
+            bad = i
+    return bad
+
+
+class ClosedFormSolver:
+    """The H-cell solved in closed form (eq. 1.7). Implements :class:`hmodel.cell.CellSolver`."""
+
+    name = "closed-form"
+
+    def step(self, params: Params, state: CellState, dl1, dl2) -> tuple[CellState, CellFlags]:
+        """One increment of every cell.
+
+        Parameters
+        ----------
+        params : Params
+        state : CellState
+            State before the increment, leading shape S.
+        dl1, dl2 : array_like, broadcastable to S
+            Increments of the cell lengths on which the strain acts [m]: l1, l2 of eq. 1.2
+            (l1* of eq. 1.21 with ``volume="hexagon-consistent"``). Negative is shortening.
+
+        Returns
+        -------
+        (CellState, CellFlags)
+            The state after the increment and its diagnostics.
+        """
+        shape = state.shape
+        values = np.ascontiguousarray(state.values.reshape(-1, len(FIELDS)))
+        dl = np.empty((values.shape[0], 2))
+        dl[:, 0] = np.broadcast_to(dl1, shape).reshape(-1)
+        dl[:, 1] = np.broadcast_to(dl2, shape).reshape(-1)
+        out = np.empty_like(values)
+        flags = np.empty((values.shape[0], len(FLAGS)), dtype=np.bool_)
+        bad = step_kernel(values, dl, kernel_params(params), out, flags)
+        if bad >= 0:
+            raise SolverError(
+                f"cell increment could not be solved (singular eq. 1.7 or non-finite result) "
+                f"for cell {np.unravel_index(bad, shape) if shape else ()} with "
+                f"state {dict(zip(FIELDS, values[bad].round(12)))} and dl=({dl[bad, 0]:.3g}, {dl[bad, 1]:.3g})")
+        return CellState(out.reshape(*shape, len(FIELDS))), CellFlags(flags.reshape(*shape, len(FLAGS)))

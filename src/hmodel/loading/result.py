@@ -1,0 +1,99 @@
+"""Tables of loading paths: one row per computed state, long format over material points."""
+
+from __future__ import annotations
+
+import csv
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..rev import RevState
+
+#: Columns of every result table, in order (DESIGN.md public contract plus diagnostics).
+COLUMNS = ("point", "stage", "step", "eps11", "eps22", "eps12", "sig11", "sig22", "sig12",
+           "p", "q", "eps_v", "q_p", "frac_sliding", "frac_open", "frac_contact14",
+           "frac_contact26")
+UNITS = {"sig11": "Pa", "sig22": "Pa", "sig12": "Pa", "p": "Pa", "q": "Pa"}
+
+
+@dataclass(frozen=True)
+class PathResult:
+    """Columns of a loading path (see :data:`COLUMNS`), each a 1-D array of equal length.
+
+    ``point`` indexes the material point of a batch; ``meta`` describes the run
+    (parameters, path, per-point labels such as ``p0``).
+    """
+
+    columns: dict[str, np.ndarray]
+    meta: dict = field(default_factory=dict)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.columns[name]
+
+    def __len__(self) -> int:
+        return len(self.columns["step"])
+
+    @property
+    def n_points(self) -> int:
+        return int(self.columns["point"].max()) + 1 if len(self) else 0
+
+    def point(self, b: int) -> "PathResult":
+        """Rows of material point ``b`` only."""
+        m = self.columns["point"] == b
+        return PathResult({k: v[m] for k, v in self.columns.items()}, self.meta)
+
+    def stage(self, name: str) -> "PathResult":
+        """Rows of one stage (e.g. ``consolidation``, ``shear``)."""
+        m = self.columns["stage"] == name
+        return PathResult({k: v[m] for k, v in self.columns.items()}, self.meta)
+
+    def to_csv(self, path: "str | os.PathLike") -> None:
+        """Write the table atomically (a temporary file renamed into place)."""
+        path = Path(path)
+        tmp = path.with_name(path.name + ".part")
+        with open(tmp, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(COLUMNS)
+            cols = [self.columns[c] for c in COLUMNS]
+            for row in zip(*cols):
+                w.writerow([v if isinstance(v, str) else repr(v.item()) for v in row])
+        os.replace(tmp, path)
+
+
+class Recorder:
+    """Collects rows while a path runs; :meth:`result` builds the :class:`PathResult`."""
+
+    def __init__(self, meta: dict | None = None):
+        self._rows: list[dict[str, np.ndarray]] = []
+        self._step: np.ndarray | None = None
+        self.meta = dict(meta or {})
+
+    def record(self, state: RevState, stage: str, mask: np.ndarray | None = None) -> None:
+        """Append one row per material point (only those where ``mask`` is true)."""
+        B = state.n_points
+        if self._step is None:
+            self._step = np.zeros(B, dtype=np.int64)
+        m = np.ones(B, bool) if mask is None else np.asarray(mask, bool)
+        if not m.any():
+            return
+        self._step[m] += 1
+        p, q = state.p[m], state.q[m]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            q_p = np.where(p != 0, q / np.where(p != 0, p, 1.0), 0.0)
+        row = {"point": np.flatnonzero(m), "stage": np.full(m.sum(), stage, dtype=object),
+               "step": self._step[m].copy(),
+               "eps11": state.eps[m, 0], "eps22": state.eps[m, 1], "eps12": state.eps[m, 2],
+               "sig11": state.sig[m, 0], "sig22": state.sig[m, 1], "sig12": state.sig[m, 2],
+               "p": p, "q": q, "eps_v": state.eps_v[m], "q_p": q_p}
+        row.update({k: v[m] for k, v in state.fractions().items()})
+        self._rows.append(row)
+
+    def result(self) -> PathResult:
+        if not self._rows:
+            cols = {c: np.array([]) for c in COLUMNS}
+        else:
+            cols = {c: np.concatenate([r[c] for r in self._rows]) for c in COLUMNS}
+        order = np.lexsort((cols["step"], cols["point"])) if len(cols["step"]) else slice(None)
+        return PathResult({c: v[order] for c, v in cols.items()}, self.meta)

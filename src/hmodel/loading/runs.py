@@ -1,0 +1,55 @@
+"""Whole tests from parameters to result tables: the functions behind ``hmodel run``."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..cell import CellSolver
+from ..params import Params
+from ..rev import Rev
+from . import paths
+from .paths import AXIAL_STEP, ISO_STEP, Progress
+from .result import PathResult, Recorder
+
+
+def _meta(params: Params, rev: Rev, test: str, **extra) -> dict:
+    return {"test": test, "params": params.to_dict(), "solver": rev.solver.name, **extra}
+
+
+def run_isotropic(params: Params, p0, *, solver: "str | CellSolver" = "closed-form",
+                  step: float = ISO_STEP, progress: Progress = None) -> PathResult:
+    """Isotropic compression of one material point per value of ``p0`` [Pa]."""
+    rev = Rev(params, solver)
+    p0 = np.atleast_1d(np.asarray(p0, float))
+    rec = Recorder(_meta(params, rev, "iso", p0=p0.tolist(), iso_step=step))
+    paths.consolidate(rev, p0, step=step, recorder=rec, progress=progress)
+    return rec.result()
+
+
+def run_biaxial(params: Params, p0, axial_strain: float, *, undrained: bool = False,
+                solver: "str | CellSolver" = "closed-form", iso_step: float = ISO_STEP,
+                step: float = AXIAL_STEP, progress: Progress = None) -> PathResult:
+    """Isotropic consolidation to each ``p0`` [Pa], then drained or undrained biaxial
+    compression to ``axial_strain`` more axial strain (report §1.1.2, Fig. 1.7)."""
+    rev = Rev(params, solver)
+    p0 = np.atleast_1d(np.asarray(p0, float))
+    rec = Recorder(_meta(params, rev, "undrained biaxial" if undrained else "drained biaxial",
+                         p0=p0.tolist(), axial_strain=axial_strain, iso_step=iso_step, step=step))
+    consolidation = None if progress is None else (lambda f: progress(0.1 * f))
+    shear = None if progress is None else (lambda f: progress(0.1 + 0.9 * f))
+    state = paths.consolidate(rev, p0, step=iso_step, recorder=rec, progress=consolidation)
+    paths.biaxial(rev, state, axial_strain, undrained=undrained, lateral_stress=p0, step=step,
+                  recorder=rec, progress=shear)
+    return rec.result()
+
+
+def run_strain_path(params: Params, eps, *, solver: "str | CellSolver" = "closed-form",
+                    max_step: float | None = None, progress: Progress = None) -> PathResult:
+    """Follow a table of cumulative strains (n, 2 or 3) from the unloaded state."""
+    eps = np.asarray(eps, float)
+    if eps.ndim == 2 and eps.shape[1] == 2:
+        eps = np.column_stack([eps, np.zeros(len(eps))])
+    rev = Rev(params, solver)
+    rec = Recorder(_meta(params, rev, "strain path", n_rows=len(eps), max_step=max_step))
+    paths.strain_path(rev, eps, max_step=max_step, recorder=rec, progress=progress)
+    return rec.result()

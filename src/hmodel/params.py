@@ -1,0 +1,178 @@
+"""Material and discretization parameters of the H-model, validated in one place.
+
+Defaults are Veylon (2017), report Table 1.1. Angles are stored in radians; the CLI and
+:meth:`Params.from_strings` take them in degrees, as the report and DESIGN.md do.
+
+>>> p = Params.from_strings({"alpha0": "50", "n_theta": "72"})
+>>> round(p.alpha0_deg, 6), p.n_theta, p.kt
+(50.0, 72, 100000000.0)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields, replace
+
+from .errors import InputError
+
+VOLUMES = ("hexagon", "rectangle", "box", "hexagon-consistent")
+SLIDING_RHS = ("report", "equilibrium")
+ANGLE_PARAMS = ("phi_g", "alpha0", "beta_omega")
+
+#: Units shown in tables, figures and ``--help``.
+UNITS = {
+    "kn": "N/m", "kt_kn": "-", "phi_g": "deg", "alpha0": "deg", "alpha_omega": "-",
+    "beta_omega": "deg", "n_theta": "-", "radius": "m", "volume": "-", "g2": "-",
+    "sliding_rhs": "-",
+}
+
+
+@dataclass(frozen=True)
+class Params:
+    """Immutable parameter set of one H-model material.
+
+    Attributes
+    ----------
+    kn : float
+        Normal contact stiffness [N/m] (eq. 1.3).
+    kt_kn : float
+        Ratio kt/kn of tangential to normal stiffness [-].
+    phi_g : float
+        Inter-granular friction angle [rad], in (0, pi/2).
+    alpha0 : float
+        Initial opening angle of the H-cells [rad], in (pi/6, pi/2).
+    alpha_omega, beta_omega : float
+        Fabric anisotropy of eq. 1.17: intensity in [0, 1] and major direction [rad].
+    n_theta : int
+        Number of cell directions theta_i = i*pi/n_theta.
+    radius : float
+        Grain radius r [m]; stresses do not depend on it.
+    volume : str
+        Meso-volume option (eqs. 1.18-1.21): hexagon, rectangle, box, hexagon-consistent.
+    g2 : int
+        Closure of eq. 1.5: 0 (Nicot & Darve 2011) or 1 (the later version).
+    sliding_rhs : str
+        Right-hand side lambda of eq. 1.10 when sliding. ``report`` is DESIGN.md's
+        lambda = xi (g2 + sin a)(tan phi N1 - T1)/kn, as in the report's code;
+        ``equilibrium`` is lambda = (g2 + sin a)(xi tan phi N1 - T1)/kn, which keeps grain 2
+        in equilibrium (eq. 1.5) when the contact slides with T1 < 0. Both agree for xi = +1.
+    """
+
+    kn: float = 2.0e8
+    kt_kn: float = 0.5
+    phi_g: float = math.radians(30.0)
+    alpha0: float = math.radians(45.0)
+    alpha_omega: float = 0.0
+    beta_omega: float = 0.0
+    n_theta: int = 360
+    radius: float = 1.0
+    volume: str = "hexagon"
+    g2: int = 0
+    sliding_rhs: str = "report"
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    # -- derived quantities -------------------------------------------------------------
+    @property
+    def kt(self) -> float:
+        """Tangential stiffness kt = kt_kn * kn [N/m]."""
+        return self.kt_kn * self.kn
+
+    @property
+    def tan_phi(self) -> float:
+        return math.tan(self.phi_g)
+
+    @property
+    def alpha0_deg(self) -> float:
+        return math.degrees(self.alpha0)
+
+    @property
+    def l10(self) -> float:
+        """Initial cell length l1 = d2 + 2 d1 cos(alpha0) with d1 = d2 = 2r (eq. 1.2)."""
+        return 2 * self.radius * (1 + 2 * math.cos(self.alpha0))
+
+    @property
+    def l20(self) -> float:
+        """Initial cell length l2 = 2 d1 sin(alpha0) with d1 = 2r (eq. 1.2)."""
+        return 4 * self.radius * math.sin(self.alpha0)
+
+    # -- validation ---------------------------------------------------------------------
+    def validate(self) -> None:
+        """Raise :class:`InputError` naming the first invalid parameter."""
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, float) and not math.isfinite(v):
+                raise InputError(f"parameter {f.name} must be finite, got {v}")
+        if self.kn <= 0:
+            raise InputError(f"parameter kn must be positive, got {self.kn}")
+        if self.kt_kn <= 0:
+            raise InputError(f"parameter kt_kn must be positive, got {self.kt_kn}")
+        if not 0 < self.phi_g < math.pi / 2:
+            raise InputError(f"parameter phi_g must lie in (0, 90) deg, got {math.degrees(self.phi_g):g}")
+        if not math.pi / 6 < self.alpha0 < math.pi / 2:
+            raise InputError(f"parameter alpha0 must lie in (30, 90) deg, got {math.degrees(self.alpha0):g}")
+        if not 0 <= self.alpha_omega <= 1:
+            raise InputError(f"parameter alpha_omega must lie in [0, 1], got {self.alpha_omega}")
+        if int(self.n_theta) != self.n_theta or self.n_theta < 1:
+            raise InputError(f"parameter n_theta must be a positive integer, got {self.n_theta}")
+        if self.radius <= 0:
+            raise InputError(f"parameter radius must be positive, got {self.radius}")
+        if self.volume not in VOLUMES:
+            raise InputError(f"parameter volume must be one of {', '.join(VOLUMES)}, got {self.volume!r}")
+        if self.g2 not in (0, 1):
+            raise InputError(f"parameter g2 must be 0 or 1, got {self.g2}")
+        if self.sliding_rhs not in SLIDING_RHS:
+            raise InputError(
+                f"parameter sliding_rhs must be one of {', '.join(SLIDING_RHS)}, got {self.sliding_rhs!r}")
+
+    # -- conversions --------------------------------------------------------------------
+    def with_(self, **changes) -> "Params":
+        """A copy with some parameters changed (angles in radians)."""
+        return replace(self, **changes)
+
+    def to_dict(self, degrees: bool = True) -> dict:
+        """Plain dict, angles in degrees by default (for CSV/JSON metadata)."""
+        d = asdict(self)
+        if degrees:
+            for name in ANGLE_PARAMS:
+                d[name] = math.degrees(d[name])
+        return d
+
+    @classmethod
+    def from_strings(cls, values: dict[str, str], base: "Params | None" = None) -> "Params":
+        """Build from ``NAME -> text`` pairs as given on the command line (angles in degrees)."""
+        known = {f.name: f for f in fields(cls)}
+        changes: dict = {}
+        for name, text in values.items():
+            if name not in known:
+                raise InputError(f"unknown parameter {name!r} (known: {', '.join(known)})")
+            changes[name] = _convert(name, text, known[name].type)
+        return replace(base or cls(), **changes)
+
+    @classmethod
+    def parse_assignments(cls, items: list[str] | None, base: "Params | None" = None) -> "Params":
+        """Parse ``["kn=2e8", "alpha0=50"]`` (the ``--param`` option)."""
+        values: dict[str, str] = {}
+        for item in items or []:
+            name, sep, text = item.partition("=")
+            if not sep or not name.strip() or not text.strip():
+                raise InputError(f"--param expects NAME=VALUE, got {item!r}")
+            values[name.strip()] = text.strip()
+        return cls.from_strings(values, base)
+
+
+def _convert(name: str, text: str, typ) -> object:
+    if typ in ("str", str):
+        return str(text)
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        raise InputError(f"parameter {name} expects a number, got {text!r}") from None
+    if typ in ("int", int):
+        if not value.is_integer():
+            raise InputError(f"parameter {name} expects an integer, got {text!r}")
+        return int(value)
+    if name in ANGLE_PARAMS:
+        value = math.radians(value)
+    return value
