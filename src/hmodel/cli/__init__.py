@@ -1,0 +1,1 @@
+"""The ``hmodel`` command line (a thin layer over the library)."""

@@ -1,0 +1,89 @@
+"""``hmodel run iso | biaxial | strain-path``: material-point tests to result.csv + result.png."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from ..errors import InputError
+from ..io import read_strain_path, write_outputs
+from ..loading import AXIAL_STEP, ISO_STEP, MAX_STRAIN_STEP, run_biaxial, run_isotropic, run_strain_path
+from ..loading.result import PathResult
+from ..params import UNITS, Params
+from ..plotting import plot_result
+from ..units import parse_pressures
+from .progress import LazyProgress
+
+app = typer.Typer(no_args_is_help=True, help="Run a loading path at the material point.")
+
+ParamOpt = Annotated[Optional[list[str]], typer.Option(
+    "--param", "-p", metavar="NAME=VALUE",
+    help="Model parameter, repeatable; angles in degrees. Names: " + ", ".join(
+        f"{k} [{u}]" for k, u in UNITS.items()))]
+OutOpt = Annotated[Path, typer.Option("--out", "-o", help="Output folder (result.csv, result.png).")]
+SolverOpt = Annotated[str, typer.Option("--solver", help="Cell solver: closed-form.")]
+P0Opt = Annotated[str, typer.Option("--p0", help="Confining pressure(s): 200kPa, 0.2MPa, 2e5 or a "
+                                                  "comma list 100kPa,200kPa,400kPa.")]
+
+
+def _finish(result: PathResult, out: Path) -> None:
+    write_outputs(out, {"result.csv": result.to_csv, "result.png": lambda p: plot_result(result, p)})
+    typer.echo(f"wrote {out / 'result.csv'} ({len(result)} rows) and {out / 'result.png'}")
+
+
+def _positive(value: float, name: str) -> float:
+    if not value > 0 or value != value or value == float("inf"):
+        raise InputError(f"{name} must be a positive finite number, got {value}")
+    return value
+
+
+@app.command("iso")
+def iso(p0: P0Opt = "200kPa", param: ParamOpt = None, out: OutOpt = Path("results/iso"),
+        iso_step: Annotated[float, typer.Option(help="Strain increment of eps11 and eps22.")] = ISO_STEP,
+        solver: SolverOpt = "closed-form") -> None:
+    """Isotropic compression (equal strain increments) until p reaches p0."""
+    params = Params.parse_assignments(param)
+    with LazyProgress("isotropic compression") as progress:
+        result = run_isotropic(params, parse_pressures(p0), solver=solver,
+                               step=_positive(iso_step, "--iso-step"), progress=progress)
+    _finish(result, out)
+
+
+@app.command("biaxial")
+def biaxial(p0: P0Opt = "200kPa",
+            axial_strain: Annotated[float, typer.Option(help="Axial strain after consolidation.")] = 0.1,
+            undrained: Annotated[bool, typer.Option("--undrained", help="Isochoric (undrained) test.")] = False,
+            param: ParamOpt = None, out: OutOpt = Path("results/biaxial"),
+            step: Annotated[float, typer.Option(help="Axial strain increment.")] = AXIAL_STEP,
+            iso_step: Annotated[float, typer.Option(help="Strain increment of the consolidation.")] = ISO_STEP,
+            solver: SolverOpt = "closed-form") -> None:
+    """Isotropic consolidation to p0, then drained (sig22 = p0) or undrained biaxial compression."""
+    params = Params.parse_assignments(param)
+    pressures = parse_pressures(p0)
+    _positive(axial_strain, "--axial-strain")
+    if axial_strain >= 1:
+        raise InputError(f"--axial-strain must be below 1, got {axial_strain}")
+    with LazyProgress("biaxial test") as progress:
+        result = run_biaxial(params, pressures, axial_strain, undrained=undrained, solver=solver,
+                             iso_step=_positive(iso_step, "--iso-step"),
+                             step=_positive(step, "--step"), progress=progress)
+    _finish(result, out)
+
+
+@app.command("strain-path")
+def strain_path(path: Annotated[Path, typer.Argument(help="CSV with header eps11,eps22[,eps12] of cumulative strains.")],
+                param: ParamOpt = None, out: OutOpt = Path("results/strain-path"),
+                max_step: Annotated[Optional[float], typer.Option(
+                    help=f"Split a row's increment into sub-steps no larger than this strain "
+                         f"(default: one increment per row; {MAX_STRAIN_STEP:g} is converged).")] = None,
+                solver: SolverOpt = "closed-form") -> None:
+    """Follow a prescribed strain path; one result row per input row, in order."""
+    params = Params.parse_assignments(param)
+    eps = read_strain_path(path)
+    if max_step is not None:
+        _positive(max_step, "--max-step")
+    with LazyProgress("strain path") as progress:
+        result = run_strain_path(params, eps, solver=solver, max_step=max_step, progress=progress)
+    _finish(result, out)

@@ -1,0 +1,77 @@
+"""Reading strain paths and writing run outputs without leaving partial files behind."""
+
+from __future__ import annotations
+
+import csv
+import os
+import shutil
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+
+def read_strain_path(path: "str | os.PathLike") -> np.ndarray:
+    """Cumulative strains (n, 3) from a CSV with header ``eps11,eps22[,eps12]``.
+
+    Raises :class:`InputError` naming the file, line and problem for anything malformed.
+    """
+    path = Path(path)
+    try:
+        with open(path, newline="") as fh:
+            rows = list(csv.reader(fh))
+    except OSError as e:
+        raise InputError(f"cannot read strain path {str(path)!r}: {e.strerror}") from None
+    except UnicodeDecodeError:
+        raise InputError(f"strain path {str(path)!r} is not a text CSV file") from None
+    rows = [r for r in rows if any(c.strip() for c in r)]
+    if not rows:
+        raise InputError(f"strain path {str(path)!r} is empty")
+    header = [c.strip() for c in rows[0]]
+    if header not in (["eps11", "eps22"], ["eps11", "eps22", "eps12"]):
+        raise InputError(f"strain path {str(path)!r}: header must be eps11,eps22[,eps12], got {','.join(header)!r}")
+    if len(rows) < 2:
+        raise InputError(f"strain path {str(path)!r} has a header but no rows")
+    out = np.zeros((len(rows) - 1, 3))
+    for i, row in enumerate(rows[1:]):
+        if len(row) != len(header):
+            raise InputError(f"strain path {str(path)!r}, line {i + 2}: expected {len(header)} values, got {len(row)}")
+        for j, cell in enumerate(row):
+            try:
+                v = float(cell)
+            except ValueError:
+                raise InputError(f"strain path {str(path)!r}, line {i + 2}: {cell.strip()!r} is not a number") from None
+            if not np.isfinite(v):
+                raise InputError(f"strain path {str(path)!r}, line {i + 2}: non-finite strain {cell.strip()!r}")
+            out[i, j] = v
+    return out
+
+
+def write_outputs(out_dir: "str | os.PathLike", writers: dict[str, Callable[[Path], None]]) -> list[Path]:
+    """Write every file into a temporary folder first, then move them all into ``out_dir``.
+
+    A failure in any writer leaves ``out_dir`` as it was (no partial file).
+    """
+    out_dir = Path(out_dir)
+    parent = out_dir.parent if out_dir.parent != Path("") else Path(".")
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(f"cannot create output folder {str(out_dir)!r}: {e.strerror}") from None
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"output path {str(out_dir)!r} exists and is not a folder")
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=parent))
+    try:
+        for name, write in writers.items():
+            write(tmp / name)
+        out_dir.mkdir(exist_ok=True)
+        written = []
+        for name in writers:
+            os.replace(tmp / name, out_dir / name)
+            written.append(out_dir / name)
+        return written
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
