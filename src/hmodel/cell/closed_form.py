@@ -33,7 +33,7 @@ def kernel_params(params: Params) -> np.ndarray:
     ])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _solve3(a11, a12, a13, a21, a22, a23, a31, a32, a33, b1, b2, b3):
     """Cramer's rule for a 3x3 system; returns (x1, x2, x3, det)."""
     c11 = a22 * a33 - a23 * a32
@@ -46,7 +46,7 @@ def _solve3(a11, a12, a13, a21, a22, a23, a31, a32, a33, b1, b2, b3):
     return x1, x2, x3, det
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def cell_increment(v, dl1, dl2, p, out, flags):
     """Advance one cell by (dl1, dl2); write its new state into ``out`` and ``flags``.
 
@@ -120,7 +120,7 @@ def cell_increment(v, dl1, dl2, p, out, flags):
     return ok and math.isfinite(n1_new) and math.isfinite(n2_new) and math.isfinite(t1_new)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def step_kernel(values, dl, p, out, flags):
     """Advance every cell; ``values``/``out`` (n, 8), ``dl`` (n, 2), ``flags`` (n, 5).
 
