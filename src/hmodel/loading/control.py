@@ -97,34 +97,52 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
     the most cells broke (the event happens), and solves the rest of the increment from there
     (strain rows already met, stress rows unchanged), at most ``max_events`` times.
     """
+    B = state.n_points
+    if tangent.K is None or tangent.K.shape[0] != B:
+        tangent.K = None
+    out = state
+    pending = np.arange(B)
     for _ in range(max_events + 1):
-        done, state = _newton(rev, state, control, tangent, rtol, max_iter)
-        if done:
-            return state
+        sub = Tangent(None if tangent.K is None else tangent.K[pending], tangent.fd_step)
+        done, reached = _newton(rev, state.select(pending), Control(
+            control.stress_rows, control.matrix, control.values[pending]), sub, rtol, max_iter)
+        if tangent.K is None:
+            tangent.K = np.zeros((B, 3, 3))
+        if sub.K is not None:
+            tangent.K[pending] = sub.K
+        out = out.scatter(pending, reached)
+        if done.all():
+            return out
+        # Points past a cell event go on from the event state: strain rows are met already.
+        pending, state = pending[~done], out
         control = Control(control.stress_rows, control.matrix,
                           np.where(control.stress_rows, control.values, 0.0))
-    res = np.abs(state.sig @ control.matrix[control.stress_rows].T
+    res = np.abs(out.sig @ control.matrix[control.stress_rows].T
                  - control.values[:, control.stress_rows])
     raise SolverError(
-        f"mixed-control Newton did not converge at strain {np.round(state.eps, 8).tolist()}: "
+        f"mixed-control Newton did not converge at strain {np.round(out.eps[pending], 8).tolist()}: "
         f"stress residual {float(res.max()):.3g} Pa after {max_events} cell events")
 
 
 def _newton(rev: Rev, state: RevState, control: Control, tangent: Tangent, rtol: float,
             max_iter: int) -> tuple[bool, RevState]:
-    """Newton-Broyden on the stress rows. Returns (True, solution) or (False, event state)."""
+    """Newton-Broyden on the stress rows.
+
+    Returns a mask of the converged points (B,) and a state holding, for each point, its
+    solution or, where Newton stalled, the trial with the most broken cells (an event state).
+    """
     M, S, v = control.matrix, control.stress_rows, control.values
     if not S.any():
         try:
             deps = np.linalg.solve(M, v.T).T
         except np.linalg.LinAlgError:
             raise SolverError("strain control rows are linearly dependent") from None
-        return True, rev.step(state, deps)
+        return np.ones(state.n_points, bool), rev.step(state, deps)
 
     B = state.n_points
     scale = np.maximum(np.abs(v[:, S]), np.abs(state.sig).max(axis=1, keepdims=True))
     scale = np.maximum(scale, 1.0)
-    if tangent.K is None or tangent.K.shape[0] != B:
+    if tangent.K is None:
         tangent.K = _fd_tangent(rev, state, np.zeros((B, 3)), tangent.fd_step)
 
     def newton(x, R):
@@ -152,7 +170,7 @@ def _newton(rev: Rev, state: RevState, control: Control, tangent: Tangent, rtol:
     for it in range(max_iter):
         done = np.all(np.abs(R[:, S]) <= rtol * scale, axis=1)
         if done.all():
-            return True, trial
+            return done, trial
         if it == max_iter // 3:  # stalled: fresh finite-difference tangent at the current trial
             tangent.K = _fd_tangent(rev, state, x, tangent.fd_step)
         dx = newton(x, R) - x
@@ -168,7 +186,8 @@ def _newton(rev: Rev, state: RevState, control: Control, tangent: Tangent, rtol:
         key = _event_key(trial, R, S)
         better = key < best_key
         best, best_key = trial.where(better, best), np.where(better, key, best_key)
-    return False, best
+    done = np.all(np.abs(R[:, S]) <= rtol * scale, axis=1)
+    return done, trial.where(done, best)
 
 
 def _event_key(trial: RevState, R: np.ndarray, S: np.ndarray) -> np.ndarray:

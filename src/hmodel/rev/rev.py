@@ -73,6 +73,16 @@ class RevState:
         return RevState(CellState(self.cells.values[index]), CellFlags(self.flags.flags[index]),
                         self.eps[index], self.sig[index])
 
+    def scatter(self, index: np.ndarray, sub: "RevState") -> "RevState":
+        """A copy with the material points at ``index`` replaced by those of ``sub``."""
+        parts = []
+        for mine, theirs in ((self.cells.values, sub.cells.values), (self.flags.flags, sub.flags.flags),
+                             (self.eps, sub.eps), (self.sig, sub.sig)):
+            arr = mine.copy()
+            arr[index] = theirs
+            parts.append(arr)
+        return RevState(CellState(parts[0]), CellFlags(parts[1]), parts[2], parts[3])
+
     def fractions(self) -> dict[str, np.ndarray]:
         """Weighted-free fraction of cells per diagnostic, each (B,)."""
         f = self.flags
