@@ -96,8 +96,11 @@ def cell_increment(v, dl1, dl2, p, out, flags):
     else:
         l1_new = l1 + dl1
     l2_new = l2 + dl2
-    open1 = d1_new > two_r
-    open2 = d2_new > two_r
+    # A contact is open when its grains separate (d > 2r, DESIGN.md step 3) or when it would
+    # carry tension: after a cell was emptied by the *other* contact opening, the incremental
+    # force no longer equals kn (2r - d), and a cohesionless contact cannot pull.
+    open1 = d1_new > two_r or n1_new < 0.0
+    open2 = d2_new > two_r or n2_new < 0.0
     if open1 or open2:  # lost contact: the cell carries no force (Fig. 1.5)
         n1_new = 0.0
         n2_new = 0.0
