@@ -172,7 +172,9 @@ def _newton(rev: Rev, state: RevState, control: Control, tangent: Tangent, rtol:
         if done.all():
             return done, trial
         if it == max_iter // 3:  # stalled: fresh finite-difference tangent at the current trial
-            tangent.K = _fd_tangent(rev, state, x, tangent.fd_step)
+            # (converged points keep theirs, so that a point's path never depends on its batch)
+            todo = np.flatnonzero(~done)
+            tangent.K[todo] = _fd_tangent(rev, state.select(todo), x[todo], tangent.fd_step)
         dx = newton(x, R) - x
         # Trust region: a Newton correction never exceeds a few predictor increments.
         cap = trust / np.maximum(np.linalg.norm(dx, axis=1), 1e-300)

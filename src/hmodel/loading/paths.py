@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import InputError, SolverError
 from ..rev import Rev, RevState
+from .compiled import CompiledSegment, supports
 from .control import Control, Tangent, solve_increment
 from .result import Recorder
 
@@ -55,8 +56,12 @@ class Segment:
 
 def run_segment(rev: Rev, state: RevState, seg: Segment, recorder: Recorder | None = None,
                 progress: Progress = None, tangent: Tangent | None = None,
-                record_every: int = 1) -> RevState:
-    """Apply a :class:`Segment` to every material point; returns the final state."""
+                record_every: int = 1, compiled: bool | None = None) -> RevState:
+    """Apply a :class:`Segment` to every material point; returns the final state.
+
+    ``compiled`` (default: whenever the REV's solver allows it) runs the segment in the
+    compiled kernel of :mod:`hmodel.loading.compiled`; ``False`` forces the generic driver.
+    """
     if seg.n_steps < 1:
         raise InputError(f"segment {seg.stage!r} needs at least one step, got {seg.n_steps}")
     S = np.array(seg.stress_rows)
@@ -65,6 +70,11 @@ def run_segment(rev: Rev, state: RevState, seg: Segment, recorder: Recorder | No
     end = np.broadcast_to(np.asarray(seg.values, float), (B, 3))
     start = state.sig @ M.T  # stress-row values at the start
     tangent = tangent or Tangent()
+    if compiled is None:
+        compiled = supports(rev)
+    if compiled:
+        return _run_compiled(rev, state, seg, S, M, start, end, recorder, progress, tangent,
+                             record_every)
     for k in range(1, seg.n_steps + 1):
         values = np.where(S, start + (end - start) * (k / seg.n_steps), end / seg.n_steps)
         state = solve_increment(rev, state, Control(S, M, values), tangent)
@@ -73,6 +83,25 @@ def run_segment(rev: Rev, state: RevState, seg: Segment, recorder: Recorder | No
         if progress is not None:
             progress(k / seg.n_steps)
     return state
+
+
+#: Increments per call of the compiled kernel between progress reports.
+_CHUNK = 200
+
+
+def _run_compiled(rev, state, seg, S, M, start, end, recorder, progress, tangent,
+                  record_every) -> RevState:
+    runner = CompiledSegment(rev, state, S, M, start, end, seg.n_steps, tangent)
+    for k0 in range(1, seg.n_steps + 1, _CHUNK):
+        k1 = min(k0 + _CHUNK, seg.n_steps + 1)
+        rec = runner.run(k0, k1)
+        if recorder is not None:
+            ks = np.arange(k0, k1)
+            keep = (ks % record_every == 0) | (ks == seg.n_steps)
+            recorder.record_block(rec[keep, :, :3], rec[keep, :, 3:6], rec[keep, :, 6:], seg.stage)
+        if progress is not None:
+            progress((k1 - 1) / seg.n_steps)
+    return runner.state()
 
 
 def _as_points(value, name: str) -> np.ndarray:

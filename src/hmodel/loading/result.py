@@ -15,6 +15,8 @@ from ..rev import RevState
 COLUMNS = ("point", "stage", "step", "eps11", "eps22", "eps12", "sig11", "sig22", "sig12",
            "p", "q", "eps_v", "q_p", "frac_sliding", "frac_open", "frac_contact14",
            "frac_contact26")
+#: Cell-diagnostic columns, fractions of the directions (see ``RevState.fractions``).
+FRACTIONS = COLUMNS[-4:]
 UNITS = {"sig11": "Pa", "sig22": "Pa", "sig12": "Pa", "p": "Pa", "q": "Pa"}
 
 
@@ -73,21 +75,33 @@ class Recorder:
     def record(self, state: RevState, stage: str, mask: np.ndarray | None = None) -> None:
         """Append one row per material point (only those where ``mask`` is true)."""
         B = state.n_points
+        m = np.ones(B, bool) if mask is None else np.asarray(mask, bool)
+        fr = state.fractions()
+        frac = np.stack([fr[c] for c in FRACTIONS], axis=1)
+        self.record_block(state.eps[None], state.sig[None], frac[None], stage, m)
+
+    def record_block(self, eps: np.ndarray, sig: np.ndarray, frac: np.ndarray, stage: str,
+                     mask: np.ndarray | None = None) -> None:
+        """Append K consecutive states of B points: eps, sig (K, B, 3), frac (K, B, 4) in the
+        order of :data:`FRACTIONS`; only the points where ``mask`` (B,) is true."""
+        K, B = eps.shape[:2]
         if self._step is None:
             self._step = np.zeros(B, dtype=np.int64)
-        m = np.ones(B, bool) if mask is None else np.asarray(mask, bool)
-        if not m.any():
+        m = np.ones(B, bool) if mask is None else mask
+        if not m.any() or K == 0:
             return
-        self._step[m] += 1
-        p, q = state.p[m], state.q[m]
+        pts = np.flatnonzero(m)
+        eps, sig, frac = eps[:, m].reshape(-1, 3), sig[:, m].reshape(-1, 3), frac[:, m].reshape(-1, 4)
+        steps = (self._step[m] + np.arange(1, K + 1)[:, None]).reshape(-1)
+        self._step[m] += K
+        p, q = 0.5 * (sig[:, 0] + sig[:, 1]), sig[:, 0] - sig[:, 1]
         with np.errstate(divide="ignore", invalid="ignore"):
             q_p = np.where(p != 0, q / np.where(p != 0, p, 1.0), 0.0)
-        row = {"point": np.flatnonzero(m), "stage": np.full(m.sum(), stage, dtype=object),
-               "step": self._step[m].copy(),
-               "eps11": state.eps[m, 0], "eps22": state.eps[m, 1], "eps12": state.eps[m, 2],
-               "sig11": state.sig[m, 0], "sig22": state.sig[m, 1], "sig12": state.sig[m, 2],
-               "p": p, "q": q, "eps_v": state.eps_v[m], "q_p": q_p}
-        row.update({k: v[m] for k, v in state.fractions().items()})
+        row = {"point": np.tile(pts, K), "stage": np.full(len(steps), stage, dtype=object),
+               "step": steps, "eps11": eps[:, 0], "eps22": eps[:, 1], "eps12": eps[:, 2],
+               "sig11": sig[:, 0], "sig22": sig[:, 1], "sig12": sig[:, 2],
+               "p": p, "q": q, "eps_v": eps[:, 0] + eps[:, 1], "q_p": q_p}
+        row.update({c: frac[:, j] for j, c in enumerate(FRACTIONS)})
         self._rows.append(row)
 
     def result(self) -> PathResult:

@@ -1,0 +1,388 @@
+"""Compiled loading segments for the closed-form cell solver (the engine's fast path).
+
+:func:`hmodel.loading.control.solve_increment` drives any cell solver from Python; each Newton
+trial is a batched REV call, and for one material point at nθ = 360 the Python overhead
+exceeds the cell computation about tenfold. When the REV runs the closed-form solver, a whole
+segment instead runs in one Numba kernel: per increment and per material point, the same
+Newton-Broyden iteration (tangent predictor, secant updates skipped across cell events,
+finite-difference refresh on stalls, trust region), with localization (eq. 1.1), the cell
+increment (eq. 1.7) and averaging (eq. 1.15) fused in one loop over directions.
+
+The kernel also has the generic driver's event fallback (a stress target inside the jump of a
+cell event, see ``solve_increment``). An increment it still cannot converge is handed back to
+the generic driver, which then either solves it or raises its error with the strain reached;
+the kernel resumes after it. Results equal the generic path's to the
+Newton tolerance (``tests/test_compiled.py``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..cell.closed_form import ClosedFormSolver, cell_increment, kernel_params
+from ..cell.mesostress import vsigma_local
+from ..cell.state import CellFlags, CellState
+from ..rev import Rev, RevState
+from ..rev.kernels import LOC_BOX, LOC_VIRTUAL
+from .control import Control, Tangent, solve_increment
+from .result import FRACTIONS
+
+# Kernel status per material point and increment.
+OK, NOT_CONVERGED = 0, 1
+
+
+def supports(rev: Rev) -> bool:
+    """Whether ``rev`` can run compiled segments (its cells are the closed form's)."""
+    return type(rev.solver) is ClosedFormSolver
+
+
+@njit(cache=True, error_model="numpy")
+def _trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig):
+    """REV step of one material point: cells ``values`` (n, 8) -> ``out``, stress -> ``sig``.
+
+    Same operations, in the same order, as ``Rev.localize``, the cell kernel and
+    ``Rev.stress``. Returns False when a cell increment failed.
+    """
+    cos2, sin2, sincos, wcos2, wsin2, wsincos = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5]
+    two_r = 2.0 * p[4]
+    kn = p[0]
+    e11, e22, e12 = deps[0], deps[1], deps[2]
+    s11 = 0.0
+    s22 = 0.0
+    s12 = 0.0
+    ok = True
+    for i in range(values.shape[0]):
+        enn = e11 * cos2[i] + e22 * sin2[i] + 2.0 * e12 * sincos[i]
+        ett = e11 * sin2[i] + e22 * cos2[i] - 2.0 * e12 * sincos[i]
+        l1 = values[i, 6]
+        l2 = values[i, 7]
+        if mode == LOC_BOX:
+            l1 += two_r
+            l2 += two_r
+        elif mode == LOC_VIRTUAL:
+            l1 -= values[i, 0] * math.cos(values[i, 2])
+        if not cell_increment(values[i], -l1 * enn, -l2 * ett, p, out[i], flags[i]):
+            ok = False
+        vnn, vtt = vsigma_local(out[i], kn, two_r)
+        s11 += vnn * wcos2[i] + vtt * wsin2[i]
+        s22 += vnn * wsin2[i] + vtt * wcos2[i]
+        s12 += (vnn - vtt) * wsincos[i]
+    a11 = eps[0] + e11
+    a22 = eps[1] + e22
+    a12 = eps[2] + e12
+    v = volume0 * ((1 - a11) * (1 - a22) - a12 ** 2)
+    sig[0] = s11 / v
+    sig[1] = s22 / v
+    sig[2] = s12 / v
+    return ok
+
+
+@njit(cache=True, error_model="numpy")
+def _fd_tangent(values, eps, x, geo, p, mode, volume0, h, out, flags, K):
+    """K[i, j] = dsig_i / dx_j by forward differences at trial increment x."""
+    sig0 = np.empty(3)
+    sig1 = np.empty(3)
+    xp = x.copy()
+    _trial(values, eps, xp, geo, p, mode, volume0, out, flags, sig0)
+    for j in range(3):
+        xp[:] = x
+        xp[j] += h
+        _trial(values, eps, xp, geo, p, mode, volume0, out, flags, sig1)
+        for i in range(3):
+            K[i, j] = (sig1[i] - sig0[i]) / h
+
+
+@njit(cache=True, error_model="numpy")
+def _newton_step(x, R, K, S, M):
+    """x - J^-1 R with J = M, stress rows replaced by M[r] K; returns (x_new, solvable)."""
+    J = M.copy()
+    for r in range(3):
+        if S[r]:
+            for j in range(3):
+                J[r, j] = M[r, 0] * K[0, j] + M[r, 1] * K[1, j] + M[r, 2] * K[2, j]
+    det = (J[0, 0] * (J[1, 1] * J[2, 2] - J[1, 2] * J[2, 1])
+           - J[0, 1] * (J[1, 0] * J[2, 2] - J[1, 2] * J[2, 0])
+           + J[0, 2] * (J[1, 0] * J[2, 1] - J[1, 1] * J[2, 0]))
+    if det == 0.0 or not math.isfinite(det):
+        return x.copy(), False
+    return x - np.linalg.solve(J, R), True
+
+
+@njit(cache=True, error_model="numpy")
+def _residual(x, sig, S, M, v, R):
+    for r in range(3):
+        a = sig if S[r] else x
+        R[r] = M[r, 0] * a[0] + M[r, 1] * a[1] + M[r, 2] * a[2] - v[r]
+
+
+@njit(cache=True, error_model="numpy")
+def _converged(R, S, scale, rtol):
+    for r in range(3):
+        if S[r] and abs(R[r]) > rtol * scale[r]:
+            return False
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def _broken(flags):
+    n = 0
+    for i in range(flags.shape[0]):
+        n += flags[i, 1] or flags[i, 2]
+    return n
+
+
+@njit(cache=True, error_model="numpy")
+def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rtol, max_iter,
+                  h, buf, bufflags, x, sig_out):
+    """Newton-Broyden on the stress rows of one point (mirrors ``control._newton``).
+
+    Returns (converged, slot): ``buf[slot]``/``bufflags[slot]`` hold the solution, or, when
+    Newton stalls, the trial with the most broken cells (the event state); ``x`` and
+    ``sig_out`` receive its strain increment and stress. Slots 0 and 1 alternate between the
+    current and the next trial, slot 2 keeps the best one. Returns slot -1 when a cell
+    increment or the Jacobian fails.
+    """
+    R = np.empty(3)
+    sig_t = np.empty(3)
+    sig_n = np.empty(3)
+    smax = max(abs(sig[0]), abs(sig[1]), abs(sig[2]))
+    scale = np.empty(3)
+    for r in range(3):
+        scale[r] = max(max(abs(v[r]), smax), 1.0)
+    x[:] = 0.0
+    if not has_K[0]:
+        _fd_tangent(values, eps, x, geo, p, mode, volume0, h, buf[1], bufflags[1], K)
+        has_K[0] = True
+    _residual(x, sig, S, M, v, R)
+    xt, ok = _newton_step(x, R, K, S, M)
+    if not ok:
+        return False, -1
+    trust = 4.0 * max(math.sqrt(xt[0] ** 2 + xt[1] ** 2 + xt[2] ** 2), 1e-8)
+    cur = 0
+    if not _trial(values, eps, xt, geo, p, mode, volume0, buf[cur], bufflags[cur], sig_t):
+        return False, -1
+    _residual(xt, sig_t, S, M, v, R)
+    best_key = 1e300
+    for it in range(max_iter + 1):
+        res = 0.0
+        for r in range(3):
+            if S[r]:
+                res = max(res, abs(R[r]))
+        key = -_broken(bufflags[cur]) + res / (1.0 + res)
+        if key < best_key:  # the event fallback's candidate: most broken cells, then residual
+            best_key = key
+            buf[2] = buf[cur]
+            bufflags[2] = bufflags[cur]
+            x[:] = xt
+            sig_out[:] = sig_t
+        if _converged(R, S, scale, rtol):
+            x[:] = xt
+            sig_out[:] = sig_t
+            return True, cur
+        if it == max_iter:
+            break
+        if it == max_iter // 3:  # stalled: fresh finite-difference tangent at the current trial
+            _fd_tangent(values, eps, xt, geo, p, mode, volume0, h, buf[1 - cur],
+                        bufflags[1 - cur], K)
+        x_new, ok = _newton_step(xt, R, K, S, M)
+        if not ok:
+            return False, -1
+        dx = x_new - xt
+        nrm = math.sqrt(dx[0] ** 2 + dx[1] ** 2 + dx[2] ** 2)
+        if nrm > trust:  # trust region: a correction never exceeds a few predictor increments
+            dx *= trust / nrm
+        nxt = 1 - cur
+        if not _trial(values, eps, xt + dx, geo, p, mode, volume0, buf[nxt], bufflags[nxt], sig_n):
+            return False, -1
+        # Broyden's rank-one secant update, skipped across a cell event (a jump).
+        smooth = True
+        for i in range(values.shape[0]):
+            if ((bufflags[nxt, i, 1] or bufflags[nxt, i, 2])
+                    != (bufflags[cur, i, 1] or bufflags[cur, i, 2])):
+                smooth = False
+                break
+        dd = dx[0] ** 2 + dx[1] ** 2 + dx[2] ** 2
+        if smooth and dd > 0.0:
+            for a in range(3):
+                upd = sig_n[a] - sig_t[a] - (K[a, 0] * dx[0] + K[a, 1] * dx[1] + K[a, 2] * dx[2])
+                for j in range(3):
+                    K[a, j] += upd * dx[j] / dd
+        xt = xt + dx
+        sig_t[:] = sig_n
+        cur = nxt
+        _residual(xt, sig_t, S, M, v, R)
+    return False, 2
+
+
+@njit(cache=True, error_model="numpy")
+def _solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rtol,
+                 max_iter, max_events, h, buf, bufflags):
+    """One mixed-control increment of one material point, its state updated in place.
+
+    Mirrors ``control.solve_increment``: when Newton stalls inside the jump of a cell event,
+    the event state is committed and the rest of the increment solved from there (strain rows
+    met already), at most ``max_events`` times. Returns OK, or NOT_CONVERGED with the state
+    restored to its start (slot 3 of ``buf`` keeps it).
+    """
+    x = np.empty(3)
+    sig_new = np.empty(3)
+    n_stress = 0
+    for r in range(3):
+        n_stress += S[r]
+    if n_stress == 0:
+        x = np.linalg.solve(M, v)
+        if not _trial(values, eps, x, geo, p, mode, volume0, buf[0], bufflags[0], sig_new):
+            return NOT_CONVERGED
+        values[:] = buf[0]
+        flags[:] = bufflags[0]
+        for j in range(3):
+            eps[j] += x[j]
+            sig[j] = sig_new[j]
+        return OK
+    target = v.copy()
+    eps0 = eps.copy()
+    sig0 = sig.copy()
+    for event in range(max_events + 1):
+        done, slot = _newton_point(values, eps, sig, K, has_K, S, M, target, geo, p, mode,
+                                   volume0, rtol, max_iter, h, buf, bufflags, x, sig_new)
+        if slot < 0 or (not done and event == max_events):
+            break
+        if event == 0 and not done:  # keep the start state, to restore it on failure
+            buf[3] = values
+            bufflags[3] = flags
+        values[:] = buf[slot]
+        flags[:] = bufflags[slot]
+        for j in range(3):
+            eps[j] += x[j]
+            sig[j] = sig_new[j]
+        if done:
+            return OK
+        for r in range(3):  # past the event: strain rows are met, stress targets unchanged
+            if not S[r]:
+                target[r] = 0.0
+    if event > 0:
+        values[:] = buf[3]
+        flags[:] = bufflags[3]
+    eps[:] = eps0
+    sig[:] = sig0
+    return NOT_CONVERGED
+
+
+@njit(cache=True, error_model="numpy")
+def _run_steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin, k_end,
+               geo, p, mode, volume0, rtol, max_iter, max_events, h, rec, status):
+    """Increments k_begin..k_end-1 (1-based k of n_steps) of a segment for B material points.
+
+    Stops after the first increment where a point fails (``status[b] != OK``) and returns its
+    k; returns k_end when all went through. ``rec[k - k_begin, b]`` receives eps (3), sig (3)
+    and the cell fractions sliding, broken, contact14, contact26.
+    """
+    B, n = values.shape[0], values.shape[1]
+    buf = np.empty((4, n, 8))
+    bufflags = np.empty((4, n, 5), dtype=np.bool_)
+    v = np.empty(3)
+    for k in range(k_begin, k_end):
+        failed = False
+        for b in range(B):
+            for r in range(3):
+                if S[r]:
+                    v[r] = start[b, r] + (end[b, r] - start[b, r]) * (k / n_steps)
+                else:
+                    v[r] = end[b, r] / n_steps
+            status[b] = _solve_point(values[b], flags[b], eps[b], sig[b], K[b], has_K[b:b + 1],
+                                     S, M, v, geo, p, mode, volume0, rtol, max_iter, max_events,
+                                     h, buf, bufflags)
+            failed |= status[b] != OK
+            row = rec[k - k_begin, b]
+            row[:3] = eps[b]
+            row[3:6] = sig[b]
+            slid = 0.0
+            brk = 0.0
+            c14 = 0.0
+            c26 = 0.0
+            for i in range(n):
+                f = flags[b, i]
+                slid += f[0]
+                brk += f[1] or f[2]
+                c14 += f[3]
+                c26 += f[4]
+            row[6] = slid / n
+            row[7] = brk / n
+            row[8] = c14 / n
+            row[9] = c26 / n
+        if failed:
+            return k
+    return k_end
+
+
+class CompiledSegment:
+    """Runs the increments of one segment through :func:`_run_steps`, chunk by chunk.
+
+    The state lives in arrays owned by this object; :meth:`state` returns it as a new
+    :class:`RevState`. ``tangent`` is shared with the generic driver for handed-back increments.
+    """
+
+    def __init__(self, rev: Rev, state: RevState, stress_rows, matrix, start, end, n_steps: int,
+                 tangent: Tangent, rtol: float = 1e-10, max_iter: int = 24,
+                 max_events: int = 6):
+        self.rev, self.n_steps, self.tangent = rev, n_steps, tangent
+        self.S = np.asarray(stress_rows, dtype=np.bool_)
+        self.M = np.ascontiguousarray(matrix, dtype=float)
+        self.start = np.ascontiguousarray(start, dtype=float)
+        self.end = np.ascontiguousarray(end, dtype=float)
+        self.values = np.array(state.cells.values, dtype=float, order="C")
+        self.flags = np.array(state.flags.flags, dtype=np.bool_, order="C")
+        self.eps = np.array(state.eps, dtype=float, order="C")
+        self.sig = np.array(state.sig, dtype=float, order="C")
+        B = state.n_points
+        self.has_K = np.full(B, tangent.K is not None and tangent.K.shape[0] == B)
+        self.K = tangent.K.copy() if self.has_K.all() else np.zeros((B, 3, 3))
+        d = rev.directions
+        w = d.weights
+        self.geo = np.ascontiguousarray(np.stack([d.cos2, d.sin2, d.sincos, w * d.cos2,
+                                                  w * d.sin2, w * d.sincos]))
+        self.p = kernel_params(rev.params)
+        self.rtol, self.max_iter, self.max_events = rtol, max_iter, max_events
+
+    def state(self) -> RevState:
+        return RevState(CellState(self.values.copy()), CellFlags(self.flags.copy()),
+                        self.eps.copy(), self.sig.copy())
+
+    def run(self, k_begin: int, k_end: int) -> np.ndarray:
+        """Increments k_begin..k_end-1; returns their records (k_end - k_begin, B, 10)."""
+        B = self.eps.shape[0]
+        rec = np.empty((k_end - k_begin, B, 10))
+        status = np.zeros(B, dtype=np.int64)
+        k = k_begin
+        while k < k_end:
+            k = _run_steps(self.values, self.flags, self.eps, self.sig, self.K, self.has_K,
+                           self.S, self.M, self.start, self.end, self.n_steps, k, k_end, self.geo,
+                           self.p, self.rev._mode, self.rev.volume0, self.rtol, self.max_iter,
+                           self.max_events, self.tangent.fd_step, rec[k - k_begin:], status)
+            if k == k_end:
+                break
+            self._hand_back(k, status != OK, rec[k - k_begin])
+            k += 1
+        self.tangent.K = self.K.copy()
+        return rec
+
+    def _hand_back(self, k: int, failed: np.ndarray, rec_row: np.ndarray) -> None:
+        """Solve increment k of the failed points with the generic driver (event fallback)."""
+        idx = np.flatnonzero(failed)
+        sub = RevState(CellState(self.values[idx]), CellFlags(self.flags[idx]), self.eps[idx],
+                       self.sig[idx])
+        values = np.where(self.S, self.start[idx] + (self.end[idx] - self.start[idx])
+                          * (k / self.n_steps), self.end[idx] / self.n_steps)
+        tangent = Tangent(np.where(self.has_K[idx, None, None], self.K[idx], 0.0)
+                          if self.has_K[idx].all() else None, self.tangent.fd_step)
+        out = solve_increment(self.rev, sub, Control(self.S, self.M, values), tangent,
+                              rtol=self.rtol, max_iter=self.max_iter, max_events=self.max_events)
+        self.values[idx], self.flags[idx] = out.cells.values, out.flags.flags
+        self.eps[idx], self.sig[idx] = out.eps, out.sig
+        self.K[idx], self.has_K[idx] = tangent.K, True
+        rec_row[idx, :3], rec_row[idx, 3:6] = out.eps, out.sig
+        fr = out.fractions()
+        rec_row[idx, 6:] = np.stack([fr[c] for c in FRACTIONS], axis=1)
