@@ -1,7 +1,8 @@
 """``hmodel`` command line. Public contract: see DESIGN.md ("Public contract").
 
-Every error hmodel raises on purpose is printed as one line ``hmodel: error: ...`` with exit
-status 1 (2 for a malformed command line); outputs are written only once a run has succeeded.
+Every error is printed as one line ``hmodel: error: ...``: exit status 1 for a problem with
+the inputs or the computation, 2 for a malformed command line (unknown option, a value that is
+not a number, a missing argument). Outputs are written only once a run has succeeded.
 """
 
 from __future__ import annotations
@@ -33,19 +34,36 @@ def _root(version: Annotated[Optional[bool], typer.Option("--version", callback=
     """The micromechanical H-model of granular materials (Nicot & Darve 2011)."""
 
 
+# Typer's command-line errors derive from click's ClickException, which recent Typer versions
+# vendor under a private module: reach the class through a public subclass instead.
+_ClickException = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
+
+
+def _one_line(message: str) -> str:
+    return " ".join(str(message).split())
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``hmodel`` console script."""
+    """Entry point of the ``hmodel`` console script; returns the exit status."""
     try:
-        app(args=argv, prog_name="hmodel")
+        code = app(args=argv, prog_name="hmodel", standalone_mode=False)
     except SystemExit as e:
         return e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
     except HModelError as e:
-        print(f"hmodel: error: {' '.join(str(e).split())}", file=sys.stderr)
+        print(f"hmodel: error: {_one_line(e)}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
+    except _ClickException as e:
+        if type(e).__name__ == "NoArgsIsHelpError":  # bare group: show its help
+            e.show()
+            return 2
+        ctx = getattr(e, "ctx", None)
+        hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+        print(f"hmodel: error: {_one_line(e.format_message())}{hint}", file=sys.stderr)
+        return e.exit_code
+    except (KeyboardInterrupt, typer.Abort):
         print("hmodel: interrupted", file=sys.stderr)
         return 130
-    return 0
+    return code if isinstance(code, int) else 0
 
 
 if __name__ == "__main__":
