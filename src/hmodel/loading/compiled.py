@@ -22,11 +22,11 @@ import math
 import numpy as np
 from numba import njit
 
-from ..cell.closed_form import ClosedFormSolver, cell_increment, kernel_params
+from ..cell.closed_form import P_KN, P_R, ClosedFormSolver, cell_increment, kernel_params
 from ..cell.mesostress import vsigma_local
 from ..cell.state import CellFlags, CellState
 from ..rev import Rev, RevState
-from ..rev.kernels import LOC_BOX, LOC_VIRTUAL
+from ..rev.kernels import cell_dl
 from .control import Control, Tangent, solve_increment
 from .result import FRACTIONS
 
@@ -47,24 +47,16 @@ def _trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig):
     ``Rev.stress``. Returns False when a cell increment failed.
     """
     cos2, sin2, sincos, wcos2, wsin2, wsincos = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5]
-    two_r = 2.0 * p[4]
-    kn = p[0]
+    two_r = 2.0 * p[P_R]
+    kn = p[P_KN]
     e11, e22, e12 = deps[0], deps[1], deps[2]
     s11 = 0.0
     s22 = 0.0
     s12 = 0.0
     ok = True
     for i in range(values.shape[0]):
-        enn = e11 * cos2[i] + e22 * sin2[i] + 2.0 * e12 * sincos[i]
-        ett = e11 * sin2[i] + e22 * cos2[i] - 2.0 * e12 * sincos[i]
-        l1 = values[i, 6]
-        l2 = values[i, 7]
-        if mode == LOC_BOX:
-            l1 += two_r
-            l2 += two_r
-        elif mode == LOC_VIRTUAL:
-            l1 -= values[i, 0] * math.cos(values[i, 2])
-        if not cell_increment(values[i], -l1 * enn, -l2 * ett, p, out[i], flags[i]):
+        dl1, dl2 = cell_dl(values[i], e11, e22, e12, cos2[i], sin2[i], sincos[i], mode, p[P_R])
+        if not cell_increment(values[i], dl1, dl2, p, out[i], flags[i]):
             ok = False
         vnn, vtt = vsigma_local(out[i], kn, two_r)
         s11 += vnn * wcos2[i] + vtt * wsin2[i]

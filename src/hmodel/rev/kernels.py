@@ -15,31 +15,32 @@ from ..cell.mesostress import vsigma_local
 LOC_CELL, LOC_BOX, LOC_VIRTUAL = 0, 1, 2
 
 
+@njit(cache=True, inline="always")
+def cell_dl(v, e11, e22, e12, c2, s2, sc, mode, radius):
+    """(dl1, dl2) of one cell with packed state ``v`` at direction (cos², sin², sin·cos).
+
+    dl = -(L1 deps_nn, L2 deps_tt) (eq. 1.1 with shear), where L1, L2 are l1, l2
+    (``LOC_CELL``), l1 + 2r, l2 + 2r (``LOC_BOX``, eq. 1.19) or the virtual rectangle
+    l1* = l1 - d1 cos(alpha), l2 (``LOC_VIRTUAL``, eq. 1.21).
+    """
+    enn = e11 * c2 + e22 * s2 + 2.0 * e12 * sc
+    ett = e11 * s2 + e22 * c2 - 2.0 * e12 * sc
+    if mode == LOC_BOX:
+        return -(v[6] + 2.0 * radius) * enn, -(v[7] + 2.0 * radius) * ett
+    if mode == LOC_VIRTUAL:
+        return -(v[6] - v[0] * math.cos(v[2])) * enn, -v[7] * ett
+    return -v[6] * enn, -v[7] * ett
+
+
 @njit(cache=True)
 def localize(values, deps, cos2, sin2, sincos, mode, radius, dl):
-    """dl[k] = -(L1, L2) * (deps_nn, deps_tt) for every cell (eq. 1.1 with shear).
-
-    L1, L2 are l1, l2 (``LOC_CELL``), l1 + 2r, l2 + 2r (``LOC_BOX``, eq. 1.19) or the virtual
-    rectangle l1* = l1 - d1 cos(alpha), l2 (``LOC_VIRTUAL``, eq. 1.21).
-    """
+    """dl[k] = (dl1, dl2) of every cell ``k = b*n_theta + i`` (see :func:`cell_dl`)."""
     n_theta = cos2.shape[0]
     for b in range(deps.shape[0]):
-        e11 = deps[b, 0]
-        e22 = deps[b, 1]
-        e12 = deps[b, 2]
         for i in range(n_theta):
             k = b * n_theta + i
-            enn = e11 * cos2[i] + e22 * sin2[i] + 2.0 * e12 * sincos[i]
-            ett = e11 * sin2[i] + e22 * cos2[i] - 2.0 * e12 * sincos[i]
-            l1 = values[k, 6]
-            l2 = values[k, 7]
-            if mode == LOC_BOX:
-                l1 += 2.0 * radius
-                l2 += 2.0 * radius
-            elif mode == LOC_VIRTUAL:
-                l1 -= values[k, 0] * math.cos(values[k, 2])
-            dl[k, 0] = -l1 * enn
-            dl[k, 1] = -l2 * ett
+            dl[k, 0], dl[k, 1] = cell_dl(values[k], deps[b, 0], deps[b, 1], deps[b, 2], cos2[i],
+                                         sin2[i], sincos[i], mode, radius)
 
 
 @njit(cache=True)
