@@ -140,6 +140,11 @@ class Params:
         return d
 
     @classmethod
+    def from_dict(cls, d: dict) -> "Params":
+        """Inverse of :meth:`to_dict` (angles in degrees)."""
+        return cls.from_strings({k: repr(v) if isinstance(v, float) else str(v) for k, v in d.items()})
+
+    @classmethod
     def from_strings(cls, values: dict[str, str], base: "Params | None" = None) -> "Params":
         """Build from ``NAME -> text`` pairs as given on the command line (angles in degrees)."""
         known = {f.name: f for f in fields(cls)}

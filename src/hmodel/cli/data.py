@@ -1,0 +1,134 @@
+"""``hmodel data generate | sample | info``: the H-cell databases of report §2.3."""
+
+from __future__ import annotations
+
+import csv
+import os
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from ..errors import InputError
+from ..io import write_outputs
+from ..params import Params
+from .progress import LazyProgress
+from .run import ParamOpt
+
+app = typer.Typer(no_args_is_help=True, help="Generate, sample and inspect H-cell databases.")
+
+def _alpha0_range(text: str) -> tuple[float, float, float]:
+    parts = text.split(":")
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise InputError(f"--alpha0 expects MIN:MAX:STEP in degrees, got {text!r}") from None
+    if len(values) == 1:
+        values = [values[0], values[0], 1.0]
+    if len(values) != 3:
+        raise InputError(f"--alpha0 expects MIN:MAX:STEP in degrees, got {text!r}")
+    return values[0], values[1], values[2]
+
+
+@app.command("generate")
+def generate(
+    dataset: Annotated[int, typer.Argument(help="1: monotonic paths from the initial state; "
+                                                "2: increments from their states.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Dataset folder (Parquet shards + manifest.json).")],
+    directions: Annotated[int, typer.Option(help="Path directions theta over [0, 90] deg, inclusive.")] = 91,
+    alpha0: Annotated[str, typer.Option(help="Initial opening angles MIN:MAX:STEP [deg].")] = "32:88:2",
+    max_strain: Annotated[float, typer.Option(help="Total cell strain of a path.")] = 0.30,
+    step: Annotated[float, typer.Option(help="Strain step of a path (recorded in Dataset 1).")] = 0.001,
+    start_every: Annotated[float, typer.Option(help="Dataset 2: strain between start states.")] = 0.01,
+    magnitude: Annotated[float, typer.Option(help="Dataset 2: strain magnitude of an increment.")] = 0.01,
+    increments: Annotated[int, typer.Option(help="Dataset 2: increment directions over [0, 360) deg.")] = 168,
+    substeps: Annotated[int, typer.Option(help="Dataset 2: equal sub-steps of an increment.")] = 10,
+    shard_rows: Annotated[int, typer.Option(help="Rows per shard, about.")] = 250_000,
+    param: ParamOpt = None,
+    workers: Annotated[Optional[int], typer.Option(help="Local worker processes (default: one per CPU).")] = None,
+    scheduler: Annotated[Optional[str], typer.Option(help="Dask scheduler address, e.g. tcp://host:8786.")] = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a dataset made with other options.")] = False,
+) -> None:
+    """Compute a database into --out; re-running the same command resumes an interrupted run."""
+    from ..data import DatasetSpec
+    from ..data import generate as run
+
+    a_min, a_max, a_step = _alpha0_range(alpha0)
+    spec = DatasetSpec(kind=dataset, n_directions=directions, alpha0_min=a_min, alpha0_max=a_max,
+                       alpha0_step=a_step, max_strain=max_strain, step=step, start_every=start_every,
+                       magnitude=magnitude, n_increments=increments, substeps=substeps,
+                       shard_rows=shard_rows)
+    params = Params.parse_assignments(param)
+    with LazyProgress(f"dataset {dataset}: {spec.n_rows:,} rows") as progress:
+        ds = run(spec, params, out, workers=workers or os.cpu_count() or 1, scheduler=scheduler,
+                 progress=progress, overwrite=overwrite)
+    typer.echo(f"dataset {dataset}: {ds.n_rows:,} rows in {len(ds.shards())} shards, {out}")
+
+
+@app.command("sample")
+def sample(
+    source: Annotated[Path, typer.Argument(help="Dataset folder.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for train.parquet, test.parquet, manifest.json.")],
+    train: Annotated[int, typer.Option(help="Rows of the training subset.")] = 60_000,
+    test: Annotated[int, typer.Option(help="Rows of the test subset.")] = 10_000,
+    method: Annotated[str, typer.Option(help="random, grid or lhs (Latin hypercube).")] = "random",
+    seed: Annotated[int, typer.Option(help="Seed of every random choice.")] = 0,
+    rules: Annotated[Optional[str], typer.Option(help="Cleaning rules, comma-separated, or none "
+                                                       "(default: short,non-finite).")] = None,
+    columns: Annotated[Optional[str], typer.Option(help="Columns spanning the sampled space "
+                                                         "(default: the report's 8 inputs).")] = None,
+) -> None:
+    """Draw disjoint train/test subsets of the cleaned rows, reproducibly from --seed."""
+    from ..data import Dataset
+    from ..data.filters import parse_rules
+    from ..data.sampling import INPUTS, write_split
+
+    ds = Dataset.open(source)
+    cols = tuple(c.strip() for c in columns.split(",")) if columns else INPUTS
+    meta = write_split(ds, out, train, test, method, seed, parse_rules(rules), cols)
+    typer.echo(f"{meta['files']['train']['rows']:,} train and {meta['files']['test']['rows']:,} test "
+               f"rows ({method}, seed {seed}) in {out}")
+
+
+@app.command("info")
+def info(
+    source: Annotated[Path, typer.Argument(help="Dataset folder.")],
+    rules: Annotated[Optional[str], typer.Option(help="Cleaning rules to count, comma-separated "
+                                                       "(default: all).")] = None,
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Folder for cleaning.csv and the "
+                                                                    "figures (default: SOURCE/info).")] = None,
+) -> None:
+    """Rows, options, rows removed by each cleaning rule; report Figs. 2.1 and 2.2."""
+    from rich.console import Console
+    from rich.table import Table
+
+    from ..data import Dataset
+    from ..data.figures import plot_removed, plot_strain_distribution
+    from ..data.filters import RULES, parse_rules, rule_counts
+
+    ds = Dataset.open(source)
+    names = parse_rules(rules) if rules else tuple(RULES)
+    counts = rule_counts(ds, names)
+    table = Table(title=f"{source}: dataset {ds.manifest['kind']}, {ds.n_rows:,} rows, "
+                        f"{len(ds.shards())} shards")
+    for c in ("rule", "removes", "rows removed", "fraction"):
+        table.add_column(c)
+    for name in names:
+        table.add_row(name, RULES[name].description, f"{counts[name]:,}", f"{counts[name] / ds.n_rows:.2%}")
+    table.add_row("any", "", f"{counts['total']:,}", f"{counts['total'] / ds.n_rows:.2%}")
+    Console().print(table)
+
+    def write_csv(path: Path) -> None:
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["rule", "description", "rows_removed", "rows", "fraction"])
+            for name in names:
+                w.writerow([name, RULES[name].description, counts[name], ds.n_rows, counts[name] / ds.n_rows])
+            w.writerow(["any", "", counts["total"], ds.n_rows, counts["total"] / ds.n_rows])
+
+    folder = out or Path(source) / "info"
+    write_outputs(folder, {"cleaning.csv": write_csv,
+                           "fig-2-1-strains.png": lambda p: plot_strain_distribution(ds, p),
+                           "fig-2-2-removed.png": lambda p: plot_removed(ds, names, counts, p)})
+    typer.echo(f"wrote {folder / 'cleaning.csv'}, {folder / 'fig-2-1-strains.png'}, "
+               f"{folder / 'fig-2-2-removed.png'}")

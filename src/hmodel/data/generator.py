@@ -1,0 +1,231 @@
+"""Rows of the two H-cell databases of report §2.3, computed shard by shard from the cell solver.
+
+A *path* is one cell loaded monotonically from its initial state (l1 = l10, l2 = l20, no force)
+along a direction θ of the (ε1, ε2) plane, with θ on a grid over [0, 90°] and the initial
+opening angle α0 on a grid over its admissible range. Path ``path_id = j * n_directions + i``
+has α0 number j and θ number i.
+
+- **Dataset 1**: every path in steps of ``step`` up to ``max_strain``; row k holds the initial
+  state, the total strain so far (k·step·(cos θ, sin θ)) and the state reached.
+- **Dataset 2**: from the states of every path at every ``start_every`` of strain, increments of
+  magnitude ``magnitude`` in ``n_increments`` directions over [0, 2π), each applied in
+  ``substeps`` equal sub-steps.
+
+Cell strains are measured on the initial lengths, compression positive: δl = −(l10, l20)·δε.
+A shard is a contiguous range of paths, so that any shard can be computed alone, in any
+process, and always gives the same rows.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+
+import numpy as np
+import pyarrow as pa
+
+from ..cell import CellState, get_solver
+from ..errors import InputError
+from ..params import Params
+from .schema import COLUMNS, FLAG_COLUMNS, STATE, arrow_schema
+
+#: Field order of the packed cell state (hmodel.cell.state.FIELDS) for each schema column.
+_PACKED = {"d1": 0, "d2": 1, "alpha": 2, "N1": 3, "N2": 4, "T1": 5, "l1": 6, "l2": 7}
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """Generator options of one database; the defaults reproduce the report's scale.
+
+    Angles in degrees here (as on the command line); rows store radians.
+    """
+
+    kind: int = 1
+    n_directions: int = 91
+    alpha0_min: float = 32.0
+    alpha0_max: float = 88.0
+    alpha0_step: float = 2.0
+    max_strain: float = 0.30
+    step: float = 0.001
+    start_every: float = 0.01
+    magnitude: float = 0.01
+    n_increments: int = 168
+    substeps: int = 10
+    shard_rows: int = 250_000
+    solver: str = "closed-form"
+
+    def __post_init__(self) -> None:
+        # One spelling per value (45 and 45.0 alike), so that manifests and shard bytes match.
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.type in ("float", float) and isinstance(v, (int, float)) and not isinstance(v, bool):
+                object.__setattr__(self, f.name, float(v))
+        if self.kind not in (1, 2):
+            raise InputError(f"dataset must be 1 or 2, got {self.kind}")
+        for name in ("n_directions", "n_increments", "substeps", "shard_rows"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or v < 1:
+                raise InputError(f"{name} must be a positive integer, got {v!r}")
+        for name in ("alpha0_step", "max_strain", "step", "start_every", "magnitude"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise InputError(f"{name} must be a positive finite number, got {v!r}")
+        if not 30.0 < self.alpha0_min <= self.alpha0_max < 90.0:
+            raise InputError(f"alpha0 range must lie in (30, 90) deg with min <= max, got "
+                             f"{self.alpha0_min}:{self.alpha0_max}")
+        if self.max_strain >= 1.0:
+            raise InputError(f"max_strain must be below 1, got {self.max_strain}")
+        _ratio(self.max_strain, self.step, "max_strain", "step")
+        if self.kind == 2:
+            _ratio(self.start_every, self.step, "start_every", "step")
+            _ratio(self.max_strain, self.start_every, "max_strain", "start_every")
+
+    # -- grids -----------------------------------------------------------------------------
+    @property
+    def alpha0_deg(self) -> np.ndarray:
+        n = int(math.floor((self.alpha0_max - self.alpha0_min) / self.alpha0_step + 1e-9)) + 1
+        return self.alpha0_min + self.alpha0_step * np.arange(n)
+
+    @property
+    def theta(self) -> np.ndarray:
+        """Path directions [rad], from 0 to π/2 inclusive."""
+        if self.n_directions == 1:
+            return np.zeros(1)
+        return np.linspace(0.0, math.pi / 2, self.n_directions)
+
+    @property
+    def increment_angles(self) -> np.ndarray:
+        """Directions of the Dataset-2 increments [rad], over [0, 2π)."""
+        return 2 * math.pi * np.arange(self.n_increments) / self.n_increments
+
+    @property
+    def n_paths(self) -> int:
+        return len(self.alpha0_deg) * self.n_directions
+
+    @property
+    def n_steps(self) -> int:
+        return _ratio(self.max_strain, self.step, "max_strain", "step")
+
+    @property
+    def start_steps(self) -> np.ndarray:
+        """Steps of a path whose states start Dataset-2 increments (1-based)."""
+        every = _ratio(self.start_every, self.step, "start_every", "step")
+        return np.arange(every, self.n_steps + 1, every)
+
+    @property
+    def rows_per_path(self) -> int:
+        return self.n_steps if self.kind == 1 else len(self.start_steps) * self.n_increments
+
+    @property
+    def paths_per_shard(self) -> int:
+        return max(1, self.shard_rows // self.rows_per_path)
+
+    @property
+    def n_shards(self) -> int:
+        return -(-self.n_paths // self.paths_per_shard)
+
+    @property
+    def n_rows(self) -> int:
+        return self.n_paths * self.rows_per_path
+
+    def shard_paths(self, shard: int) -> np.ndarray:
+        if not 0 <= shard < self.n_shards:
+            raise InputError(f"shard {shard} out of range 0..{self.n_shards - 1}")
+        start = shard * self.paths_per_shard
+        return np.arange(start, min(start + self.paths_per_shard, self.n_paths))
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "DatasetSpec":
+        known = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in d.items() if k in known})
+
+
+def _ratio(total: float, step: float, a: str, b: str) -> int:
+    n = round(total / step)
+    if n < 1 or abs(n * step - total) > 1e-9 * max(total, 1.0):
+        raise InputError(f"{a} ({total}) must be a whole multiple of {b} ({step})")
+    return n
+
+
+def initial_cells(params: Params, alpha0: np.ndarray) -> CellState:
+    """Unloaded cells with their own opening angles α0 (eq. 1.2 with d1 = d2 = 2r)."""
+    d = 2.0 * params.radius
+    a = np.asarray(alpha0, float)
+    return CellState.from_fields(d1=d, d2=d, alpha=a, N1=0.0, N2=0.0, T1=0.0,
+                                 l1=d + 2 * d * np.cos(a), l2=2 * d * np.sin(a))
+
+
+def compute_shard(spec: DatasetSpec, params: Params, shard: int) -> pa.Table:
+    """The rows of one shard, in path order (a pure function of its arguments)."""
+    paths = spec.shard_paths(shard)
+    alpha0 = np.radians(spec.alpha0_deg)[paths // spec.n_directions]
+    theta = spec.theta[paths % spec.n_directions]
+    solver = get_solver(spec.solver)
+    cells = initial_cells(params, alpha0)
+    l10, l20 = cells.l1.copy(), cells.l2.copy()
+    dl1, dl2 = -l10 * spec.step * np.cos(theta), -l20 * spec.step * np.sin(theta)
+    if spec.kind == 1:
+        return _dataset1(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta)
+    return _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta)
+
+
+def _dataset1(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta) -> pa.Table:
+    P, n = len(paths), spec.n_steps
+    after = np.empty((P, n, 8))
+    flags = np.empty((P, n, len(FLAG_COLUMNS)), bool)
+    state = cells
+    for k in range(n):
+        state, f = solver.step(params, state, dl1, dl2)
+        after[:, k], flags[:, k] = state.values, f.flags
+    total = spec.step * np.arange(1, n + 1)
+    deps = np.stack([np.outer(np.cos(theta), total), np.outer(np.sin(theta), total)], axis=-1)
+    before = np.broadcast_to(cells.values[:, None, :], after.shape)
+    labels = (alpha0, paths, theta, np.zeros(P))
+    return _table(deps.reshape(-1, 2), before.reshape(-1, 8), after.reshape(-1, 8),
+                  flags.reshape(-1, flags.shape[-1]), [np.repeat(v, n) for v in labels])
+
+
+def _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta) -> pa.Table:
+    P = len(paths)
+    starts = spec.start_steps
+    L, J = len(starts), spec.n_increments
+    start = np.empty((P, L, 8))
+    state, level = cells, 0
+    for k in range(1, spec.n_steps + 1):
+        state, _ = solver.step(params, state, dl1, dl2)
+        if level < L and k == starts[level]:
+            start[:, level] = state.values
+            level += 1
+    phi = spec.increment_angles
+    deps = spec.magnitude * np.stack([np.cos(phi), np.sin(phi)], axis=-1)  # (J, 2)
+    l10 = np.broadcast_to(cells.l1[:, None, None], (P, L, J))
+    l20 = np.broadcast_to(cells.l2[:, None, None], (P, L, J))
+    sub1 = -l10 * deps[:, 0] / spec.substeps
+    sub2 = -l20 * deps[:, 1] / spec.substeps
+    before = CellState(np.ascontiguousarray(np.broadcast_to(start[:, :, None, :], (P, L, J, 8))))
+    state = before
+    for _ in range(spec.substeps):
+        state, f = solver.step(params, state, sub1, sub2)
+    strain = spec.step * starts
+    labels = (np.repeat(alpha0, L * J), np.repeat(paths, L * J), np.repeat(theta, L * J),
+              np.tile(np.repeat(strain, J), P))
+    return _table(np.tile(deps, (P * L, 1)), before.values.reshape(-1, 8),
+                  state.values.reshape(-1, 8), f.flags.reshape(-1, len(FLAG_COLUMNS)), labels)
+
+
+def _table(deps, before, after, flags, labels) -> pa.Table:
+    cols = {"deps1": deps[:, 0], "deps2": deps[:, 1]}
+    for c in STATE:
+        cols[c] = before[:, _PACKED[c]]
+    for c in STATE:
+        cols[f"{c}_next"] = after[:, _PACKED[c]]
+    for j, c in enumerate(FLAG_COLUMNS):
+        cols[c] = flags[:, j]
+    alpha0, paths, theta, start = labels
+    cols.update(alpha0=alpha0, path_id=paths.astype(np.int32), theta=theta, start_strain=start)
+    schema = arrow_schema()
+    return pa.Table.from_arrays([pa.array(np.ascontiguousarray(cols[c]), type=schema.field(c).type)
+                                 for c in COLUMNS], schema=schema)

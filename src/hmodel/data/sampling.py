@@ -1,0 +1,242 @@
+"""Train/test subsets of a requested size (report §2.3): random, grid and Latin-hypercube sampling.
+
+Grid and LHS work in *rank space*: each chosen column is replaced by its empirical CDF over a
+candidate pool (so that heavy-tailed forces and clustered angles are spread evenly), target
+points are laid out in [0, 1]^d (a regular grid, or ``scipy.stats.qmc.LatinHypercube``), and
+each target takes the nearest unused row (k-d tree). Matching to the nearest row blurs the
+Latin-hypercube property when d is large (the rows are far apart compared with a stratum), so
+LHS then swaps rows in and out as long as no column's stratum occupancy gets worse
+(conditioned LHS, Minasny & McBratney 2006): every column ends up stratified, most of its n
+equal-probability strata holding one sampled row.
+
+The candidate pool is a seeded random subset of the kept rows (``pool`` rows at most), which
+bounds the cost on the full Dataset 2. Everything is reproducible from ``seed``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+from numba import njit
+import pyarrow.parquet as pq
+from scipy.spatial import cKDTree
+from scipy.stats import qmc, rankdata
+
+from .. import __version__
+from ..errors import InputError
+from ..io import write_outputs
+from .filters import DEFAULT_RULES, kept_rows
+from .schema import arrow_schema
+from .store import Dataset, sha256
+
+METHODS = ("random", "grid", "lhs")
+#: Default sampling space: the inputs of the report's formulation.
+INPUTS = ("deps1", "deps2", "alpha", "l1", "l2", "N1", "N2", "T1")
+POOL = 2_000_000
+
+
+def rank_space(X: np.ndarray) -> np.ndarray:
+    """Empirical CDF of every column, in (0, 1) (ties share their mean rank)."""
+    n = X.shape[0]
+    return np.column_stack([(rankdata(X[:, j]) - 0.5) / n for j in range(X.shape[1])])
+
+
+def grid_targets(n: int, d: int) -> np.ndarray:
+    """n nodes of the regular grid with k = ceil(n^(1/d)) nodes per axis, evenly strided."""
+    k = max(1, math.ceil(n ** (1.0 / d) - 1e-9))
+    total = k ** d
+    idx = np.unique(np.round(np.linspace(0, total - 1, n)).astype(np.int64))
+    digits = np.stack(np.unravel_index(idx, (k,) * d), axis=1)
+    return (digits + 0.5) / k
+
+
+def nearest_unique(U: np.ndarray, targets: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """For each target (in random order), the nearest row of U not taken yet."""
+    n = len(targets)
+    if n > len(U):
+        raise InputError(f"cannot pick {n} distinct rows from {len(U)}")
+    tree = cKDTree(U)
+    taken = np.zeros(len(U), bool)
+    out = np.empty(n, np.int64)
+    order = rng.permutation(n)
+    k = min(len(U), 16)
+    _, nbrs = tree.query(targets[order], k=k)
+    nbrs = nbrs.reshape(n, -1)
+    missing = []
+    for j, row in zip(order, nbrs):
+        free = row[~taken[row]]
+        if len(free):
+            out[j] = free[0]
+            taken[free[0]] = True
+        else:
+            missing.append(j)
+    for j in missing:  # rare: all k neighbours taken; widen the search
+        kk = k
+        while True:
+            kk = min(len(U), kk * 4)
+            _, row = tree.query(targets[j], k=kk)
+            free = np.atleast_1d(row)[~taken[np.atleast_1d(row)]]
+            if len(free):
+                out[j] = free[0]
+                taken[free[0]] = True
+                break
+    return out
+
+
+def select(X: np.ndarray, n: int, method: str, rng: np.random.Generator) -> np.ndarray:
+    """Indices of n distinct rows of X (N, d) chosen by ``method``."""
+    N, d = X.shape
+    if method not in METHODS:
+        raise InputError(f"unknown sampling method {method!r} (known: {', '.join(METHODS)})")
+    if not 0 < n <= N:
+        raise InputError(f"cannot sample {n} rows from {N} available rows")
+    if method == "random":
+        return rng.choice(N, size=n, replace=False)
+    U = rank_space(X)
+    if method == "grid":
+        targets = grid_targets(n, d)
+        if len(targets) < n:  # duplicate grid indices merged: top up at random positions
+            targets = np.vstack([targets, rng.random((n - len(targets), d))])
+        return nearest_unique(U, targets, rng)
+    # LHS: each design point takes a row of its stratum in one column (columns in turn); then
+    # rows are swapped while no column's stratum occupancy gets worse (conditioned LHS).
+    design = qmc.LatinHypercube(d=d, seed=rng).random(n)
+    strata = np.minimum((U * n).astype(np.int64), n - 1)
+    order = np.argsort(strata, axis=0, kind="stable").T.copy()
+    start = np.stack([np.searchsorted(strata[order[j], j], np.arange(n + 1)) for j in range(d)])
+    cols = np.arange(n) % d
+    k = np.minimum((design[np.arange(n), cols] * n).astype(np.int64), n - 1)
+    size = start[cols, k + 1] - start[cols, k]
+    pick = np.where(size > 0, start[cols, k] + (rng.random(n) * np.maximum(size, 1)).astype(np.int64), -1)
+    first = np.where(pick >= 0, order[cols, np.maximum(pick, 0)], rng.integers(N, size=n))
+    first = _distinct(first, N, rng)
+    return _clhs_refine(strata, order, start, first, int(rng.integers(2**31)), 30 * n)
+
+
+def _distinct(rows: np.ndarray, N: int, rng: np.random.Generator) -> np.ndarray:
+    """Replace repeated row indices by random unused ones."""
+    rows = rows.copy()
+    _, first = np.unique(rows, return_index=True)
+    dup = np.setdiff1d(np.arange(len(rows)), first)
+    if len(dup):
+        free = np.setdiff1d(rng.permutation(N)[: len(rows) * 2 + len(dup)], rows)
+        rows[dup] = free[: len(dup)]
+    return rows
+
+
+@njit(cache=True)
+def _clhs_refine(strata, order, start, chosen, seed, iterations):
+    """Swap chosen rows for unchosen ones while sum_j sum_k |count_jk - 1| does not grow.
+
+    ``strata[i, j]`` is the stratum (0..n-1) of row i in column j; ``count_jk`` the chosen rows
+    in stratum k of column j; the rows of stratum k of column j are
+    ``order[j, start[j, k]:start[j, k + 1]]``. A proposal takes a column j, a row from one of its
+    empty strata and a chosen row from one of its crowded strata. Returns the improved choice.
+    """
+    np.random.seed(seed)
+    N, d = strata.shape
+    n = chosen.shape[0]
+    chosen = chosen.copy()
+    counts = np.zeros((d, n), np.int64)
+    taken = np.zeros(N, np.bool_)
+    for i in range(n):
+        taken[chosen[i]] = True
+        for j in range(d):
+            counts[j, strata[chosen[i], j]] += 1
+    for _ in range(iterations):
+        j = np.random.randint(d)
+        k = np.random.randint(n)
+        tries = 0
+        while counts[j, k] != 0 and tries < 32:
+            k = np.random.randint(n)
+            tries += 1
+        if counts[j, k] != 0 or start[j, k + 1] == start[j, k]:
+            continue
+        new = order[j, start[j, k] + np.random.randint(start[j, k + 1] - start[j, k])]
+        pos = np.random.randint(n)
+        tries = 0
+        while counts[j, strata[chosen[pos], j]] < 2 and tries < 32:
+            pos = np.random.randint(n)
+            tries += 1
+        out = chosen[pos]
+        if taken[new]:
+            continue
+        delta = 0
+        for jj in range(d):
+            a = strata[out, jj]
+            b = strata[new, jj]
+            if a != b:
+                # removing from a: |c-1| -> |c-2|; adding to b: |c-1| -> |c|
+                delta += abs(counts[jj, a] - 2) - abs(counts[jj, a] - 1)
+                delta += abs(counts[jj, b]) - abs(counts[jj, b] - 1)
+        if delta <= 0:
+            for jj in range(d):
+                counts[jj, strata[out, jj]] -= 1
+                counts[jj, strata[new, jj]] += 1
+            taken[out] = False
+            taken[new] = True
+            chosen[pos] = new
+    return chosen
+
+
+def sample_split(ds: Dataset, n_train: int, n_test: int, method: str = "random", seed: int = 0,
+                 rules: Sequence[str] = DEFAULT_RULES, columns: Sequence[str] = INPUTS,
+                 pool: int = POOL) -> tuple[np.ndarray, np.ndarray]:
+    """Disjoint sorted global row indices of a train and a test subset.
+
+    Both subsets are drawn together by ``method`` from the rows kept by ``rules`` and then
+    split at random, so that both cover the domain alike.
+    """
+    if method not in METHODS:
+        raise InputError(f"unknown sampling method {method!r} (known: {', '.join(METHODS)})")
+    for name, v in (("train size", n_train), ("test size", n_test)):
+        if not isinstance(v, (int, np.integer)) or v < 0:
+            raise InputError(f"{name} must be a non-negative integer, got {v!r}")
+    n = n_train + n_test
+    if n == 0:
+        raise InputError("ask for at least one train or test row")
+    rng = np.random.default_rng(seed)
+    kept = kept_rows(ds, rules)
+    if n > len(kept):
+        raise InputError(f"asked for {n} rows but only {len(kept)} rows pass the cleaning rules")
+    if method != "random" and len(kept) > max(pool, n):
+        kept = np.sort(rng.choice(kept, size=max(pool, n), replace=False))
+    X = np.column_stack([v for v in ds.read(list(columns), rows=kept).values()]) \
+        if method != "random" else np.empty((len(kept), 1))
+    chosen = kept[select(X, n, method, rng)]
+    chosen = chosen[rng.permutation(n)]
+    return np.sort(chosen[:n_train]), np.sort(chosen[n_train:])
+
+
+def write_split(ds: Dataset, out: "str | os.PathLike", n_train: int, n_test: int,
+                method: str = "random", seed: int = 0, rules: Sequence[str] = DEFAULT_RULES,
+                columns: Sequence[str] = INPUTS) -> dict:
+    """Write ``train.parquet``, ``test.parquet`` (all columns plus the source ``row``) and a
+    ``manifest.json`` naming the source dataset (its checksum), method, seed and rules."""
+    train, test = sample_split(ds, n_train, n_test, method, seed, rules, columns)
+    meta = {"format": "hmodel-cell-sample", "hmodel": __version__,
+            "source": str(ds.folder), "source_checksum": ds.checksum,
+            "schema_version": ds.manifest["schema_version"], "kind": ds.manifest["kind"],
+            "options": ds.manifest["options"], "params": ds.manifest["params"],
+            "method": method, "seed": seed, "rules": list(rules), "columns": list(columns),
+            "files": {}}
+    schema = arrow_schema().append(pa.field("row", pa.int64(), nullable=False))
+
+    def writer(name: str, rows: np.ndarray):
+        def write(path: Path) -> None:
+            cols = {**ds.read(rows=rows), "row": rows}
+            table = pa.Table.from_arrays([pa.array(cols[f.name], type=f.type) for f in schema],
+                                         schema=schema)
+            pq.write_table(table, path, compression="zstd")
+            meta["files"][name] = {"file": path.name, "rows": len(rows), "sha256": sha256(path)}
+        return write
+
+    write_outputs(out, {"train.parquet": writer("train", train), "test.parquet": writer("test", test),
+                        "manifest.json": lambda p: p.write_text(json.dumps(meta, indent=1) + "\n")})
+    return meta

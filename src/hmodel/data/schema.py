@@ -1,0 +1,50 @@
+"""The public schema of the H-cell databases (report §2.3): column names, types and units.
+
+One row is one cell increment: the cell strain ``deps1, deps2`` applied to the state *before*
+(``alpha, l1, l2, d1, d2, N1, N2, T1``) gives the state *after* (``*_next``) and its flags.
+Cell strains are measured on the cell's initial lengths and are positive in compression:
+δl1 = −l10·δε1, δl2 = −l20·δε2. Angles in radians, lengths in the unit of the grain radius,
+forces in N (kn in N/m).
+
+Columns beyond the report's: ``alpha0`` (the cell's initial opening angle), ``path_id`` (the
+monotonic Dataset-1 path a row belongs to), ``theta`` (that path's loading direction in the
+(ε1, ε2) plane) and ``start_strain`` (its total strain at the state before; 0 for Dataset-1
+rows, whose state before is the initial state).
+"""
+
+from __future__ import annotations
+
+import pyarrow as pa
+
+#: Version of this schema; readers refuse datasets written with another one.
+SCHEMA_VERSION = 1
+
+STATE = ("alpha", "l1", "l2", "d1", "d2", "N1", "N2", "T1")
+STATE_NEXT = tuple(f"{c}_next" for c in STATE)
+FLAG_COLUMNS = ("sliding", "open1", "open2", "contact14", "contact26")
+STRAIN = ("deps1", "deps2")
+LABELS = ("alpha0", "path_id", "theta", "start_strain")
+COLUMNS = STRAIN + STATE + STATE_NEXT + FLAG_COLUMNS + LABELS
+
+UNITS = {
+    "deps1": "-", "deps2": "-", "alpha": "rad", "l1": "m", "l2": "m", "d1": "m", "d2": "m",
+    "N1": "N", "N2": "N", "T1": "N", **{f"{c}_next": u for c, u in
+                                       [("alpha", "rad"), ("l1", "m"), ("l2", "m"), ("d1", "m"),
+                                        ("d2", "m"), ("N1", "N"), ("N2", "N"), ("T1", "N")]},
+    **{c: "bool" for c in FLAG_COLUMNS}, "alpha0": "rad", "path_id": "-", "theta": "rad",
+    "start_strain": "-",
+}
+
+
+def arrow_schema(metadata: dict[bytes, bytes] | None = None) -> pa.Schema:
+    """The Arrow schema of every shard (float64 values, bool flags, int32 path ids)."""
+    fields = []
+    for c in COLUMNS:
+        if c in FLAG_COLUMNS:
+            t = pa.bool_()
+        elif c == "path_id":
+            t = pa.int32()
+        else:
+            t = pa.float64()
+        fields.append(pa.field(c, t, nullable=False))
+    return pa.schema(fields, metadata=metadata)
