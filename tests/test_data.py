@@ -18,7 +18,7 @@ from hmodel.cell.closed_form import ClosedFormSolver
 from hmodel.data import Dataset, DatasetError, DatasetSpec, generate
 from hmodel.data import store
 from hmodel.data.filters import RULES, kept_rows, keep_mask, parse_rules, rule_counts, rule_masks
-from hmodel.data.sampling import grid_targets, sample_split, select, write_split
+from hmodel.data.sampling import sample_split, select, write_split
 from hmodel.data.schema import COLUMNS
 
 SMALL1 = DatasetSpec(kind=1, n_directions=7, alpha0_min=40, alpha0_max=60, alpha0_step=10,
@@ -281,13 +281,12 @@ def test_lhs_stratifies_every_column_better_than_random():
     assert np.all(occ(rand) < 0.75)   # random: about 1 - 1/e of the strata
 
 
-def test_grid_targets_cover_every_axis():
-    t = grid_targets(81, 2)
-    assert len(t) == 81 and len(np.unique(t[:, 0])) == 9 and len(np.unique(t[:, 1])) == 9
-    X = np.random.default_rng(0).uniform(size=(5000, 2))
+def test_grid_takes_one_row_per_grid_cell():
+    X = np.random.default_rng(0).uniform(size=(5000, 2)) ** 3  # skewed: the grid is in rank space
     picked = X[select(X, 81, "grid", np.random.default_rng(0))]
-    H, _, _ = np.histogram2d(picked[:, 0], picked[:, 1], bins=9, range=[[0, 1], [0, 1]])
-    assert (H >= 1).all()
+    q = np.quantile(X, np.linspace(0, 1, 10), axis=0)
+    H, _, _ = np.histogram2d(picked[:, 0], picked[:, 1], bins=[q[:, 0], q[:, 1]])
+    np.testing.assert_array_equal(H, 1)  # 9 x 9 cells, exactly one row each
 
 
 def test_sampling_bad_requests(d2):
