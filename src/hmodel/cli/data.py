@@ -85,7 +85,8 @@ def sample(
 
     ds = Dataset.open(source)
     cols = tuple(c.strip() for c in columns.split(",")) if columns else INPUTS
-    meta = write_split(ds, out, train, test, method, seed, parse_rules(rules), cols)
+    with LazyProgress(f"sampling ({method})") as progress:
+        meta = write_split(ds, out, train, test, method, seed, parse_rules(rules), cols, progress)
     typer.echo(f"{meta['files']['train']['rows']:,} train and {meta['files']['test']['rows']:,} test "
                f"rows ({method}, seed {seed}) in {out}")
 
@@ -108,7 +109,8 @@ def info(
 
     ds = Dataset.open(source)
     names = parse_rules(rules) if rules else tuple(RULES)
-    counts = rule_counts(ds, names)
+    with LazyProgress("counting removed rows") as progress:
+        counts = rule_counts(ds, names, progress)
     table = Table(title=f"{source}: dataset {ds.manifest['kind']}, {ds.n_rows:,} rows, "
                         f"{len(ds.shards())} shards")
     for c in ("rule", "removes", "rows removed", "fraction"):

@@ -93,30 +93,35 @@ def _radius(ds) -> float:
     return float(ds.manifest["params"]["radius"])
 
 
-def rule_counts(ds, rules: Sequence[str]) -> dict[str, int]:
+def rule_counts(ds, rules: Sequence[str], progress: Callable[[float], None] | None = None) -> dict[str, int]:
     """Rows each rule removes on its own, plus ``total`` removed by any, over a whole dataset."""
     counts = dict.fromkeys(rules, 0)
     counts["total"] = 0
     cols = rule_columns(rules)
     if not cols:
         return counts
-    for t in ds.iter_tables(cols):
+    n = len(ds.shards())
+    for i, t in enumerate(ds.iter_tables(cols)):
         c = {k: t.column(k).to_numpy() for k in cols}
         masks = rule_masks(c, rules, _radius(ds))
         for name, m in masks.items():
             counts[name] += int(m.sum())
         counts["total"] += int(np.any(np.stack(list(masks.values())), axis=0).sum())
+        if progress is not None:
+            progress((i + 1) / n)
     return counts
 
 
-def kept_rows(ds, rules: Sequence[str]) -> np.ndarray:
+def kept_rows(ds, rules: Sequence[str], progress: Callable[[float], None] | None = None) -> np.ndarray:
     """Global indices (sorted) of the rows that no rule removes, streamed shard by shard."""
     cols = rule_columns(rules)
     if not cols:
         return np.arange(ds.n_rows)
-    out, offset = [], 0
-    for t in ds.iter_tables(cols):
+    out, offset, n = [], 0, len(ds.shards())
+    for i, t in enumerate(ds.iter_tables(cols)):
         c = {k: t.column(k).to_numpy() for k in cols}
         out.append(offset + np.flatnonzero(keep_mask(c, rules, _radius(ds))))
         offset += t.num_rows
+        if progress is not None:
+            progress((i + 1) / n)
     return np.concatenate(out)

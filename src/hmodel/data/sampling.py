@@ -22,7 +22,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -160,7 +160,8 @@ def _clhs_refine(strata, order, start, chosen, seed, iterations):
 
 def sample_split(ds: Dataset, n_train: int, n_test: int, method: str = "random", seed: int = 0,
                  rules: Sequence[str] = DEFAULT_RULES, columns: Sequence[str] = INPUTS,
-                 pool: int = POOL) -> tuple[np.ndarray, np.ndarray]:
+                 pool: int = POOL, progress: Callable[[float], None] | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """Disjoint sorted global row indices of a train and a test subset.
 
     Both subsets are drawn together by ``method`` from the rows kept by ``rules`` and then
@@ -175,24 +176,29 @@ def sample_split(ds: Dataset, n_train: int, n_test: int, method: str = "random",
     if n == 0:
         raise InputError("ask for at least one train or test row")
     rng = np.random.default_rng(seed)
-    kept = kept_rows(ds, rules)
+    kept = kept_rows(ds, rules, None if progress is None else (lambda f: progress(0.5 * f)))
     if n > len(kept):
         raise InputError(f"asked for {n} rows but only {len(kept)} rows pass the cleaning rules")
     if method != "random" and len(kept) > max(pool, n):
         kept = np.sort(rng.choice(kept, size=max(pool, n), replace=False))
     X = np.column_stack([v for v in ds.read(list(columns), rows=kept).values()]) \
         if method != "random" else np.empty((len(kept), 1))
+    if progress is not None:
+        progress(0.6)
     chosen = kept[select(X, n, method, rng)]
     chosen = chosen[rng.permutation(n)]
+    if progress is not None:
+        progress(0.9)
     return np.sort(chosen[:n_train]), np.sort(chosen[n_train:])
 
 
 def write_split(ds: Dataset, out: "str | os.PathLike", n_train: int, n_test: int,
                 method: str = "random", seed: int = 0, rules: Sequence[str] = DEFAULT_RULES,
-                columns: Sequence[str] = INPUTS) -> dict:
+                columns: Sequence[str] = INPUTS,
+                progress: Callable[[float], None] | None = None) -> dict:
     """Write ``train.parquet``, ``test.parquet`` (all columns plus the source ``row``) and a
     ``manifest.json`` naming the source dataset (its checksum), method, seed and rules."""
-    train, test = sample_split(ds, n_train, n_test, method, seed, rules, columns)
+    train, test = sample_split(ds, n_train, n_test, method, seed, rules, columns, progress=progress)
     meta = {"format": "hmodel-cell-sample", "hmodel": __version__,
             "source": str(ds.folder), "source_checksum": ds.checksum,
             "schema_version": ds.manifest["schema_version"], "kind": ds.manifest["kind"],
