@@ -16,12 +16,14 @@ from .. import __version__
 from ..errors import HModelError
 from . import data as data_cmds
 from . import run as run_cmds
+from . import surrogate as surrogate_cmds
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   rich_markup_mode=None,
                   help="The micromechanical H-model of granular materials (Nicot & Darve 2011).")
 app.add_typer(run_cmds.app, name="run")
 app.add_typer(data_cmds.app, name="data")
+app.add_typer(surrogate_cmds.app, name="surrogate")
 
 
 def _version(value: bool) -> None:

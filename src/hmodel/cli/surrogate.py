@@ -1,0 +1,149 @@
+"""``hmodel surrogate train | evaluate | sweep``: neural surrogates of the H-cell (report §2.4-2.5)."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from ..errors import InputError
+from ..io import write_outputs
+from .progress import LazyProgress
+
+app = typer.Typer(no_args_is_help=True, help="Train, evaluate and compare neural surrogates of the H-cell.")
+
+Formulation = Annotated[str, typer.Option(help="report (the report's inputs/outputs) or increment "
+                                               "(dimensionless increments, Coulomb bound by construction).")]
+Normalization = Annotated[str, typer.Option(help="minmax, zscore, robust, maxabs or unit.")]
+Width = Annotated[int, typer.Option(help="Nodes per hidden layer.")]
+Depth = Annotated[int, typer.Option(help="Hidden layers.")]
+Activation = Annotated[str, typer.Option(help="tanh, relu, silu, gelu or elu.")]
+Loss = Annotated[str, typer.Option(help="mse or mae.")]
+Epochs = Annotated[int, typer.Option(help="Largest number of epochs (early stopping may end sooner).")]
+BatchSize = Annotated[int, typer.Option(help="Rows per optimizer step.")]
+Lr = Annotated[float, typer.Option(help="Initial learning rate (Adam; halved on plateaus).")]
+Patience = Annotated[int, typer.Option(help="Epochs without validation improvement before stopping.")]
+Seed = Annotated[int, typer.Option(help="Seed of the split, the initialization and the batches.")]
+Device = Annotated[str, typer.Option(help="auto (a GPU when there is one), cpu or cuda.")]
+MaxMinutes = Annotated[Optional[float], typer.Option(help="Stop training after this wall time.")]
+
+
+def _config(**kw):
+    from ..surrogate.training import TrainConfig
+    return TrainConfig(**kw)
+
+
+def _write_csv(rows: list[dict], path: Path) -> None:
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+
+
+@app.command("train")
+def train_cmd(
+    data: Annotated[Path, typer.Argument(help="Sample folder (hmodel data sample): trains on train.parquet.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Model file to write (.safetensors).")],
+    formulation: Formulation = "increment", normalization: Normalization = "zscore",
+    width: Width = 8, depth: Depth = 3, activation: Activation = "tanh", loss: Loss = "mse",
+    epochs: Epochs = 300, batch_size: BatchSize = 1024, lr: Lr = 3e-3, patience: Patience = 30,
+    seed: Seed = 0, device: Device = "auto", max_minutes: MaxMinutes = None,
+) -> None:
+    """Train a surrogate on a sample's training rows (20 % held out for early stopping),
+    evaluate it on the sample's test rows, and save it with its metrics."""
+    from ..surrogate import modelfile
+    from ..surrogate.evaluation import evaluate
+    from ..surrogate.rows import params_of, read_sample
+    from ..surrogate.training import train
+
+    if out.suffix != ".safetensors":
+        raise InputError(f"--out must end in .safetensors, got {str(out)!r}")
+    cfg = _config(formulation=formulation, normalization=normalization, width=width, depth=depth,
+                  activation=activation, loss=loss, epochs=epochs, batch_size=batch_size, lr=lr,
+                  patience=patience, seed=seed, device=device, max_minutes=max_minutes)
+    cols, info = read_sample(data, "train")
+    test, _ = read_sample(data, "test")
+    with LazyProgress("training") as progress:
+        s, history = train(cols, params_of(info), cfg, progress)
+    metrics = evaluate(s, test, "sample test rows")
+    s.meta.update(training_data=info["provenance"], params=info["params"], metrics=metrics,
+                  history_tail=history[-3:])
+    modelfile.save(s, out)
+    r2 = {m["output"]: m["r2"] for m in metrics if m["quantity"] == "state after"}
+    typer.echo(f"wrote {out}: {len(history)} epochs in {s.meta['seconds']:.0f} s; test R² "
+               + ", ".join(f"{k} {v:.6f}" for k, v in r2.items()))
+
+
+@app.command("evaluate")
+def evaluate_cmd(
+    model: Annotated[str, typer.Argument(help="Model file, or 'shipped' for the packaged model.")],
+    data: Annotated[list[Path], typer.Option("--data", help="Sample folder (its test rows) or dataset "
+                                                            "folder; repeatable.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for metrics.csv and parity plots.")],
+    rows: Annotated[Optional[int], typer.Option(help="Rows drawn from a dataset folder (default 100000).")] = 100_000,
+    seed: Seed = 0,
+) -> None:
+    """Metrics (MAE, RMSE, R², max |error|) on the state after and on the increments, and
+    parity plots (report Figs. 2.4-2.6), for every --data."""
+    from ..surrogate import modelfile
+    from ..surrogate.evaluation import evaluate, parity_plot
+    from ..surrogate.rows import read_rows
+    from ..surrogate.shipped import shipped_path
+
+    s = modelfile.load(shipped_path() if model == "shipped" else model)
+    table, writers = [], {}
+    for i, d in enumerate(data):
+        cols, info = read_rows(d, "test", rows, seed)
+        label = f"{d.name} (dataset {info['provenance']['kind']})"
+        table += evaluate(s, cols, label)
+        writers[f"parity-{i}-{d.name}.png"] = (lambda c, lab: lambda p: parity_plot(
+            s, c, p, f"{Path(model).name}: {lab}, {len(c['deps1']):,} rows"))(cols, label)
+    write_outputs(out, {"metrics.csv": lambda p: _write_csv(table, p), **writers})
+    for r in table:
+        if r["quantity"] == "state after":
+            typer.echo(f"{r['data']:<40} {r['output']:<11} R² {r['r2']:.6f}  MAE {r['mae']:.4g}  "
+                       f"max {r['max_abs']:.4g}")
+    typer.echo(f"wrote {out / 'metrics.csv'} and {len(writers)} parity plot(s)")
+
+
+@app.command("sweep")
+def sweep_cmd(
+    data: Annotated[Path, typer.Argument(help="Dataset 2 folder.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for sweep.csv and sweep.png.")],
+    depths: Annotated[str, typer.Option(help="Hidden layers, comma-separated.")] = "3,5,7,9,11,13,15,17",
+    losses: Annotated[str, typer.Option(help="Losses, comma-separated.")] = "mae,mse",
+    sizes: Annotated[str, typer.Option(help="Training-set sizes, comma-separated.")] = "6000,60000,600000",
+    test: Annotated[int, typer.Option(help="Held-out test rows shared by all runs.")] = 100_000,
+    formulation: Formulation = "report", normalization: Normalization = "minmax",
+    width: Width = 8, activation: Activation = "tanh", epochs: Epochs = 200,
+    batch_size: BatchSize = 1024, lr: Lr = 3e-3, patience: Patience = 20, seed: Seed = 0,
+    device: Device = "auto", max_minutes: MaxMinutes = None,
+) -> None:
+    """Report Table 2.1: every depth × loss × training-set size, one results table and plot."""
+    from ..data import Dataset
+    from ..surrogate.sweep import plot_sweep, run_sweep
+
+    def ints(text: str, name: str) -> list[int]:
+        try:
+            return [int(t) for t in text.split(",") if t.strip()]
+        except ValueError:
+            raise InputError(f"--{name} expects comma-separated integers, got {text!r}") from None
+
+    base = _config(formulation=formulation, normalization=normalization, width=width,
+                   activation=activation, epochs=epochs, batch_size=batch_size, lr=lr,
+                   patience=patience, seed=seed, device=device, max_minutes=max_minutes)
+    loss_list = [t.strip() for t in losses.split(",") if t.strip()]
+    for name in loss_list:
+        _config(loss=name)
+    ds = Dataset.open(data)
+    with LazyProgress("sweep") as progress:
+        rows = run_sweep(ds, base, ints(depths, "depths"), loss_list, ints(sizes, "sizes"), test,
+                         seed, progress)
+    write_outputs(out, {"sweep.csv": lambda p: _write_csv(rows, p),
+                        "sweep.png": lambda p: plot_sweep(rows, p),
+                        "config.json": lambda p: p.write_text(json.dumps(
+                            {"data": str(data), "base": base.__dict__}, indent=1))})
+    typer.echo(f"wrote {out / 'sweep.csv'} ({len(rows)} runs) and {out / 'sweep.png'}")

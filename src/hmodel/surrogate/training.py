@@ -1,0 +1,176 @@
+"""Training an MLP surrogate with PyTorch (report §2.4): validation split, early stopping,
+learning-rate schedule, fixed seeds; CPU by default, a GPU when one is there."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..params import Params
+from .formulations import make_formulation
+from .model import Architecture, Surrogate
+from .scalers import fit_scaler
+
+LOSSES = ("mse", "mae")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    formulation: str = "increment"
+    normalization: str = "zscore"
+    width: int = 8
+    depth: int = 3
+    activation: str = "tanh"
+    loss: str = "mse"
+    epochs: int = 300
+    batch_size: int = 1024
+    lr: float = 3e-3
+    patience: int = 30
+    val_fraction: float = 0.2
+    seed: int = 0
+    device: str = "auto"
+    max_minutes: float | None = None
+
+    def __post_init__(self) -> None:
+        Architecture(self.width, self.depth, self.activation)
+        if self.loss not in LOSSES:
+            raise InputError(f"unknown loss {self.loss!r} (known: {', '.join(LOSSES)})")
+        if not 0 < self.val_fraction < 1:
+            raise InputError(f"val_fraction must lie in (0, 1), got {self.val_fraction}")
+        for name in ("epochs", "batch_size", "patience"):
+            if getattr(self, name) < 1:
+                raise InputError(f"{name} must be at least 1, got {getattr(self, name)}")
+        if not self.lr > 0:
+            raise InputError(f"lr must be positive, got {self.lr}")
+
+
+def _device(name: str):
+    import torch
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    try:
+        return torch.device(name)
+    except RuntimeError:
+        raise InputError(f"unknown device {name!r}") from None
+
+
+def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = TrainConfig(),
+          progress: Callable[[float], None] | None = None) -> tuple[Surrogate, list[dict]]:
+    """Fit a surrogate on database rows ``columns``; returns it and the per-epoch history.
+
+    20 % (``val_fraction``) of the rows are held out for early stopping; scalers are fitted on
+    the remaining training rows only. The best weights on the validation loss are kept.
+    """
+    import torch
+
+    torch.manual_seed(config.seed)
+    rng = np.random.default_rng(config.seed)
+    form = make_formulation(config.formulation, params.kn, params.radius, params.tan_phi)
+    X, (Y, W) = form.inputs(columns), form.targets(columns)
+    n = len(X)
+    if n < 10:
+        raise InputError(f"need at least 10 training rows, got {n}")
+    perm = rng.permutation(n)
+    n_val = max(1, int(round(config.val_fraction * n)))
+    val, tr = perm[:n_val], perm[n_val:]
+    xs = fit_scaler(config.normalization, X[tr])
+    ys = fit_target_scaler(config.normalization, Y[tr], W[tr], form.logit_column)
+    dev = _device(config.device)
+    to = lambda a: torch.as_tensor(a, dtype=torch.float32, device=dev)  # noqa: E731
+    Xt, Yt, Wt = to(xs.transform(X[tr])), to(ys.transform(Y[tr])), to(W[tr])
+    Xv, Yv, Wv = to(xs.transform(X[val])), to(ys.transform(Y[val])), to(W[val])
+
+    arch = Architecture(config.width, config.depth, config.activation)
+    net = build_network(arch, X.shape[1], Y.shape[1]).to(dev)
+    opt = torch.optim.Adam(net.parameters(), lr=config.lr)
+    sched = torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=0.5, patience=max(1, config.patience // 3))
+    loss_fn = _loss(config.loss, form.logit_column)
+    gen = torch.Generator(device="cpu").manual_seed(config.seed)
+    best, best_state, stale, history = math.inf, None, 0, []
+    t0 = time.perf_counter()
+    for epoch in range(config.epochs):
+        net.train()
+        order = torch.randperm(len(Xt), generator=gen).to(dev)
+        total = 0.0
+        for i in range(0, len(Xt), config.batch_size):
+            idx = order[i:i + config.batch_size]
+            opt.zero_grad(set_to_none=True)
+            loss = loss_fn(net(Xt[idx]), Yt[idx], Wt[idx])
+            loss.backward()
+            opt.step()
+            total += float(loss.detach()) * len(idx)
+        net.eval()
+        with torch.no_grad():
+            v = float(loss_fn(net(Xv), Yv, Wv))
+        sched.step(v)
+        history.append({"epoch": epoch + 1, "train_loss": total / len(Xt), "val_loss": v,
+                        "lr": opt.param_groups[0]["lr"], "seconds": time.perf_counter() - t0})
+        if v < best:
+            best, stale = v, 0
+            best_state = {k: t.detach().clone() for k, t in net.state_dict().items()}
+        else:
+            stale += 1
+        if progress is not None:
+            progress((epoch + 1) / config.epochs)
+        if not math.isfinite(v):
+            raise InputError(f"training diverged at epoch {epoch + 1} (validation loss {v}); lower --lr")
+        if stale >= config.patience:
+            break
+        if config.max_minutes is not None and time.perf_counter() - t0 > 60 * config.max_minutes:
+            break
+    net.load_state_dict(best_state)
+    weights = [(m.weight.detach().cpu().double().numpy(), m.bias.detach().cpu().double().numpy())
+               for m in net if isinstance(m, torch.nn.Linear)]
+    meta = {"config": asdict(config), "epochs_run": len(history), "best_val_loss": best,
+            "train_rows": int(len(tr)), "val_rows": int(len(val)),
+            "seconds": history[-1]["seconds"] if history else 0.0, "device": str(dev)}
+    return Surrogate(form, arch, xs, ys, weights, meta), history
+
+
+def _loss(kind: str, logit: int | None):
+    """Weighted mean regression loss (MSE or MAE) over the regression outputs, plus binary
+    cross-entropy on the logit output when the formulation has one."""
+    import torch
+
+    def loss(pred, y, w):
+        reg = slice(None, logit)
+        err = pred[:, reg] - y[:, reg]
+        e = err * err if kind == "mse" else err.abs()
+        out = (e * w[:, reg]).sum() / w[:, reg].sum().clamp(min=1.0)
+        if logit is not None:
+            out = out + torch.nn.functional.binary_cross_entropy_with_logits(pred[:, logit], y[:, logit])
+        return out
+    return loss
+
+
+def fit_target_scaler(method: str, Y: np.ndarray, W: np.ndarray, logit: int | None):
+    """Scaler of the targets, each fitted on the rows where it is regressed; a logit stays as is."""
+    from .scalers import Affine
+
+    offset, scale = np.zeros(Y.shape[1]), np.ones(Y.shape[1])
+    for j in range(Y.shape[1]):
+        if j == logit:
+            continue
+        rows = W[:, j] > 0
+        a = fit_scaler(method, Y[rows, j:j + 1] if rows.any() else Y[:, j:j + 1])
+        offset[j], scale[j] = a.offset[0], a.scale[0]
+    return Affine(method, offset, scale)
+
+
+def build_network(arch: Architecture, n_in: int, n_out: int):
+    """The torch MLP of an architecture (Linear layers with activations in between)."""
+    import torch
+
+    act = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU, "silu": torch.nn.SiLU,
+           "gelu": torch.nn.GELU, "elu": torch.nn.ELU}[arch.activation]
+    layers, width = [], n_in
+    for _ in range(arch.depth):
+        layers += [torch.nn.Linear(width, arch.width), act()]
+        width = arch.width
+    layers.append(torch.nn.Linear(width, n_out))
+    return torch.nn.Sequential(*layers)

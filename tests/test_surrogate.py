@@ -1,0 +1,218 @@
+"""Neural surrogates: learning, metrics, normalizations, Coulomb-safe outputs, safe model files."""
+
+import json
+import pickle
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from hmodel import InputError, Params
+from hmodel.data import DatasetSpec, generate
+from hmodel.data.sampling import write_split
+from hmodel.surrogate import ModelFileError, load, make_formulation, save
+from hmodel.surrogate.formulations import OUTPUTS
+from hmodel.surrogate.metrics import regression_metrics
+from hmodel.surrogate.model import Architecture, Surrogate
+from hmodel.surrogate.scalers import METHODS, Affine, fit_scaler
+from hmodel.surrogate.training import TrainConfig, train
+
+SPEC = DatasetSpec(kind=2, n_directions=7, alpha0_min=40, alpha0_max=60, alpha0_step=10,
+                   max_strain=0.1, start_every=0.02, n_increments=36)
+
+
+@pytest.fixture(scope="module")
+def sample(tmp_path_factory):
+    root = tmp_path_factory.mktemp("s")
+    ds = generate(SPEC, Params(), root / "d2")
+    write_split(ds, root / "sample", 2000, 500, "random", 0)
+    return root / "sample"
+
+
+@pytest.fixture(scope="module")
+def model(sample):
+    from hmodel.surrogate.rows import params_of, read_sample
+    cols, info = read_sample(sample, "train")
+    s, hist = train(cols, params_of(info), TrainConfig(width=16, depth=2, epochs=40, seed=1))
+    return s, hist, cols
+
+
+def test_tiny_network_overfits_tiny_dataset(sample):
+    from hmodel.surrogate.rows import params_of, read_sample
+    cols, info = read_sample(sample, "train")
+    tiny = {k: v[:64] for k, v in cols.items()}
+    s, hist = train(tiny, params_of(info), TrainConfig(formulation="report", width=32, depth=2,
+                                                       epochs=1500, patience=1500, batch_size=64,
+                                                       activation="silu", seed=0))
+    assert hist[-1]["train_loss"] < 0.02 * hist[0]["train_loss"]
+    pred = s.predict(tiny)
+    r2 = regression_metrics(np.column_stack([tiny[k] for k in OUTPUTS]),
+                            np.column_stack([pred[k] for k in OUTPUTS]))["r2"]
+    assert np.all(r2 > 0.99), r2
+
+
+def test_metrics_match_scikit_learn():
+    from sklearn.metrics import mean_absolute_error, mean_squared_error, r2_score
+    rng = np.random.default_rng(3)
+    y = rng.normal(size=(200, 3)) * [1, 100, 1e-3]
+    p = y + rng.normal(size=y.shape) * [0.1, 5, 1e-4]
+    m = regression_metrics(y, p)
+    np.testing.assert_allclose(m["r2"], r2_score(y, p, multioutput="raw_values"), rtol=1e-12)
+    np.testing.assert_allclose(m["mae"], mean_absolute_error(y, p, multioutput="raw_values"), rtol=1e-12)
+    np.testing.assert_allclose(m["rmse"], np.sqrt(mean_squared_error(y, p, multioutput="raw_values")), rtol=1e-12)
+    np.testing.assert_allclose(m["max_abs"], np.abs(p - y).max(axis=0))
+    assert regression_metrics(np.ones((5, 1)), np.ones((5, 1)))["r2"][0] == 1.0
+
+
+@settings(max_examples=40, deadline=None)
+@given(method=st.sampled_from(METHODS),
+       X=arrays(np.float64, st.tuples(st.integers(2, 30), st.integers(1, 5)),
+                elements=st.floats(-1e9, 1e9, allow_nan=False, width=64)))
+def test_every_normalization_inverts(method, X):
+    a = fit_scaler(method, X)
+    back = a.inverse(a.transform(X))
+    np.testing.assert_allclose(back, X, rtol=1e-9, atol=1e-9 * (1 + np.abs(X).max()))
+
+
+def test_normalizations_match_scikit_learn():
+    from sklearn.preprocessing import MinMaxScaler, RobustScaler, StandardScaler
+    X = np.random.default_rng(0).normal(size=(100, 3)) * [1, 10, 1000]
+    for method, sk in (("minmax", MinMaxScaler()), ("zscore", StandardScaler()), ("robust", RobustScaler())):
+        np.testing.assert_allclose(fit_scaler(method, X).transform(X), sk.fit_transform(X), atol=1e-12)
+    u = fit_scaler("unit", X).transform(X)
+    np.testing.assert_allclose(np.linalg.norm(u, axis=0), 1.0)
+    with pytest.raises(InputError):
+        fit_scaler("softmax", X)
+
+
+def _random_surrogate(seed: int, width=16, depth=2) -> Surrogate:
+    rng = np.random.default_rng(seed)
+    p = Params()
+    form = make_formulation("increment", p.kn, p.radius, p.tan_phi)
+    sizes = [8] + [width] * depth + [5]
+    weights = [(rng.normal(size=(o, i)) * 2, rng.normal(size=o)) for i, o in zip(sizes[:-1], sizes[1:])]
+    one = lambda n: Affine("zscore", np.zeros(n), np.ones(n))  # noqa: E731
+    return Surrogate(form, Architecture(width, depth, "tanh"), one(8), Affine("zscore", np.zeros(5), np.full(5, 3.0)), weights)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10_000))
+def test_increment_formulation_never_violates_coulomb(seed):
+    s = _random_surrogate(seed)
+    rng = np.random.default_rng(seed + 1)
+    n = 2000
+    F = 4e8
+    cols = {"deps1": rng.normal(0, 0.01, n), "deps2": rng.normal(0, 0.01, n),
+            "alpha": rng.uniform(0.5, 1.5, n), "l1": rng.uniform(2, 5, n), "l2": rng.uniform(2, 4, n),
+            "N1": F * rng.uniform(0, 0.1, n), "N2": F * rng.uniform(0, 0.1, n),
+            "T1": F * rng.uniform(-0.05, 0.05, n)}
+    out = s.predict(cols)
+    assert np.all(out["N1_next"] >= 0) and np.all(out["N2_next"] >= 0)
+    assert np.all(np.abs(out["T1_next"]) <= Params().tan_phi * out["N1_next"] * (1 + 1e-12))
+
+
+def test_model_file_round_trips_exactly(model, tmp_path, sample):
+    s, _, cols = model
+    path = save(s, tmp_path / "m.safetensors")
+    back = load(path)
+    for (W, b), (W2, b2) in zip(s.weights, back.weights):
+        np.testing.assert_array_equal(W, W2)
+        np.testing.assert_array_equal(b, b2)
+    p1, p2 = s.predict(cols), back.predict(cols)
+    for k in OUTPUTS:
+        np.testing.assert_array_equal(p1[k], p2[k])
+    assert back.meta["config"]["width"] == 16 and back.formulation == s.formulation
+    save(back, tmp_path / "again.safetensors")
+    np.testing.assert_array_equal(load(tmp_path / "again.safetensors").predict(cols)["N1_next"], p1["N1_next"])
+
+
+def test_loading_never_unpickles(model, tmp_path, monkeypatch):
+    s, _, _ = model
+    path = save(s, tmp_path / "m.safetensors")
+
+    def forbidden(*a, **k):
+        raise AssertionError("unpickling attempted")
+    monkeypatch.setattr(pickle, "loads", forbidden)
+    monkeypatch.setattr(pickle, "load", forbidden)
+    monkeypatch.setattr(pickle, "Unpickler", forbidden)
+    import numpy.lib.format as npformat
+    monkeypatch.setattr(npformat, "read_array", forbidden)  # no allow_pickle .npy path either
+    load(path)
+
+
+@pytest.mark.parametrize("damage", ["flip-weight", "truncate", "edit-metadata", "version", "empty", "pickle"])
+def test_damaged_model_files_are_refused(model, tmp_path, damage):
+    s, _, _ = model
+    path = save(s, tmp_path / "m.safetensors")
+    data = bytearray(path.read_bytes())
+    hlen = int.from_bytes(data[:8], "little")
+    header = json.loads(data[8:8 + hlen])
+    if damage == "flip-weight":
+        data[-20] ^= 0x01
+        path.write_bytes(bytes(data))
+    elif damage == "truncate":
+        path.write_bytes(bytes(data[: len(data) - 100]))
+    elif damage in ("edit-metadata", "version"):
+        meta = json.loads(header["__metadata__"]["hmodel"])
+        if damage == "edit-metadata":
+            meta["metrics"] = "excellent"
+        else:
+            meta["format_version"] = 99
+        header["__metadata__"]["hmodel"] = json.dumps(meta, sort_keys=True)
+        if damage == "version":  # re-sign, so that only the version is wrong
+            from hmodel.surrogate.modelfile import _digest
+            from safetensors.numpy import load_file
+            header["__metadata__"]["checksum"] = _digest(load_file(str(path)), header["__metadata__"]["hmodel"])
+        new = json.dumps(header).encode()
+        new += b" " * (-len(new) % 8)
+        path.write_bytes(len(new).to_bytes(8, "little") + new + bytes(data[8 + hlen:]))
+    elif damage == "empty":
+        path.write_bytes(b"")
+    else:
+        path.write_bytes(pickle.dumps({"weights": [1, 2, 3]}))
+    with pytest.raises(ModelFileError):
+        load(path)
+
+
+def test_training_is_reproducible(sample):
+    from hmodel.surrogate.rows import params_of, read_sample
+    cols, info = read_sample(sample, "train")
+    cfg = TrainConfig(width=8, depth=2, epochs=5, seed=4)
+    a, _ = train(cols, params_of(info), cfg)
+    b, _ = train(cols, params_of(info), cfg)
+    for (W, _), (W2, _) in zip(a.weights, b.weights):
+        np.testing.assert_array_equal(W, W2)
+
+
+@pytest.mark.parametrize("bad", [dict(loss="huber"), dict(width=0), dict(activation="sine"),
+                                 dict(val_fraction=1.0), dict(lr=0.0), dict(epochs=0)])
+def test_bad_training_options(bad):
+    with pytest.raises(InputError):
+        TrainConfig(**bad)
+
+
+def test_surrogate_cli(sample, tmp_path, capsys):
+    from hmodel.cli.app import main
+    m = tmp_path / "m.safetensors"
+    assert main(["surrogate", "train", str(sample), "--out", str(m), "--epochs", "3",
+                 "--width", "8", "--depth", "2"]) == 0
+    assert load(m).meta["training_data"]["source_checksum"]
+    assert main(["surrogate", "evaluate", str(m), "--data", str(sample), "--data",
+                 str(sample.parent / "d2"), "--rows", "500", "--out", str(tmp_path / "ev")]) == 0
+    text = (tmp_path / "ev" / "metrics.csv").read_text()
+    assert "increment" in text and "state after" in text and "dataset 2" in text
+    assert len(list((tmp_path / "ev").glob("parity-*.png"))) == 2
+    assert main(["surrogate", "sweep", str(sample.parent / "d2"), "--depths", "1,2", "--losses", "mae,mse",
+                 "--sizes", "300,600", "--test", "200", "--epochs", "2", "--out", str(tmp_path / "sw")]) == 0
+    assert (tmp_path / "sw" / "sweep.csv").read_text().count("\n") == 1 + 2 * 2 * 2
+    capsys.readouterr()
+    for bad, word in ((["surrogate", "train", str(sample), "--out", str(tmp_path / "x.pt")], "safetensors"),
+                      (["surrogate", "train", str(sample), "--out", str(m), "--loss", "huber"], "loss"),
+                      (["surrogate", "train", str(tmp_path), "--out", str(m)], "sample folder"),
+                      (["surrogate", "evaluate", str(tmp_path / "none.safetensors"), "--data", str(sample),
+                        "--out", str(tmp_path / "e2")], "does not exist")):
+        assert main(bad) != 0
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and word in err[0], err
