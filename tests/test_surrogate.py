@@ -124,6 +124,12 @@ def test_model_file_round_trips_exactly(model, tmp_path, sample):
     for k in OUTPUTS:
         np.testing.assert_array_equal(p1[k], p2[k])
     assert back.meta["config"]["width"] == 16 and back.formulation == s.formulation
+    np.testing.assert_array_equal(back.input_range, s.input_range)
+    X = s.formulation.inputs(cols)
+    assert not back.outside(X).any()
+    far = X[:1].copy()
+    far[0, 5] = 10 * s.input_range[1, 5]  # N1 ten times the largest trained
+    assert back.outside(far).all()
     save(back, tmp_path / "again.safetensors")
     np.testing.assert_array_equal(load(tmp_path / "again.safetensors").predict(cols)["N1_next"], p1["N1_next"])
 

@@ -28,12 +28,18 @@ class CellSolver(Protocol):
 
 
 def get_solver(spec: "str | CellSolver") -> CellSolver:
-    """Resolve a solver from its CLI spelling (``closed-form``) or pass an instance through."""
+    """Resolve a solver from its CLI spelling or pass an instance through.
+
+    ``closed-form`` (eq. 1.7), ``surrogate`` (the shipped neural surrogate) or
+    ``surrogate:MODEL_FILE``.
+    """
     if not isinstance(spec, str):
         return spec
-    from .closed_form import ClosedFormSolver
-
     name = spec.split(":", 1)[0]
     if name == "closed-form":
+        from .closed_form import ClosedFormSolver
         return ClosedFormSolver()
-    raise InputError(f"unknown cell solver {spec!r} (available: closed-form)")
+    if name == "surrogate":
+        from ..surrogate.solver import load_solver
+        return load_solver(spec)
+    raise InputError(f"unknown cell solver {spec!r} (available: closed-form, surrogate[:MODEL_FILE])")

@@ -60,6 +60,17 @@ class Surrogate:
     y_scaler: Affine
     weights: list[tuple[np.ndarray, np.ndarray]]
     meta: dict = field(default_factory=dict)
+    #: Range of every input over the training rows (the training domain), (2, n_inputs).
+    input_range: np.ndarray | None = None
+
+    def outside(self, X: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """Rows of X (n, 8) outside the training domain by more than ``margin`` of each input's
+        range (all False when the range is unknown)."""
+        if self.input_range is None:
+            return np.zeros(len(X), bool)
+        lo, hi = self.input_range
+        pad = margin * (hi - lo)
+        return np.any((X < lo - pad) | (X > hi + pad), axis=1)
 
     def forward(self, X: np.ndarray) -> np.ndarray:
         """Network targets Y (n, 4) for inputs X (n, 8) in physical units."""

@@ -48,6 +48,8 @@ def _tensors(s: Surrogate) -> dict[str, np.ndarray]:
          "y_offset": s.y_scaler.offset, "y_scale": s.y_scaler.scale}
     for i, (W, b) in enumerate(s.weights):
         t[f"layer{i}.weight"], t[f"layer{i}.bias"] = W, b
+    if s.input_range is not None:
+        t["input_range"] = s.input_range
     return {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in t.items()}
 
 
@@ -70,6 +72,7 @@ def save(s: Surrogate, path: "str | os.PathLike") -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".part")
     save_file(tensors, str(tmp), metadata=header)
+    os.chmod(tmp, 0o644)  # a model file is data anyone may read
     os.replace(tmp, path)
     return path
 
@@ -105,4 +108,5 @@ def load(path: "str | os.PathLike") -> Surrogate:
     weights = [(tensors[f"layer{i}.weight"], tensors[f"layer{i}.bias"]) for i in range(a["n_layers"])]
     method = meta["normalization"]
     return Surrogate(form, arch, Affine(method, tensors["x_offset"], tensors["x_scale"]),
-                     Affine(method, tensors["y_offset"], tensors["y_scale"]), weights, meta)
+                     Affine(method, tensors["y_offset"], tensors["y_scale"]), weights, meta,
+                     tensors.get("input_range"))

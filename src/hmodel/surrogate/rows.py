@@ -39,7 +39,8 @@ def read_sample(folder: "str | Path", part: str) -> tuple[dict[str, np.ndarray],
     cols = {c: t.column(c).to_numpy() for c in t.column_names}
     prov = {"sample": str(folder), "part": part, "file_sha256": entry["sha256"],
             "source_checksum": meta["source_checksum"], "kind": meta["kind"],
-            "method": meta["method"], "seed": meta["seed"], "rules": meta["rules"]}
+            "method": meta["method"], "seed": meta["seed"], "rules": meta["rules"],
+            "options": meta["options"]}
     return cols, {"provenance": prov, "params": meta["params"]}
 
 

@@ -129,7 +129,8 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
     meta = {"config": asdict(config), "epochs_run": len(history), "best_val_loss": best,
             "train_rows": int(len(tr)), "val_rows": int(len(val)),
             "seconds": history[-1]["seconds"] if history else 0.0, "device": str(dev)}
-    return Surrogate(form, arch, xs, ys, weights, meta), history
+    domain = np.stack([X[tr].min(axis=0), X[tr].max(axis=0)])
+    return Surrogate(form, arch, xs, ys, weights, meta, domain), history
 
 
 def _loss(kind: str, logit: int | None):
