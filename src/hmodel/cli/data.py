@@ -41,6 +41,8 @@ def generate(
     step: Annotated[float, typer.Option(help="Strain step of a path (recorded in Dataset 1).")] = 0.001,
     start_every: Annotated[float, typer.Option(help="Dataset 2: strain between start states.")] = 0.01,
     magnitude: Annotated[float, typer.Option(help="Dataset 2: strain magnitude of an increment.")] = 0.01,
+    magnitude_min: Annotated[Optional[float], typer.Option(help="Dataset 2: spread the magnitudes over "
+                                                                "[MIN, --magnitude] (default: all equal).")] = None,
     increments: Annotated[int, typer.Option(help="Dataset 2: increment directions over [0, 360) deg.")] = 168,
     substeps: Annotated[int, typer.Option(help="Dataset 2: equal sub-steps of an increment.")] = 10,
     shard_rows: Annotated[int, typer.Option(help="Rows per shard, about.")] = 250_000,
@@ -56,7 +58,7 @@ def generate(
     a_min, a_max, a_step = _alpha0_range(alpha0)
     spec = DatasetSpec(kind=dataset, n_directions=directions, alpha0_min=a_min, alpha0_max=a_max,
                        alpha0_step=a_step, max_strain=max_strain, step=step, start_every=start_every,
-                       magnitude=magnitude, n_increments=increments, substeps=substeps,
+                       magnitude=magnitude, magnitude_min=magnitude_min, n_increments=increments, substeps=substeps,
                        shard_rows=shard_rows)
     params = Params.parse_assignments(param)
     with LazyProgress(f"dataset {dataset}: {spec.n_rows:,} rows") as progress:

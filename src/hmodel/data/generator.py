@@ -9,7 +9,8 @@ has α0 number j and θ number i.
   state, the total strain so far (k·step·(cos θ, sin θ)) and the state reached.
 - **Dataset 2**: from the states of every path at every ``start_every`` of strain, increments of
   magnitude ``magnitude`` in ``n_increments`` directions over [0, 2π), each applied in
-  ``substeps`` equal sub-steps.
+  ``substeps`` equal sub-steps. With ``magnitude_min``, the magnitudes are spread over
+  [magnitude_min, magnitude] instead (the surrogate of the ANN-based REV needs small increments).
 
 Cell strains are measured on the initial lengths, compression positive: δl = −(l10, l20)·δε.
 A shard is a contiguous range of paths, so that any shard can be computed alone, in any
@@ -49,6 +50,7 @@ class DatasetSpec:
     step: float = 0.001
     start_every: float = 0.01
     magnitude: float = 0.01
+    magnitude_min: float | None = None
     n_increments: int = 168
     substeps: int = 10
     shard_rows: int = 250_000
@@ -58,7 +60,7 @@ class DatasetSpec:
         # One spelling per value (45 and 45.0 alike), so that manifests and shard bytes match.
         for f in fields(self):
             v = getattr(self, f.name)
-            if f.type in ("float", float) and isinstance(v, (int, float)) and not isinstance(v, bool):
+            if "float" in str(f.type) and isinstance(v, (int, float)) and not isinstance(v, bool):
                 object.__setattr__(self, f.name, float(v))
         if self.kind not in (1, 2):
             raise InputError(f"dataset must be 1 or 2, got {self.kind}")
@@ -73,6 +75,8 @@ class DatasetSpec:
         if not 30.0 < self.alpha0_min <= self.alpha0_max < 90.0:
             raise InputError(f"alpha0 range must lie in (30, 90) deg with min <= max, got "
                              f"{self.alpha0_min}:{self.alpha0_max}")
+        if self.magnitude_min is not None and not 0.0 <= self.magnitude_min <= self.magnitude:
+            raise InputError(f"magnitude_min must lie in [0, magnitude], got {self.magnitude_min}")
         if self.max_strain >= 1.0:
             raise InputError(f"max_strain must be below 1, got {self.max_strain}")
         _ratio(self.max_strain, self.step, "max_strain", "step")
@@ -97,6 +101,16 @@ class DatasetSpec:
     def increment_angles(self) -> np.ndarray:
         """Directions of the Dataset-2 increments [rad], over [0, 2π)."""
         return 2 * math.pi * np.arange(self.n_increments) / self.n_increments
+
+    @property
+    def increment_magnitudes(self) -> np.ndarray:
+        """Magnitude of each Dataset-2 increment direction: ``magnitude``, or spread over
+        [magnitude_min, magnitude] by the golden-ratio sequence (so that every sector of
+        directions sees small and large increments)."""
+        if self.magnitude_min is None:
+            return np.full(self.n_increments, self.magnitude)
+        u = np.modf((np.arange(self.n_increments) + 0.5) * 0.6180339887498949)[0]
+        return self.magnitude_min + (self.magnitude - self.magnitude_min) * u
 
     @property
     def n_paths(self) -> int:
@@ -200,7 +214,7 @@ def _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta) -> pa
             start[:, level] = state.values
             level += 1
     phi = spec.increment_angles
-    deps = spec.magnitude * np.stack([np.cos(phi), np.sin(phi)], axis=-1)  # (J, 2)
+    deps = spec.increment_magnitudes[:, None] * np.stack([np.cos(phi), np.sin(phi)], axis=-1)  # (J, 2)
     l10 = np.broadcast_to(cells.l1[:, None, None], (P, L, J))
     l20 = np.broadcast_to(cells.l2[:, None, None], (P, L, J))
     sub1 = -l10 * deps[:, 0] / spec.substeps

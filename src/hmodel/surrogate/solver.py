@@ -3,7 +3,8 @@
 ``SurrogateSolver.step(params, state, dl1, dl2)`` replaces eq. 1.7 in the REV: every cell of
 every material point is evaluated in one batched NumPy call. Cell length increments are turned
 into the database's cell strains (δε = −δl / l0, on the initial lengths); an increment larger
-than the ones the network was trained on is split into equal sub-steps. The network predicts
+than the ones the network was trained on is split into equal sub-steps. The network's answer
+for a zero increment is subtracted from its answer (see :meth:`SurrogateSolver._predict`). The network predicts
 α′, N1′, N2′, T1′; the lengths follow the strain, and d1, d2 follow from α′ and the lengths by
 eq. 1.2 (d1 = l2 / (2 sin α), d2 = l1 − 2 d1 cos α), so the state stays geometrically
 consistent.
@@ -33,10 +34,13 @@ class SurrogateSolver:
 
     name = "surrogate"
 
-    def __init__(self, model: Surrogate, on_outside: str = "fallback", margin: float = 0.0):
+    def __init__(self, model: Surrogate, on_outside: str = "fallback", margin: float = 0.0,
+                 opening: str = "rule"):
         if on_outside not in ("fallback", "error"):
             raise InputError(f"on_outside must be fallback or error, got {on_outside!r}")
-        self.model, self.on_outside, self.margin = model, on_outside, margin
+        if opening not in ("rule", "classifier"):
+            raise InputError(f"opening must be rule or classifier, got {opening!r}")
+        self.model, self.on_outside, self.margin, self.opening = model, on_outside, margin, opening
         self.closed_form = ClosedFormSolver()
         self.counts = {"cell_updates": 0, "outside": 0, "substeps": 0}
         r = model.input_range
@@ -82,7 +86,7 @@ class SurrogateSolver:
             i = int(np.flatnonzero(out_mask)[0])
             raise SolverError(f"{n_out} cell(s) outside the surrogate's training domain, e.g. "
                               + ", ".join(f"{k}={cols[k][i]:.4g}" for k in ("deps1", "deps2", "alpha", "l1", "l2", "N1", "N2", "T1")))
-        pred = self.model.formulation.decode(cols, self.model.forward(X))
+        pred = self._predict(cols, X)
         a = pred["alpha_next"]
         l1, l2 = v[:, 6] + dl1, v[:, 7] + dl2
         b1 = l2 / (2.0 * np.sin(a))  # eq. 1.2
@@ -90,6 +94,10 @@ class SurrogateSolver:
         new = np.column_stack([b1, b2, a, pred["N1_next"], pred["N2_next"], pred["T1_next"], l1, l2])
         two_r = 2.0 * params.radius
         opened = (pred["N1_next"] == 0) & (pred["N2_next"] == 0)
+        if self.opening == "rule":  # separated grains carry no force (DESIGN.md step 3)
+            opened |= (b1 > two_r) | (b2 > two_r)
+            for k in (3, 4, 5):
+                new[opened, k] = 0.0
         flags = np.column_stack([
             (np.abs(pred["T1_next"]) >= params.tan_phi * pred["N1_next"] * (1 - 1e-9)) & ~opened,
             opened, opened, l1 <= two_r, l2 <= two_r])
@@ -99,6 +107,31 @@ class SurrogateSolver:
         if not np.all(np.isfinite(new)):
             raise SolverError("the surrogate returned a non-finite cell state")
         return new, flags
+
+
+    def _predict(self, cols, X):
+        """Network prediction with the zero-increment correction: the network's answer for a
+        zero strain increment is subtracted, so that a cell without strain keeps its state and
+        the network's bias does not accumulate over the thousands of increments of a path."""
+        f, m = self.model.formulation, self.model
+        X0 = X.copy()
+        X0[:, :2] = 0.0
+        Y, Y0 = m.forward(X), m.forward(X0)
+        if f.name == "report":
+            before = np.column_stack([cols[k] for k in ("alpha", "N1", "N2", "T1")])
+            return f.decode(cols, before + Y - Y0)
+        n1 = cols["N1"]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s_in = np.where(n1 > 0, cols["T1"] / (f.tan_phi * np.where(n1 > 0, n1, 1.0)), 0.0)
+        Y = Y.copy()
+        Y[:, :3] -= Y0[:, :3]
+        Y[:, 3] = s_in + Y[:, 3] - Y0[:, 3]
+        if self.opening == "rule":
+            # Opening decided as eq. 1.7's closed form does, on the continued force increments
+            # (regressed on closed cells only): a force that would turn negative opens the cell.
+            trial1, trial2 = cols["N1"] + f.force_scale * Y[:, 1], cols["N2"] + f.force_scale * Y[:, 2]
+            Y[:, 4] = np.where((trial1 < 0) | (trial2 < 0), 1.0, -1.0)
+        return f.decode(cols, Y)
 
 
 def _same(a, b) -> bool:

@@ -1,0 +1,78 @@
+"""``hmodel compare``: the closed-form H-model against another cell solver, path by path."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from ..errors import InputError
+from ..io import write_outputs
+from ..params import Params
+from .progress import LazyProgress
+from .run import ParamOpt
+
+
+def compare(
+    solver: Annotated[str, typer.Option("--solver", help="Solver compared with the closed form: "
+                                                         "surrogate or surrogate:MODEL_FILE.")] = "surrogate",
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for deviations.csv and figures.")] = Path("results/compare"),
+    paths: Annotated[Optional[str], typer.Option(help="Comma-separated subset of: isotropic, drained, "
+                                                      "undrained, unload-reload, oedometric, rotation.")] = None,
+    axial_strain: Annotated[float, typer.Option(help="Axial strain of the biaxial paths.")] = 0.1,
+    step: Annotated[float, typer.Option(help="Strain increment of both solvers.")] = 1e-3,
+    iso_step: Annotated[float, typer.Option(help="Strain increment of the consolidations.")] = 1e-4,
+    param: ParamOpt = None,
+) -> None:
+    """Run every comparison path with both solvers: overlaid curves, deviations and timings."""
+    from ..cell import get_solver
+    from ..compare import compare_path, plot_overlay, standard_paths
+
+    params = Params.parse_assignments(param)
+    specs = standard_paths(axial_strain)
+    if paths:
+        names = [p.strip() for p in paths.split(",") if p.strip()]
+        unknown = set(names) - {s.name for s in specs}
+        if unknown:
+            raise InputError(f"unknown comparison path(s) {', '.join(sorted(unknown))} "
+                             f"(known: {', '.join(s.name for s in specs)})")
+        specs = [s for s in specs if s.name in names]
+    for v, name in ((step, "--step"), (iso_step, "--iso-step"), (axial_strain, "--axial-strain")):
+        if not 0 < v < 1:
+            raise InputError(f"{name} must lie in (0, 1), got {v}")
+    other = get_solver(solver)
+    rows, figures = [], {}
+    with LazyProgress("comparing") as progress:
+        for i, spec in enumerate(specs):
+            ref, res, devs, st = compare_path(params, spec, other, step, iso_step)
+            base = {"path": spec.name, "in_report": spec.in_report, "status": st["status"],
+                    "seconds_closed_form": st["seconds_closed_form"],
+                    f"seconds_{other.name}": st["seconds_other"],
+                    "speed_ratio": st["seconds_closed_form"] / st["seconds_other"]}
+            if res is None:
+                rows.append({**base, "p0_kPa": ", ".join(f"{p / 1e3:g}" for p in spec.p0)})
+            for d in devs:
+                rows.append({**base, "p0_kPa": spec.p0[d["point"]] / 1e3, **d})
+            if res is not None:
+                figures[f"{spec.name}.png"] = (lambda n, a, b: lambda p: plot_overlay(
+                    n, a, b, ("closed form", other.name), p))(spec.name, ref, res)
+            progress((i + 1) / len(specs))
+
+    def write_csv(p: Path) -> None:
+        with open(p, "w", newline="") as fh:
+            fields = list(dict.fromkeys(k for r in rows for k in r))
+            w = csv.DictWriter(fh, fieldnames=fields, restval="")
+            w.writeheader()
+            w.writerows(rows)
+
+    write_outputs(out, {"deviations.csv": write_csv, **figures})
+    for r in rows:
+        if r["status"] != "ok":
+            typer.echo(f"{r['path']:<14} {other.name} {r['status']}")
+            continue
+        typer.echo(f"{r['path']:<14} p0 {r['p0_kPa']:>5.0f} kPa  q dev max {100 * r['q_max_dev_rel']:6.2f} % of peak, "
+                   f"eps_v dev max {100 * r['eps_v_max_dev']:.3f} %  time {r['seconds_closed_form']:.2f} s vs "
+                   f"{r[f'seconds_{other.name}']:.2f} s")
+    typer.echo(f"wrote {out / 'deviations.csv'} and {len(figures)} figures")

@@ -1,0 +1,26 @@
+"""``hmodel reproduce [--quick]``: the project's main job (see :mod:`hmodel.reproduce`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from .progress import LazyProgress
+
+
+def reproduce(
+    quick: Annotated[bool, typer.Option("--quick", help="Reduced study (≈ minutes): the shipped "
+                                                        "surrogate, nθ = 72, a small database.")] = False,
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for report.html, figures and tables.")] = Path("results"),
+    solver: Annotated[str, typer.Option(help="Surrogate compared with the closed form: surrogate "
+                                             "(shipped) or surrogate:MODEL_FILE.")] = "surrogate",
+) -> None:
+    """Engine curves (Fig. 1.7), a database, the surrogate's accuracy, the macro comparison and
+    timings, written as a self-contained HTML report."""
+    from ..reproduce import reproduce as run
+
+    with LazyProgress("reproducing the study") as progress:
+        report = run(out, quick, solver, progress)
+    typer.echo(f"wrote {report}")

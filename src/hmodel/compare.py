@@ -1,0 +1,174 @@
+"""Closed form against another cell solver at the macro scale (report §3.1), measured honestly.
+
+Every comparison path runs twice from the same parameters and increments, once per solver, and
+records the stress-strain curves and the wall time of each run. Deviations are measured row by
+row on the shear part of the path (rows correspond: same increments): the deviation of q
+relative to the peak |q| of the closed form (maximum and RMS), and of the volumetric strain in
+strain units (maximum and RMS).
+
+Paths: isotropic compression; drained biaxial at 100, 200 and 400 kPa; undrained biaxial; and
+three the report never tried: an unloading-reloading cycle, oedometric compression and a path
+with rotating principal strain axes (ε12 ≠ 0).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .cell import CellSolver  # noqa: E402
+from .loading import Recorder, Segment, consolidate, run_segment, strain_path  # noqa: E402
+from .loading.result import PathResult  # noqa: E402
+from .params import Params  # noqa: E402
+from .rev import Rev  # noqa: E402
+
+
+@dataclass(frozen=True)
+class PathSpec:
+    """A named comparison path: consolidation to ``p0`` then ``shear`` segments."""
+
+    name: str
+    p0: tuple[float, ...]
+    build: Callable  # (rev, consolidated state, step, recorder) -> final state
+    in_report: bool
+
+
+def _biaxial(axial: float, undrained: bool):
+    def build(rev, state, step, rec):
+        n = max(1, math.ceil(axial / step - 1e-9))
+        if undrained:
+            seg = Segment((False, False, False), np.array([[1.0, 0, 0], [1.0, 1.0, 0], [0, 0, 1.0]]),
+                          np.array([axial, 0.0, 0.0]), n, "shear")
+        else:
+            seg = Segment((False, True, False), np.eye(3),
+                          np.column_stack([np.full(state.n_points, axial), state.sig[:, 1],
+                                           np.zeros(state.n_points)]), n, "shear")
+        return run_segment(rev, state, seg, rec)
+    return build
+
+
+def _unload_reload(peak: float, unload: float, final: float):
+    def build(rev, state, step, rec):
+        p = state.sig[:, 1]
+        for target in (peak, peak - unload, final):
+            d = target - (state.eps[0, 0] - rec.meta["eps11_start"])
+            n = max(1, math.ceil(abs(d) / step - 1e-9))
+            seg = Segment((False, True, False), np.eye(3),
+                          np.column_stack([np.full(state.n_points, d), p, np.zeros(state.n_points)]),
+                          n, "shear")
+            state = run_segment(rev, state, seg, rec)
+        return state
+    return build
+
+
+def _oedometric(axial: float):
+    def build(rev, state, step, rec):
+        n = max(1, math.ceil(axial / step - 1e-9))
+        return run_segment(rev, state, Segment.components("EEE", [axial, 0.0, 0.0], n, "shear"), rec)
+    return build
+
+
+def _rotation(amplitude: float, turns: float):
+    """Isochoric deviatoric strain of constant rate whose principal axes rotate."""
+    def build(rev, state, step, rec):
+        n = max(8, math.ceil(amplitude * 2 * math.pi * turns / step))
+        t = np.linspace(0, 1, n + 1)[1:]
+        ang = 2 * math.pi * turns * t
+        e0 = state.eps[0]
+        ramp = np.minimum(1.0, 4 * t)  # reach the amplitude in the first quarter
+        eps = np.column_stack([e0[0] + amplitude * ramp * np.cos(ang), e0[1] - amplitude * ramp * np.cos(ang),
+                               e0[2] + amplitude * ramp * np.sin(ang)])
+        for row in eps:
+            state = strain_path(rev, row[None, :], state=state)
+            rec.record(state, "shear")
+        return state
+    return build
+
+
+def standard_paths(axial: float = 0.1) -> list[PathSpec]:
+    return [
+        PathSpec("isotropic", (4e5,), lambda rev, s, step, rec: s, True),
+        PathSpec("drained", (1e5, 2e5, 4e5), _biaxial(axial, False), True),
+        PathSpec("undrained", (2e5,), _biaxial(axial, True), True),
+        PathSpec("unload-reload", (2e5,), _unload_reload(0.4 * axial, 0.05 * axial, 0.8 * axial), False),
+        PathSpec("oedometric", (1e5,), _oedometric(0.2 * axial), False),
+        PathSpec("rotation", (2e5,), _rotation(0.01, 1.0), False),
+    ]
+
+
+def run_path(params: Params, spec: PathSpec, solver: "str | CellSolver", step: float,
+             iso_step: float) -> tuple[PathResult, float]:
+    rev = Rev(params, solver)
+    rec = Recorder({"path": spec.name, "solver": rev.solver.name})
+    t = time.perf_counter()
+    state = consolidate(rev, list(spec.p0), step=iso_step, recorder=rec)
+    rec.meta["eps11_start"] = float(state.eps[0, 0])
+    spec.build(rev, state, step, rec)
+    return rec.result(), time.perf_counter() - t
+
+
+def compare_path(params: Params, spec: PathSpec, other: "str | CellSolver", step: float,
+                 iso_step: float) -> tuple[PathResult, PathResult | None, list[dict], dict]:
+    """Both runs of one path: (closed form, other or None, deviation rows, timings/status).
+
+    A run of the other solver that fails (a SolverError: the surrogate drove a cell or the
+    mixed-control Newton out of bounds) is reported as such, with its message, not hidden."""
+    from .errors import SolverError
+
+    ref, t_ref = run_path(params, spec, "closed-form", step, iso_step)
+    try:
+        res, t_other = run_path(params, spec, other, step, iso_step)
+    except SolverError as e:
+        return ref, None, [], {"seconds_closed_form": t_ref, "seconds_other": float("nan"),
+                               "status": "failed: " + " ".join(str(e).split())[:200]}
+    return ref, res, deviations(ref, res), {"seconds_closed_form": t_ref, "seconds_other": t_other,
+                                             "status": "ok"}
+
+
+def deviations(ref: PathResult, other: PathResult) -> list[dict]:
+    """Per material point: max and RMS deviation of q (relative to peak |q|) and of eps_v."""
+    out = []
+    for b in range(ref.n_points):
+        a, c = ref.point(b), other.point(b)
+        n = min(len(a), len(c))
+        qa, qc = a["q"][:n], c["q"][:n]
+        # Isotropic paths have no peak q: there the scale is the peak mean stress.
+        peak = np.abs(qa).max()
+        if peak < 0.05 * np.abs(a["p"][:n]).max():
+            peak = np.abs(a["p"][:n]).max()
+        peak = max(peak, 1e-12)
+        ev = c["eps_v"][:n] - a["eps_v"][:n]
+        out.append({"point": b, "rows": n, "peak_q": float(peak),
+                    "q_max_dev_rel": float(np.abs(qc - qa).max() / peak),
+                    "q_rms_dev_rel": float(np.sqrt(np.mean((qc - qa) ** 2)) / peak),
+                    "eps_v_max_dev": float(np.abs(ev).max()), "eps_v_rms_dev": float(np.sqrt(np.mean(ev ** 2)))})
+    return out
+
+
+def plot_overlay(name: str, ref: PathResult, other: PathResult, labels: tuple[str, str], path: Path) -> None:
+    """q and volumetric strain against axial strain (or the path parameter): both solvers."""
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.3), constrained_layout=True)
+    for b in range(ref.n_points):
+        for res, ls, lab in ((ref, "-", labels[0]), (other, "--", labels[1])):
+            r = res.point(b)
+            x = 100 * (r["eps11"] - r["eps11"][0]) if name != "rotation" else np.arange(len(r))
+            tag = f"{lab}, p0 = {r['p'][0] / 1e3:.0f} kPa" if ref.n_points > 1 else lab
+            axes[0].plot(x, r["q"] / 1e3, ls, label=tag)
+            axes[1].plot(x, 100 * r["eps_v"], ls)
+            axes[2].plot(r["p"] / 1e3, r["q"] / 1e3, ls)
+    xl = "ε11 [%]" if name != "rotation" else "state along the path"
+    axes[0].set(xlabel=xl, ylabel="q = σ11 − σ22 [kPa]", title=name)
+    axes[1].set(xlabel=xl, ylabel="εv [%] (compression > 0)")
+    axes[2].set(xlabel="p [kPa]", ylabel="q [kPa]", title="stress path")
+    axes[0].legend(fontsize=7)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)

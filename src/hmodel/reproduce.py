@@ -1,0 +1,150 @@
+"""``hmodel reproduce``: the whole study in one command, written as a self-contained HTML report.
+
+Steps: (1) the engine's drained biaxial curves at 100, 200 and 400 kPa (report Fig. 1.7);
+(2) a training database; (3) a surrogate (``--quick``: the shipped one, evaluated on the new
+database; full: trained on it); (4) the macro comparison of the ANN-based H-model with the
+closed form on every path, with timings. Every figure is a PNG beside ``report.html``, every
+table a CSV; the HTML embeds the figures, so the file alone can be sent.
+"""
+
+from __future__ import annotations
+
+import base64
+import csv
+import html
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from . import __version__
+from .params import Params
+
+
+@dataclass(frozen=True)
+class Plan:
+    quick: bool
+    n_theta: int
+    axial: float
+    step: float
+    data_directions: int
+    data_alpha0: str
+
+
+QUICK = Plan(True, 72, 0.1, 1e-3, 12, "40:50:5")
+FULL = Plan(False, 360, 0.1, 1e-3, 91, "32:88:2")
+
+
+def _img(path: Path) -> str:
+    data = base64.b64encode(path.read_bytes()).decode()
+    return f'<figure><img src="data:image/png;base64,{data}" style="max-width:100%"><figcaption>{html.escape(path.name)}</figcaption></figure>'
+
+
+def _table(rows: list[dict], digits: int = 4) -> str:
+    if not rows:
+        return "<p>(no rows)</p>"
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    cell = lambda v: f"<td>{v:.{digits}g}</td>" if isinstance(v, float) else f"<td>{html.escape(str(v))}</td>"  # noqa: E731
+    head = "".join(f"<th>{html.escape(str(k))}</th>" for k in keys)
+    body = "".join("<tr>" + "".join(cell(r.get(k, "")) for k in keys) + "</tr>" for r in rows)
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def _csv(rows: list[dict], path: Path) -> None:
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(dict.fromkeys(k for r in rows for k in r)), restval="")
+        w.writeheader()
+        w.writerows(rows)
+
+
+def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
+              progress: Callable[[float], None] | None = None) -> Path:
+    """Run the study into ``out`` (a fresh folder is written atomically); returns report.html."""
+    from .cell import get_solver
+    from .compare import compare_path, plot_overlay, standard_paths
+    from .data import DatasetSpec, generate
+    from .io import write_outputs
+    from .loading import run_biaxial
+    from .plotting import plot_result
+    from .surrogate.evaluation import evaluate, parity_plot
+    from .surrogate.rows import read_rows
+
+    plan = QUICK if quick else FULL
+    params = Params(n_theta=plan.n_theta)
+    work = out.with_name(out.name + ".work")
+    work.mkdir(parents=True, exist_ok=True)
+    tick = progress or (lambda f: None)
+    sections, files, timings = [], {}, []
+
+    # 1. Engine: Fig. 1.7.
+    t = time.perf_counter()
+    fig17 = run_biaxial(params, [1e5, 2e5, 4e5], plan.axial)
+    timings.append({"step": "drained biaxial, 3 pressures (closed form)", "seconds": time.perf_counter() - t})
+    files["fig-1-7.png"] = lambda p: plot_result(fig17, p)
+    files["fig-1-7.csv"] = fig17.to_csv
+    tick(0.1)
+
+    # 2. Database (Dataset 2, reduced grid in --quick).
+    a = [float(x) for x in plan.data_alpha0.split(":")]
+    spec = DatasetSpec(kind=2, n_directions=plan.data_directions, alpha0_min=a[0], alpha0_max=a[1],
+                       alpha0_step=a[2])
+    t = time.perf_counter()
+    ds = generate(spec, Params(), work / "dataset-2", workers=1)
+    timings.append({"step": f"Dataset 2 generation ({ds.n_rows:,} rows)", "seconds": time.perf_counter() - t})
+    tick(0.3)
+
+    # 3. Surrogate: evaluation on the new database's rows.
+    solver = get_solver(solver_spec)
+    model = solver.model
+    cols, _ = read_rows(ds.folder, n=min(100_000, ds.n_rows), seed=0)
+    metrics = evaluate(model, cols, "new Dataset 2 rows")
+    files["parity.png"] = lambda p: parity_plot(model, cols, p, "surrogate on new Dataset 2 rows")
+    files["surrogate-metrics.csv"] = lambda p: _csv(metrics, p)
+    tick(0.4)
+
+    # 4. Macro comparison and timings.
+    dev_rows = []
+    specs = standard_paths(plan.axial)
+    for i, path_spec in enumerate(specs):
+        ref, res, devs, st = compare_path(params, path_spec, solver, plan.step, 1e-4)
+        base = {"path": path_spec.name, "in report": path_spec.in_report, "status": st["status"]}
+        times = {"closed form [s]": st["seconds_closed_form"], "surrogate [s]": st["seconds_other"],
+                 "speed ratio": st["seconds_closed_form"] / st["seconds_other"]}
+        if res is None:
+            dev_rows.append({**base, "p0 [kPa]": ", ".join(f"{p / 1e3:g}" for p in path_spec.p0), **times})
+        for d in devs:
+            dev_rows.append({**base, "p0 [kPa]": path_spec.p0[d["point"]] / 1e3,
+                             "max |Δq| / peak q [%]": 100 * d["q_max_dev_rel"],
+                             "RMS Δq / peak q [%]": 100 * d["q_rms_dev_rel"],
+                             "max |Δεv| [% strain]": 100 * d["eps_v_max_dev"], **times})
+        if res is not None:
+            files[f"compare-{path_spec.name}.png"] = (lambda n, x, y: lambda p: plot_overlay(
+                n, x, y, ("closed form", "surrogate"), p))(path_spec.name, ref, res)
+        tick(0.4 + 0.55 * (i + 1) / len(specs))
+    files["deviations.csv"] = lambda p: _csv(dev_rows, p)
+    files["timings.csv"] = lambda p: _csv(timings, p)
+
+    def write_html(p: Path) -> None:
+        figs = {name: p.parent / name for name in files if name.endswith(".png")}
+        body = [f"<h1>hmodel {html.escape(__version__)}: the H-model and its neural surrogate</h1>",
+                f"<p>{'Quick run' if quick else 'Full run'}; nθ = {plan.n_theta}, increments {plan.step:g} "
+                f"(consolidation 1e-4); surrogate {html.escape(solver_spec)} "
+                f"({html.escape(model.meta.get('formulation', {}).get('name', ''))}).</p>",
+                "<h2>1. Drained biaxial tests (report Fig. 1.7)</h2>", _img(figs["fig-1-7.png"]),
+                "<h2>2. Training database</h2>",
+                f"<p>Dataset 2, {ds.n_rows:,} rows; options: {html.escape(str(spec.to_dict()))}</p>",
+                "<h2>3. Surrogate accuracy on new rows</h2>", _table(metrics), _img(figs["parity.png"]),
+                "<h2>4. ANN-based H-model against the closed form</h2>", _table(dev_rows, 3)]
+        body += [_img(figs[f"compare-{s.name}.png"]) for s in specs if f"compare-{s.name}.png" in figs]
+        body += ["<h2>Timings</h2>", _table(timings, 3)]
+        style = "body{font-family:sans-serif;max-width:1200px;margin:auto}table{border-collapse:collapse}" \
+                "td,th{border:1px solid #ccc;padding:3px 6px;font-size:13px}"
+        p.write_text(f"<!doctype html><html><head><meta charset='utf-8'><title>hmodel report</title>"
+                     f"<style>{style}</style></head><body>{''.join(body)}</body></html>")
+
+    files["report.html"] = write_html  # last: it reads the figures written before it
+    write_outputs(out, files)
+    import shutil
+    shutil.rmtree(work, ignore_errors=True)
+    tick(1.0)
+    return out / "report.html"
