@@ -18,6 +18,7 @@ from . import compare as compare_cmd
 from . import data as data_cmds
 from . import reproduce as reproduce_cmd
 from . import run as run_cmds
+from . import stability as stability_cmd
 from . import surrogate as surrogate_cmds
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
@@ -28,6 +29,7 @@ app.add_typer(data_cmds.app, name="data")
 app.add_typer(surrogate_cmds.app, name="surrogate")
 app.command("compare")(compare_cmd.compare)
 app.command("reproduce")(reproduce_cmd.reproduce)
+app.command("stability")(stability_cmd.stability)
 
 
 def _version(value: bool) -> None:

@@ -1,0 +1,113 @@
+"""Second-order work and response envelopes (Hill's criterion, Gudehus' envelopes)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from hmodel import InputError, Params
+from hmodel.cli.app import main
+from hmodel.loading import consolidate
+from hmodel.rev import Rev
+from hmodel.stability import (along_biaxial, first_sign_change, probe_directions, second_order_work,
+                              strain_envelope, stress_envelope, tensor_norm)
+
+P = Params(n_theta=72)
+
+
+def _elastic_state():
+    rev = Rev(P)
+    s = consolidate(rev, [5e4])
+    assert s.flags.sliding.sum() == 0 and s.flags.broken.sum() == 0  # no cell at its limit
+    return rev, s
+
+
+def test_elastic_state_has_positive_work_and_an_elliptic_envelope():
+    rev, s = _elastic_state()
+    env = strain_envelope(rev, s, 90, 1e-9)
+    assert np.all(env.work > 0) and env.min_normalized > 0
+    # dsig = K deps with deps on a circle: the responses lie on an ellipse (a conic through 0-centre)
+    x, y = env.dsig[:, 0], env.dsig[:, 1]
+    A = np.column_stack([x * x, x * y, y * y])
+    coef, *_ = np.linalg.lstsq(A, np.ones_like(x), rcond=None)
+    resid = A @ coef - 1
+    assert np.abs(resid).max() < 1e-6
+    assert coef[1] ** 2 - 4 * coef[0] * coef[2] < 0  # an ellipse, not a hyperbola
+
+
+def test_probing_leaves_the_state_untouched_and_batched_equals_one_at_a_time():
+    rev = Rev(P)
+    s = consolidate(rev, [2e5])
+    before = (s.cells.values.copy(), s.eps.copy(), s.sig.copy())
+    env = strain_envelope(rev, s, 24, 1e-5)
+    np.testing.assert_array_equal(s.cells.values, before[0])
+    np.testing.assert_array_equal(s.sig, before[2])
+    for k in range(24):
+        one = rev.step(s, env.deps[k][None, :]).sig[0] - s.sig[0]
+        np.testing.assert_allclose(env.dsig[k], one, rtol=1e-10, atol=1e-9)
+    # the generic path (any solver) gives the same envelope
+    class Wrapped:
+        name = "wrapped"
+
+        def step(self, params, state, dl1, dl2):
+            return rev.solver.step(params, state, dl1, dl2)
+    env2 = strain_envelope(Rev(P, Wrapped()), s, 24, 1e-5)
+    np.testing.assert_allclose(env2.dsig, env.dsig, rtol=1e-10, atol=1e-9)
+
+
+def test_stress_probes_invert_strain_probes_in_the_elastic_range():
+    rev, s = _elastic_state()
+    env = stress_envelope(rev, s, 12, 1e-4)
+    assert not np.isnan(env.deps).any()
+    back = np.array([rev.step(s, d[None, :]).sig[0] - s.sig[0] for d in env.deps])
+    np.testing.assert_allclose(back, env.dsig, rtol=1e-6, atol=1e-6 * s.p[0])
+
+
+def test_undrained_loading_work_changes_sign_at_peak_q():
+    params = Params(n_theta=72, alpha0=math.radians(60), sliding_rhs="equilibrium")
+    ps = along_biaxial(params, 1e5, 0.1, undrained=True, every=20, n_probes=12, step=1e-3)
+    q = ps.result.stage("shear")["q"]
+    peak = ps.shear_strain[np.argmax(q)]
+    assert 0 < peak < 0.099  # an interior peak
+    assert abs(ps.controllability - peak) <= 1e-3 + 1e-12
+
+
+def test_drained_loading_work_changes_sign_at_peak_sigma11():
+    ps = along_biaxial(P, 2e5, 0.1, every=25, n_probes=12, step=1e-3)
+    s11 = ps.result.stage("shear")["sig11"]
+    peak = ps.shear_strain[np.argmax(s11)]
+    assert abs(ps.controllability - peak) <= 1e-3 + 1e-12
+    assert ps.bifurcation <= ps.controllability  # the bifurcation domain is entered first
+
+
+def test_second_order_work_definitions():
+    deps = np.array([[1.0, 0.0, 0.5]])
+    dsig = np.array([[2.0, 3.0, 1.0]])
+    w, n = second_order_work(deps, dsig)
+    assert w[0] == pytest.approx(2.0 + 0.0 + 2 * 0.5)
+    assert n[0] == pytest.approx(3.0 / (tensor_norm(deps)[0] * tensor_norm(dsig)[0]))
+    d = probe_directions(50, shear=True)
+    np.testing.assert_allclose(tensor_norm(d), 1.0)
+    assert first_sign_change(np.arange(6.0), np.array([1, 1, -1, 1, -1, -1]), persist=2) == pytest.approx(3.5)
+
+
+@pytest.mark.parametrize("args, word", [
+    (["--probes", "0"], "probes"), (["--magnitude", "0"], "magnitude"),
+    (["--at", "0.5"], "--at"), (["--at", "x"], "--at"), (["--every", "0"], "every"),
+])
+def test_bad_stability_inputs(tmp_path, capsys, args, word):
+    assert main(["stability", "--axial-strain", "0.01", "--param", "n_theta=18", *args,
+                 "--out", str(tmp_path / "o")]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and word in err[0], err
+    assert not (tmp_path / "o").exists()
+    with pytest.raises(InputError):
+        strain_envelope(Rev(P), Rev(P).initial(1), 0, 1e-5)
+
+
+def test_stability_command(tmp_path, capsys):
+    assert main(["stability", "--axial-strain", "0.05", "--param", "n_theta=36", "--at", "0.01,0.04",
+                 "--probes", "24", "--out", str(tmp_path / "s")]) == 0
+    names = sorted(p.name for p in (tmp_path / "s").iterdir())
+    assert names == ["d2W-path.png", "envelopes.csv", "envelopes.png", "path.csv", "probes.csv", "summary.csv"]
+    assert (tmp_path / "s" / "envelopes.csv").read_text().count("\n") == 1 + 2 * 2 * 24
