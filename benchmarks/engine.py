@@ -16,10 +16,11 @@ import argparse
 import json
 import os
 import platform
-import time
 from pathlib import Path
 
 import numpy as np
+
+from timing import best_of
 
 from hmodel import Params, __version__
 from hmodel.cell import CellState
@@ -30,14 +31,6 @@ from hmodel.loading.control import Tangent
 from hmodel.rev import Rev
 
 
-def best_of(fn, repeat: int) -> float:
-    fn()  # compile / warm caches
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
 
 
 def drained_biaxial(repeat: int, compiled: bool) -> float:

@@ -14,8 +14,9 @@ import argparse
 import json
 import os
 import platform
-import time
 from pathlib import Path
+
+from timing import best_of
 
 from hmodel import Params
 from hmodel.loading import consolidate
@@ -23,14 +24,6 @@ from hmodel.rev import Rev
 from hmodel.stability import along_biaxial, strain_envelope
 
 
-def best(fn, repeat: int) -> float:
-    fn()
-    out = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        out.append(time.perf_counter() - t)
-    return min(out)
 
 
 def main() -> None:
@@ -42,9 +35,9 @@ def main() -> None:
     rev = Rev(params)
     state = consolidate(rev, [2e5])
     rows = [("one envelope, 360 strain probes, ntheta=360 [s]",
-             best(lambda: strain_envelope(rev, state, 360, 1e-5), args.repeat), "<= 0.01"),
+             best_of(lambda: strain_envelope(rev, state, 360, 1e-5), args.repeat), "<= 0.01"),
             ("d2W map, drained 200 kPa to 10 %, 100 states x 72 probes, ntheta=360 [s]",
-             best(lambda: along_biaxial(params, 2e5, 0.1, every=10, n_probes=72), args.repeat), "<= 1")]
+             best_of(lambda: along_biaxial(params, 2e5, 0.1, every=10, n_probes=72), args.repeat), "<= 1")]
     w = max(len(r[0]) for r in rows)
     print(f"{'measure':<{w}}  {'value':>10}  target")
     for name, v, target in rows:

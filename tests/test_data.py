@@ -1,12 +1,10 @@
 """H-cell databases (report §2.3): rows, storage, resumption, cleaning rules, sampling."""
 
 import math
-import os
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pyarrow.parquet as pq

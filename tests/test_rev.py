@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hmodel import Params
-from hmodel.cell import CellState, meso_volume
+from hmodel.cell import meso_volume
 from hmodel.rev import Directions, Rev
 
 

@@ -74,7 +74,7 @@ def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
     work = out.with_name(out.name + ".work")
     work.mkdir(parents=True, exist_ok=True)
     tick = progress or (lambda f: None)
-    sections, files, timings = [], {}, []
+    files, timings = {}, []
 
     # 1. Engine: Fig. 1.7.
     t = time.perf_counter()
