@@ -80,6 +80,13 @@ def test_drained_loading_work_changes_sign_at_peak_sigma11():
     assert ps.bifurcation <= ps.controllability  # the bifurcation domain is entered first
 
 
+def test_shear_probes_see_the_shear_stiffness():
+    rev, s = _elastic_state()
+    env = strain_envelope(rev, s, 40, 1e-9, shear=True)
+    assert np.abs(env.deps[:, 2]).max() > 0 and np.abs(env.dsig[:, 2]).max() > 0
+    assert np.all(env.work > 0)
+
+
 def test_second_order_work_definitions():
     deps = np.array([[1.0, 0.0, 0.5]])
     dsig = np.array([[2.0, 3.0, 1.0]])

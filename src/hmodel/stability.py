@@ -196,10 +196,10 @@ class PathStability:
 def along_biaxial(params, p0: float, axial_strain: float, undrained: bool = False,
                   every: int = 10, n_probes: int = 72, magnitude: float = 1e-5,
                   at: tuple[float, ...] = (), step: float | None = None,
-                  stress_magnitude: float = 1e-3, progress=None) -> PathStability:
+                  stress_magnitude: float = 1e-3, shear: bool = False, progress=None) -> PathStability:
     """Drained or undrained biaxial test from p0 with strain probes at every ``every``-th
     increment and full envelopes (strain probes of ``magnitude``, stress probes of
-    ``stress_magnitude``·p) at the axial strains ``at``."""
+    ``stress_magnitude``·p) at the axial strains ``at``; ``shear`` probes ε12 too."""
     from .loading import AXIAL_STEP, Recorder, Segment, consolidate, run_segment
 
     _check(n_probes, magnitude)
@@ -229,7 +229,7 @@ def along_biaxial(params, p0: float, axial_strain: float, undrained: bool = Fals
             seg = Segment((False, True, False), np.eye(3), np.array([d, p0, 0.0]), k - done, "shear")
         state = run_segment(rev, state, seg, rec, tangent=tangent)
         done = k
-        env = strain_envelope(rev, state, n_probes, magnitude)
+        env = strain_envelope(rev, state, n_probes, magnitude, shear)
         cs.append(state.eps[0, 0] - e0)
         cw.append(env.min_normalized)
         if k in at_steps:

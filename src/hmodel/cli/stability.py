@@ -27,6 +27,8 @@ def stability(
     probes: Annotated[int, typer.Option(help="Probe directions per state.")] = 72,
     magnitude: Annotated[float, typer.Option(help="Strain-probe magnitude (tensor norm).")] = 1e-5,
     stress_magnitude: Annotated[float, typer.Option(help="Stress-probe magnitude, relative to p.")] = 1e-3,
+    shear: Annotated[bool, typer.Option("--shear", help="Strain probes in (ε11, ε22, ε12) space, "
+                                                         "not only the (ε11, ε22) plane.")] = False,
     every: Annotated[int, typer.Option(help="Probe every k-th increment of the path.")] = 10,
     out: Annotated[Path, typer.Option("--out", "-o", help="Folder for CSV tables and PNG figures.")] = Path("results/stability"),
 ) -> None:
@@ -45,7 +47,8 @@ def stability(
         raise InputError(f"--stress-magnitude must be positive, got {stress_magnitude}")
     with LazyProgress("probing") as progress:
         ps = along_biaxial(params, pressure, axial_strain, undrained, every, probes, magnitude,
-                           at_strains, stress_magnitude=stress_magnitude, progress=progress)
+                           at_strains, stress_magnitude=stress_magnitude, shear=shear,
+                           progress=progress)
     test = "undrained" if undrained else "drained"
 
     def write_path(p: Path) -> None:
