@@ -27,6 +27,7 @@ import numpy as np  # noqa: E402
 
 from .cell import CellSolver  # noqa: E402
 from .loading import Recorder, Segment, consolidate, run_segment, strain_path  # noqa: E402
+from .loading.paths import biaxial_segment  # noqa: E402
 from .loading.result import PathResult  # noqa: E402
 from .params import Params  # noqa: E402
 from .rev import Rev  # noqa: E402
@@ -45,14 +46,7 @@ class PathSpec:
 def _biaxial(axial: float, undrained: bool):
     def build(rev, state, step, rec):
         n = max(1, math.ceil(axial / step - 1e-9))
-        if undrained:
-            seg = Segment((False, False, False), np.array([[1.0, 0, 0], [1.0, 1.0, 0], [0, 0, 1.0]]),
-                          np.array([axial, 0.0, 0.0]), n, "shear")
-        else:
-            seg = Segment((False, True, False), np.eye(3),
-                          np.column_stack([np.full(state.n_points, axial), state.sig[:, 1],
-                                           np.zeros(state.n_points)]), n, "shear")
-        return run_segment(rev, state, seg, rec)
+        return run_segment(rev, state, biaxial_segment(state, axial, n, undrained), rec)
     return build
 
 
@@ -62,10 +56,7 @@ def _unload_reload(peak: float, unload: float, final: float):
         for target in (peak, peak - unload, final):
             d = target - (state.eps[0, 0] - rec.meta["eps11_start"])
             n = max(1, math.ceil(abs(d) / step - 1e-9))
-            seg = Segment((False, True, False), np.eye(3),
-                          np.column_stack([np.full(state.n_points, d), p, np.zeros(state.n_points)]),
-                          n, "shear")
-            state = run_segment(rev, state, seg, rec)
+            state = run_segment(rev, state, biaxial_segment(state, d, n, lateral_stress=p), rec)
         return state
     return build
 

@@ -50,6 +50,14 @@ def read_strain_path(path: "str | os.PathLike") -> np.ndarray:
     return out
 
 
+def write_rows(rows: list[dict], path: "str | os.PathLike") -> None:
+    """A CSV of dict rows; the columns are the union of their keys, in first-seen order."""
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(dict.fromkeys(k for r in rows for k in r)), restval="")
+        w.writeheader()
+        w.writerows(rows)
+
+
 def write_outputs(out_dir: "str | os.PathLike", writers: dict[str, Callable[[Path], None]]) -> list[Path]:
     """Write every file into a temporary folder first, then move them all into ``out_dir``.
 

@@ -10,8 +10,8 @@ table a CSV; the HTML embeds the figures, so the file alone can be sent.
 from __future__ import annotations
 
 import base64
-import csv
 import html
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -50,20 +50,13 @@ def _table(rows: list[dict], digits: int = 4) -> str:
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
-def _csv(rows: list[dict], path: Path) -> None:
-    with open(path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(dict.fromkeys(k for r in rows for k in r)), restval="")
-        w.writeheader()
-        w.writerows(rows)
-
-
 def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
               progress: Callable[[float], None] | None = None) -> Path:
     """Run the study into ``out`` (a fresh folder is written atomically); returns report.html."""
     from .cell import get_solver
     from .compare import compare_path, plot_overlay, standard_paths
     from .data import DatasetSpec, generate
-    from .io import write_outputs
+    from .io import write_outputs, write_rows
     from .loading import run_biaxial
     from .plotting import plot_result
     from .surrogate.evaluation import evaluate, parity_plot
@@ -99,7 +92,7 @@ def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
     cols, _ = read_rows(ds.folder, n=min(100_000, ds.n_rows), seed=0)
     metrics = evaluate(model, cols, "new Dataset 2 rows")
     files["parity.png"] = lambda p: parity_plot(model, cols, p, "surrogate on new Dataset 2 rows")
-    files["surrogate-metrics.csv"] = lambda p: _csv(metrics, p)
+    files["surrogate-metrics.csv"] = lambda p: write_rows(metrics, p)
     tick(0.4)
 
     # 4. Macro comparison and timings.
@@ -121,8 +114,8 @@ def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
             files[f"compare-{path_spec.name}.png"] = (lambda n, x, y: lambda p: plot_overlay(
                 n, x, y, ("closed form", "surrogate"), p))(path_spec.name, ref, res)
         tick(0.4 + 0.55 * (i + 1) / len(specs))
-    files["deviations.csv"] = lambda p: _csv(dev_rows, p)
-    files["timings.csv"] = lambda p: _csv(timings, p)
+    files["deviations.csv"] = lambda p: write_rows(dev_rows, p)
+    files["timings.csv"] = lambda p: write_rows(timings, p)
 
     def write_html(p: Path) -> None:
         figs = {name: p.parent / name for name in files if name.endswith(".png")}
@@ -144,7 +137,6 @@ def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
 
     files["report.html"] = write_html  # last: it reads the figures written before it
     write_outputs(out, files)
-    import shutil
     shutil.rmtree(work, ignore_errors=True)
     tick(1.0)
     return out / "report.html"

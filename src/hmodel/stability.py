@@ -26,9 +26,13 @@ import numpy as np
 from numba import njit
 
 from .errors import InputError
-from .loading.compiled import NOT_CONVERGED, CompiledSegment, _solve_point, _trial, supports
+from .loading.compiled import NOT_CONVERGED, _fd_tangent, _solve_point, _trial, kernel_inputs, supports
 from .loading.control import Tangent
 from .rev import Rev, RevState
+
+
+#: Finite-difference strain step of the stress probes' starting tangent (as ``Tangent.fd_step``).
+FD_STEP = Tangent().fd_step
 
 
 def _check(n: int, magnitude: float) -> None:
@@ -105,10 +109,10 @@ def strain_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1
     probes = magnitude * probe_directions(n, shear)
     one = state.select(slice(point, point + 1))
     if supports(rev):
-        runner = CompiledSegment(rev, one, (False,) * 3, np.eye(3), one.sig, one.sig, 1, Tangent())
+        geo, p = kernel_inputs(rev)
         sig = np.empty((n, 3))
-        _strain_probe_kernel(runner.values[0], runner.eps[0], np.ascontiguousarray(probes), runner.geo,
-                             runner.p, rev._mode, rev.volume0, sig)
+        _strain_probe_kernel(np.ascontiguousarray(one.cells.values[0]), one.eps[0],
+                             np.ascontiguousarray(probes), geo, p, rev._mode, rev.volume0, sig)
     else:
         sig = rev.step(one.select(np.zeros(n, dtype=np.int64)), probes).sig
     return Envelope("strain", probes, sig - one.sig[0])
@@ -144,13 +148,16 @@ def stress_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1
         raise InputError("stress probes need the closed-form cell solver")
     one = state.select(slice(point, point + 1))
     dsig = magnitude * float(one.p[0]) * probe_directions(n)
-    runner = CompiledSegment(rev, one, (True,) * 3, np.eye(3), one.sig, one.sig, 1, Tangent())
-    from .loading.control import _fd_tangent
-    K = _fd_tangent(rev, one, np.zeros((1, 3)), 1e-7)[0]
+    geo, p = kernel_inputs(rev)
+    values = np.ascontiguousarray(one.cells.values[0])
+    flags = np.ascontiguousarray(one.flags.flags[0])
+    K = np.empty((3, 3))
+    _fd_tangent(values, one.eps[0], np.zeros(3), geo, p, rev._mode, rev.volume0, FD_STEP,
+                np.empty_like(values), np.empty_like(flags), K)
     deps = np.empty((n, 3))
-    _stress_probe_kernel(runner.values[0], runner.flags[0], runner.eps[0], runner.sig[0], K,
-                         np.ascontiguousarray(one.sig[0] + dsig), runner.geo, runner.p, rev._mode,
-                         rev.volume0, 1e-10, 24, 1e-7, deps)
+    _stress_probe_kernel(values, flags, one.eps[0].copy(), one.sig[0].copy(), K,
+                         np.ascontiguousarray(one.sig[0] + dsig), geo, p, rev._mode,
+                         rev.volume0, 1e-10, 24, FD_STEP, deps)
     return Envelope("stress", deps, dsig)
 
 
@@ -200,7 +207,8 @@ def along_biaxial(params, p0: float, axial_strain: float, undrained: bool = Fals
     """Drained or undrained biaxial test from p0 with strain probes at every ``every``-th
     increment and full envelopes (strain probes of ``magnitude``, stress probes of
     ``stress_magnitude``·p) at the axial strains ``at``; ``shear`` probes ε12 too."""
-    from .loading import AXIAL_STEP, Recorder, Segment, consolidate, run_segment
+    from .loading import AXIAL_STEP, Recorder, consolidate, run_segment
+    from .loading.paths import biaxial_segment
 
     _check(n_probes, magnitude)
     step = step or AXIAL_STEP
@@ -222,11 +230,7 @@ def along_biaxial(params, p0: float, axial_strain: float, undrained: bool = Fals
     done, cs, cw, envs = 0, [], [], {}
     for i, k in enumerate(checks):
         d = (k - done) * axial_strain / n
-        if undrained:
-            seg = Segment((False, False, False), np.array([[1.0, 0, 0], [1.0, 1.0, 0], [0, 0, 1.0]]),
-                          np.array([d, 0.0, 0.0]), k - done, "shear")
-        else:
-            seg = Segment((False, True, False), np.eye(3), np.array([d, p0, 0.0]), k - done, "shear")
+        seg = biaxial_segment(state, d, k - done, undrained, np.array([p0]))
         state = run_segment(rev, state, seg, rec, tangent=tangent)
         done = k
         env = strain_envelope(rev, state, n_probes, magnitude, shear)

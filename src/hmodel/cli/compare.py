@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
 
 from ..errors import InputError
-from ..io import write_outputs
+from ..io import write_outputs, write_rows
 from ..params import Params
 from .progress import LazyProgress
 from .run import ParamOpt
@@ -60,14 +59,7 @@ def compare(
                     n, a, b, ("closed form", other.name), p))(spec.name, ref, res)
             progress((i + 1) / len(specs))
 
-    def write_csv(p: Path) -> None:
-        with open(p, "w", newline="") as fh:
-            fields = list(dict.fromkeys(k for r in rows for k in r))
-            w = csv.DictWriter(fh, fieldnames=fields, restval="")
-            w.writeheader()
-            w.writerows(rows)
-
-    write_outputs(out, {"deviations.csv": write_csv, **figures})
+    write_outputs(out, {"deviations.csv": lambda p: write_rows(rows, p), **figures})
     for r in rows:
         if r["status"] != "ok":
             typer.echo(f"{r['path']:<14} {other.name} {r['status']}")

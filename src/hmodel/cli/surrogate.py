@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import json
 from pathlib import Path
 from typing import Annotated, Optional
@@ -10,7 +9,7 @@ from typing import Annotated, Optional
 import typer
 
 from ..errors import InputError
-from ..io import write_outputs
+from ..io import write_outputs, write_rows
 from .progress import LazyProgress
 
 app = typer.Typer(no_args_is_help=True, help="Train, evaluate and compare neural surrogates of the H-cell.")
@@ -34,13 +33,6 @@ MaxMinutes = Annotated[Optional[float], typer.Option(help="Stop training after t
 def _config(**kw):
     from ..surrogate.training import TrainConfig
     return TrainConfig(**kw)
-
-
-def _write_csv(rows: list[dict], path: Path) -> None:
-    with open(path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
 
 
 @app.command("train")
@@ -101,7 +93,7 @@ def evaluate_cmd(
         table += evaluate(s, cols, label)
         writers[f"parity-{i}-{d.name}.png"] = (lambda c, lab: lambda p: parity_plot(
             s, c, p, f"{Path(model).name}: {lab}, {len(c['deps1']):,} rows"))(cols, label)
-    write_outputs(out, {"metrics.csv": lambda p: _write_csv(table, p), **writers})
+    write_outputs(out, {"metrics.csv": lambda p: write_rows(table, p), **writers})
     for r in table:
         if r["quantity"] == "state after":
             typer.echo(f"{r['data']:<40} {r['output']:<11} R² {r['r2']:.6f}  MAE {r['mae']:.4g}  "
@@ -142,7 +134,7 @@ def sweep_cmd(
     with LazyProgress("sweep") as progress:
         rows = run_sweep(ds, base, ints(depths, "depths"), loss_list, ints(sizes, "sizes"), test,
                          seed, progress)
-    write_outputs(out, {"sweep.csv": lambda p: _write_csv(rows, p),
+    write_outputs(out, {"sweep.csv": lambda p: write_rows(rows, p),
                         "sweep.png": lambda p: plot_sweep(rows, p),
                         "config.json": lambda p: p.write_text(json.dumps(
                             {"data": str(data), "base": base.__dict__}, indent=1))})

@@ -26,7 +26,7 @@ from ..cell.closed_form import P_KN, P_R, ClosedFormSolver, cell_increment, kern
 from ..cell.mesostress import vsigma_local
 from ..cell.state import CellFlags, CellState
 from ..rev import Rev, RevState
-from ..rev.kernels import cell_dl
+from ..rev.kernels import cell_dl, weighted_global
 from .control import Control, Tangent, solve_increment
 from .result import FRACTIONS
 
@@ -37,6 +37,16 @@ OK, NOT_CONVERGED = 0, 1
 def supports(rev: Rev) -> bool:
     """Whether ``rev`` can run compiled segments (its cells are the closed form's)."""
     return type(rev.solver) is ClosedFormSolver
+
+
+def kernel_inputs(rev: Rev) -> tuple[np.ndarray, np.ndarray]:
+    """(geo, p) for :func:`_trial`: the direction factors cos², sin², sin·cos and their weighted
+    versions (6, n_theta), and the packed cell parameters."""
+    d = rev.directions
+    w = d.weights
+    geo = np.ascontiguousarray(np.stack([d.cos2, d.sin2, d.sincos, w * d.cos2, w * d.sin2,
+                                         w * d.sincos]))
+    return geo, kernel_params(rev.params)
 
 
 @njit(cache=True, error_model="numpy")
@@ -59,13 +69,14 @@ def _trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig):
         if not cell_increment(values[i], dl1, dl2, p, out[i], flags[i]):
             ok = False
         vnn, vtt = vsigma_local(out[i], kn, two_r)
-        s11 += vnn * wcos2[i] + vtt * wsin2[i]
-        s22 += vnn * wsin2[i] + vtt * wcos2[i]
-        s12 += (vnn - vtt) * wsincos[i]
-    a11 = eps[0] + e11
-    a22 = eps[1] + e22
-    a12 = eps[2] + e12
-    v = volume0 * ((1 - a11) * (1 - a22) - a12 ** 2)
+        a11, a22, a12 = weighted_global(vnn, vtt, wcos2[i], wsin2[i], wsincos[i])
+        s11 += a11
+        s22 += a22
+        s12 += a12
+    t11 = eps[0] + e11  # total strain after the trial: the macro volume V0 det(I - eps)
+    t22 = eps[1] + e22
+    t12 = eps[2] + e12
+    v = volume0 * ((1 - t11) * (1 - t22) - t12 ** 2)
     sig[0] = s11 / v
     sig[1] = s22 / v
     sig[2] = s12 / v
@@ -332,11 +343,7 @@ class CompiledSegment:
         B = state.n_points
         self.has_K = np.full(B, tangent.K is not None and tangent.K.shape[0] == B)
         self.K = tangent.K.copy() if self.has_K.all() else np.zeros((B, 3, 3))
-        d = rev.directions
-        w = d.weights
-        self.geo = np.ascontiguousarray(np.stack([d.cos2, d.sin2, d.sincos, w * d.cos2,
-                                                  w * d.sin2, w * d.sincos]))
-        self.p = kernel_params(rev.params)
+        self.geo, self.p = kernel_inputs(rev)
         self.rtol, self.max_iter, self.max_events = rtol, max_iter, max_events
 
     def state(self) -> RevState:
@@ -368,8 +375,7 @@ class CompiledSegment:
                        self.sig[idx])
         values = np.where(self.S, self.start[idx] + (self.end[idx] - self.start[idx])
                           * (k / self.n_steps), self.end[idx] / self.n_steps)
-        tangent = Tangent(np.where(self.has_K[idx, None, None], self.K[idx], 0.0)
-                          if self.has_K[idx].all() else None, self.tangent.fd_step)
+        tangent = Tangent(self.K[idx].copy() if self.has_K[idx].all() else None, self.tangent.fd_step)
         out = solve_increment(self.rev, sub, Control(self.S, self.M, values), tangent,
                               rtol=self.rtol, max_iter=self.max_iter, max_events=self.max_events)
         self.values[idx], self.flags[idx] = out.cells.values, out.flags.flags

@@ -165,15 +165,22 @@ def biaxial(rev: Rev, state: RevState, axial_strain: float, undrained: bool = Fa
     solved by Newton on deps22 each increment. Undrained: isochoric, deps22 = -deps11.
     eps12 is held (rigid platens).
     """
-    n = _n_steps(axial_strain, step, "axial strain")
-    if undrained:
-        seg = Segment((False, False, False), np.array([[1.0, 0, 0], [1.0, 1.0, 0], [0, 0, 1.0]]),
-                      np.array([axial_strain, 0.0, 0.0]), n, "shear")
-    else:
-        sig22 = state.sig[:, 1] if lateral_stress is None else _as_points(lateral_stress, "lateral stress")
-        values = np.stack(np.broadcast_arrays(axial_strain, sig22, 0.0), axis=1)
-        seg = Segment((False, True, False), np.eye(3), values, n, "shear")
+    sig22 = None if lateral_stress is None else _as_points(lateral_stress, "lateral stress")
+    seg = biaxial_segment(state, axial_strain, _n_steps(axial_strain, step, "axial strain"),
+                          undrained, sig22)
     return run_segment(rev, state, seg, recorder, progress)
+
+
+def biaxial_segment(state: RevState, axial_strain: float, n_steps: int, undrained: bool = False,
+                    lateral_stress=None, stage: str = "shear") -> Segment:
+    """``axial_strain`` more axial strain in ``n_steps``, eps12 held: drained at lateral stress
+    sig22 = ``lateral_stress`` (default: the current sig22), or undrained (deps22 = -deps11)."""
+    if undrained:
+        return Segment((False, False, False), np.array([[1.0, 0, 0], [1.0, 1.0, 0], [0, 0, 1.0]]),
+                       np.array([axial_strain, 0.0, 0.0]), n_steps, stage)
+    sig22 = state.sig[:, 1] if lateral_stress is None else lateral_stress
+    values = np.stack(np.broadcast_arrays(axial_strain, sig22, 0.0), axis=1)
+    return Segment((False, True, False), np.eye(3), values, n_steps, stage)
 
 
 def oedometric(rev: Rev, state: RevState, axial_strain: float, step: float = AXIAL_STEP,

@@ -43,6 +43,12 @@ def localize(values, deps, cos2, sin2, sincos, mode, radius, dl):
                                          sin2[i], sincos[i], mode, radius)
 
 
+@njit(cache=True, inline="always")
+def weighted_global(vnn, vtt, wc2, ws2, wsc):
+    """A cell's (V sigma_nn, V sigma_tt) rotated to (11, 22, 12) and weighted (eqs. 1.15-1.16)."""
+    return vnn * wc2 + vtt * ws2, vnn * ws2 + vtt * wc2, (vnn - vtt) * wsc
+
+
 @njit(cache=True)
 def average(values, wcos2, wsin2, wsincos, kn, radius, vsig):
     """vsig[b] = sum_i w_i V_i sigma_i in the global frame (eqs. 1.12, 1.15, 1.16).
@@ -57,9 +63,10 @@ def average(values, wcos2, wsin2, wsincos, kn, radius, vsig):
         s12 = 0.0
         for i in range(n_theta):
             vnn, vtt = vsigma_local(values[b * n_theta + i], kn, two_r)
-            s11 += vnn * wcos2[i] + vtt * wsin2[i]
-            s22 += vnn * wsin2[i] + vtt * wcos2[i]
-            s12 += (vnn - vtt) * wsincos[i]
+            a11, a22, a12 = weighted_global(vnn, vtt, wcos2[i], wsin2[i], wsincos[i])
+            s11 += a11
+            s22 += a22
+            s12 += a12
         vsig[b, 0] = s11
         vsig[b, 1] = s22
         vsig[b, 2] = s12

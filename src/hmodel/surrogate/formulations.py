@@ -38,29 +38,9 @@ class Formulation:
     radius: float
 
     @property
-    def n_inputs(self) -> int:
-        return 8
-
-    @property
-    def n_outputs(self) -> int:
-        return 4 if self.name == "report" else 5
-
-    @property
     def logit_column(self) -> int | None:
         """Index of the output trained by classification (None: all regression)."""
         return None if self.name == "report" else 4
-
-    @property
-    def input_names(self) -> tuple[str, ...]:
-        if self.name == "report":
-            return REPORT_INPUTS
-        return ("deps1", "deps2", "alpha", "l1/2r", "l2/2r", "N1/F", "N2/F", "T1/F")
-
-    @property
-    def target_names(self) -> tuple[str, ...]:
-        if self.name == "report":
-            return OUTPUTS
-        return ("dalpha", "dN1/F", "dN2/F", "T1'/(tan(phi) N1')", "logit(open)")
 
     def inputs(self, c: dict[str, np.ndarray]) -> np.ndarray:
         """X (n, 8) from database columns (the state before and the strain)."""
@@ -71,7 +51,7 @@ class Formulation:
                                 c["N1"] / F, c["N2"] / F, c["T1"] / F]).astype(float)
 
     def targets(self, c: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """Targets Y (n, n_outputs) from database columns (the state after), and the weight
+        """Targets Y (n, 4; 5 with the opening logit) from database columns (the state after), and the weight
         (0 or 1) of every target in the loss."""
         if self.name == "report":
             Y = np.column_stack([c[k] for k in OUTPUTS]).astype(float)
@@ -79,13 +59,18 @@ class Formulation:
         F = self.force_scale
         n1 = c["N1_next"]
         opened = np.asarray(c["open1"], bool) | np.asarray(c["open2"], bool)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s = np.where(n1 > 0, c["T1_next"] / (self.tan_phi * np.where(n1 > 0, n1, 1.0)), 0.0)
         Y = np.column_stack([c["alpha_next"] - c["alpha"], (n1 - c["N1"]) / F,
-                             (c["N2_next"] - c["N2"]) / F, np.clip(s, -1.0, 1.0), opened.astype(float)])
+                             (c["N2_next"] - c["N2"]) / F,
+                             np.clip(self.mobilized_friction(n1, c["T1_next"]), -1.0, 1.0),
+                             opened.astype(float)])
         W = np.ones_like(Y)
         W[opened, 1:4] = 0.0  # forces of an opened cell are zero whatever the trial: not regressed
         return Y, W
+
+    def mobilized_friction(self, n1: np.ndarray, t1: np.ndarray) -> np.ndarray:
+        """s = T1 / (tan φg N1), 0 where the contact carries no normal force."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(n1 > 0, t1 / (self.tan_phi * np.where(n1 > 0, n1, 1.0)), 0.0)
 
     def decode(self, c: dict[str, np.ndarray], Y: np.ndarray) -> dict[str, np.ndarray]:
         """Predicted state after the increment from predictions Y and the state before."""

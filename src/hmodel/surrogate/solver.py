@@ -120,9 +120,7 @@ class SurrogateSolver:
         if f.name == "report":
             before = np.column_stack([cols[k] for k in ("alpha", "N1", "N2", "T1")])
             return f.decode(cols, before + Y - Y0)
-        n1 = cols["N1"]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s_in = np.where(n1 > 0, cols["T1"] / (f.tan_phi * np.where(n1 > 0, n1, 1.0)), 0.0)
+        s_in = f.mobilized_friction(cols["N1"], cols["T1"])
         Y = Y.copy()
         Y[:, :3] -= Y0[:, :3]
         Y[:, 3] = s_in + Y[:, 3] - Y0[:, 3]
