@@ -16,6 +16,7 @@ from .. import __version__
 from ..errors import HModelError
 from . import compare as compare_cmd
 from . import data as data_cmds
+from . import dem as dem_cmds
 from . import reproduce as reproduce_cmd
 from . import run as run_cmds
 from . import stability as stability_cmd
@@ -27,6 +28,7 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_
 app.add_typer(run_cmds.app, name="run")
 app.add_typer(data_cmds.app, name="data")
 app.add_typer(surrogate_cmds.app, name="surrogate")
+app.add_typer(dem_cmds.app, name="dem")
 app.command("compare")(compare_cmd.compare)
 app.command("reproduce")(reproduce_cmd.reproduce)
 app.command("stability")(stability_cmd.stability)

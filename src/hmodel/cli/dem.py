@@ -1,0 +1,111 @@
+"""``hmodel dem``: cells solved by the DEM engine YADE (needs the ``yade`` executable)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from ..errors import InputError
+from ..io import write_outputs, write_rows
+from ..params import Params
+from .progress import LazyProgress
+from .run import ParamOpt
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
+                  help="Cells solved by the DEM engine YADE (apt-get install -y yade).")
+
+
+def _params(param: list[str] | None, alpha0: float | None) -> Params:
+    # The DEM keeps every grain in equilibrium, which is the closed form's `equilibrium`
+    # sliding closure; `--param sliding_rhs=report` compares with the report's one instead.
+    params = Params.parse_assignments(param, base=Params(sliding_rhs="equilibrium"))
+    if alpha0 is not None:
+        params = Params.from_strings({"alpha0": repr(alpha0)}, base=params)
+    return params
+
+
+@app.command("validate")
+def validate_cmd(
+    alpha0: Annotated[Optional[float], typer.Option(help="Opening angle α0 [deg].")] = None,
+    strain: Annotated[float, typer.Option(help="Total cell strain of every path.")] = 0.03,
+    steps: Annotated[int, typer.Option(help="Increments per path.")] = 30,
+    directions: Annotated[str, typer.Option(help="Path directions θ in the (ε1, ε2) plane [deg], "
+                                                 "comma-separated.")] = "0,45,90,-30",
+    probes: Annotated[int, typer.Option(help="Probe directions per start state (0: none).")] = 8,
+    param: ParamOpt = None,
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for the CSV table and PNG figures.")] = Path("results/dem-validate"),
+) -> None:
+    """The DEM standard cell against the closed form on monotonic paths and single-increment
+    probes; writes deviations.csv, paths.csv, validation.png and cell.png."""
+    from ..dem.validate import plot_validation, validate, draw_cell
+
+    params = _params(param, alpha0)
+    try:
+        dirs = [float(d) for d in directions.split(",") if d.strip()]
+    except ValueError:
+        raise InputError(f"--directions expects comma-separated angles, got {directions!r}") from None
+    if not dirs or not all(math.isfinite(d) for d in dirs):
+        raise InputError(f"--directions expects finite angles, got {directions!r}")
+    if steps < 1:
+        raise InputError(f"--steps must be a positive integer, got {steps}")
+    if probes < 0:
+        raise InputError(f"--probes must be >= 0, got {probes}")
+    with LazyProgress("DEM vs closed form") as progress:
+        v = validate(params, strain=strain, steps=steps, directions_deg=dirs, n_probe=probes,
+                     progress=progress)
+
+    def write_paths(p: Path) -> None:
+        rows = []
+        for k, th in enumerate(v.directions_deg):
+            for s, e in enumerate(v.strain):
+                row = {"theta_deg": th, "strain": e}
+                for name, arr in (("dem", v.dem), ("cf", v.cf), ("cf_fine", v.cf_fine)):
+                    for i, q in enumerate(("d1", "d2", "alpha", "N1", "N2", "T1", "l1", "l2")):
+                        row[f"{q}_{name}"] = arr[k, s, i]
+                rows.append(row)
+        write_rows(rows, p)
+
+    i_end = len(v.directions_deg) - 1
+    write_outputs(out, {"deviations.csv": lambda p: write_rows(v.rows, p),
+                        "paths.csv": write_paths,
+                        "validation.png": lambda p: plot_validation(v, p),
+                        "cell.png": lambda p: draw_cell(v.runs[i_end], p)})
+    worst = v.worst()
+    typer.echo("max deviation from the refined closed form (relative to each quantity's range): "
+               + ", ".join(f"{q} {100 * d:.2f} %" for q, d in worst.items())
+               + f"; YADE {v.wall_s:.1f} s for {len(v.runs)} cells; wrote {out}")
+
+
+@app.command("draw")
+def draw_cmd(
+    mesostructure: Annotated[str, typer.Option(help="standard, hexagon-center or hexagon-unequal.")] = "standard",
+    alpha0: Annotated[Optional[float], typer.Option(help="Opening angle α0 [deg].")] = None,
+    ratio: Annotated[Optional[float], typer.Option(help="Radius ratio of the richer cells.")] = None,
+    strain: Annotated[float, typer.Option(help="Cell strain (ε1, ε2) applied before drawing.")] = 0.01,
+    theta: Annotated[float, typer.Option(help="Direction of that strain in the (ε1, ε2) plane [deg].")] = 0.0,
+    steps: Annotated[int, typer.Option(help="Increments.")] = 10,
+    param: ParamOpt = None,
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for cell.png.")] = Path("results/dem-draw"),
+) -> None:
+    """Load a cell with the DEM and draw it: grains, and contacts by their normal force."""
+    import numpy as np
+
+    from ..dem.mesostructure import build
+    from ..dem.scene import simulate
+    from ..dem.validate import draw_cell
+
+    params = _params(param, alpha0)
+    if steps < 1 or not (math.isfinite(strain) and math.isfinite(theta)):
+        raise InputError("--steps must be positive, --strain and --theta finite")
+    options = {} if ratio is None or mesostructure == "standard" else {"ratio": ratio}
+    cell = build(mesostructure, params.radius, params.alpha0, **options)
+    th = math.radians(theta)
+    dl = np.array([-cell.l1 * strain / steps * math.cos(th), -cell.l2 * strain / steps * math.sin(th)])
+    with LazyProgress("DEM"):
+        (run,), _ = simulate([(cell, np.tile(dl, (steps, 1)))], params)
+    write_outputs(out, {"cell.png": lambda p: draw_cell(run, p, title=f"{cell.name} cell, strain "
+                                                        f"{100 * strain:g} % at θ = {theta:g}°")})
+    typer.echo(f"wrote {out / 'cell.png'}")

@@ -1,0 +1,8 @@
+"""DEM cells solved by YADE (optional: needs the ``yade`` executable, never imported by hmodel's core).
+
+- :mod:`~hmodel.dem.mesostructure`: cell descriptions (standard H-cell and richer ones);
+- :mod:`~hmodel.dem.scene`: many cells in one YADE scene, driven by (dl1, dl2) increments;
+- :mod:`~hmodel.dem.yade`: running YADE as a subprocess, its errors;
+- :mod:`~hmodel.dem.stress`: Love-Weber meso-stress (eq. 1.11);
+- :mod:`~hmodel.dem.validate`: the DEM standard cell against the closed form (eq. 1.7).
+"""

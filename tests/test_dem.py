@@ -1,0 +1,122 @@
+"""The DEM backend (hmodel.dem): YADE cells against the closed form, Love-Weber stress, failures."""
+
+from __future__ import annotations
+
+import math
+import os
+import stat
+import tempfile
+
+import numpy as np
+import pytest
+
+from hmodel.cell.mesostress import meso_volume, meso_vsigma
+from hmodel.cell.state import CellState
+from hmodel.cli.app import main
+from hmodel.dem import mesostructure as meso
+from hmodel.dem.scene import DEMOptions, hcell_state, simulate
+from hmodel.dem.stress import boundary_form, skew_ratio, vsigma
+from hmodel.dem.yade import DEMError, EquilibriumError, YadeNotFound, available
+from hmodel.params import Params
+
+needs_yade = pytest.mark.skipif(not available(), reason="YADE is not installed (apt-get install -y yade)")
+
+# The DEM keeps grain 2 in equilibrium; with T1 < 0 on the Coulomb cone that is the closed
+# form's `equilibrium` closure (the report's lambda differs from it only when xi = -1).
+PARAMS = Params(sliding_rhs="equilibrium")
+
+
+def _increments(cell, theta_deg, step, n):
+    th = math.radians(theta_deg)
+    return np.tile([-cell.l1 * step * math.cos(th), -cell.l2 * step * math.sin(th)], (n, 1))
+
+
+@needs_yade
+def test_standard_cell_follows_closed_form_on_two_paths():
+    """θ = 0: elastic, T1 > 0; θ = 90°: contact 1 slides with T1 < 0 (ξ = -1). DEM states and
+    single-increment probes within 2 % of each quantity's range of the refined closed form,
+    every increment quasi-static (unbalanced force ratio <= tol)."""
+    from hmodel.dem.validate import validate
+
+    v = validate(PARAMS, strain=0.02, steps=10, directions_deg=(0.0, 90.0), probe_at=(1.0,),
+                 n_probe=4, refine=10)
+    for row in v.rows:
+        assert row["dev_cf_fine"] <= 0.02, row
+        assert row["max_unbalanced"] <= DEMOptions().tol, row
+        if row["kind"] == "probe":
+            assert row["dev_increment"] <= 0.02, row
+    assert v.dem[0, -1, 5] > 0 and v.dem[1, -1, 5] < 0  # T1 sign as in the closed form
+    sliding = np.abs(v.dem[1, 1:, 5]) / v.dem[1, 1:, 3]
+    assert np.allclose(sliding, math.tan(PARAMS.phi_g), rtol=5e-3)  # on the Coulomb cone
+
+
+@needs_yade
+def test_love_weber_stress_of_standard_and_richer_cells():
+    """Σ f⊗b over contacts equals Σ F_p⊗x_p over grains (boundary form), is symmetric for the
+    mirror-symmetric cells, and equals eq. 1.12 with V of eq. 1.20 for the standard cell."""
+    std = meso.standard(PARAMS.radius, PARAMS.alpha0)
+    centre = meso.hexagon_center(PARAMS.radius, PARAMS.alpha0)
+    unequal = meso.hexagon_unequal(PARAMS.radius, PARAMS.alpha0, ratio=0.7)
+    cells = [(std, _increments(std, 30, 2e-3, 5)), (centre, _increments(centre, 90, 2e-3, 5)),
+             (unequal, _increments(unequal, 20, 2e-3, 5))]
+    runs, _ = simulate(cells, PARAMS)
+    for run in runs:
+        vs = vsigma(run)
+        scale = np.abs(vs).max()
+        assert scale > 0
+        for k in range(run.n_steps + 1):
+            assert np.allclose(vs[k], boundary_form(run.positions[k], run.forces[k]),
+                               atol=1e-6 * scale)
+        assert skew_ratio(vs).max() < 1e-6
+    assert any(6 in c[:2] for c in runs[1].contacts[-1])  # the centre grain carries load
+    state = CellState(hcell_state(runs[0]))
+    ref = meso_vsigma(PARAMS, state)
+    vs = vsigma(runs[0])
+    assert np.allclose(vs[:, 0, 0], ref[:, 0], rtol=1e-9, atol=1e-9 * np.abs(ref).max())
+    assert np.allclose(vs[:, 1, 1], ref[:, 1], rtol=1e-9, atol=1e-9 * np.abs(ref).max())
+    assert np.allclose(std.volume(runs[0].positions), meso_volume(PARAMS, state), rtol=1e-12)
+
+
+def _cli_fails(tmp_path, monkeypatch, capsys, extra_env=None):
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
+    for k, val in (extra_env or {}).items():
+        monkeypatch.setenv(k, val)
+    out = tmp_path / "out"
+    code = main(["dem", "validate", "--steps", "2", "--directions", "0", "--probes", "0",
+                 "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert code == 1
+    assert len(err.splitlines()) == 1 and err.startswith("hmodel: error: ")
+    assert not out.exists()
+    assert os.listdir(tmp_path / "tmp") == []  # YADE's work folder removed
+    return err
+
+
+def test_missing_yade_is_a_one_line_error(tmp_path, monkeypatch, capsys):
+    err = _cli_fails(tmp_path, monkeypatch, capsys, {"HMODEL_YADE": str(tmp_path / "no-such-yade")})
+    assert "YADE is not installed" in err and "apt-get install -y yade" in err
+    with pytest.raises(YadeNotFound):
+        simulate([(meso.standard(), np.zeros((1, 2)))], PARAMS)
+
+
+def test_crashing_yade_is_a_one_line_error(tmp_path, monkeypatch, capsys):
+    fake = tmp_path / "fake-yade"
+    fake.write_text("#!/bin/sh\necho 'starting' >&2\necho 'Segmentation fault in the engine' >&2\nexit 1\n")
+    fake.chmod(fake.stat().st_mode | stat.S_IEXEC)
+    err = _cli_fails(tmp_path, monkeypatch, capsys, {"HMODEL_YADE": str(fake)})
+    assert "YADE crashed (exit status 1): Segmentation fault in the engine" in err
+
+
+@needs_yade
+def test_no_equilibrium_is_a_one_line_error(tmp_path, monkeypatch, capsys):
+    import hmodel.dem.validate as val
+
+    capped = DEMOptions(max_iter=5, substeps=1, check_every=1)
+    real = val.simulate
+    monkeypatch.setattr(val, "simulate", lambda cells, params, options=None: real(cells, params, capped))
+    err = _cli_fails(tmp_path, monkeypatch, capsys)
+    assert "equilibrium not reached at step" in err and "within 5 iterations" in err
+    with pytest.raises(EquilibriumError) as e:
+        real([(meso.standard(), np.full((2, 2), -1e-3))], PARAMS, capped)
+    assert isinstance(e.value, DEMError) and "\n" not in str(e.value)
