@@ -30,8 +30,8 @@ class CellSolver(Protocol):
 def get_solver(spec: "str | CellSolver") -> CellSolver:
     """Resolve a solver from its CLI spelling or pass an instance through.
 
-    ``closed-form`` (eq. 1.7), ``surrogate`` (the shipped neural surrogate) or
-    ``surrogate:MODEL_FILE``.
+    ``closed-form`` (eq. 1.7), ``surrogate`` (the shipped neural surrogate),
+    ``surrogate:NAME`` (another shipped one) or ``surrogate:MODEL_FILE``.
     """
     if not isinstance(spec, str):
         return spec
@@ -42,4 +42,8 @@ def get_solver(spec: "str | CellSolver") -> CellSolver:
     if name == "surrogate":
         from ..surrogate.solver import load_solver
         return load_solver(spec)
-    raise InputError(f"unknown cell solver {spec!r} (available: closed-form, surrogate[:MODEL_FILE])")
+    if name == "dem":
+        from ..dem.solver import DEMSolver
+        return DEMSolver(spec)
+    raise InputError(f"unknown cell solver {spec!r} (available: closed-form, surrogate[:MODEL_FILE], "
+                     f"dem:MESOSTRUCTURE)")

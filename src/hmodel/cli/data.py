@@ -30,12 +30,32 @@ def _alpha0_range(text: str) -> tuple[float, float, float]:
     return values[0], values[1], values[2]
 
 
+def _theta_range(text: str) -> tuple[float, float]:
+    try:
+        lo, hi = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise InputError(f"--theta expects MIN:MAX in degrees, got {text!r}") from None
+    return lo, hi
+
+
+def _solver(solver: str, mesostructure: str | None) -> str:
+    if solver == "dem":
+        return f"dem:{mesostructure or 'standard'}"
+    if mesostructure is not None:
+        raise InputError("--mesostructure needs --solver dem")
+    if solver != "closed-form" and not solver.startswith("dem:"):
+        raise InputError(f"--solver must be closed-form or dem, got {solver!r}")
+    return solver
+
+
 @app.command("generate")
 def generate(
     dataset: Annotated[int, typer.Argument(help="1: monotonic paths from the initial state; "
                                                 "2: increments from their states.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Dataset folder (Parquet shards + manifest.json).")],
-    directions: Annotated[int, typer.Option(help="Path directions theta over [0, 90] deg, inclusive.")] = 91,
+    directions: Annotated[int, typer.Option(help="Path directions theta over the --theta range, inclusive.")] = 91,
+    theta: Annotated[str, typer.Option(help="Range MIN:MAX [deg] of the path directions in the (eps1, eps2) "
+                                            "plane; 0:360 adds paths in extension.")] = "0:90",
     alpha0: Annotated[str, typer.Option(help="Initial opening angles MIN:MAX:STEP [deg].")] = "32:88:2",
     max_strain: Annotated[float, typer.Option(help="Total cell strain of a path.")] = 0.30,
     step: Annotated[float, typer.Option(help="Strain step of a path (recorded in Dataset 1).")] = 0.001,
@@ -50,16 +70,20 @@ def generate(
     workers: Annotated[Optional[int], typer.Option(help="Local worker processes (default: one per CPU).")] = None,
     scheduler: Annotated[Optional[str], typer.Option(help="Dask scheduler address, e.g. tcp://host:8786.")] = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a dataset made with other options.")] = False,
+    solver: Annotated[str, typer.Option(help="Cell solver: closed-form or dem (YADE cells, see --mesostructure).")] = "closed-form",
+    mesostructure: Annotated[Optional[str], typer.Option(help="With --solver dem: standard (default), hexagon-center "
+                                                              "or hexagon-unequal[:ratio=R].")] = None,
 ) -> None:
     """Compute a database into --out; re-running the same command resumes an interrupted run."""
     from ..data import DatasetSpec
     from ..data import generate as run
 
     a_min, a_max, a_step = _alpha0_range(alpha0)
-    spec = DatasetSpec(kind=dataset, n_directions=directions, alpha0_min=a_min, alpha0_max=a_max,
+    t_min, t_max = _theta_range(theta)
+    spec = DatasetSpec(kind=dataset, n_directions=directions, theta_min=t_min, theta_max=t_max, alpha0_min=a_min, alpha0_max=a_max,
                        alpha0_step=a_step, max_strain=max_strain, step=step, start_every=start_every,
                        magnitude=magnitude, magnitude_min=magnitude_min, n_increments=increments, substeps=substeps,
-                       shard_rows=shard_rows)
+                       shard_rows=shard_rows, solver=_solver(solver, mesostructure))
     params = Params.parse_assignments(param)
     with LazyProgress(f"dataset {dataset}: {spec.n_rows:,} rows") as progress:
         ds = run(spec, params, out, workers=workers or os.cpu_count() or 1, scheduler=scheduler,

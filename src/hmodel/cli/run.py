@@ -23,7 +23,9 @@ ParamOpt = Annotated[Optional[list[str]], typer.Option(
     help="Model parameter, repeatable; angles in degrees. Names: " + ", ".join(
         f"{k} [{u}]" for k, u in UNITS.items()))]
 OutOpt = Annotated[Path, typer.Option("--out", "-o", help="Output folder (result.csv, result.png).")]
-SolverOpt = Annotated[str, typer.Option("--solver", help="Cell solver: closed-form, surrogate (the shipped model) or surrogate:MODEL_FILE.")]
+SolverOpt = Annotated[str, typer.Option("--solver", help="Cell solver: closed-form, surrogate (the shipped model), surrogate:MODEL_FILE or "
+                                                        "dem:MESOSTRUCTURE (YADE cells: dem:standard, dem:hexagon-center, "
+                                                        "dem:hexagon-unequal).")]
 P0Opt = Annotated[str, typer.Option("--p0", help="Confining pressure(s): 200kPa, 0.2MPa, 2e5 or a "
                                                   "comma list 100kPa,200kPa,400kPa.")]
 

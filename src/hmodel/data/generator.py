@@ -1,8 +1,10 @@
 """Rows of the two H-cell databases of report §2.3, computed shard by shard from the cell solver.
 
 A *path* is one cell loaded monotonically from its initial state (l1 = l10, l2 = l20, no force)
-along a direction θ of the (ε1, ε2) plane, with θ on a grid over [0, 90°] and the initial
-opening angle α0 on a grid over its admissible range. Path ``path_id = j * n_directions + i``
+along a direction θ of the (ε1, ε2) plane, with θ on a grid over [0, 90°] (the report's
+compression quadrant; ``theta_min``/``theta_max`` widen it, e.g. to [0, 360°) so that start
+states include cells in extension, opened or unloading, as in a REV) and the initial opening
+angle α0 on a grid over its admissible range. Path ``path_id = j * n_directions + i``
 has α0 number j and θ number i.
 
 - **Dataset 1**: every path in steps of ``step`` up to ``max_strain``; row k holds the initial
@@ -26,9 +28,10 @@ import numpy as np
 import pyarrow as pa
 
 from ..cell import CellState, get_solver
+from ..cell.state import initial_lengths
 from ..errors import InputError
 from ..params import Params
-from .schema import COLUMNS, FLAG_COLUMNS, STATE, arrow_schema
+from .schema import COLUMNS, EXTRA_COLUMNS, FLAG_COLUMNS, STATE, arrow_schema
 
 #: Field order of the packed cell state (hmodel.cell.state.FIELDS) for each schema column.
 _PACKED = {"d1": 0, "d2": 1, "alpha": 2, "N1": 3, "N2": 4, "T1": 5, "l1": 6, "l2": 7}
@@ -43,6 +46,8 @@ class DatasetSpec:
 
     kind: int = 1
     n_directions: int = 91
+    theta_min: float = 0.0
+    theta_max: float = 90.0
     alpha0_min: float = 32.0
     alpha0_max: float = 88.0
     alpha0_step: float = 2.0
@@ -72,6 +77,10 @@ class DatasetSpec:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise InputError(f"{name} must be a positive finite number, got {v!r}")
+        if not (math.isfinite(self.theta_min) and math.isfinite(self.theta_max)
+                and self.theta_min <= self.theta_max <= self.theta_min + 360.0):
+            raise InputError(f"theta range must satisfy min <= max <= min + 360 deg, got "
+                             f"{self.theta_min}:{self.theta_max}")
         if not 30.0 < self.alpha0_min <= self.alpha0_max < 90.0:
             raise InputError(f"alpha0 range must lie in (30, 90) deg with min <= max, got "
                              f"{self.alpha0_min}:{self.alpha0_max}")
@@ -92,10 +101,13 @@ class DatasetSpec:
 
     @property
     def theta(self) -> np.ndarray:
-        """Path directions [rad], from 0 to π/2 inclusive."""
+        """Path directions [rad], from ``theta_min`` to ``theta_max`` inclusive (max excluded
+        when the range is a full turn)."""
+        lo, hi = math.radians(self.theta_min), math.radians(self.theta_max)
         if self.n_directions == 1:
-            return np.zeros(1)
-        return np.linspace(0.0, math.pi / 2, self.n_directions)
+            return np.full(1, lo)
+        full = self.theta_max - self.theta_min == 360.0
+        return np.linspace(lo, hi, self.n_directions, endpoint=not full)
 
     @property
     def increment_angles(self) -> np.ndarray:
@@ -166,10 +178,9 @@ def _ratio(total: float, step: float, a: str, b: str) -> int:
 
 def initial_cells(params: Params, alpha0: np.ndarray) -> CellState:
     """Unloaded cells with their own opening angles α0 (eq. 1.2 with d1 = d2 = 2r)."""
-    d = 2.0 * params.radius
-    a = np.asarray(alpha0, float)
-    return CellState.from_fields(d1=d, d2=d, alpha=a, N1=0.0, N2=0.0, T1=0.0,
-                                 l1=d + 2 * d * np.cos(a), l2=2 * d * np.sin(a))
+    l10, l20 = initial_lengths(params.radius, alpha0)
+    return CellState.from_fields(d1=2.0 * params.radius, d2=2.0 * params.radius, alpha=alpha0,
+                                 N1=0.0, N2=0.0, T1=0.0, l1=l10, l2=l20)
 
 
 def compute_shard(spec: DatasetSpec, params: Params, shard: int) -> pa.Table:
@@ -178,7 +189,9 @@ def compute_shard(spec: DatasetSpec, params: Params, shard: int) -> pa.Table:
     alpha0 = np.radians(spec.alpha0_deg)[paths // spec.n_directions]
     theta = spec.theta[paths % spec.n_directions]
     solver = get_solver(spec.solver)
-    cells = initial_cells(params, alpha0)
+    # A solver with its own cell states (richer DEM cells: more than the 8 fields) makes them.
+    make = getattr(solver, "initial_cells", None)
+    cells = make(params, alpha0) if make is not None else initial_cells(params, alpha0)
     l10, l20 = cells.l1.copy(), cells.l2.copy()
     dl1, dl2 = -l10 * spec.step * np.cos(theta), -l20 * spec.step * np.sin(theta)
     if spec.kind == 1:
@@ -188,7 +201,8 @@ def compute_shard(spec: DatasetSpec, params: Params, shard: int) -> pa.Table:
 
 def _dataset1(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta) -> pa.Table:
     P, n = len(paths), spec.n_steps
-    after = np.empty((P, n, 8))
+    nf = cells.values.shape[-1]
+    after = np.empty((P, n, nf))
     flags = np.empty((P, n, len(FLAG_COLUMNS)), bool)
     state = cells
     for k in range(n):
@@ -198,7 +212,7 @@ def _dataset1(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta) -> pa
     deps = np.stack([np.outer(np.cos(theta), total), np.outer(np.sin(theta), total)], axis=-1)
     before = np.broadcast_to(cells.values[:, None, :], after.shape)
     labels = (alpha0, paths, theta, np.zeros(P))
-    return _table(deps.reshape(-1, 2), before.reshape(-1, 8), after.reshape(-1, 8),
+    return _table(deps.reshape(-1, 2), before.reshape(-1, nf), after.reshape(-1, nf),
                   flags.reshape(-1, flags.shape[-1]), [np.repeat(v, n) for v in labels])
 
 
@@ -206,7 +220,8 @@ def _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta) -> pa
     P = len(paths)
     starts = spec.start_steps
     L, J = len(starts), spec.n_increments
-    start = np.empty((P, L, 8))
+    nf = cells.values.shape[-1]
+    start = np.empty((P, L, nf))
     state, level = cells, 0
     for k in range(1, spec.n_steps + 1):
         state, _ = solver.step(params, state, dl1, dl2)
@@ -219,15 +234,15 @@ def _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta) -> pa
     l20 = np.broadcast_to(cells.l2[:, None, None], (P, L, J))
     sub1 = -l10 * deps[:, 0] / spec.substeps
     sub2 = -l20 * deps[:, 1] / spec.substeps
-    before = CellState(np.ascontiguousarray(np.broadcast_to(start[:, :, None, :], (P, L, J, 8))))
+    before = CellState(np.ascontiguousarray(np.broadcast_to(start[:, :, None, :], (P, L, J, nf))))
     state = before
     for _ in range(spec.substeps):
         state, f = solver.step(params, state, sub1, sub2)
     strain = spec.step * starts
     labels = (np.repeat(alpha0, L * J), np.repeat(paths, L * J), np.repeat(theta, L * J),
               np.tile(np.repeat(strain, J), P))
-    return _table(np.tile(deps, (P * L, 1)), before.values.reshape(-1, 8),
-                  state.values.reshape(-1, 8), f.flags.reshape(-1, len(FLAG_COLUMNS)), labels)
+    return _table(np.tile(deps, (P * L, 1)), before.values.reshape(-1, nf),
+                  state.values.reshape(-1, nf), f.flags.reshape(-1, len(FLAG_COLUMNS)), labels)
 
 
 def _table(deps, before, after, flags, labels) -> pa.Table:
@@ -240,6 +255,11 @@ def _table(deps, before, after, flags, labels) -> pa.Table:
         cols[c] = flags[:, j]
     alpha0, paths, theta, start = labels
     cols.update(alpha0=alpha0, path_id=paths.astype(np.int32), theta=theta, start_strain=start)
-    schema = arrow_schema()
-    return pa.Table.from_arrays([pa.array(np.ascontiguousarray(cols[c]), type=schema.field(c).type)
-                                 for c in COLUMNS], schema=schema)
+    n_extra = before.shape[1] - 8
+    schema = arrow_schema(n_extra=n_extra)
+    arrays = [pa.array(np.ascontiguousarray(cols[c]), type=schema.field(c).type) for c in COLUMNS]
+    for c, v in zip(EXTRA_COLUMNS if n_extra else (),
+                    (before, after)):
+        arrays.append(pa.FixedSizeListArray.from_arrays(
+            pa.array(np.ascontiguousarray(v[:, 8:]).reshape(-1)), n_extra))
+    return pa.Table.from_arrays(arrays, schema=schema)

@@ -10,6 +10,13 @@ Columns beyond the report's: ``alpha0`` (the cell's initial opening angle), ``pa
 monotonic Dataset-1 path a row belongs to), ``theta`` (that path's loading direction in the
 (ε1, ε2) plane) and ``start_strain`` (its total strain at the state before; 0 for Dataset-1
 rows, whose state before is the initial state).
+
+Richer DEM cells (``solver = "dem:hexagon-center"`` etc.) have states beyond these 8 fields
+(grain centres and contact tangential forces, :mod:`hmodel.dem.solver`). Their shards carry two
+more columns, :data:`EXTRA_COLUMNS` ``state_extra`` and ``state_extra_next``: fixed-size lists
+of float64, the state fields 9.. before and after the increment, whose names (units m, then N)
+the manifest lists under ``extra_fields``. Every other column is unchanged; datasets of the
+closed form and of ``dem:standard`` have no extra column.
 """
 
 from __future__ import annotations
@@ -25,6 +32,8 @@ FLAG_COLUMNS = ("sliding", "open1", "open2", "contact14", "contact26")
 STRAIN = ("deps1", "deps2")
 LABELS = ("alpha0", "path_id", "theta", "start_strain")
 COLUMNS = STRAIN + STATE + STATE_NEXT + FLAG_COLUMNS + LABELS
+#: Extra state of richer cells (only when the cell state has more than 8 fields).
+EXTRA_COLUMNS = ("state_extra", "state_extra_next")
 
 UNITS = {
     "deps1": "-", "deps2": "-", "alpha": "rad", "l1": "m", "l2": "m", "d1": "m", "d2": "m",
@@ -36,8 +45,9 @@ UNITS = {
 }
 
 
-def arrow_schema(metadata: dict[bytes, bytes] | None = None) -> pa.Schema:
-    """The Arrow schema of every shard (float64 values, bool flags, int32 path ids)."""
+def arrow_schema(metadata: dict[bytes, bytes] | None = None, n_extra: int = 0) -> pa.Schema:
+    """The Arrow schema of every shard (float64 values, bool flags, int32 path ids), with the
+    :data:`EXTRA_COLUMNS` (lists of ``n_extra`` float64) when ``n_extra`` > 0."""
     fields = []
     for c in COLUMNS:
         if c in FLAG_COLUMNS:
@@ -47,4 +57,6 @@ def arrow_schema(metadata: dict[bytes, bytes] | None = None) -> pa.Schema:
         else:
             t = pa.float64()
         fields.append(pa.field(c, t, nullable=False))
+    if n_extra:
+        fields += [pa.field(c, pa.list_(pa.float64(), n_extra), nullable=False) for c in EXTRA_COLUMNS]
     return pa.schema(fields, metadata=metadata)

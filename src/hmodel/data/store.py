@@ -29,7 +29,7 @@ from .. import __version__
 from ..errors import HModelError, InputError
 from ..params import Params
 from .generator import DatasetSpec, compute_shard
-from .schema import COLUMNS, SCHEMA_VERSION, UNITS, arrow_schema
+from .schema import COLUMNS, EXTRA_COLUMNS, SCHEMA_VERSION, UNITS, arrow_schema
 from .workers import run_tasks
 
 MANIFEST = "manifest.json"
@@ -60,9 +60,16 @@ def _write_json(path: Path, obj: dict) -> None:
 
 def _header(spec: DatasetSpec, params: Params) -> dict:
     """The part of a manifest that identifies what the dataset is."""
-    return {"format": FORMAT, "schema_version": SCHEMA_VERSION, "kind": spec.kind,
-            "options": spec.to_dict(), "params": params.to_dict(), "seed": None,
-            "columns": list(COLUMNS), "units": UNITS}
+    header = {"format": FORMAT, "schema_version": SCHEMA_VERSION, "kind": spec.kind,
+              "options": spec.to_dict(), "params": params.to_dict(), "seed": None,
+              "columns": list(COLUMNS), "units": UNITS}
+    if spec.solver.startswith("dem"):  # richer DEM cells: names of the extra state fields
+        from ..cell import get_solver
+        extra = list(get_solver(spec.solver).field_names()[8:])
+        if extra:
+            header["columns"] += list(EXTRA_COLUMNS)
+            header["extra_fields"] = extra
+    return header
 
 
 def _parquet_metadata(header: dict) -> dict[bytes, bytes]:

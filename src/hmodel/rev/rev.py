@@ -114,8 +114,15 @@ class Rev:
         self._trig = (d.cos2, d.sin2, d.sincos)
         self._wtrig = (d.weights * d.cos2, d.weights * d.sin2, d.weights * d.sincos)
         self._mode = _LOC_MODE[params.volume]
+        # Optional solver hooks: its own unloaded cells (states with extra fields) and its own
+        # meso-stress (V sigma_nn, V sigma_tt, V sigma_nt) and meso-volume (richer DEM cells).
+        self._initial = getattr(self.solver, "initial", None)
+        cell0 = self._initial(params, ()) if self._initial else CellState.initial(params)
+        meso = getattr(self.solver, "meso", None)
+        self._meso = meso if meso is not None and meso(params, cell0) is not None else None
         # Initial macro volume V0 = sum_i w_i V_meso,i (eq. 1.14); all cells start alike.
-        self.volume0 = float(meso_volume(params, CellState.initial(params)) * d.weights.sum())
+        vol0 = self._meso(params, cell0)[1] if self._meso else meso_volume(params, cell0)
+        self.volume0 = float(vol0 * d.weights.sum())
 
     @property
     def n_theta(self) -> int:
@@ -124,12 +131,13 @@ class Rev:
     def initial(self, n_points: int = 1) -> RevState:
         """B unloaded material points."""
         shape = (n_points, self.n_theta)
-        return RevState(CellState.initial(self.params, shape), CellFlags.none(shape),
+        cells = self._initial(self.params, shape) if self._initial else CellState.initial(self.params, shape)
+        return RevState(cells, CellFlags.none(shape),
                         np.zeros((n_points, 3)), np.zeros((n_points, 3)))
 
     def localize(self, cells: CellState, deps: np.ndarray) -> np.ndarray:
         """Length increments (B, n_theta, 2) of every cell for macro strain increments (B, 3)."""
-        values = cells.values.reshape(-1, 8)
+        values = np.ascontiguousarray(cells.values[..., :8]).reshape(-1, 8)
         dl = np.empty((values.shape[0], 2))
         localize(values, np.ascontiguousarray(deps, dtype=float), *self._trig, self._mode,
                  self.params.radius, dl)
@@ -141,9 +149,23 @@ class Rev:
 
     def stress(self, cells: CellState, eps: np.ndarray) -> np.ndarray:
         """Macro stress (B, 3) of cells (B, n_theta) at macro strain eps (B, 3) (eq. 1.15)."""
+        if self._meso is not None:
+            return self._meso_stress(cells) / self.macro_volume(eps)[:, None]
         vsig = np.empty((cells.shape[0], 3))
-        average(cells.values.reshape(-1, 8), *self._wtrig, self.params.kn, self.params.radius, vsig)
+        average(np.ascontiguousarray(cells.values[..., :8]).reshape(-1, 8), *self._wtrig,
+                self.params.kn, self.params.radius, vsig)
         return vsig / self.macro_volume(eps)[:, None]
+
+    def _meso_stress(self, cells: CellState) -> np.ndarray:
+        """sum_i w_i V_i sigma_i (B, 3) from the solver's cell-frame (nn, tt, nt) meso-stress."""
+        vs, _ = self._meso(self.params, cells)
+        nn, tt, nt = vs[..., 0], vs[..., 1], vs[..., 2]
+        wc2, ws2, wsc = self._wtrig
+        w = self.directions.weights
+        c2s2 = w * (self.directions.cos2 - self.directions.sin2)
+        return np.stack([nn @ wc2 + tt @ ws2 - 2.0 * (nt @ wsc),
+                         nn @ ws2 + tt @ wc2 + 2.0 * (nt @ wsc),
+                         (nn - tt) @ wsc + nt @ c2s2], axis=-1)
 
     def step(self, state: RevState, deps: np.ndarray) -> RevState:
         """Apply macro strain increments ``deps`` (B, 3) in one cell increment."""
