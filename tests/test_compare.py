@@ -32,10 +32,23 @@ def test_paths_do_what_they_say():
     assert np.abs(r["eps12"]).max() > 0.009 and np.abs(r["sig12"]).max() > 0
 
 
+@pytest.mark.parametrize("paths", [("drained", "undrained"), ("unload-reload", "rotation")])
+def test_shipped_surrogate_in_the_rev_reproduces_the_closed_form(paths):
+    # Issue target: |Δq| ≤ 1 % of peak q and |Δεv| ≤ 0.1 % strain; no closed-form fallback.
+    from hmodel.compare import compare_path
+    solver = SurrogateSolver(load_shipped(), on_outside="error")
+    for spec in (s for s in standard_paths(0.02) if s.name in paths):
+        _, res, devs, st = compare_path(SMALL, spec, solver, 1e-3, 1e-4)
+        assert st["status"] == "ok"
+        for d in devs:
+            assert d["q_max_dev_rel"] <= 0.01 and d["eps_v_max_dev"] <= 0.001, (spec.name, d)
+    assert solver.counts["outside"] == 0 and solver.counts["network_cells"] < solver.counts["cell_updates"]
+
+
 @pytest.mark.parametrize("opening", ["rule", "classifier"])
 def test_surrogate_runs_are_finished_or_reported_as_failed(opening):
     from hmodel.compare import compare_path
-    solver = SurrogateSolver(load_shipped(), opening=opening)
+    solver = SurrogateSolver(load_shipped("increment"), opening=opening)
     for spec in standard_paths(0.005):
         ref, res, devs, st = compare_path(SMALL, spec, solver, 1e-3, 1e-4)
         if res is None:

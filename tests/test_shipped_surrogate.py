@@ -15,28 +15,52 @@ from hmodel.surrogate.solver import SurrogateSolver, load_solver
 
 @pytest.fixture(scope="module")
 def shipped():
+    """The report-style surrogate (formulation ``increment``, 1 % increments)."""
+    return load_shipped("increment")
+
+
+@pytest.fixture(scope="module")
+def default():
+    """The default surrogate of the ANN-based H-model (formulation ``compliance``)."""
     return load_shipped()
 
 
-def test_shipped_model_loads_with_its_provenance(shipped):
-    m = shipped.meta
-    assert m["formulation"]["name"] == "increment" and m["training_data"]["source_checksum"]
+@pytest.mark.parametrize("name, formulation", [("increment", "increment"), ("default", "compliance")])
+def test_shipped_models_load_with_their_provenance(name, formulation):
+    m = load_shipped(name).meta
+    assert m["formulation"]["name"] == formulation and m["training_data"]["source_checksum"]
     r2 = {r["output"]: r["r2"] for r in m["metrics"] if r["quantity"] == "state after"}
     assert min(r2.values()) > 0.999
 
 
-def test_shipped_model_predicts_fresh_closed_form_rows(shipped):
-    # Rows it never saw: Dataset-2 increments from other alpha0 and directions than the grid's.
-    spec = DatasetSpec(kind=2, n_directions=4, alpha0_min=41, alpha0_max=71, alpha0_step=15,
-                       max_strain=0.25, start_every=0.05, n_increments=30)
+def _fresh_rows(**options):
+    # Rows no model saw: Dataset-2 increments from other alpha0 and directions than the grids'.
+    spec = DatasetSpec(kind=2, n_directions=4, alpha0_min=41, alpha0_max=71, alpha0_step=15, **options)
     t = compute_shard(spec, Params(), 0)
     c = {k: t.column(k).to_numpy() for k in t.column_names}
     keep = ~(c["open1"] | c["open2"]) & (c["l1_next"] >= 2) & (c["l2_next"] >= 2)
-    c = {k: v[keep] for k, v in c.items()}
-    pred = shipped.predict(c)
-    r2 = regression_metrics(np.column_stack([c[k] for k in OUTPUTS]),
-                            np.column_stack([pred[k] for k in OUTPUTS]))["r2"]
+    return {k: v[keep] for k, v in c.items()}
+
+
+def _r2(model, c):
+    pred = model.predict(c)
+    return regression_metrics(np.column_stack([c[k] for k in OUTPUTS]),
+                              np.column_stack([pred[k] for k in OUTPUTS]))["r2"]
+
+
+def test_shipped_model_predicts_fresh_closed_form_rows(shipped):
+    r2 = _r2(shipped, _fresh_rows(max_strain=0.25, start_every=0.05, n_increments=30))
     assert np.all(r2 > 0.999), r2
+
+
+def test_default_model_predicts_fresh_rev_scale_increments(default):
+    c = _fresh_rows(theta_min=-50, theta_max=140, max_strain=0.15, start_every=0.005,
+                    magnitude=0.002, magnitude_min=0.0, n_increments=30, substeps=1)
+    before = np.column_stack([c[k] for k in ("alpha", "N1", "N2", "T1")])
+    pred = default.predict(c)
+    inc = regression_metrics(np.column_stack([c[k] for k in OUTPUTS]) - before,
+                             np.column_stack([pred[k] for k in OUTPUTS]) - before)["r2"]
+    assert np.all(inc > 0.999), inc  # R² of the increments themselves, not of the states
 
 
 def _cells(n=50):

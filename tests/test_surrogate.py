@@ -90,7 +90,7 @@ def test_normalizations_match_scikit_learn():
 def _random_surrogate(seed: int, width=16, depth=2) -> Surrogate:
     rng = np.random.default_rng(seed)
     p = Params()
-    form = make_formulation("increment", p.kn, p.radius, p.tan_phi)
+    form = make_formulation("increment", p)
     sizes = [8] + [width] * depth + [5]
     weights = [(rng.normal(size=(o, i)) * 2, rng.normal(size=o)) for i, o in zip(sizes[:-1], sizes[1:])]
     one = lambda n: Affine("zscore", np.zeros(n), np.ones(n))  # noqa: E731

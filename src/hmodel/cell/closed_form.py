@@ -56,8 +56,7 @@ def cell_increment(v, dl1, dl2, p, out, flags):
     kt = p[P_KT]
     tanphi = p[P_TAN]
     g2 = p[P_G2]
-    two_r = 2.0 * p[P_R]
-    d1, d2, a, n1, n2, t1, l1, l2 = v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]
+    d1, a, n1, t1 = v[0], v[2], v[3], v[5]
     ca = math.cos(a)
     sa = math.sin(a)
     gs = g2 + sa
@@ -76,23 +75,43 @@ def cell_increment(v, dl1, dl2, p, out, flags):
     n1_new = n1 - kn * dd1
     t1_new = t1 + kt * d1 * da
     sliding = abs(t1_new) >= tanphi * n1_new
+    xi = 1.0 if t1_new >= 0.0 else -1.0
     if sliding:
-        xi = 1.0 if t1_new >= 0.0 else -1.0
         a31 = ca + xi * tanphi * gs
         a33 = (n1 * sa - t1 * ca) / kn
-        if p[P_EQ_RHS] != 0.0:
-            lam = gs * (xi * tanphi * n1 - t1) / kn
-        else:  # eq. 1.10 as corrected in DESIGN.md (and as in the report's code)
-            lam = xi * gs * (tanphi * n1 - t1) / kn
+        lam = sliding_lambda(v, xi, p)
         dd1, dd2, da, det = _solve3(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33, dl1, dl2, lam)
-        n1_new = n1 - kn * dd1
-        t1_new = xi * tanphi * n1_new  # on the Coulomb cone (eq. 1.3)
+    return det != 0.0 and finish_increment(v, dl1, dl2, dd1, dd2, da, sliding, xi, p, out, flags)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def sliding_lambda(v, xi, p):
+    """Right-hand side λ of eq. 1.7's third row while sliding in the direction ξ (eq. 1.10)."""
+    gs = p[P_G2] + math.sin(v[2])
+    if p[P_EQ_RHS] != 0.0:
+        return gs * (xi * p[P_TAN] * v[3] - v[5]) / p[P_KN]
+    return xi * gs * (p[P_TAN] * v[3] - v[5]) / p[P_KN]  # eq. 1.10 as corrected in DESIGN.md
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def finish_increment(v, dl1, dl2, dd1, dd2, da, sliding, xi, p, out, flags):
+    """New state of a cell from the solution (δd1, δd2, δα) of eq. 1.7 in its regime.
+
+    Forces by eqs. 1.8-1.9 (δN = −kn δd, δT1 = kt d1 δα, or T1 on the Coulomb cone when
+    sliding), lengths, openings and extra contacts (DESIGN.md step 3). Writes ``out`` and
+    ``flags``; returns False when the result is not finite.
+    """
+    kn = p[P_KN]
+    two_r = 2.0 * p[P_R]
+    d1, d2, a, n1, n2, t1, l1, l2 = v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]
+    n1_new = n1 - kn * dd1
+    t1_new = xi * p[P_TAN] * n1_new if sliding else t1 + p[P_KT] * d1 * da  # on the cone (eq. 1.3)
     d1_new = d1 + dd1
     d2_new = d2 + dd2
     a_new = a + da
     n2_new = n2 - kn * dd2
     if p[P_CONSISTENT] != 0.0:  # dl1 acted on l1* = l1 - d1 cos(alpha) (eq. 1.21)
-        l1_new = l1 - d1 * ca + dl1 + d1_new * math.cos(a_new)
+        l1_new = l1 - d1 * math.cos(a) + dl1 + d1_new * math.cos(a_new)
     else:
         l1_new = l1 + dl1
     l2_new = l2 + dl2
@@ -119,7 +138,7 @@ def cell_increment(v, dl1, dl2, p, out, flags):
     flags[2] = open2
     flags[3] = l1_new <= two_r  # grains 1 and 4 touch (Fig. 1.6)
     flags[4] = l2_new <= two_r  # grains 2-6 and 3-5 touch
-    ok = det != 0.0 and math.isfinite(d1_new) and math.isfinite(d2_new) and math.isfinite(a_new)
+    ok = math.isfinite(d1_new) and math.isfinite(d2_new) and math.isfinite(a_new)
     return ok and math.isfinite(n1_new) and math.isfinite(n2_new) and math.isfinite(t1_new)
 
 

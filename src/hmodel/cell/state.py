@@ -27,6 +27,13 @@ IDX = {name: i for i, name in enumerate(FIELDS)}
 FLAG_IDX = {name: i for i, name in enumerate(FLAGS)}
 
 
+def initial_lengths(radius: float, alpha0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lengths (l10, l20) of unloaded cells with opening angles α0: eq. 1.2 with d1 = d2 = 2r."""
+    d = 2.0 * radius
+    a = np.asarray(alpha0, float)
+    return d + 2 * d * np.cos(a), 2 * d * np.sin(a)
+
+
 @dataclass(frozen=True)
 class CellState:
     """Continuous state of a batch of cells.

@@ -11,11 +11,12 @@ from .progress import LazyProgress
 
 
 def reproduce(
-    quick: Annotated[bool, typer.Option("--quick", help="Reduced study (≈ minutes): the shipped "
-                                                        "surrogate, nθ = 72, a small database.")] = False,
+    quick: Annotated[bool, typer.Option("--quick", help="Reduced study (≈ 1 minute): the shipped surrogate "
+                                                        "and a small database; without it, the report-scale "
+                                                        "database and a surrogate trained on it (≈ 20 min).")] = False,
     out: Annotated[Path, typer.Option("--out", "-o", help="Folder for report.html, figures and tables.")] = Path("results"),
-    solver: Annotated[str, typer.Option(help="Surrogate compared with the closed form: surrogate "
-                                             "(shipped) or surrogate:MODEL_FILE.")] = "surrogate",
+    solver: Annotated[str, typer.Option(help="Surrogate compared with the closed form in --quick: "
+                                             "surrogate (shipped), surrogate:NAME or surrogate:MODEL_FILE.")] = "surrogate",
 ) -> None:
     """Engine curves (Fig. 1.7), a database, the surrogate's accuracy, the macro comparison and
     timings, written as a self-contained HTML report."""

@@ -14,7 +14,8 @@ from .progress import LazyProgress
 
 app = typer.Typer(no_args_is_help=True, help="Train, evaluate and compare neural surrogates of the H-cell.")
 
-Formulation = Annotated[str, typer.Option(help="report (the report's inputs/outputs) or increment "
+Formulation = Annotated[str, typer.Option(help="compliance (learned compliances of eq. 1.7, exact contact law), "
+                                               "report (the report's inputs/outputs) or increment "
                                                "(dimensionless increments, Coulomb bound by construction).")]
 Normalization = Annotated[str, typer.Option(help="minmax, zscore, robust, maxabs or unit.")]
 Width = Annotated[int, typer.Option(help="Nodes per hidden layer.")]
@@ -47,31 +48,25 @@ def train_cmd(
     """Train a surrogate on a sample's training rows (20 % held out for early stopping),
     evaluate it on the sample's test rows, and save it with its metrics."""
     from ..surrogate import modelfile
-    from ..surrogate.evaluation import evaluate
-    from ..surrogate.rows import params_of, read_sample
-    from ..surrogate.training import train
+    from ..surrogate.training import train_on_sample
 
     if out.suffix != ".safetensors":
         raise InputError(f"--out must end in .safetensors, got {str(out)!r}")
     cfg = _config(formulation=formulation, normalization=normalization, width=width, depth=depth,
                   activation=activation, loss=loss, epochs=epochs, batch_size=batch_size, lr=lr,
                   patience=patience, seed=seed, device=device, max_minutes=max_minutes)
-    cols, info = read_sample(data, "train")
-    test, _ = read_sample(data, "test")
     with LazyProgress("training") as progress:
-        s, history = train(cols, params_of(info), cfg, progress)
-    metrics = evaluate(s, test, "sample test rows")
-    s.meta.update(training_data=info["provenance"], params=info["params"], metrics=metrics,
-                  history_tail=history[-3:])
+        s, history = train_on_sample(data, cfg, progress)
     modelfile.save(s, out)
-    r2 = {m["output"]: m["r2"] for m in metrics if m["quantity"] == "state after"}
+    r2 = {m["output"]: m["r2"] for m in s.meta["metrics"] if m["quantity"] == "state after"}
     typer.echo(f"wrote {out}: {len(history)} epochs in {s.meta['seconds']:.0f} s; test R² "
                + ", ".join(f"{k} {v:.6f}" for k, v in r2.items()))
 
 
 @app.command("evaluate")
 def evaluate_cmd(
-    model: Annotated[str, typer.Argument(help="Model file, or 'shipped' for the packaged model.")],
+    model: Annotated[str, typer.Argument(help="Model file, or a shipped model: shipped (the default), "
+                                              "increment.")],
     data: Annotated[list[Path], typer.Option("--data", help="Sample folder (its test rows) or dataset "
                                                             "folder; repeatable.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Folder for metrics.csv and parity plots.")],
@@ -83,9 +78,9 @@ def evaluate_cmd(
     from ..surrogate import modelfile
     from ..surrogate.evaluation import evaluate, parity_plot
     from ..surrogate.rows import read_rows
-    from ..surrogate.shipped import shipped_path
+    from ..surrogate.shipped import model_path
 
-    s = modelfile.load(shipped_path() if model == "shipped" else model)
+    s = modelfile.load(model_path(model))
     table, writers = [], {}
     for i, d in enumerate(data):
         cols, info = read_rows(d, "test", rows, seed)

@@ -98,6 +98,8 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
     (strain rows already met, stress rows unchanged), at most ``max_events`` times.
     """
     B = state.n_points
+    # A solver whose cells are converged to less than round-off (DEM) sets its own floor.
+    rtol = max(rtol, float(getattr(rev.solver, "stress_rtol", 0.0)))
     if tangent.K is None or tangent.K.shape[0] != B:
         tangent.K = None
     out = state
@@ -146,13 +148,16 @@ def _newton(rev: Rev, state: RevState, control: Control, tangent: Tangent, rtol:
         tangent.K = _fd_tangent(rev, state, np.zeros((B, 3)), tangent.fd_step)
 
     def newton(x, R):
-        for attempt in range(2):
+        # A degenerate secant update: start afresh at the trial; a trial so far out that the
+        # sample carries nothing (every cell open, K = 0): start afresh at the state itself.
+        for fresh in (x, np.zeros_like(x), None):
             J = np.broadcast_to(M, (B, 3, 3)).copy()
             J[:, S, :] = np.einsum("rk,bkj->brj", M[S], tangent.K)
             try:
                 return x - np.linalg.solve(J, R[..., None])[..., 0]
-            except np.linalg.LinAlgError:  # a degenerate secant update: start afresh
-                tangent.K = _fd_tangent(rev, state, x, tangent.fd_step)
+            except np.linalg.LinAlgError:
+                if fresh is not None:
+                    tangent.K = _fd_tangent(rev, state, fresh, tangent.fd_step)
         raise SolverError(f"singular tangent under mixed control at strain "
                           f"{np.round(state.eps, 8).tolist()}")
 

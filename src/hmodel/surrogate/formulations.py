@@ -14,6 +14,8 @@ inputs X and targets Y, and maps predictions back to the state after the increme
   where the logit is positive, and T1′ = clip(s, −1, 1)·tan φg·N1′, so that |T1′| ≤ tan φg N1′
   holds by construction (eq. 1.3), whatever the network outputs. Learning increments keeps the
   network from having to copy its inputs, where all the variance lies.
+- ``compliance`` (ours, :mod:`hmodel.surrogate.compliance`): the network sees the state only and
+  outputs the compliance of eq. 1.7 in each contact regime; the contact law is applied exactly.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from ..params import Params
 
 OUTPUTS = ("alpha_next", "N1_next", "N2_next", "T1_next")
 REPORT_INPUTS = ("deps1", "deps2", "alpha", "l1", "l2", "N1", "N2", "T1")
@@ -36,6 +39,17 @@ class Formulation:
     force_scale: float
     tan_phi: float
     radius: float
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "force_scale": self.force_scale, "tan_phi": self.tan_phi,
+                "radius": self.radius}
+
+    def aux(self, c: dict[str, np.ndarray]) -> None:
+        """Per-row inputs of :meth:`head` (none: the network's outputs are the targets)."""
+        return None
+
+    def head(self, out, aux, target=None):
+        return out
 
     @property
     def logit_column(self) -> int | None:
@@ -84,10 +98,22 @@ class Formulation:
                 "T1_next": np.clip(Y[:, 3], -1.0, 1.0) * self.tan_phi * n1}
 
 
-FORMULATIONS = ("report", "increment")
+FORMULATIONS = ("report", "increment", "compliance")
 
 
-def make_formulation(name: str, kn: float, radius: float, tan_phi: float) -> Formulation:
+def make_formulation(name: str, params: Params):
+    """The formulation ``name`` for the material of ``params``."""
     if name not in FORMULATIONS:
         raise InputError(f"unknown formulation {name!r} (known: {', '.join(FORMULATIONS)})")
-    return Formulation(name, kn * 2 * radius, tan_phi, radius)
+    if name == "compliance":
+        from .compliance import ComplianceFormulation
+        return ComplianceFormulation(params)
+    return Formulation(name, params.kn * 2 * params.radius, params.tan_phi, params.radius)
+
+
+def formulation_from_dict(d: dict):
+    """Inverse of ``to_dict`` (model files)."""
+    if d["name"] == "compliance":
+        from .compliance import ComplianceFormulation
+        return ComplianceFormulation(Params.from_dict(d["params"]))
+    return Formulation(d["name"], d["force_scale"], d["tan_phi"], d["radius"])

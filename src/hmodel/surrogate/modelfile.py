@@ -19,7 +19,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import HModelError
-from .formulations import Formulation
+from .formulations import formulation_from_dict
 from .model import Architecture, Surrogate
 from .scalers import Affine
 
@@ -60,8 +60,7 @@ def save(s: Surrogate, path: "str | os.PathLike") -> Path:
     path = Path(path)
     f = s.formulation
     meta = {"format": FORMAT, "format_version": FORMAT_VERSION, "hmodel": __version__,
-            "formulation": {"name": f.name, "force_scale": f.force_scale, "tan_phi": f.tan_phi,
-                            "radius": f.radius},
+            "formulation": f.to_dict(),
             "architecture": {"width": s.architecture.width, "depth": s.architecture.depth,
                              "activation": s.architecture.activation, "n_layers": len(s.weights)},
             "normalization": s.x_scaler.method, **{k: v for k, v in s.meta.items()
@@ -103,7 +102,7 @@ def load(path: "str | os.PathLike") -> Surrogate:
         raise ModelFileError(f"{str(path)!r} has format version {meta.get('format_version')}; "
                              f"this hmodel ({__version__}) reads version {FORMAT_VERSION}")
     f, a = meta["formulation"], meta["architecture"]
-    form = Formulation(f["name"], f["force_scale"], f["tan_phi"], f["radius"])
+    form = formulation_from_dict(f)
     arch = Architecture(a["width"], a["depth"], a["activation"])
     weights = [(tensors[f"layer{i}.weight"], tensors[f"layer{i}.bias"]) for i in range(a["n_layers"])]
     method = meta["normalization"]

@@ -1,6 +1,11 @@
-"""The surrogate shipped inside the package, so that the ANN-based H-model works after install.
+"""The surrogates shipped inside the package, so that the ANN-based H-model works after install.
 
-It is produced by the command in ``models/README.md`` (a fixed dataset, sample and seed) and
+- ``default`` (``h-cell-default.safetensors``): formulation ``compliance``, trained on single
+  REV-scale increments (:data:`REV_DATASET`); the one ``--solver surrogate`` uses.
+- ``increment`` (``h-cell-increment.safetensors``): formulation ``increment``, trained on the
+  report-scale Dataset 2 (1 % increments in 10 sub-steps); the surrogate of report ch. 2.
+
+Each is produced by the commands in ``models/README.md`` (a fixed dataset, sample and seed) and
 loaded like any other model file (checked, never unpickled).
 """
 
@@ -9,18 +14,45 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
+from ..data import DatasetSpec
 from ..errors import InputError
+from .training import TrainConfig
 
-SHIPPED = "h-cell-default.safetensors"
+SHIPPED = {"default": "h-cell-default.safetensors", "increment": "h-cell-increment.safetensors"}
+
+#: The database of the default model: Dataset 2 increments of at most 0.2 % (the size of a
+#: REV's cell increments), each one step of eq. 1.7, from paths in every direction between
+#: −60° and 150° of the (ε1, ε2) plane, so that start states include cells in extension and open
+#: cells, as in a REV under shear.
+REV_DATASET = DatasetSpec(kind=2, n_directions=71, theta_min=-60.0, theta_max=150.0,
+                          alpha0_min=32.0, alpha0_max=88.0, alpha0_step=4.0, max_strain=0.2,
+                          step=0.001, start_every=0.002, magnitude=0.002, magnitude_min=0.0,
+                          n_increments=24, substeps=1)
 
 
-def shipped_path() -> Path:
-    path = Path(str(resources.files("hmodel.surrogate") / "models" / SHIPPED))
+#: The default model's training (``hmodel surrogate train --formulation compliance --width 64
+#: --depth 3 --activation silu --epochs 614 --patience 60``), on 600k random rows of REV_DATASET.
+DEFAULT_TRAINING = TrainConfig(formulation="compliance", width=64, depth=3, activation="silu",
+                               epochs=614, patience=60, seed=0)
+
+
+def shipped_path(name: str = "default") -> Path:
+    if name not in SHIPPED:
+        raise InputError(f"no shipped surrogate named {name!r} (shipped: {', '.join(SHIPPED)})")
+    path = Path(str(resources.files("hmodel.surrogate") / "models" / SHIPPED[name]))
     if not path.is_file():
-        raise InputError(f"the shipped surrogate {SHIPPED} is missing from this installation")
+        raise InputError(f"the shipped surrogate {SHIPPED[name]} is missing from this installation")
     return path
 
 
-def load_shipped():
+def model_path(ref: str) -> Path:
+    """A model reference: a shipped name (``default``, ``increment``; ``shipped`` is the default)
+    or a model file's path."""
+    if ref in ("", "shipped"):
+        return shipped_path()
+    return shipped_path(ref) if ref in SHIPPED else Path(ref)
+
+
+def load_shipped(name: str = "default"):
     from .modelfile import load
-    return load(shipped_path())
+    return load(shipped_path(name))

@@ -7,7 +7,9 @@ than the ones the network was trained on is split into equal sub-steps. The netw
 for a zero increment is subtracted from its answer (see :meth:`SurrogateSolver._predict`). The network predicts
 α′, N1′, N2′, T1′; the lengths follow the strain, and d1, d2 follow from α′ and the lengths by
 eq. 1.2 (d1 = l2 / (2 sin α), d2 = l1 − 2 d1 cos α), so the state stays geometrically
-consistent.
+consistent. With the ``compliance`` formulation (:mod:`hmodel.surrogate.compliance`) the
+network sees the state only: it is evaluated once per state, and every trial increment of a
+Newton iteration is an exact, compiled application of the learned compliances.
 
 Cells whose inputs lie outside the training domain are either handed to the closed-form
 solver (``on_outside="fallback"``) or stop the run (``"error"``); ``counts`` reports how many.
@@ -19,7 +21,7 @@ import math
 
 import numpy as np
 
-from ..cell import CellFlags, CellState
+from ..cell import FIELDS, CellFlags, CellState
 from ..cell.closed_form import ClosedFormSolver
 from ..errors import InputError, SolverError
 from ..params import Params
@@ -33,6 +35,10 @@ class SurrogateSolver:
     """Implements :class:`hmodel.cell.CellSolver` with a trained :class:`Surrogate`."""
 
     name = "surrogate"
+    #: Newton's stress tolerance floor (relative): learned compliances make the response jump by
+    #: ~1e-9 of the stress where a cell switches between sticking and sliding (the closed form
+    #: is continuous there), which a 1e-10 tolerance can fall into.
+    stress_rtol = 1e-7
 
     def __init__(self, model: Surrogate, on_outside: str = "fallback", margin: float = 0.0,
                  opening: str = "rule"):
@@ -42,53 +48,89 @@ class SurrogateSolver:
             raise InputError(f"opening must be rule or classifier, got {opening!r}")
         self.model, self.on_outside, self.margin, self.opening = model, on_outside, margin, opening
         self.closed_form = ClosedFormSolver()
-        self.counts = {"cell_updates": 0, "outside": 0, "substeps": 0}
+        self.counts = {"cell_updates": 0, "network_cells": 0, "outside": 0, "substeps": 0}
+        # (states, network outputs, outside mask) of the last two batches of states seen: a
+        # Newton iteration's state and the copies its finite-difference tangent probes.
+        self._cache: list[tuple] = []
+        self._checked = None
         r = model.input_range
-        # Largest trained strain increment: the bound of the deps1, deps2 inputs.
-        self.max_increment = float(np.abs(r[:, :2]).max()) if r is not None else math.inf
+        # Largest trained strain increment: the bound of the deps1, deps2 inputs (strain-input
+        # formulations; the compliance formulation is exact for any increment of its regime).
+        strain_inputs = model.formulation.name != "compliance"
+        self.max_increment = float(np.abs(r[:, :2]).max()) if r is not None and strain_inputs else math.inf
 
     def check(self, params: Params) -> None:
         """Refuse a material the surrogate was not trained for."""
         trained = self.model.meta.get("params")
-        if not trained:
+        if not trained or params is self._checked:  # Params are frozen: once per object
             return
         mine = params.to_dict()
         wrong = [k for k in MATERIAL if k in trained and not _same(trained[k], mine[k])]
         if wrong:
             raise InputError("the surrogate was trained for other material parameters: " + ", ".join(
                 f"{k}={trained[k]} (run: {mine[k]})" for k in wrong))
+        self._checked = params
 
     def step(self, params: Params, state: CellState, dl1, dl2) -> tuple[CellState, CellFlags]:
         self.check(params)
         shape = state.shape
-        v = state.values.reshape(-1, 8)
-        d1 = np.broadcast_to(dl1, shape).reshape(-1)
-        d2 = np.broadcast_to(dl2, shape).reshape(-1)
-        l10, l20 = params.l10, params.l20
-        e1, e2 = -d1 / l10, -d2 / l20
-        n_sub = max(1, math.ceil(max(np.abs(e1).max(initial=0.0), np.abs(e2).max(initial=0.0))
-                                 / self.max_increment - 1e-12))
-        values, flags = v, None
-        for _ in range(n_sub):
-            values, flags = self._one(params, values, e1 / n_sub, e2 / n_sub, d1 / n_sub, d2 / n_sub)
-        self.counts["substeps"] += n_sub
+        v = np.ascontiguousarray(state.values.reshape(-1, 8))
+        dl = np.column_stack([np.broadcast_to(dl1, shape).reshape(-1), np.broadcast_to(dl2, shape).reshape(-1)])
+        self.counts["cell_updates"] += len(v)
+        if self.model.formulation.name == "compliance":
+            values, flags = self._advance(params, v, dl)
+        else:
+            e1, e2 = -dl[:, 0] / params.l10, -dl[:, 1] / params.l20
+            n_sub = max(1, math.ceil(max(np.abs(e1).max(initial=0.0), np.abs(e2).max(initial=0.0))
+                                     / self.max_increment - 1e-12))
+            values, flags = v, None
+            for _ in range(n_sub):
+                values, flags = self._one(params, values, e1 / n_sub, e2 / n_sub, dl / n_sub)
+            self.counts["substeps"] += n_sub
+        if not np.all(np.isfinite(values)):
+            raise SolverError("the surrogate returned a non-finite cell state")
         return CellState(values.reshape(*shape, 8)), CellFlags(flags.reshape(*shape, 5))
 
-    def _one(self, params, v, e1, e2, dl1, dl2):
+    def _advance(self, params, v, dl):
+        """Compliance formulation: one exact increment with the learned compliances of the states."""
+        comp, out_mask = self._compliances(v)
+        new, flags = self.model.formulation.advance(v, dl, comp)
+        self._outside(params, v, dl, out_mask, new, flags,
+                      lambda i: ", ".join(f"{k}={v[i, j]:.4g}" for j, k in enumerate(FIELDS)))
+        return new, flags
+
+    def _compliances(self, v):
+        """Network outputs and out-of-domain mask for states ``v``; kept while the states do not
+        change, so that the trial increments of one Newton iteration cost no inference."""
+        for seen, comp, mask in self._cache:
+            if seen.shape == v.shape and np.array_equal(seen, v):
+                return comp, mask
+        X = self.model.formulation.features(v)
+        self.counts["network_cells"] += len(v)
+        comp, mask = self.model.forward(X), self.model.outside(X, self.margin)
+        self._cache = [(v.copy(), comp, mask)] + self._cache[:1]
+        return comp, mask
+
+    def _outside(self, params, v, dl, mask, new, flags, describe):
+        """Count the cells outside the training domain; stop or hand them to the closed form."""
+        n_out = int(mask.sum())
+        self.counts["outside"] += n_out
+        if not n_out:
+            return
+        if self.on_outside == "error":
+            raise SolverError(f"{n_out} cell(s) outside the surrogate's training domain, e.g. "
+                              + describe(int(np.flatnonzero(mask)[0])))
+        cf, cflags = self.closed_form.step(params, CellState(v[mask]), dl[mask, 0], dl[mask, 1])
+        new[mask], flags[mask] = cf.values, cflags.flags
+
+    def _one(self, params, v, e1, e2, dl):
         cols = {"deps1": e1, "deps2": e2, "d1": v[:, 0], "d2": v[:, 1], "alpha": v[:, 2],
                 "N1": v[:, 3], "N2": v[:, 4], "T1": v[:, 5], "l1": v[:, 6], "l2": v[:, 7]}
         X = self.model.formulation.inputs(cols)
-        out_mask = self.model.outside(X, self.margin)
-        n_out = int(out_mask.sum())
-        self.counts["cell_updates"] += len(v)
-        self.counts["outside"] += n_out
-        if n_out and self.on_outside == "error":
-            i = int(np.flatnonzero(out_mask)[0])
-            raise SolverError(f"{n_out} cell(s) outside the surrogate's training domain, e.g. "
-                              + ", ".join(f"{k}={cols[k][i]:.4g}" for k in ("deps1", "deps2", "alpha", "l1", "l2", "N1", "N2", "T1")))
+        self.counts["network_cells"] += len(v)
         pred = self._predict(cols, X)
         a = pred["alpha_next"]
-        l1, l2 = v[:, 6] + dl1, v[:, 7] + dl2
+        l1, l2 = v[:, 6] + dl[:, 0], v[:, 7] + dl[:, 1]
         b1 = l2 / (2.0 * np.sin(a))  # eq. 1.2
         b2 = l1 - 2.0 * b1 * np.cos(a)
         new = np.column_stack([b1, b2, a, pred["N1_next"], pred["N2_next"], pred["T1_next"], l1, l2])
@@ -101,13 +143,9 @@ class SurrogateSolver:
         flags = np.column_stack([
             (np.abs(pred["T1_next"]) >= params.tan_phi * pred["N1_next"] * (1 - 1e-9)) & ~opened,
             opened, opened, l1 <= two_r, l2 <= two_r])
-        if n_out:
-            cf, cflags = self.closed_form.step(params, CellState(v[out_mask]), dl1[out_mask], dl2[out_mask])
-            new[out_mask], flags[out_mask] = cf.values, cflags.flags
-        if not np.all(np.isfinite(new)):
-            raise SolverError("the surrogate returned a non-finite cell state")
+        self._outside(params, v, dl, self.model.outside(X, self.margin), new, flags, lambda i: ", ".join(
+            f"{k}={cols[k][i]:.4g}" for k in ("deps1", "deps2", "alpha", "l1", "l2", "N1", "N2", "T1")))
         return new, flags
-
 
     def _predict(self, cols, X):
         """Network prediction with the zero-increment correction: the network's answer for a
@@ -139,9 +177,9 @@ def _same(a, b) -> bool:
 
 
 def load_solver(spec: str, on_outside: str = "fallback") -> SurrogateSolver:
-    """``surrogate`` (the shipped model) or ``surrogate:PATH``."""
+    """``surrogate`` (the shipped default), ``surrogate:NAME`` (a shipped model) or
+    ``surrogate:PATH``."""
     from .modelfile import load
-    from .shipped import shipped_path
+    from .shipped import model_path
 
-    _, _, path = spec.partition(":")
-    return SurrogateSolver(load(path or shipped_path()), on_outside)
+    return SurrogateSolver(load(model_path(spec.partition(":")[2])), on_outside)

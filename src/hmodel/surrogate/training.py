@@ -14,7 +14,7 @@ from ..errors import InputError
 from ..params import Params
 from .formulations import make_formulation
 from .model import Architecture, Surrogate
-from .scalers import fit_scaler
+from .scalers import Affine, fit_scaler
 
 LOSSES = ("mse", "mae")
 
@@ -70,8 +70,8 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
 
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
-    form = make_formulation(config.formulation, params.kn, params.radius, params.tan_phi)
-    X, (Y, W) = form.inputs(columns), form.targets(columns)
+    form = make_formulation(config.formulation, params)
+    X, (Y, W), A = form.inputs(columns), form.targets(columns), form.aux(columns)
     n = len(X)
     if n < 10:
         raise InputError(f"need at least 10 training rows, got {n}")
@@ -79,14 +79,21 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
     n_val = max(1, int(round(config.val_fraction * n)))
     val, tr = perm[:n_val], perm[n_val:]
     xs = fit_scaler(config.normalization, X[tr])
-    ys = fit_target_scaler(config.normalization, Y[tr], W[tr], form.logit_column)
     dev = _device(config.device)
     to = lambda a: torch.as_tensor(a, dtype=torch.float32, device=dev)  # noqa: E731
-    Xt, Yt, Wt = to(xs.transform(X[tr])), to(ys.transform(Y[tr])), to(W[tr])
-    Xv, Yv, Wv = to(xs.transform(X[val])), to(ys.transform(Y[val])), to(W[val])
+    if A is None:
+        ys = fit_target_scaler(config.normalization, Y[tr], W[tr], form.logit_column)
+        Y, n_out = ys.transform(Y), Y.shape[1]
+        At = Av = None
+    else:  # structured head: the network's outputs are not the targets and pass unscaled
+        n_out = form.n_outputs
+        ys = Affine(config.normalization, np.zeros(n_out), np.ones(n_out))
+        At, Av = to(A[tr]), to(A[val])
+    Xt, Yt, Wt = to(xs.transform(X[tr])), to(Y[tr]), to(W[tr])
+    Xv, Yv, Wv = to(xs.transform(X[val])), to(Y[val]), to(W[val])
 
     arch = Architecture(config.width, config.depth, config.activation)
-    net = build_network(arch, X.shape[1], Y.shape[1]).to(dev)
+    net = build_network(arch, X.shape[1], n_out).to(dev)
     opt = torch.optim.Adam(net.parameters(), lr=config.lr)
     sched = torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=0.5, patience=max(1, config.patience // 3))
     loss_fn = _loss(config.loss, form.logit_column)
@@ -100,13 +107,13 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
         for i in range(0, len(Xt), config.batch_size):
             idx = order[i:i + config.batch_size]
             opt.zero_grad(set_to_none=True)
-            loss = loss_fn(net(Xt[idx]), Yt[idx], Wt[idx])
+            loss = loss_fn(form.head(net(Xt[idx]), None if At is None else At[idx], Yt[idx]), Yt[idx], Wt[idx])
             loss.backward()
             opt.step()
             total += float(loss.detach()) * len(idx)
         net.eval()
         with torch.no_grad():
-            v = float(loss_fn(net(Xv), Yv, Wv))
+            v = float(loss_fn(form.head(net(Xv), Av, Yv), Yv, Wv))
         sched.step(v)
         history.append({"epoch": epoch + 1, "train_loss": total / len(Xt), "val_loss": v,
                         "lr": opt.param_groups[0]["lr"], "seconds": time.perf_counter() - t0})
@@ -133,6 +140,21 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
     return Surrogate(form, arch, xs, ys, weights, meta, domain), history
 
 
+def train_on_sample(folder, config: TrainConfig, progress: Callable[[float], None] | None = None
+                    ) -> tuple[Surrogate, list[dict]]:
+    """Train on a sample folder's train rows, evaluate on its test rows, and record the data's
+    provenance, the material and the test metrics in the model's metadata."""
+    from .evaluation import evaluate
+    from .rows import params_of, read_sample
+
+    cols, info = read_sample(folder, "train")
+    test, _ = read_sample(folder, "test")
+    s, history = train(cols, params_of(info), config, progress)
+    s.meta.update(training_data=info["provenance"], params=info["params"],
+                  metrics=evaluate(s, test, "sample test rows"), history_tail=history[-3:])
+    return s, history
+
+
 def _loss(kind: str, logit: int | None):
     """Weighted mean regression loss (MSE or MAE) over the regression outputs, plus binary
     cross-entropy on the logit output when the formulation has one."""
@@ -151,7 +173,6 @@ def _loss(kind: str, logit: int | None):
 
 def fit_target_scaler(method: str, Y: np.ndarray, W: np.ndarray, logit: int | None):
     """Scaler of the targets, each fitted on the rows where it is regressed; a logit stays as is."""
-    from .scalers import Affine
 
     offset, scale = np.zeros(Y.shape[1]), np.ones(Y.shape[1])
     for j in range(Y.shape[1]):

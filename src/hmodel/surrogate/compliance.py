@@ -1,0 +1,188 @@
+"""The ``compliance`` formulation: the network learns the cell's compliance, the contact law stays exact.
+
+For a given contact regime, eq. 1.7 is linear in the length increments:
+A(s)·[δd1, δd2, δα] = [δl1, δl2, λ], where A and λ depend on the state s before the increment
+only (λ = 0 while sticking, eq. 1.10 while sliding in the direction ξ = ±1). So in each regime
+r ∈ {stick, slide+, slide−}
+
+    [δd1/2r, δd2/2r, δα] = B_r(s)·[δl1, δl2]/2r + b_r(s)·λ_r(s)/2r.
+
+The network maps the state (α, d1/2r, N1/(kn·2r), T1/(kn·2r): the variables eq. 1.7's matrix
+depends on) to the 24 numbers B_stick (3×2), B_slide+ (3×2), b_slide+ (3), B_slide− (3×2),
+b_slide− (3). Everything around them is applied exactly, as in the closed form
+(:func:`hmodel.cell.closed_form.finish_increment`): the regime by the Coulomb check of the
+sticking trial (eq. 1.3), λ by eq. 1.10 (:func:`~hmodel.cell.closed_form.sliding_lambda`),
+forces by eqs. 1.8-1.9, openings, lengths and extra contacts. Force levels enter only through
+the features, so the learned numbers are O(1) at any confining pressure; the sliding offset is
+the exact λ times a learned coefficient.
+
+Training rows must be single increments (Dataset 2 with ``--substeps 1``): each row is fitted in
+the regime it was in (sliding flag, ξ = sign of T1 after), the error divided by the row's drive
+|δl|/2r + |λ|/2r so that small and large increments count alike. A cell that opened does not
+record its regime (the flags are reset); such a row is fitted in the regime that matches it best. A cell solver evaluates the network once per state and reuses it for
+every trial increment of a Newton iteration (:class:`hmodel.surrogate.solver.SurrogateSolver`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..cell.closed_form import finish_increment, kernel_params, sliding_lambda, P_KN, P_KT, P_R, P_TAN
+from ..cell.state import initial_lengths
+from ..params import Params
+
+N_OUT = 24
+STICK, PLUS, MINUS = 0, 6, 15  # offsets of B_stick, [B_slide+, b_slide+], [B_slide-, b_slide-]
+
+
+@dataclass(frozen=True)
+class ComplianceFormulation:
+    """Inputs, targets and the exact decoding of the compliance formulation for one material."""
+
+    params: Params  #: the material (only its material parameters matter)
+    name: str = "compliance"
+    logit_column = None
+    n_outputs = N_OUT
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "params": self.params.to_dict()}
+
+    @property
+    def radius(self) -> float:
+        return self.params.radius
+
+    @property
+    def tan_phi(self) -> float:
+        return self.params.tan_phi
+
+    @property
+    def force_scale(self) -> float:
+        return self.params.kn * 2 * self.params.radius
+
+    def features(self, values: np.ndarray) -> np.ndarray:
+        """Network inputs (n, 4) from packed cell states (n, 8) (:data:`hmodel.cell.FIELDS`)."""
+        d, F = 2 * self.radius, self.force_scale
+        return np.column_stack([values[:, 2], values[:, 0] / d, values[:, 3] / F, values[:, 5] / F])
+
+    def inputs(self, c: dict[str, np.ndarray]) -> np.ndarray:
+        return self.features(_packed(c))
+
+    def length_increments(self, c: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """δl1, δl2 of database rows: δl = −l0·δε on the cell's initial lengths (schema)."""
+        l10, l20 = initial_lengths(self.radius, c["alpha0"])
+        return -l10 * c["deps1"], -l20 * c["deps2"]
+
+    def aux(self, c: dict[str, np.ndarray]) -> np.ndarray:
+        """Per-row drive of the loss: (δl1, δl2, λ+, λ−)/(2r·s) and the regime (0 stick, ±1 slide,
+        2 unknown: the cell opened, which resets the recorded regime)."""
+        return self._drive(c)[0]
+
+    def targets(self, c: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """Y = (δd1/2r, δd2/2r, δα)/s and the row weights (0 for empty drives)."""
+        _, s = self._drive(c)
+        d = 2 * self.radius
+        inc = np.column_stack([(c["d1_next"] - c["d1"]) / d, (c["d2_next"] - c["d2"]) / d,
+                               c["alpha_next"] - c["alpha"]])
+        ok = s > 0
+        Y = np.where(ok[:, None], inc / np.where(ok, s, 1.0)[:, None], 0.0)
+        return Y, np.repeat(ok[:, None].astype(float), 3, axis=1)
+
+    def _drive(self, c):
+        d = 2 * self.radius
+        opened = np.asarray(c["open1"], bool) | np.asarray(c["open2"], bool)
+        regime = np.where(opened, 2.0, np.where(np.asarray(c["sliding"], bool),
+                                                np.where(c["T1_next"] >= 0, 1.0, -1.0), 0.0))
+        dl1, dl2 = self.length_increments(c)
+        v, p = _packed(c), kernel_params(self.params)
+        lp, lm = _lambda(v, np.ones(len(v)), p) / d, _lambda(v, -np.ones(len(v)), p) / d
+        u1, u2 = dl1 / d, dl2 / d
+        lam = np.where(regime == 1.0, np.abs(lp), np.where(regime == -1.0, np.abs(lm), 0.0))
+        lam = np.where(regime == 2.0, np.maximum(np.abs(lp), np.abs(lm)), lam)
+        s = np.hypot(u1, u2) + lam
+        inv = 1.0 / np.where(s > 0, s, 1.0)
+        return np.column_stack([u1 * inv, u2 * inv, lp * inv, lm * inv, regime]), s
+
+    def head(self, out, aux, target=None):
+        """Increment (δd1/2r, δd2/2r, δα)/s of each row in its recorded regime (NumPy or torch).
+
+        Rows of unknown regime take the regime that fits ``target`` best: eq. 1.7 ran in one of
+        them before the contact opened.
+        """
+        u1, u2, lp, lm, r = aux[:, 0:1], aux[:, 1:2], aux[:, 2:3], aux[:, 3:4], aux[:, 4:5]
+
+        def linear(k):
+            return out[:, k:k + 6:2] * u1 + out[:, k + 1:k + 6:2] * u2
+
+        stick = linear(STICK)
+        plus = linear(PLUS) + out[:, PLUS + 6:PLUS + 9] * lp
+        minus = linear(MINUS) + out[:, MINUS + 6:MINUS + 9] * lm
+        is_plus, is_minus = (r > 0.5) * (r < 1.5) * 1.0, (r < -0.5) * 1.0
+        if target is not None:
+            unknown = (r > 1.5) * 1.0
+            e_s, e_p, e_m = (((x - target) ** 2).sum(1)[:, None] for x in (stick, plus, minus))
+            is_plus = is_plus + unknown * (e_p < e_s) * (e_p <= e_m)
+            is_minus = is_minus + unknown * (e_m < e_s) * (e_m < e_p)
+        return stick * (1.0 - is_plus - is_minus) + plus * is_plus + minus * is_minus
+
+    def advance(self, values: np.ndarray, dl: np.ndarray, out: np.ndarray):
+        """New packed states (n, 8) and flags (n, 5) of cells ``values`` under length increments
+        ``dl`` (n, 2), with the network's compliances ``out`` (n, 24) for those states."""
+        new = np.empty_like(values)
+        flags = np.empty((len(values), 5), dtype=np.bool_)
+        advance_kernel(np.ascontiguousarray(values), np.ascontiguousarray(dl),
+                       np.ascontiguousarray(out), kernel_params(self.params), new, flags)
+        return new, flags
+
+    def decode(self, c: dict[str, np.ndarray], out: np.ndarray) -> dict[str, np.ndarray]:
+        """Predicted state after the increment of database rows (Surrogate.predict)."""
+        dl1, dl2 = self.length_increments(c)
+        new, _ = self.advance(_packed(c), np.column_stack([dl1, dl2]), out)
+        return {"alpha_next": new[:, 2], "N1_next": new[:, 3], "N2_next": new[:, 4], "T1_next": new[:, 5]}
+
+
+def _packed(c: dict[str, np.ndarray]) -> np.ndarray:
+    from ..cell.state import FIELDS
+    return np.column_stack([np.asarray(c[k], float) for k in FIELDS])
+
+
+@njit(cache=True)
+def _lambda_kernel(values, regime, p, out):
+    for i in range(values.shape[0]):
+        out[i] = sliding_lambda(values[i], 1.0 if regime[i] >= 0 else -1.0, p)
+
+
+def _lambda(values, regime, p):
+    out = np.empty(len(values))
+    _lambda_kernel(np.ascontiguousarray(values), np.asarray(regime, float), p, out)
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def advance_kernel(values, dl, comp, p, out, flags):
+    """One increment of every cell with learned compliances ``comp`` (n, 24); see the module
+    docstring. Returns the index of the first non-finite cell, or -1."""
+    two_r = 2.0 * p[P_R]
+    bad = -1
+    for i in range(values.shape[0]):
+        v = values[i]
+        c = comp[i]
+        u1 = dl[i, 0] / two_r
+        u2 = dl[i, 1] / two_r
+        dd1 = two_r * (c[0] * u1 + c[1] * u2)
+        dd2 = two_r * (c[2] * u1 + c[3] * u2)
+        da = c[4] * u1 + c[5] * u2
+        t1 = v[5] + p[P_KT] * v[0] * da  # sticking trial, eqs. 1.8-1.9
+        sliding = abs(t1) >= p[P_TAN] * (v[3] - p[P_KN] * dd1)
+        xi = 1.0 if t1 >= 0.0 else -1.0
+        if sliding:
+            k = PLUS if xi > 0 else MINUS
+            lam = sliding_lambda(v, xi, p) / two_r
+            dd1 = two_r * (c[k] * u1 + c[k + 1] * u2 + c[k + 6] * lam)
+            dd2 = two_r * (c[k + 2] * u1 + c[k + 3] * u2 + c[k + 7] * lam)
+            da = c[k + 4] * u1 + c[k + 5] * u2 + c[k + 8] * lam
+        if not finish_increment(v, dl[i, 0], dl[i, 1], dd1, dd2, da, sliding, xi, p, out[i], flags[i]) and bad < 0:
+            bad = i
+    return bad
