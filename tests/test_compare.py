@@ -78,3 +78,17 @@ def test_compare_and_reproduce_commands(tmp_path, capsys, monkeypatch):
     capsys.readouterr()
     assert main(["compare", "--paths", "spiral", "--out", str(tmp_path / "x")]) != 0
     assert "spiral" in capsys.readouterr().err
+
+
+def test_full_reproduce_trains_its_own_surrogate(tmp_path, monkeypatch):
+    import hmodel.reproduce as rp
+    import hmodel.surrogate.shipped as sh
+    monkeypatch.setattr(rp, "FULL", rp.Plan(False, 12, 0.003, 1e-3, 3, "45:45:1", 4000))
+    monkeypatch.setattr(sh, "DEFAULT_TRAINING", sh.TrainConfig(formulation="compliance", width=8, depth=2,
+                                                                activation="silu", epochs=3))
+    assert main(["reproduce", "--out", str(tmp_path / "r")]) == 0
+    html = (tmp_path / "r" / "report.html").read_text()
+    assert "Trained here" in html and "compliance" in html
+    from hmodel.surrogate import load
+    model = load(tmp_path / "r" / "surrogate.safetensors")
+    assert model.meta["config"]["epochs"] == 3 and model.meta["training_data"]["source_checksum"]

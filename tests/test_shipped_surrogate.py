@@ -90,13 +90,14 @@ def test_large_increments_are_split(shipped):
     assert s.counts["substeps"] == 4  # 3.5 % in steps of at most the trained 1 %
 
 
+@pytest.mark.parametrize("name", ["default", "increment"])
 @pytest.mark.parametrize("mode", ["fallback", "error"])
-def test_out_of_domain_cells_are_detected(shipped, mode):
+def test_out_of_domain_cells_are_detected(name, mode):
     p, state = _cells(4)
     v = state.values.copy()
     v[0, 3] *= 50  # N1 fifty times larger than anything trained
     far = CellState(v)
-    s = SurrogateSolver(shipped, on_outside=mode)
+    s = SurrogateSolver(load_shipped(name), on_outside=mode)
     if mode == "error":
         with pytest.raises(SolverError, match="outside the surrogate's training domain"):
             s.step(p, far, -p.l10 * 1e-3, 0.0)

@@ -97,7 +97,8 @@ def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
     # 3. Surrogate: trained on the new database (full) or the shipped one, evaluated on new rows.
     if plan.train_rows:
         t = time.perf_counter()
-        write_split(ds, work / "sample", plan.train_rows, 100_000, "random", 0)
+        n_test = min(100_000, ds.n_rows // 10)
+        write_split(ds, work / "sample", min(plan.train_rows, ds.n_rows // 2), n_test, "random", 0)
         model, _ = train_on_sample(work / "sample", DEFAULT_TRAINING)
         timings.append({"step": f"training ({plan.train_rows:,} rows, {model.meta['epochs_run']} epochs)",
                         "seconds": time.perf_counter() - t})
