@@ -145,21 +145,38 @@ def deviations(ref: PathResult, other: PathResult) -> list[dict]:
     return out
 
 
+def _p0(r: PathResult) -> float:
+    """Confining pressure of one point: the mean stress at the end of its consolidation."""
+    c = r.stage("consolidation")["p"]
+    return float(c[-1] if len(c) else r["p"][0])
+
+
 def plot_overlay(name: str, ref: PathResult, other: PathResult, labels: tuple[str, str], path: Path) -> None:
-    """q and volumetric strain against axial strain (or the path parameter): both solvers."""
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.3), constrained_layout=True)
+    """q and volumetric strain against axial strain (or the path parameter), the stress path, and
+    the errors: the second solver's Δq relative to the first's peak q and its Δεv, row by row."""
+    fig, axes = plt.subplots(1, 4, figsize=(19, 4.3), constrained_layout=True)
+    err_v = axes[3].twinx()
     for b in range(ref.n_points):
         for res, ls, lab in ((ref, "-", labels[0]), (other, "--", labels[1])):
             r = res.point(b)
             x = 100 * (r["eps11"] - r["eps11"][0]) if name != "rotation" else np.arange(len(r))
-            tag = f"{lab}, p0 = {r['p'][0] / 1e3:.0f} kPa" if ref.n_points > 1 else lab
+            tag = f"{lab}, p0 = {_p0(r) / 1e3:.0f} kPa" if ref.n_points > 1 else lab
             axes[0].plot(x, r["q"] / 1e3, ls, label=tag)
             axes[1].plot(x, 100 * r["eps_v"], ls)
             axes[2].plot(r["p"] / 1e3, r["q"] / 1e3, ls)
+        a, o = ref.point(b), other.point(b)
+        n = min(len(a), len(o))
+        x = 100 * (a["eps11"][:n] - a["eps11"][0]) if name != "rotation" else np.arange(n)
+        peak = max(np.abs(a["q"]).max(), 1e-300)
+        axes[3].plot(x, 100 * (o["q"][:n] - a["q"][:n]) / peak, label=f"Δq, p0 = {_p0(a) / 1e3:.0f} kPa")
+        err_v.plot(x, 100 * (o["eps_v"][:n] - a["eps_v"][:n]), ":", color="0.4")
     xl = "ε11 [%]" if name != "rotation" else "state along the path"
     axes[0].set(xlabel=xl, ylabel="q = σ11 − σ22 [kPa]", title=name)
     axes[1].set(xlabel=xl, ylabel="εv [%] (compression > 0)")
     axes[2].set(xlabel="p [kPa]", ylabel="q [kPa]", title="stress path")
+    axes[3].set(xlabel=xl, ylabel=f"Δq / peak q [%] ({labels[1]} − {labels[0]})", title="errors")
+    err_v.set_ylabel("Δεv [% strain] (dotted)")
     axes[0].legend(fontsize=7)
+    axes[3].legend(fontsize=7)
     fig.savefig(path, dpi=130)
     plt.close(fig)
