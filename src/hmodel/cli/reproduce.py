@@ -13,7 +13,7 @@ from .progress import LazyProgress
 def reproduce(
     quick: Annotated[bool, typer.Option("--quick", help="Reduced study (≈ 1 minute): the shipped surrogate "
                                                         "and a small database; without it, the report-scale "
-                                                        "database and a surrogate trained on it (≈ 20 min).")] = False,
+                                                        "database and a surrogate trained on it (≈ 10 min).")] = False,
     out: Annotated[Path, typer.Option("--out", "-o", help="Folder for report.html, figures and tables.")] = Path("results"),
     solver: Annotated[str, typer.Option(help="Surrogate compared with the closed form in --quick: "
                                              "surrogate (shipped), surrogate:NAME or surrogate:MODEL_FILE.")] = "surrogate",
