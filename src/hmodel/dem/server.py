@@ -1,7 +1,7 @@
 """A persistent YADE process answering one-increment requests (:mod:`hmodel.dem.yade_server`).
 
-Starting YADE costs about 1 s, a request of a few dozen cells a few tens of ms, so the DEM cell
-solver keeps one process per Python process, started on first use and ended at exit. A
+Starting YADE costs about 1 s, a request of a few dozen cells a few tens of ms, so each DEM cell
+solver keeps one process, started on first use and ended with the solver or at exit. A
 process that dies, answers nothing within the timeout or reports a failure gives a
 :class:`~hmodel.dem.yade.DEMError` with a one-line message (the process is then restarted on
 the next request). After ``fork`` (multiprocessing workers) the child starts its own.
@@ -9,7 +9,6 @@ the next request). After ``fork`` (multiprocessing workers) the child starts its
 
 from __future__ import annotations
 
-import atexit
 import json
 import os
 import selectors
@@ -133,25 +132,3 @@ class YadeServer:
         if self._tmp is not None and self._pid in (0, os.getpid()):
             shutil.rmtree(self._tmp, ignore_errors=True)
         self._tmp = None
-
-
-_SERVER: YadeServer | None = None
-
-
-def server() -> YadeServer:
-    """The YADE server of this Python process (started on first request; a new one after a
-    fork or when ``$HMODEL_YADE`` names another executable)."""
-    global _SERVER
-    exe = find_yade()
-    if _SERVER is None or _SERVER._pid not in (0, os.getpid()) or _SERVER.exe != exe:
-        if _SERVER is not None and _SERVER._pid == os.getpid():
-            _SERVER.close()
-        _SERVER = YadeServer()
-        _SERVER.exe = exe
-    return _SERVER
-
-
-@atexit.register
-def _shutdown() -> None:
-    if _SERVER is not None:
-        _SERVER.close()

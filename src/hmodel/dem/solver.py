@@ -33,6 +33,8 @@ contact open; ``contact14`` grains 1-4 in contact; ``contact26`` grains 2-6 or 3
 from __future__ import annotations
 
 import math
+import os
+import weakref
 from dataclasses import replace
 
 import numpy as np
@@ -42,7 +44,8 @@ from ..errors import InputError
 from ..params import Params
 from .mesostructure import CONSTRUCTORS, TYPE1, TYPE1_SIGN, TYPE2, Mesostructure, build
 from .scene import DEMOptions
-from .server import server
+from .server import YadeServer
+from .yade import find_yade
 
 #: Defaults of the solver: a tight quasi-static criterion, so that the stress is a smooth
 #: enough function of the increment for Newton's finite-difference tangents.
@@ -80,6 +83,23 @@ class DEMSolver:
         #: Newton's stress tolerance for this solver (the loading drivers use the larger of
         #: theirs and this): the DEM state is converged to ``options.tol``, not to round-off.
         self.stress_rtol = 1e-7
+        self._server: YadeServer | None = None
+
+    def __getstate__(self) -> dict:  # a copy in another process starts its own YADE
+        return {**self.__dict__, "_server": None}
+
+    def yade(self) -> YadeServer:
+        """This solver's YADE process: started on first use, anew after a fork (multiprocessing
+        workers) or when ``$HMODEL_YADE`` names another executable; ended with the solver."""
+        exe = find_yade()
+        s = self._server
+        if s is None or s._pid not in (0, os.getpid()) or s.exe != exe:
+            if s is not None and s._pid == os.getpid():
+                s.close()
+            s = self._server = YadeServer()
+            s.exe = exe
+            weakref.finalize(self, s.close)
+        return s
 
     def __repr__(self) -> str:
         return f"DEMSolver({self.name!r})"
@@ -204,7 +224,7 @@ class DEMSolver:
             req["cells"].append({"radii": r.tolist(), "pos": pos[k].tolist(), "drive": list(proto.drive),
                                  "l": [float(values[k, 6]), float(values[k, 7])],
                                  "half_width": half, "half_height": height, "increment": dl[k].tolist(), "shear": shear})
-        result = server().request(req, timeout=o.timeout)
+        result = self.yade().request(req, timeout=o.timeout)
         n = len(values)
         new_pos = np.array([c["pos"] for c in result["cells"]], float).reshape(n, self.n_grains, 2)
         new_ft = np.zeros((n, len(self.pairs)))
