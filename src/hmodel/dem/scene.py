@@ -23,6 +23,7 @@ from .mesostructure import TYPE1, TYPE1_SIGN, TYPE2, Mesostructure
 from .yade import run_script
 
 SCRIPT = Path(__file__).with_name("yade_script.py")
+COMMON = Path(__file__).with_name("yade_common.py")
 
 #: Columns of a contact row: local grain indices, normal force (compression positive),
 #: tangential component f.(e_y, -e_x), force on j by i (x, y), branch vector x_j - x_i.
@@ -170,7 +171,8 @@ def simulate(cells: list[tuple[Mesostructure, np.ndarray]], params: Params,
         spec["cells"].append({"radii": m.radii.tolist(), "pos": m.positions.tolist(),
                               "drive": list(m.drive), "l1": m.l1, "l2": m.l2,
                               "half_width": m.half_width, "increments": inc.tolist()})
-    result = run_script(SCRIPT.read_text(), spec, timeout=options.timeout)
+    result = run_script(SCRIPT.read_text(), spec, timeout=options.timeout,
+                        files={COMMON.name: COMMON.read_text()})
     runs = []
     for (m, inc), rec in zip(cells, result["cells"]):
         n = len(np.reshape(inc, (-1, 2))) + 1

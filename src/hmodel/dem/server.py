@@ -21,6 +21,7 @@ from pathlib import Path
 from .yade import DEMError, EquilibriumError, _last_line, find_yade
 
 SCRIPT = Path(__file__).with_name("yade_server.py")
+COMMON = Path(__file__).with_name("yade_common.py")
 MARK = "@@HMODEL-DEM@@ "
 
 
@@ -49,6 +50,7 @@ class YadeServer:
         exe = self.exe or find_yade()
         self._tmp = tempfile.mkdtemp(prefix="hmodel-dem-server-")
         (Path(self._tmp) / "server.py").write_text(SCRIPT.read_text())
+        (Path(self._tmp) / COMMON.name).write_text(COMMON.read_text())
         err = open(Path(self._tmp) / "stderr.txt", "w")
         env = dict(os.environ, OMP_NUM_THREADS="1")
         try:

@@ -61,8 +61,12 @@ def _last_line(text: str) -> str:
     return lines[-1] if lines else "no message"
 
 
-def run_script(script: str, payload: dict, timeout: float = 600.0) -> dict:
+def run_script(script: str, payload: dict, timeout: float = 600.0,
+               files: dict[str, str] | None = None) -> dict:
     """Run ``script`` (Python source for YADE) on ``payload``; return its JSON output.
+
+    ``files`` (name -> text) are written next to the script (its working directory), e.g. the
+    shared :mod:`hmodel.dem.yade_common`.
 
     The script is called as ``script.py input.json output.json`` and must write a JSON object
     with ``status`` (``"ok"`` or ``"no-equilibrium"``) and ``message``.
@@ -75,6 +79,8 @@ def run_script(script: str, payload: dict, timeout: float = 600.0) -> dict:
     with tempfile.TemporaryDirectory(prefix="hmodel-dem-") as tmp:
         work = Path(tmp)
         (work / "script.py").write_text(script)
+        for name, text in (files or {}).items():
+            (work / name).write_text(text)
         (work / "input.json").write_text(json.dumps(payload))
         cmd = [exe, "-n", "-j1", "-x", "script.py", "input.json", "output.json"]
         env = dict(os.environ, OMP_NUM_THREADS="1")

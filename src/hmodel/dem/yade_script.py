@@ -1,7 +1,8 @@
 """The script YADE runs (``yade -n -j1 -x yade_script.py INPUT.json OUTPUT.json``).
 
 It is copied as text into a temporary folder by :mod:`hmodel.dem.scene` and executed by YADE's
-own Python, so it is self-contained: the standard library at module level, YADE imported only
+own Python, so it needs only the standard library and the copied :mod:`hmodel.dem.yade_common` (contact
+rows, unbalanced-force ratio, shared with :mod:`hmodel.dem.yade_server`); YADE is imported only
 inside :func:`main` (importing this module from hmodel never needs YADE).
 
 Scene. Many independent cells side by side along x, far enough apart never to touch; each
@@ -33,48 +34,15 @@ the number of relaxation iterations, and the resultant contact force on every gr
 """
 
 import json
-import math
+import os
 import sys
 import time
 
-
-def _all_contacts(O, cells, owner):
-    """Contacts of every cell, one list [i, j, fn, ft, fx, fy, bx, by] per contact."""
-    out = [[] for _ in cells]
-    for I in O.interactions:
-        if not I.isReal or I.geom.penetrationDepth < 0:  # kept by neverErase but open
-            continue
-        c, i = owner[I.id1]
-        c2, j = owner[I.id2]
-        if c != c2:
-            continue
-        f = I.phys.normalForce + I.phys.shearForce  # force on id2 by id1
-        fx, fy = f[0], f[1]
-        if i > j:
-            i, j, fx, fy = j, i, -fx, -fy
-        pi = O.bodies[cells[c]["ids"][i]].state.pos
-        pj = O.bodies[cells[c]["ids"][j]].state.pos
-        bx, by = pj[0] - pi[0], pj[1] - pi[1]
-        norm = math.hypot(bx, by)
-        ex, ey = bx / norm, by / norm
-        out[c].append([i, j, fx * ex + fy * ey, fx * ey - fy * ex, fx, fy, bx, by])
-    return [sorted(o) for o in out]
-
-
-def _unbalanced(O, cell, contacts):
-    """max |F| on the free degrees of freedom / mean |f| over the cell's contacts."""
-    mean_f = sum(math.hypot(c[4], c[5]) for c in contacts) / max(len(contacts), 1)
-    worst = 0.0
-    for k, bid in enumerate(cell["ids"]):
-        f = O.forces.f(bid)
-        drive = cell["drive"][k]
-        if drive != "n":
-            worst = max(worst, abs(f[0]))
-        if drive != "t":
-            worst = max(worst, abs(f[1]))
-    if mean_f <= cell["f_floor"]:
-        return 0.0, True  # mechanism without load: nothing to balance
-    return worst / mean_f, False
+try:  # from hmodel (tests, docs)
+    from .yade_common import contacts, steps, unbalanced
+except ImportError:  # in YADE: yade_common.py is copied into the working directory
+    sys.path.insert(0, os.getcwd())
+    from yade_common import contacts, steps, unbalanced
 
 
 def _stop_free(O, cell):
@@ -90,12 +58,6 @@ def _record(O, cell, origin, contacts, unbalanced, iters):
     forces = [[O.forces.f(bid)[0], O.forces.f(bid)[1]] for bid in cell["ids"]]
     return {"pos": pos, "forces": forces, "contacts": contacts, "unbalanced": unbalanced,
             "iterations": iters}
-
-
-def _steps(O, n):
-    """n time steps (O.step() in a loop: O.run(n, True) waits ~40 ms per call)."""
-    for _ in range(n):
-        O.step()
 
 
 def main(argv):
@@ -152,7 +114,7 @@ def main(argv):
         f.aabbEnlargeFactor = 1.0
 
     n_steps = max(len(c["increments"]) for c in cells)
-    cons = _all_contacts(O, cells, owner)
+    cons = contacts(O, cells, owner)
     records = [[_record(O, c, c["_origin"], cons[k], 0.0, 0)] for k, c in enumerate(cells)]
     substeps, check_every = spec["substeps"], spec["check_every"]
     status, message = "ok", ""
@@ -170,7 +132,7 @@ def main(argv):
                 v[axis] = rel * inc[axis] / cell["l"][axis] / (substeps * O.dt)
                 st.vel = v
             cell["l"] = [cell["l"][0] + inc[0], cell["l"][1] + inc[1]]
-        _steps(O, substeps)
+        steps(O, substeps)
         for cell in cells:
             for k, bid in enumerate(cell["ids"]):
                 if cell["drive"][k] != "free":
@@ -181,9 +143,9 @@ def main(argv):
         ratios = [0.0] * len(cells)
         while True:
             still = []
-            cons = _all_contacts(O, cells, owner)
+            cons = contacts(O, cells, owner)
             for c in pending:
-                ratios[c], empty = _unbalanced(O, cells[c], cons[c])
+                ratios[c], empty = unbalanced(O, cells[c], cons[c])
                 if empty:
                     _stop_free(O, cells[c])
                 if ratios[c] > spec["tol"]:
@@ -191,7 +153,7 @@ def main(argv):
             pending = still
             if not pending or iters >= spec["max_iter"]:
                 break
-            _steps(O, check_every)
+            steps(O, check_every)
             iters += check_every
         if pending:
             status = "no-equilibrium"
@@ -199,7 +161,7 @@ def main(argv):
                        f"iterations (unbalanced force ratio {max(ratios[c] for c in pending):.3g} "
                        f"> {spec['tol']:g} in {len(pending)} cell(s))")
             break
-        cons = _all_contacts(O, cells, owner)
+        cons = contacts(O, cells, owner)
         for c, cell in enumerate(cells):
             for bid in cell["ids"]:  # quasi-static: no kinetic energy carried over
                 O.bodies[bid].state.vel = (0.0, 0.0, 0.0)
@@ -209,7 +171,6 @@ def main(argv):
               "wall_s": time.time() - t0, "cells": records}
     with open(argv[1] + ".part", "w") as fh:
         json.dump(result, fh)
-    import os
     os.replace(argv[1] + ".part", argv[1])
 
 

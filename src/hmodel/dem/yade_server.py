@@ -1,8 +1,8 @@
 """The persistent YADE process of the DEM cell solver (``yade -n -j1 -x yade_server.py``).
 
 Copied as text into a temporary folder by :mod:`hmodel.dem.server` and executed by YADE's own
-Python, so it is self-contained (standard library at module level, YADE imported in
-:func:`main`). It reads one JSON request per line on stdin and answers one line on stdout
+Python, so it needs only the standard library and the copied :mod:`hmodel.dem.yade_common`
+(YADE is imported in :func:`main`). It reads one JSON request per line on stdin and answers one line on stdout
 prefixed by :data:`MARK` (YADE's own output is ignored by the client); an empty line or EOF
 ends it.
 
@@ -24,52 +24,23 @@ a function of the request only:
    grid centred on the origin); a cell that meets it is frozen at once (all its degrees of freedom blocked), so
    its result does not depend on the other cells of the request.
 
-Contact law, stiffnesses and the shear increment are those of :mod:`hmodel.dem.yade_script`.
+Contact law, stiffnesses and the shear increment are those of :mod:`hmodel.dem.yade_script`;
+contact rows and the unbalanced-force ratio come from :mod:`hmodel.dem.yade_common`.
 """
 
 import json
 import math
+import os
 import sys
 import time
 
+try:  # from hmodel (tests, docs)
+    from .yade_common import contacts, steps, unbalanced
+except ImportError:  # in YADE: yade_common.py is copied into the working directory
+    sys.path.insert(0, os.getcwd())
+    from yade_common import contacts, steps, unbalanced
+
 MARK = "@@HMODEL-DEM@@ "
-
-
-def _contacts(O, cells, owner):
-    out = [[] for _ in cells]
-    for I in O.interactions:
-        if not I.isReal or I.geom.penetrationDepth < 0:
-            continue
-        c, i = owner[I.id1]
-        c2, j = owner[I.id2]
-        if c != c2:
-            continue
-        f = I.phys.normalForce + I.phys.shearForce  # force on id2 by id1
-        fx, fy = f[0], f[1]
-        if i > j:
-            i, j, fx, fy = j, i, -fx, -fy
-        pi = O.bodies[cells[c]["ids"][i]].state.pos
-        pj = O.bodies[cells[c]["ids"][j]].state.pos
-        bx, by = pj[0] - pi[0], pj[1] - pi[1]
-        norm = math.hypot(bx, by)
-        ex, ey = bx / norm, by / norm
-        out[c].append([i, j, fx * ex + fy * ey, fx * ey - fy * ex, fx, fy, bx, by])
-    return [sorted(o) for o in out]
-
-
-def _ratio(O, cell, contacts):
-    mean_f = sum(math.hypot(c[4], c[5]) for c in contacts) / max(len(contacts), 1)
-    if mean_f <= cell["f_floor"]:
-        return 0.0
-    worst = -cell["f_abs"]
-    for k, bid in enumerate(cell["ids"]):
-        f = O.forces.f(bid)
-        drive = cell["drive"][k]
-        if drive != "n":
-            worst = max(worst, abs(f[0]))
-        if drive != "t":
-            worst = max(worst, abs(f[1]))
-    return max(worst, 0.0) / mean_f
 
 
 def _freeze(O, cell):
@@ -150,8 +121,7 @@ def solve(req, yade):
             v = [0.0, 0.0, 0.0]
             v[axis] = rel * dl[axis] / cell["l"][axis] / (substeps * dt)
             st.vel = v
-    for _ in range(substeps):
-        O.step()
+    steps(O, substeps)
     for cell in cells:
         for k, bid in enumerate(cell["ids"]):
             if cell["drive"][k] != "free":
@@ -161,10 +131,10 @@ def solve(req, yade):
     iters = [0] * len(cells)
     it = 0
     while True:
-        cons = _contacts(O, cells, owner)
+        cons = contacts(O, cells, owner)
         still = []
         for c in pending:
-            ratios[c] = _ratio(O, cells[c], cons[c])
+            ratios[c] = unbalanced(O, cells[c], cons[c], cells[c]["f_abs"])[0]
             if ratios[c] > req["tol"]:
                 still.append(c)
             else:
@@ -173,8 +143,7 @@ def solve(req, yade):
         pending = still
         if not pending or it >= req["max_iter"]:
             break
-        for _ in range(req["check_every"]):
-            O.step()
+        steps(O, req["check_every"])
         it += req["check_every"]
     if pending:
         return {"status": "no-equilibrium",
