@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit
 
 from ..cell.closed_form import finish_increment, kernel_params, sliding_lambda, P_KN, P_KT, P_R, P_TAN
-from ..cell.state import initial_lengths
+from ..cell.state import FIELDS, initial_lengths
 from ..params import Params
 
 N_OUT = 24
@@ -144,7 +144,6 @@ class ComplianceFormulation:
 
 
 def _packed(c: dict[str, np.ndarray]) -> np.ndarray:
-    from ..cell.state import FIELDS
     return np.column_stack([np.asarray(c[k], float) for k in FIELDS])
 
 
