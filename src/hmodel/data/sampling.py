@@ -205,13 +205,14 @@ def write_split(ds: Dataset, out: "str | os.PathLike", n_train: int, n_test: int
             "options": ds.manifest["options"], "params": ds.manifest["params"],
             "method": method, "seed": seed, "rules": list(rules), "columns": list(columns),
             "files": {}}
-    schema = arrow_schema().append(pa.field("row", pa.int64(), nullable=False))
+    if ds.n_extra:  # a richer DEM cell's extra state travels with its rows
+        meta["extra_fields"] = ds.manifest["extra_fields"]
+    schema = arrow_schema(n_extra=ds.n_extra).append(pa.field("row", pa.int64(), nullable=False))
 
     def writer(name: str, rows: np.ndarray):
         def write(path: Path) -> None:
             cols = {**ds.read(rows=rows), "row": rows}
-            table = pa.Table.from_arrays([pa.array(cols[f.name], type=f.type) for f in schema],
-                                         schema=schema)
+            table = pa.Table.from_arrays([_arrow(cols[f.name], f.type) for f in schema], schema=schema)
             pq.write_table(table, path, compression="zstd")
             meta["files"][name] = {"file": path.name, "rows": len(rows), "sha256": sha256(path)}
         return write
@@ -219,3 +220,10 @@ def write_split(ds: Dataset, out: "str | os.PathLike", n_train: int, n_test: int
     write_outputs(out, {"train.parquet": writer("train", train), "test.parquet": writer("test", test),
                         "manifest.json": lambda p: p.write_text(json.dumps(meta, indent=1) + "\n")})
     return meta
+
+
+def _arrow(values: np.ndarray, kind: pa.DataType) -> pa.Array:
+    if pa.types.is_fixed_size_list(kind):  # (rows, size) extra state
+        return pa.FixedSizeListArray.from_arrays(pa.array(np.ascontiguousarray(values).reshape(-1)),
+                                                 kind.list_size)
+    return pa.array(values, type=kind)

@@ -233,13 +233,19 @@ class Dataset:
 
     def iter_tables(self, columns: list[str] | None = None) -> Iterator[pa.Table]:
         """Shard by shard (bounded memory)."""
-        cols = _check_columns(columns)
+        cols = _check_columns(columns, self.n_extra)
         for path in self.shards():
             yield pq.read_table(path, columns=cols)
 
+    @property
+    def n_extra(self) -> int:
+        """Number of extra state fields of a richer DEM cell (0 otherwise)."""
+        return len(self.manifest.get("extra_fields", ()))
+
     def read(self, columns: list[str] | None = None, rows: np.ndarray | None = None) -> dict[str, np.ndarray]:
-        """Columns as NumPy arrays, all rows or the sorted global row indices ``rows``."""
-        cols = _check_columns(columns) or list(COLUMNS)
+        """Columns as NumPy arrays, all rows or the sorted global row indices ``rows``; the
+        extra state columns of a richer cell (read by default when present) as (rows, n_extra)."""
+        cols = _check_columns(columns, self.n_extra) or list(COLUMNS) + list(EXTRA_COLUMNS if self.n_extra else ())
         parts: dict[str, list[np.ndarray]] = {c: [] for c in cols}
         offset = 0
         for e, path in zip(self.manifest["shards"], self.shards()):
@@ -255,18 +261,30 @@ class Dataset:
                 offset += n
                 t = pq.read_table(path, columns=cols)
             for c in cols:
-                parts[c].append(t.column(c).to_numpy())
-        return {c: (np.concatenate(v) if v else np.array([], dtype=_dtype(c))) for c, v in parts.items()}
+                parts[c].append(column_array(t, c))
+        return {c: (np.concatenate(v) if v else _empty(c, self.n_extra)) for c, v in parts.items()}
 
 
-def _dtype(column: str):
-    return arrow_schema().field(column).type.to_pandas_dtype()
+def column_array(table: pa.Table, column: str) -> np.ndarray:
+    """A column of a shard or sample table as NumPy; a fixed-size list column as (rows, size)."""
+    col = table.column(column)
+    if pa.types.is_fixed_size_list(col.type):
+        flat = col.combine_chunks().flatten().to_numpy()
+        return flat.reshape(len(col), col.type.list_size)
+    return col.to_numpy()
 
 
-def _check_columns(columns: list[str] | None) -> list[str] | None:
+def _empty(column: str, n_extra: int) -> np.ndarray:
+    if column in EXTRA_COLUMNS:
+        return np.empty((0, n_extra))
+    return np.array([], dtype=arrow_schema().field(column).type.to_pandas_dtype())
+
+
+def _check_columns(columns: list[str] | None, n_extra: int = 0) -> list[str] | None:
     if columns is None:
         return None
-    unknown = [c for c in columns if c not in COLUMNS]
+    known = list(COLUMNS) + list(EXTRA_COLUMNS if n_extra else ())
+    unknown = [c for c in columns if c not in known]
     if unknown:
-        raise InputError(f"unknown dataset column(s) {', '.join(unknown)} (known: {', '.join(COLUMNS)})")
+        raise InputError(f"unknown dataset column(s) {', '.join(unknown)} (known: {', '.join(known)})")
     return list(columns)

@@ -1,8 +1,9 @@
 """The DEM cell solver: the engine's :class:`~hmodel.cell.base.CellSolver` backed by YADE.
 
 ``get_solver("dem:MESOSTRUCTURE")`` (``dem:standard``, ``dem:hexagon-center``,
-``dem:hexagon-unequal``; options after a second colon, e.g. ``dem:hexagon-unequal:ratio=0.6``)
-returns a :class:`DEMSolver`. :meth:`DEMSolver.step` writes every cell of the batch, with its
+``dem:hexagon-unequal``; options after a second colon, e.g. ``dem:hexagon-unequal:ratio=0.6``,
+where numerical settings of :class:`~hmodel.dem.scene.DEMOptions` may be given too, e.g.
+``dem:hexagon-center:tol=1e-7,max_iter=50000``) returns a :class:`DEMSolver`. :meth:`DEMSolver.step` writes every cell of the batch, with its
 state, into one request to the persistent YADE process of :mod:`hmodel.dem.server`, which
 rebuilds the cells (positions and tangential contact forces from the state), applies the
 increment and relaxes them to the quasi-static criterion. The answer depends on the state and
@@ -52,7 +53,8 @@ from .yade import find_yade
 SOLVER_OPTIONS = DEMOptions(tol=1e-10, max_iter=400_000, substeps=100, check_every=10)
 
 
-def _parse(spec: str) -> tuple[str, dict]:
+def _parse(spec: str) -> tuple[str, dict, dict]:
+    """Mesostructure name, its options and :class:`DEMOptions` changes of ``dem:NAME:K=V,...``."""
     parts = spec.split(":")
     name = parts[1] if len(parts) > 1 and parts[1] else "standard"
     opts = {}
@@ -64,17 +66,23 @@ def _parse(spec: str) -> tuple[str, dict]:
             raise InputError(f"DEM solver option must be NAME=NUMBER, got {item!r}") from None
     if name not in CONSTRUCTORS:
         raise InputError(f"unknown mesostructure {name!r} (available: {', '.join(CONSTRUCTORS)})")
-    return name, opts
+    numerics = {k: (int(v) if k in _INTEGER else v) for k, v in opts.items() if k in _NUMERICS}
+    return name, {k: v for k, v in opts.items() if k not in _NUMERICS}, numerics
+
+
+#: DEMOptions fields that a solver spec may set (``dem:hexagon-center:tol=1e-7``).
+_NUMERICS = ("tol", "max_iter", "substeps", "damping", "dt_safety", "check_every", "timeout")
+_INTEGER = ("max_iter", "substeps", "check_every")
 
 
 class DEMSolver:
     """YADE cells of one mesostructure; see the module docstring for the state layout."""
 
     def __init__(self, spec: str = "dem:standard", options: DEMOptions | None = None):
-        self.mesostructure, self.meso_options = _parse(spec)
-        self.name = f"dem:{self.mesostructure}" + (
-            ":" + ",".join(f"{k}={v:g}" for k, v in self.meso_options.items()) if self.meso_options else "")
-        self.options = options or SOLVER_OPTIONS
+        self.mesostructure, self.meso_options, numerics = _parse(spec)
+        named = {**self.meso_options, **numerics}
+        self.name = f"dem:{self.mesostructure}" + (":" + ",".join(f"{k}={v:g}" for k, v in named.items()) if named else "")
+        self.options = replace(options or SOLVER_OPTIONS, **numerics)
         proto = build(self.mesostructure, **self.meso_options)
         self.n_grains = proto.n_grains
         self.standard = self.mesostructure == "standard"
@@ -260,7 +268,12 @@ class DEMSolver:
             return None
         values = np.asarray(state.values, float)
         shape = values.shape[:-1]
-        flat = values.reshape(-1, self.n_fields)
+        vsig, vol = self.love_weber(params, values.reshape(-1, self.n_fields))
+        return vsig.reshape(*shape, 3), vol.reshape(shape)
+
+    def love_weber(self, params: Params, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(V sigma_nn, V sigma_tt, V sigma_nt) (n, 3) and meso-volume (n,) of state rows (n,
+        n_fields), every layout (for the standard cell it equals eq. 1.12 of its fields)."""
         pos, ft = self._unpack(params, flat)
         fn, closed = self._normal(params, pos)
         i, j = self.pairs.T
@@ -270,9 +283,10 @@ class DEMSolver:
         f = (fn[..., None] * e + ft[..., None] * tang) * closed[..., None]
         vs = np.einsum("npa,npb->nab", f, b)
         vsig = np.stack([vs[:, 0, 0], vs[:, 1, 1], 0.5 * (vs[:, 0, 1] + vs[:, 1, 0])], axis=-1)
-        vol = self.cell(params, params.alpha0).volume(pos)
-        return vsig.reshape(*shape, 3), vol.reshape(shape)
+        return vsig, self.cell(params, params.alpha0).volume(pos)
 
     def with_options(self, **changes) -> "DEMSolver":
         """A copy with other :class:`DEMOptions`."""
-        return DEMSolver(self.name, replace(self.options, **changes))
+        copy = DEMSolver(self.name)
+        copy.options = replace(self.options, **changes)
+        return copy

@@ -18,21 +18,32 @@ from .formulations import OUTPUTS  # noqa: E402
 from .metrics import metrics_table  # noqa: E402
 from .model import Surrogate  # noqa: E402
 
-BEFORE = ("alpha", "N1", "N2", "T1")
-UNITS = {"alpha_next": "rad", "N1_next": "N", "N2_next": "N", "T1_next": "N"}
+UNITS = {"alpha_next": "rad", "N1_next": "N", "N2_next": "N", "T1_next": "N", "Vs_nn_next": "N m",
+         "Vs_tt_next": "N m", "Vs_nt_next": "N m"}
 
 
-def truth_and_prediction(s: Surrogate, cols: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+def outputs_of(s: Surrogate) -> tuple[str, ...]:
+    """The predicted state columns (``*_next``): the four of the report, and the meso-stress
+    of the ``meso`` formulation."""
+    return getattr(s.formulation, "outputs", OUTPUTS)
+
+
+def truth_and_prediction(s: Surrogate, cols: dict[str, np.ndarray]
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """True and predicted state after, and the state before, (n, outputs) each."""
+    cols = getattr(s.formulation, "augment", lambda c: c)(cols)
     pred = s.predict(cols)
-    return (np.column_stack([cols[k] for k in OUTPUTS]), np.column_stack([pred[k] for k in OUTPUTS]))
+    out = outputs_of(s)
+    return tuple(np.column_stack([src[k] for k in out]) for src in (cols, pred)) + (
+        np.column_stack([cols[k[:-5]] for k in out]),)
 
 
 def evaluate(s: Surrogate, cols: dict[str, np.ndarray], label: str) -> list[dict]:
     """Metric rows for the state after and for the increments, labelled with ``label``."""
-    y, p = truth_and_prediction(s, cols)
-    before = np.column_stack([cols[k] for k in BEFORE])
-    rows = metrics_table(y, p, OUTPUTS, data=label, quantity="state after")
-    rows += metrics_table(y - before, p - before, [f"d{k[:-5]}" for k in OUTPUTS], data=label,
+    y, p, before = truth_and_prediction(s, cols)
+    out = outputs_of(s)
+    rows = metrics_table(y, p, out, data=label, quantity="state after")
+    rows += metrics_table(y - before, p - before, [f"d{k[:-5]}" for k in out], data=label,
                           quantity="increment")
     return rows
 
@@ -40,14 +51,14 @@ def evaluate(s: Surrogate, cols: dict[str, np.ndarray], label: str) -> list[dict
 def parity_plot(s: Surrogate, cols: dict[str, np.ndarray], path: Path, title: str,
                 max_points: int = 100_000, seed: int = 0) -> None:
     """Predicted against true, per output: the state after (top) and the increments (bottom)."""
-    y, p = truth_and_prediction(s, cols)
-    before = np.column_stack([cols[k] for k in BEFORE])
+    y, p, before = truth_and_prediction(s, cols)
+    out = outputs_of(s)
     n = len(y)
     idx = np.arange(n) if n <= max_points else np.random.default_rng(seed).choice(n, max_points, replace=False)
-    fig, axes = plt.subplots(2, 4, figsize=(15, 7.5), constrained_layout=True)
+    fig, axes = plt.subplots(2, len(out), figsize=(3.75 * len(out), 7.5), constrained_layout=True)
     for row, (yt, yp, what) in enumerate(((y, p, "after"), (y - before, p - before, "increment"))):
-        m = metrics_table(yt, yp, OUTPUTS)
-        for j, name in enumerate(OUTPUTS):
+        m = metrics_table(yt, yp, out)
+        for j, name in enumerate(out):
             ax = axes[row, j]
             a, b = yt[idx, j], yp[idx, j]
             ax.scatter(a, b, s=1, alpha=0.3, lw=0, rasterized=True)

@@ -16,6 +16,8 @@ inputs X and targets Y, and maps predictions back to the state after the increme
   network from having to copy its inputs, where all the variance lies.
 - ``compliance`` (ours, :mod:`hmodel.surrogate.compliance`): the network sees the state only and
   outputs the compliance of eq. 1.7 in each contact regime; the contact law is applied exactly.
+- ``meso`` (ours, :mod:`hmodel.surrogate.meso`): richer DEM cells through a summary state (the
+  H-cell fields and the Love-Weber meso-stress), learned as increments.
 """
 
 from __future__ import annotations
@@ -98,13 +100,18 @@ class Formulation:
                 "T1_next": np.clip(Y[:, 3], -1.0, 1.0) * self.tan_phi * n1}
 
 
-FORMULATIONS = ("report", "increment", "compliance")
+FORMULATIONS = ("report", "increment", "compliance", "meso")
 
 
-def make_formulation(name: str, params: Params):
-    """The formulation ``name`` for the material of ``params``."""
+def make_formulation(name: str, params: Params, cell: str = "closed-form"):
+    """The formulation ``name`` for the material of ``params`` and data of the cell solver ``cell``."""
     if name not in FORMULATIONS:
         raise InputError(f"unknown formulation {name!r} (known: {', '.join(FORMULATIONS)})")
+    if name == "meso":
+        from .meso import MesoFormulation
+        return MesoFormulation(params, cell)
+    if cell not in ("closed-form", "dem:standard"):
+        raise InputError(f"the {name} formulation learns H-cells; cells of {cell!r} need --formulation meso")
     if name == "compliance":
         from .compliance import ComplianceFormulation
         return ComplianceFormulation(params)
@@ -113,6 +120,9 @@ def make_formulation(name: str, params: Params):
 
 def formulation_from_dict(d: dict):
     """Inverse of ``to_dict`` (model files)."""
+    if d["name"] == "meso":
+        from .meso import MesoFormulation
+        return MesoFormulation(Params.from_dict(d["params"]), d["cell"], d["mechanisms"])
     if d["name"] == "compliance":
         from .compliance import ComplianceFormulation
         return ComplianceFormulation(Params.from_dict(d["params"]))

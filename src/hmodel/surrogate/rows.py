@@ -11,7 +11,7 @@ import pyarrow.parquet as pq
 from ..data import Dataset
 from ..data.filters import DEFAULT_RULES
 from ..data.sampling import sample_split
-from ..data.store import sha256
+from ..data.store import column_array, sha256
 from ..errors import InputError
 from ..params import Params
 
@@ -36,11 +36,11 @@ def read_sample(folder: "str | Path", part: str) -> tuple[dict[str, np.ndarray],
     if sha256(path) != entry["sha256"]:
         raise InputError(f"{str(path)!r} does not match the checksum in its manifest")
     t = pq.read_table(path)
-    cols = {c: t.column(c).to_numpy() for c in t.column_names}
+    cols = {c: column_array(t, c) for c in t.column_names}
     prov = {"sample": str(folder), "part": part, "file_sha256": entry["sha256"],
             "source_checksum": meta["source_checksum"], "kind": meta["kind"],
             "method": meta["method"], "seed": meta["seed"], "rules": meta["rules"],
-            "options": meta["options"]}
+            "options": meta["options"], "extra_fields": meta.get("extra_fields", [])}
     return cols, {"provenance": prov, "params": meta["params"]}
 
 

@@ -56,8 +56,11 @@ class SurrogateSolver:
         r = model.input_range
         # Largest trained strain increment: the bound of the deps1, deps2 inputs (strain-input
         # formulations; the compliance formulation is exact for any increment of its regime).
-        strain_inputs = model.formulation.name != "compliance"
-        self.max_increment = float(np.abs(r[:, :2]).max()) if r is not None and strain_inputs else math.inf
+        f = model.formulation
+        if r is None or f.name in ("compliance", "meso"):  # exact / homogeneous in the increment
+            self.max_increment = math.inf
+        else:
+            self.max_increment = float(np.abs(r[:, :2]).max())
 
     def check(self, params: Params) -> None:
         """Refuse a material the surrogate was not trained for."""
@@ -71,41 +74,75 @@ class SurrogateSolver:
                 f"{k}={trained[k]} (run: {mine[k]})" for k in wrong))
         self._checked = params
 
+    @property
+    def n_state(self) -> int:
+        """Fields of a cell state: the H-cell's 8, or the ``meso`` formulation's summary."""
+        return getattr(self.model.formulation, "n_state", len(FIELDS))
+
+    def initial(self, params: Params, shape: tuple[int, ...] = ()) -> CellState:
+        """Unloaded cells in this surrogate's state layout."""
+        f = self.model.formulation
+        return f.initial(shape) if f.name == "meso" else CellState.initial(params, shape)
+
+    def meso(self, params: Params, state: CellState) -> tuple[np.ndarray, np.ndarray] | None:
+        """V sigma and meso-volume of summary states (``meso`` formulation), for the REV; None
+        for H-cell surrogates, whose stress is eq. 1.12 of their fields."""
+        f = self.model.formulation
+        return f.meso(np.asarray(state.values, float)) if f.name == "meso" else None
+
     def step(self, params: Params, state: CellState, dl1, dl2) -> tuple[CellState, CellFlags]:
         self.check(params)
-        shape = state.shape
-        v = np.ascontiguousarray(state.values.reshape(-1, 8))
+        shape, n_state = state.shape, self.n_state
+        if state.values.shape[-1] != n_state:
+            raise InputError(f"the surrogate's cell states have {n_state} fields, got {state.values.shape[-1]}")
+        v = np.ascontiguousarray(state.values.reshape(-1, n_state))
         dl = np.column_stack([np.broadcast_to(dl1, shape).reshape(-1), np.broadcast_to(dl2, shape).reshape(-1)])
         self.counts["cell_updates"] += len(v)
         if self.model.formulation.name == "compliance":
             values, flags = self._advance(params, v, dl)
         else:
+            one = self._one_meso if self.model.formulation.name == "meso" else self._one
             e1, e2 = -dl[:, 0] / params.l10, -dl[:, 1] / params.l20
             n_sub = max(1, math.ceil(max(np.abs(e1).max(initial=0.0), np.abs(e2).max(initial=0.0))
                                      / self.max_increment - 1e-12))
             values, flags = v, None
             for _ in range(n_sub):
-                values, flags = self._one(params, values, e1 / n_sub, e2 / n_sub, dl / n_sub)
+                values, flags = one(params, values, e1 / n_sub, e2 / n_sub, dl / n_sub)
             self.counts["substeps"] += n_sub
         if not np.all(np.isfinite(values)):
             raise SolverError("the surrogate returned a non-finite cell state")
-        return CellState(values.reshape(*shape, 8)), CellFlags(flags.reshape(*shape, 5))
+        return CellState(values.reshape(*shape, n_state)), CellFlags(flags.reshape(*shape, 5))
+
+    def _one_meso(self, params, v, e1, e2, dl):
+        """``meso`` formulation: one learned increment of the summary state. There is no closed
+        form to fall back to: cells outside the training domain stop the run
+        (``on_outside="error"``) or are extrapolated and counted."""
+        f = self.model.formulation
+        X = f.features(v)
+        out_net, out = self._network(v, X)
+        new, flags = f.advance(v, f.increment(out_net, e1, e2), dl)
+        self.counts["outside"] += int(out.sum())
+        if out.any() and self.on_outside == "error":
+            i = int(np.flatnonzero(out)[0])
+            raise SolverError(f"{int(out.sum())} cell(s) outside the surrogate's training domain, e.g. "
+                              + ", ".join(f"{k}={x:.4g}" for k, x in zip(f.input_names, X[i])))
+        return new, flags
 
     def _advance(self, params, v, dl):
         """Compliance formulation: one exact increment with the learned compliances of the states."""
-        comp, out_mask = self._compliances(v)
+        comp, out_mask = self._network(v, self.model.formulation.features(v))
         new, flags = self.model.formulation.advance(v, dl, comp)
         self._outside(params, v, dl, out_mask, new, flags,
                       lambda i: ", ".join(f"{k}={v[i, j]:.4g}" for j, k in enumerate(FIELDS)))
         return new, flags
 
-    def _compliances(self, v):
-        """Network outputs and out-of-domain mask for states ``v``; kept while the states do not
-        change, so that the trial increments of one Newton iteration cost no inference."""
+    def _network(self, v, X):
+        """Network outputs and out-of-domain mask for states ``v`` (inputs X, from the state
+        only); kept while the states do not change, so that the trial increments of one Newton
+        iteration cost no inference."""
         for seen, comp, mask in self._cache:
             if seen.shape == v.shape and np.array_equal(seen, v):
                 return comp, mask
-        X = self.model.formulation.features(v)
         self.counts["network_cells"] += len(v)
         comp, mask = self.model.forward(X), self.model.outside(X, self.margin)
         self._cache = [(v.copy(), comp, mask)] + self._cache[:1]

@@ -60,8 +60,10 @@ def _device(name: str):
 
 
 def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = TrainConfig(),
-          progress: Callable[[float], None] | None = None) -> tuple[Surrogate, list[dict]]:
-    """Fit a surrogate on database rows ``columns``; returns it and the per-epoch history.
+          progress: Callable[[float], None] | None = None, cell: str = "closed-form"
+          ) -> tuple[Surrogate, list[dict]]:
+    """Fit a surrogate on database rows ``columns`` of cells of the solver ``cell``; returns it
+    and the per-epoch history.
 
     20 % (``val_fraction``) of the rows are held out for early stopping; scalers are fitted on
     the remaining training rows only. The best weights on the validation loss are kept.
@@ -70,7 +72,7 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
 
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
-    form = make_formulation(config.formulation, params)
+    form = make_formulation(config.formulation, params, cell)
     X, (Y, W), A = form.inputs(columns), form.targets(columns), form.aux(columns)
     n = len(X)
     if n < 10:
@@ -149,7 +151,8 @@ def train_on_sample(folder, config: TrainConfig, progress: Callable[[float], Non
 
     cols, info = read_sample(folder, "train")
     test, _ = read_sample(folder, "test")
-    s, history = train(cols, params_of(info), config, progress)
+    cell = info["provenance"]["options"].get("solver", "closed-form")
+    s, history = train(cols, params_of(info), config, progress, cell)
     s.meta.update(training_data=info["provenance"], params=info["params"],
                   metrics=evaluate(s, test, "sample test rows"), history_tail=history[-3:])
     return s, history

@@ -1,0 +1,201 @@
+"""The ``meso`` formulation (surrogates of richer cells through a summary state), without YADE."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from hmodel import Params
+from hmodel.cell import CellState
+from hmodel.cell.closed_form import ClosedFormSolver
+from hmodel.cell.mesostress import meso_vsigma
+from hmodel.compare import deviations, run_path, standard_paths
+from hmodel.data import DatasetSpec, generate
+from hmodel.data.sampling import write_split
+from hmodel.errors import InputError
+from hmodel.surrogate.formulations import make_formulation
+from hmodel.surrogate.meso import STATE_FIELDS, MesoFormulation
+from hmodel.surrogate.modelfile import load, save
+from hmodel.surrogate.rows import read_sample
+from hmodel.surrogate.solver import SurrogateSolver
+from hmodel.surrogate.training import TrainConfig, train_on_sample
+
+PARAMS = Params(sliding_rhs="equilibrium", n_theta=12)
+
+
+class SummaryOfClosedForm:
+    """The closed form behind the meso formulation's summary-state interface: what a perfect
+    meso surrogate would be."""
+
+    name = "summary-of-closed-form"
+
+    def __init__(self, form: MesoFormulation):
+        self.form, self.cf = form, ClosedFormSolver()
+
+    def initial(self, params, shape=()):
+        return self.form.initial(shape)
+
+    def meso(self, params, state):
+        return self.form.meso(np.asarray(state.values))
+
+    def step(self, params, state, dl1, dl2):
+        v = state.values
+        new, flags = self.cf.step(params, CellState(np.ascontiguousarray(v[..., :8])), dl1, dl2)
+        return CellState(self.form.summary(new.values.reshape(-1, 8)).reshape(*v.shape[:-1], 11)), flags
+
+
+def _cells(n=40, steps=30, seed=0):
+    """Closed-form cells loaded along random directions (sticking, sliding, open)."""
+    rng = np.random.default_rng(seed)
+    th = rng.uniform(-np.pi / 3, 5 * np.pi / 6, n)
+    st = CellState.initial(PARAMS, (n,))
+    cf = ClosedFormSolver()
+    for _ in range(steps):
+        st, _ = cf.step(PARAMS, st, -PARAMS.l10 * 1e-3 * np.cos(th), -PARAMS.l20 * 1e-3 * np.sin(th))
+    return st
+
+
+def test_summary_of_h_cells_is_eq_1_12_and_volume_is_the_hexagon():
+    form = MesoFormulation(PARAMS)
+    st = _cells()
+    z = form.summary(st.values)
+    assert z.shape == (40, len(STATE_FIELDS))
+    np.testing.assert_array_equal(z[:, :8], st.values)
+    np.testing.assert_allclose(z[:, 8:10], meso_vsigma(PARAMS, st), rtol=1e-12)
+    assert np.all(z[:, 10] == 0.0)
+    vs, vol = form.meso(z)
+    d1, d2, a = st.d1, st.d2, st.alpha
+    np.testing.assert_allclose(vol, 2 * d1 * np.sin(a) * (d2 + d1 * np.cos(a)), rtol=1e-9)  # eq. 1.20
+
+
+def test_rev_through_the_summary_interface_is_the_closed_form_rev():
+    """The REV's meso-stress path (V sigma and V from the solver) with the summary of the
+    closed form's cells reproduces the closed-form REV: the summary loses nothing the REV uses."""
+    form = MesoFormulation(PARAMS)
+    paths = {s.name: s for s in standard_paths(0.02)}
+    for spec in (replace(paths["drained"], p0=(1e5,)), paths["undrained"]):
+        ref, _ = run_path(PARAMS, spec, "closed-form", 1e-3, 2e-4)
+        res, _ = run_path(PARAMS, spec, SummaryOfClosedForm(form), 1e-3, 2e-4)
+        for d in deviations(ref, res):
+            assert d["rows"] == len(ref.point(0)) and d["q_max_dev_rel"] < 1e-9
+
+
+def test_head_is_positively_homogeneous_continuous_and_matches_torch():
+    """dz(e) = A e + sum_k <n_k . e> B_k: zero for no strain, dz(c e) = c dz(e) for c > 0, the
+    NumPy and torch evaluations agree, and it is linear on each side of a kink."""
+    import torch
+
+    form = MesoFormulation(PARAMS)
+    rng = np.random.default_rng(1)
+    out = rng.normal(size=(5, form.n_outputs))
+    e = rng.normal(size=(5, 2)) * 1e-3
+    y = form.increment(out, e[:, 0], e[:, 1])
+    t = form.head(torch.as_tensor(out), torch.as_tensor(e / form.m0)).numpy()
+    np.testing.assert_allclose(y, t, rtol=1e-12)
+    np.testing.assert_allclose(form.increment(out, 2.5 * e[:, 0], 2.5 * e[:, 1]), 2.5 * y, rtol=1e-12)
+    assert np.all(form.increment(out, 0 * e[:, 0], 0 * e[:, 1]) == 0.0)
+    # one mechanism, by hand: A = 0, n = (1, 0), B = 1 -> dz = <e1> for every output
+    one = MesoFormulation(PARAMS, mechanisms=1)
+    o = np.zeros((2, one.n_outputs))
+    o[:, 12:14] = [1.0, 0.0]
+    o[:, 14:] = 1.0
+    dz = one.increment(o, np.array([1e-3, -1e-3]), np.array([5e-4, 5e-4]))
+    np.testing.assert_allclose(dz, [[1.0] * 6, [0.0] * 6], atol=1e-15)
+    u = form.constrain(rng.normal(size=(200, 6)))
+    assert np.all(u[:, 1:3] >= 0) and np.all(u[:, 4:6] >= 0)
+    assert np.all(np.abs(u[:, 3]) <= PARAMS.tan_phi * u[:, 1] + 1e-15)
+
+
+def test_refusals():
+    form = MesoFormulation(PARAMS, "dem:hexagon-center")
+    cols = {k: np.zeros(3) for k in ("deps1", "deps2", "d1", "d2", "alpha", "N1", "N2", "T1", "l1", "l2")}
+    with pytest.raises(InputError, match="state_extra"):
+        form.augment(cols)
+    with pytest.raises(InputError, match="--formulation meso"):
+        make_formulation("compliance", PARAMS, "dem:hexagon-center")
+    with pytest.raises(InputError, match="H-cell or DEM data"):
+        MesoFormulation(PARAMS, "surrogate")
+
+
+def test_richer_cells_learn_the_shear_meso_stress_h_cells_do_not():
+    h = MesoFormulation(PARAMS)
+    rich = MesoFormulation(PARAMS, "dem:hexagon-center")
+    assert not h.shear and h.outputs[-1] == "Vs_tt_next"
+    assert rich.shear and rich.n_outputs == 14 + 4 * 9 and rich.input_names[-1] == "Vs_nt/F2r"
+    assert h.n_outputs == 12 + 4 * 8
+    u = rich.constrain(np.array([[0.0, 1.0, 1.0, 0.0, 1.0, 4.0, 5.0], [0.0, 1.0, 1.0, 0.0, 1.0, 4.0, -1.0]]))
+    np.testing.assert_array_equal(u[:, 6], [2.0, -1.0])  # |Vs_nt| <= sqrt(Vs_nn Vs_tt)
+
+
+@pytest.fixture(scope="module")
+def tiny_model(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("meso")
+    spec = DatasetSpec(kind=2, n_directions=8, theta_min=-60.0, theta_max=150.0, alpha0_min=45.0,
+                       alpha0_max=45.0, max_strain=0.02, step=0.001, start_every=0.002,
+                       magnitude=0.002, magnitude_min=0.0, n_increments=12, substeps=1)
+    ds = generate(spec, Params(sliding_rhs="equilibrium"), tmp / "data")
+    write_split(ds, tmp / "sample", 700, 150)
+    cfg = TrainConfig(formulation="meso", width=32, depth=2, activation="silu", epochs=80,
+                      patience=80, device="cpu")
+    model, _ = train_on_sample(tmp / "sample", cfg)
+    return load(save(model, tmp / "meso.safetensors")), tmp
+
+
+def test_tiny_meso_model_round_trip_metrics_and_rev(tiny_model):
+    model, tmp = tiny_model
+    assert model.formulation.name == "meso" and model.formulation.cell == "closed-form"
+    names = {r["output"] for r in model.meta["metrics"]}
+    assert {"Vs_nn_next", "Vs_tt_next", "dVs_nn"} <= names
+    s = SurrogateSolver(model, on_outside="fallback")
+    z0 = s.initial(PARAMS, (3,))
+    assert z0.values.shape == (3, 11) and np.all(z0.values[:, [3, 4, 5, 8, 9, 10]] == 0)
+    same, _ = s.step(PARAMS, z0, np.zeros(3), np.zeros(3))
+    np.testing.assert_allclose(same.values, z0.values, rtol=1e-14, atol=0)  # no strain, no change
+    paths = {p.name: p for p in standard_paths(0.005)}
+    res, _ = run_path(PARAMS, replace(paths["drained"], p0=(1e5,)), s, 1e-3, 2e-4)
+    q = np.asarray(res.point(0)["q"])
+    assert np.all(np.isfinite(q)) and q[-1] > 0
+    assert s.counts["network_cells"] > 0
+
+
+def test_sample_of_a_richer_dataset_keeps_the_extra_state(tmp_path):
+    """A sample of a richer-cell dataset carries state_extra (rows, n_extra), checked on a
+    dataset whose shards we write with a DEM layout from closed-form cells (no YADE here)."""
+    import json
+
+    import pyarrow.parquet as pq
+
+    from hmodel.data import Dataset
+
+    spec = DatasetSpec(kind=2, n_directions=2, theta_min=0.0, theta_max=90.0, alpha0_min=45.0,
+                       alpha0_max=45.0, max_strain=0.002, step=0.001, start_every=0.002,
+                       magnitude=0.002, n_increments=4, substeps=1)
+    ds = generate(spec, PARAMS, tmp_path / "data")
+    # add two extra columns to the shards and name them in the manifest: the layout of a richer cell
+    from hmodel.data.generator import _table
+    from hmodel.data.store import column_array, sha256
+    m = json.loads((tmp_path / "data" / "manifest.json").read_text())
+    for e in m["shards"]:
+        path = tmp_path / "data" / e["file"]
+        t = pq.read_table(path)
+        c = {k: column_array(t, k) for k in t.column_names}
+        before = np.column_stack([c[k] for k in ("d1", "d2", "alpha", "N1", "N2", "T1", "l1", "l2")]
+                                 + [c["N1"], c["T1"]])
+        after = np.column_stack([c[f"{k}_next"] for k in ("d1", "d2", "alpha", "N1", "N2", "T1", "l1", "l2")]
+                                + [c["N1_next"], c["T1_next"]])
+        flags = np.column_stack([c[k] for k in ("sliding", "open1", "open2", "contact14", "contact26")])
+        labels = (c["alpha0"], c["path_id"], c["theta"], c["start_strain"])
+        pq.write_table(_table(np.column_stack([c["deps1"], c["deps2"]]), before, after, flags, labels), path)
+        e["sha256"] = sha256(path)
+    m["columns"] += ["state_extra", "state_extra_next"]
+    m["extra_fields"] = ["a", "b"]
+    (tmp_path / "data" / "manifest.json").write_text(json.dumps(m))
+    ds = Dataset.open(tmp_path / "data")
+    assert ds.n_extra == 2 and ds.read(["state_extra"])["state_extra"].shape == (ds.n_rows, 2)
+    write_split(ds, tmp_path / "sample", 4, 2)
+    cols, info = read_sample(tmp_path / "sample", "train")
+    assert cols["state_extra"].shape == (4, 2) and info["provenance"]["extra_fields"] == ["a", "b"]
+    np.testing.assert_array_equal(cols["state_extra"][:, 0], cols["N1"])
+    np.testing.assert_array_equal(cols["state_extra_next"][:, 1], cols["T1_next"])
