@@ -85,6 +85,44 @@ def test_dataset2_start_states_are_dataset1_states(d1, d2):
     assert state.alpha == pytest.approx(cols["alpha"][row], rel=1e-12)
 
 
+def test_dataset2_from_unloaded_adds_the_unloaded_start(tmp_path):
+    from dataclasses import replace
+
+    spec = replace(SMALL2, n_directions=2, alpha0_min=45, alpha0_max=45, max_strain=0.08,
+                   from_unloaded=True)
+    assert spec.start_steps[0] == 0 and len(spec.start_steps) == len(replace(spec, from_unloaded=False).start_steps) + 1
+    ds = generate(spec, Params(), tmp_path / "d")
+    c = ds.read()
+    assert ds.n_rows == spec.n_rows == 2 * 3 * 24
+    rest = c["start_strain"] == 0
+    assert rest.sum() == 2 * 24
+    np.testing.assert_array_equal(c["N1"][rest], 0.0)
+    np.testing.assert_allclose(c["alpha"][rest], math.radians(45), rtol=1e-15)
+    # the loaded starts are the same as without the option
+    plain = generate(replace(spec, from_unloaded=False), Params(), tmp_path / "p").read()
+    np.testing.assert_array_equal(plain["N1_next"], c["N1_next"][~rest])
+
+
+def test_prestrain_starts_every_path_from_the_consolidated_cell(tmp_path):
+    from dataclasses import replace
+
+    spec = replace(SMALL2, n_directions=2, alpha0_min=45, alpha0_max=45, max_strain=0.04,
+                   from_unloaded=True, prestrain=0.002)
+    c = generate(spec, Params(), tmp_path / "d").read()
+    cf, params = ClosedFormSolver(), Params()
+    a0 = math.radians(45)
+    l10, l20 = 2 + 4 * math.cos(a0), 4 * math.sin(a0)
+    state = CellState.from_fields(d1=2.0, d2=2.0, alpha=a0, N1=0.0, N2=0.0, T1=0.0, l1=l10, l2=l20)
+    for _ in range(2):  # two isotropic steps of 0.1 %
+        state, _ = cf.step(params, state, -l10 * 0.001, -l20 * 0.001)
+    rest = np.flatnonzero(c["start_strain"] == 0)
+    assert state.N1 == pytest.approx(c["N1"][rest[0]], rel=1e-12) and state.N1 > 0
+    # increments are strains on the initial lengths: the row's l1 change is -l10 deps1
+    np.testing.assert_allclose(c["l1_next"] - c["l1"], -l10 * c["deps1"], rtol=1e-9, atol=1e-15)
+    with pytest.raises(InputError, match="prestrain"):
+        replace(spec, prestrain=0.0015)
+
+
 def test_dataset1_rows_hold_initial_state_and_total_strain(d1):
     c = d1.read()
     assert len(c["deps1"]) == d1.n_rows == SMALL1.n_rows

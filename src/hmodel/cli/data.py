@@ -60,6 +60,8 @@ def generate(
     max_strain: Annotated[float, typer.Option(help="Total cell strain of a path.")] = 0.30,
     step: Annotated[float, typer.Option(help="Strain step of a path (recorded in Dataset 1).")] = 0.001,
     start_every: Annotated[float, typer.Option(help="Dataset 2: strain between start states.")] = 0.01,
+    from_unloaded: Annotated[bool, typer.Option("--from-unloaded", help="Dataset 2: increments from the unloaded cell too.")] = False,
+    prestrain: Annotated[float, typer.Option(help="Isotropic cell strain applied before every path, as a REV's consolidation.")] = 0.0,
     magnitude: Annotated[float, typer.Option(help="Dataset 2: strain magnitude of an increment.")] = 0.01,
     magnitude_min: Annotated[Optional[float], typer.Option(help="Dataset 2: spread the magnitudes over "
                                                                 "[MIN, --magnitude] (default: all equal).")] = None,
@@ -72,7 +74,7 @@ def generate(
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a dataset made with other options.")] = False,
     solver: Annotated[str, typer.Option(help="Cell solver: closed-form or dem (YADE cells, see --mesostructure).")] = "closed-form",
     mesostructure: Annotated[Optional[str], typer.Option(help="With --solver dem: standard (default), hexagon-center "
-                                                              "or hexagon-unequal[:ratio=R].")] = None,
+                                                              "or hexagon-unequal, with options after a colon: ratio=R and DEM settings such as tol=1e-7,max_iter=100000.")] = None,
 ) -> None:
     """Compute a database into --out; re-running the same command resumes an interrupted run."""
     from ..data import DatasetSpec
@@ -81,7 +83,8 @@ def generate(
     a_min, a_max, a_step = _alpha0_range(alpha0)
     t_min, t_max = _theta_range(theta)
     spec = DatasetSpec(kind=dataset, n_directions=directions, theta_min=t_min, theta_max=t_max, alpha0_min=a_min, alpha0_max=a_max,
-                       alpha0_step=a_step, max_strain=max_strain, step=step, start_every=start_every,
+                       alpha0_step=a_step, max_strain=max_strain, step=step, start_every=start_every, from_unloaded=from_unloaded,
+                       prestrain=prestrain,
                        magnitude=magnitude, magnitude_min=magnitude_min, n_increments=increments, substeps=substeps,
                        shard_rows=shard_rows, solver=_solver(solver, mesostructure))
     params = Params.parse_assignments(param)

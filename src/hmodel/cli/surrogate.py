@@ -15,8 +15,10 @@ from .progress import LazyProgress
 app = typer.Typer(no_args_is_help=True, help="Train, evaluate and compare neural surrogates of the H-cell.")
 
 Formulation = Annotated[str, typer.Option(help="compliance (learned compliances of eq. 1.7, exact contact law), "
-                                               "report (the report's inputs/outputs) or increment "
-                                               "(dimensionless increments, Coulomb bound by construction).")]
+                                               "report (the report's inputs/outputs), increment "
+                                               "(dimensionless increments, Coulomb bound by construction) "
+                                               "or meso (any cell, richer DEM cells too: summary state "
+                                               "with the Love-Weber meso-stress).")]
 Normalization = Annotated[str, typer.Option(help="minmax, zscore, robust, maxabs or unit.")]
 Width = Annotated[int, typer.Option(help="Nodes per hidden layer.")]
 Depth = Annotated[int, typer.Option(help="Hidden layers.")]
@@ -38,7 +40,8 @@ def _config(**kw):
 
 @app.command("train")
 def train_cmd(
-    data: Annotated[Path, typer.Argument(help="Sample folder (hmodel data sample): trains on train.parquet.")],
+    data: Annotated[list[Path], typer.Argument(help="Sample folder(s) (hmodel data sample): trains on "
+                                                    "train.parquet (of all of them together).")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Model file to write (.safetensors).")],
     formulation: Formulation = "increment", normalization: Normalization = "zscore",
     width: Width = 8, depth: Depth = 3, activation: Activation = "tanh", loss: Loss = "mse",
@@ -56,7 +59,7 @@ def train_cmd(
                   activation=activation, loss=loss, epochs=epochs, batch_size=batch_size, lr=lr,
                   patience=patience, seed=seed, device=device, max_minutes=max_minutes)
     with LazyProgress("training") as progress:
-        s, history = train_on_sample(data, cfg, progress)
+        s, history = train_on_sample(data if len(data) > 1 else data[0], cfg, progress)
     modelfile.save(s, out)
     r2 = {m["output"]: m["r2"] for m in s.meta["metrics"] if m["quantity"] == "state after"}
     typer.echo(f"wrote {out}: {len(history)} epochs in {s.meta['seconds']:.0f} s; test R² "

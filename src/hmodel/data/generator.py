@@ -60,6 +60,13 @@ class DatasetSpec:
     substeps: int = 10
     shard_rows: int = 250_000
     solver: str = "closed-form"
+    #: Dataset 2: the unloaded cell is a start state too (the report's starts are loaded states;
+    #: a learned response must also know the first increments from rest, where every REV starts).
+    from_unloaded: bool = False
+    #: Cell strain e1 = e2 = prestrain (steps of ``step``) applied to every cell before its path,
+    #: as a REV's isotropic consolidation does; the path, its start states and ``start_strain``
+    #: begin there (the "unloaded" start of ``from_unloaded`` is then the consolidated cell).
+    prestrain: float = 0.0
 
     def __post_init__(self) -> None:
         # One spelling per value (45 and 45.0 alike), so that manifests and shard bytes match.
@@ -86,6 +93,10 @@ class DatasetSpec:
                              f"{self.alpha0_min}:{self.alpha0_max}")
         if self.magnitude_min is not None and not 0.0 <= self.magnitude_min <= self.magnitude:
             raise InputError(f"magnitude_min must lie in [0, magnitude], got {self.magnitude_min}")
+        if self.prestrain:
+            if self.prestrain < 0:
+                raise InputError(f"prestrain must be positive or zero, got {self.prestrain}")
+            _ratio(self.prestrain, self.step, "prestrain", "step")
         if self.max_strain >= 1.0:
             raise InputError(f"max_strain must be below 1, got {self.max_strain}")
         _ratio(self.max_strain, self.step, "max_strain", "step")
@@ -134,9 +145,10 @@ class DatasetSpec:
 
     @property
     def start_steps(self) -> np.ndarray:
-        """Steps of a path whose states start Dataset-2 increments (1-based)."""
+        """Steps of a path whose states start Dataset-2 increments (1-based; 0: the unloaded
+        cell, with ``from_unloaded``)."""
         every = _ratio(self.start_every, self.step, "start_every", "step")
-        return np.arange(every, self.n_steps + 1, every)
+        return np.arange(0 if self.from_unloaded else every, self.n_steps + 1, every)
 
     @property
     def rows_per_path(self) -> int:
@@ -193,10 +205,13 @@ def compute_shard(spec: DatasetSpec, params: Params, shard: int) -> pa.Table:
     make = getattr(solver, "initial_cells", None)
     cells = make(params, alpha0) if make is not None else initial_cells(params, alpha0)
     l10, l20 = cells.l1.copy(), cells.l2.copy()
+    if spec.prestrain:
+        for _ in range(_ratio(spec.prestrain, spec.step, "prestrain", "step")):
+            cells, _ = solver.step(params, cells, -l10 * spec.step, -l20 * spec.step)
     dl1, dl2 = -l10 * spec.step * np.cos(theta), -l20 * spec.step * np.sin(theta)
     if spec.kind == 1:
         return _dataset1(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta)
-    return _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta)
+    return _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta, (l10, l20))
 
 
 def _dataset1(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta) -> pa.Table:
@@ -216,13 +231,16 @@ def _dataset1(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta) -> pa
                   flags.reshape(-1, flags.shape[-1]), [np.repeat(v, n) for v in labels])
 
 
-def _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta) -> pa.Table:
+def _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta, l0) -> pa.Table:
     P = len(paths)
     starts = spec.start_steps
     L, J = len(starts), spec.n_increments
     nf = cells.values.shape[-1]
     start = np.empty((P, L, nf))
     state, level = cells, 0
+    if starts[0] == 0:
+        start[:, 0] = cells.values
+        level = 1
     for k in range(1, spec.n_steps + 1):
         state, _ = solver.step(params, state, dl1, dl2)
         if level < L and k == starts[level]:
@@ -230,8 +248,8 @@ def _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta) -> pa
             level += 1
     phi = spec.increment_angles
     deps = spec.increment_magnitudes[:, None] * np.stack([np.cos(phi), np.sin(phi)], axis=-1)  # (J, 2)
-    l10 = np.broadcast_to(cells.l1[:, None, None], (P, L, J))
-    l20 = np.broadcast_to(cells.l2[:, None, None], (P, L, J))
+    l10 = np.broadcast_to(l0[0][:, None, None], (P, L, J))  # strains on the initial lengths
+    l20 = np.broadcast_to(l0[1][:, None, None], (P, L, J))
     sub1 = -l10 * deps[:, 0] / spec.substeps
     sub2 = -l20 * deps[:, 1] / spec.substeps
     before = CellState(np.ascontiguousarray(np.broadcast_to(start[:, :, None, :], (P, L, J, nf))))

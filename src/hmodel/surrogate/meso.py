@@ -5,37 +5,46 @@ A richer DEM cell (the hexagon with a centre grain, ...) has no closed form and 
 surrogate carries a summary of that state instead, 11 fields (:data:`STATE_FIELDS`): the 8
 H-cell fields measured on the six hexagon grains (:data:`hmodel.cell.FIELDS`), which describe
 the cell's shape and its outer contacts, and the cell's meso-stress times its meso-volume,
-``Vs = V sigma`` (nn, tt, nt), from the Love-Weber sum over all its contacts (eq. 1.11). What the
+``Vs = V sigma`` (nn, tt, nt), the Love-Weber sum over all its contacts (eq. 1.11). What the
 grains inside do enters through Vs, which is also all the REV needs of a cell (eqs. 1.13-1.14).
 
-The network maps the summary before (forces over F = kn 2r, lengths over 2r) to an
+Learned fields z: alpha, N1, N2, T1 and, for richer cells, Vs_nn and Vs_tt (for H-cells Vs is
+eq. 1.12 of the others). Vs_nt is not learned: eq. 1.12 has no nt term, and in DEM the free
+inner grain leaves the cell's axis by little (|Vs_nt| <= 0.5 % of |Vs| in the hexagon-center
+data; learning it, from its noise, made the other outputs worse). The network maps the summary before (forces over F = kn 2r, lengths over 2r) to an
 incrementally multi-linear response: for a cell strain increment de, with e = de/m0, m0 = 1e-3,
 
-    X = (alpha, l1/2r, l2/2r, N1/F, N2/F, T1/F, Vs_nn/F2r, Vs_tt/F2r[, Vs_nt/F2r])
-    dz = A(X) e + sum_k <n_k(X) . e> B_k(X),   k = 1..K (``mechanisms``, default 4),
-    dz = (d alpha, dN1/F, dN2/F, dT1/F, dVs_nn/F2r, dVs_tt/F2r[, dVs_nt/F2r]),
+    X = (alpha, l1/2r, l2/2r, N1/F, N2/F, T1/F, Vs_nn/F2r, Vs_tt/F2r)
+    dz = A(X) e + sum_k <n_k(X) . e - c_k(X)^2> B_k(X),   k = 1..K (``mechanisms``, default 4),
 
 <x> = max(x, 0): the network outputs the tangent A and, for each mechanism, a loading direction
-n_k and a flow B_k. This is the form of a rate-independent cell's increment to first order:
-linear within a contact regime (every contact sticking, sliding or open), and continuous with a
-kink where the increment's direction crosses into another regime (a contact starts to slide:
-the line n_k . e = 0 of the Coulomb trial, eq. 1.3), with one mechanism per independent kink.
-The increments of the data (<= 0.2 %) change the state so little that the second-order term is
-below the data's noise. The form gives exactly no change for no strain (no bias to accumulate
-over the thousands of increments of a path); the network sees the state only, so the REV's
-Newton iterations and their finite-difference probes reuse one evaluation per state.
-Loss: on dz/m0, so that small increments, whose dz is mostly DEM noise relative to m, weigh
-little. (Tried first, worse: the direction of de as an input with a single tangent, 5-15 % of
-peak q on closed-form REV paths; the magnitude as an input too: small steps half as stiff.)
+n_k, a threshold c_k^2 >= 0 and a flow B_k. This is the form of a rate-independent cell's
+increment to first order: linear within a contact regime (every contact sticking, sliding or
+open), and continuous with a kink where the increment crosses into another regime: a contact
+starts to slide on the line n_k . e = c_k^2 of the Coulomb trial (eq. 1.3), through e = 0 for a
+contact already on the cone, beyond it for one inside (the increment must first use up the
+margin), with one mechanism per independent kink. The increments of the data (<= 0.2 %) change
+the state so little that the second-order term is below the data's noise. The form gives
+exactly no change for no strain (no bias to accumulate over the thousands of increments of a
+path); the network sees the state only, so the REV's Newton iterations and their
+finite-difference probes reuse one evaluation per state. Loss: on dz/m0, so that small
+increments, whose dz is mostly DEM noise relative to m, weigh little; rows where a closed cell
+opens (forces cut to zero within the increment: not of this form) are left out.
 
-Vs_nt is learned for richer cells only (the bracketed terms): an H-cell's eq. 1.12 has no nt
-term, whereas in DEM a free inner grain can leave the axis and break the cell's symmetry (up to
-0.5 % of |Vs| in the hexagon-center data).
-
-The way back enforces what holds for every such cell: N1, N2 >= 0, |T1| <= tan(phi_g) N1
-(eq. 1.3), Vs positive semi-definite (every contact force is compressive), lengths from the
-strain, d1 and d2 from alpha and the lengths (eq. 1.2), and the meso-volume of the six driven
+The way back enforces what holds for every such cell: lengths from the strain, d1 and d2 from
+alpha and the lengths (eq. 1.2), N1, N2 >= 0 and zero where the geometry has the grains apart
+(d > 2r), |T1| <= tan(phi_g) N1 (eq. 1.3), Vs_nn, Vs_tt >= 0 (compressive contact forces),
+and the meso-volume of the six driven
 grains' hexagon, V = 2 d1 sin(alpha) (d2 + d1 cos(alpha)) (eq. 1.20, the DEM cells' meso-volume).
+
+Tried first and measured worse on closed-form REV paths (12 directions, 3 % axial strain, % of
+peak q): learning N1, N2 and Vs without the geometric gate (open cells' forces drift and grow
+from nothing); for the hexagon-center cell, Vs_nt learned or Vs split into eq. 1.12 plus a
+learned inner part (rollouts along single-cell paths 3-50 % off instead of <= 1 % in
+compression); the increment's direction as an input with one tangent (5-15 %); its magnitude
+too (small steps half as stiff); N from the geometry alone, N = kn (2r - d) (exact for the
+closed form, but a DEM cell's d1 from eq. 1.2 differs from its mean contact distance by more
+than the 1e-4 r an overlap is made of).
 
 Training rows come from any cell solver: a richer DEM cell's extra state columns give its
 Love-Weber stress; for H-cells (``closed-form``, ``dem:standard``) it is eq. 1.12 of the fields
@@ -57,7 +66,6 @@ from .formulations import OUTPUTS
 
 MESO_FIELDS = ("Vs_nn", "Vs_tt", "Vs_nt")
 STATE_FIELDS = FIELDS + MESO_FIELDS
-SYMMETRIC = ("alpha", "N1", "N2", "T1", "Vs_nn", "Vs_tt")  #: learned fields of H-cells
 _COL = {k: j for j, k in enumerate(STATE_FIELDS)}
 
 
@@ -73,28 +81,29 @@ class MesoFormulation:
     n_state = len(STATE_FIELDS)
 
     @property
-    def shear(self) -> bool:
-        """Whether Vs_nt is learned: richer cells (more than the H-cell's 8 fields)."""
+    def richer(self) -> bool:
+        """A richer cell (more than the H-cell's 8 fields): V sigma is learned, not eq. 1.12."""
         return self._dem.n_fields > len(FIELDS)
 
     @property
     def learned(self) -> tuple[str, ...]:
-        return SYMMETRIC + (("Vs_nt",) if self.shear else ())
+        """Fields whose increments the network gives: the hexagon's shape and contact forces,
+        and for richer cells V sigma (nn, tt)."""
+        return ("alpha", "N1", "N2", "T1") + (("Vs_nn", "Vs_tt") if self.richer else ())
 
     @property
     def outputs(self) -> tuple[str, ...]:
-        return OUTPUTS + tuple(f"{k}_next" for k in self.learned[4:])
+        return OUTPUTS + ("Vs_nn_next", "Vs_tt_next")
 
     @property
     def input_names(self) -> tuple[str, ...]:
-        return ("alpha", "l1/2r", "l2/2r", "N1/F", "N2/F", "T1/F") + tuple(
-            f"{k}/F2r" for k in self.learned[4:])
+        return ("alpha", "l1/2r", "l2/2r", "N1/F", "N2/F", "T1/F", "Vs_nn/F2r", "Vs_tt/F2r")
 
     @property
     def n_outputs(self) -> int:
-        """A (row-major, len(learned) x 2), then (n_k, B_k) per mechanism."""
+        """A (row-major, len(learned) x 2), then (n_k, c_k, B_k) per mechanism."""
         L = len(self.learned)
-        return 2 * L + self.mechanisms * (L + 2)
+        return 2 * L + self.mechanisms * (L + 3)
     m0 = 1e-3  #: strain scale of the inputs and targets
 
     def __post_init__(self) -> None:
@@ -173,29 +182,40 @@ class MesoFormulation:
         """X (n, 8 or 9) from summary states v (n, 11)."""
         d, F = 2 * self.radius, self.force_scale
         return np.column_stack([v[:, 2], v[:, 6] / d, v[:, 7] / d, v[:, 3] / F, v[:, 4] / F,
-                                v[:, 5] / F, v[:, 8:4 + len(self.learned)] / (F * d)])
+                                v[:, 5] / F, v[:, 8:10] / (F * d)])
 
     def _scales(self) -> np.ndarray:
         F, d = self.force_scale, 2 * self.radius
         return np.array([1.0, F, F, F] + [F * d] * (len(self.learned) - 4))
+
+    def _hexagon(self, v: np.ndarray) -> np.ndarray:
+        """V sigma (n, 3) of the six hexagon grains' contacts: eq. 1.12 of the first 8 fields."""
+        vs = meso_vsigma(self.params, CellState(np.ascontiguousarray(v[:, :8])))
+        return np.column_stack([vs, np.zeros(len(v))])
+
+    def _learned_values(self, v: np.ndarray) -> np.ndarray:
+        """The learned fields (n, len(learned)) of summary states v (n, 11)."""
+        return np.column_stack([v[:, 2], v[:, 3], v[:, 4], v[:, 5]] + ([v[:, 8], v[:, 9]] if self.richer else []))
 
     def inputs(self, c: dict[str, np.ndarray]) -> np.ndarray:
         c = self.augment(c)
         return self.features(np.column_stack([c[k] for k in STATE_FIELDS]))
 
     def targets(self, c: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """dz/m0 (n, len(learned)) and weights: 0 on the rows where a closed cell opens. There
-        the forces are cut to zero within the increment, which is not a homogeneous function of
-        de (the kink does not pass through de = 0); the linear continuation learned on the other
-        rows opens them in :meth:`constrain`, as the closed form's trial does. (Fitting these
-        rows, 17 % of the closed-form data, left 4-6 % errors on V sigma in the other rows.)
-        Rows of cells open before (zero forces) are fitted: they may close again."""
+        """dz/m0 (n, len(learned)) and weights: 0 for the contact forces N1, N2, T1 on the rows
+        where a closed hexagon contact opens. There they are cut to zero within the increment,
+        which is not of the learned form (the kink does not pass through de = 0); the geometric
+        gate of :meth:`advance` opens them instead. alpha and V sigma are fitted on every row.
+        (Leaving these rows out entirely dropped 30 % of the hexagon-center rows, whose type-2
+        contacts open as the centre grain pushes grains 2 and 3 apart.)"""
         c = self.augment(c)
-        Y = np.column_stack([c[f"{k}_next"] - c[k] for k in self.learned]) / self._scales() / self.m0
+        before = self._learned_values(np.column_stack([c[k] for k in STATE_FIELDS]))
+        after = self._learned_values(np.column_stack([c[f"{k}_next"] for k in STATE_FIELDS]))
+        Y = (after - before) / self._scales() / self.m0
         was_open = (c["N1"] <= 0) | (c["N2"] <= 0)
         opens = (np.asarray(c["open1"], bool) | np.asarray(c["open2"], bool)) & ~was_open
         W = np.ones_like(Y)
-        W[opens] = 0.0
+        W[opens, 1:4] = 0.0
         return Y, W
 
     def aux(self, c: dict[str, np.ndarray]) -> np.ndarray:
@@ -203,13 +223,14 @@ class MesoFormulation:
         return np.column_stack([c["deps1"], c["deps2"]]) / self.m0
 
     def head(self, out, e, target=None):
-        """dz/m0 = A e + sum_k <n_k . e> B_k from network outputs (n, n_outputs); NumPy or torch."""
+        """dz/m0 = A e + sum_k <n_k . e - c_k^2> B_k from network outputs (n, n_outputs); NumPy
+        or torch."""
         L = len(self.learned)
         dz = (out[:, :2 * L].reshape(-1, L, 2) @ e[:, :, None])[:, :, 0]
         for k in range(self.mechanisms):
-            base = 2 * L + k * (L + 2)
-            load = (out[:, base:base + 2] * e).sum(1)
-            dz = dz + (0.5 * (load + abs(load)))[:, None] * out[:, base + 2:base + 2 + L]
+            base = 2 * L + k * (L + 3)
+            load = (out[:, base:base + 2] * e).sum(1) - out[:, base + 2] ** 2
+            dz = dz + (0.5 * (load + abs(load)))[:, None] * out[:, base + 3:base + 3 + L]
         return dz
 
     def increment(self, out: np.ndarray, e1: np.ndarray, e2: np.ndarray) -> np.ndarray:
@@ -217,36 +238,35 @@ class MesoFormulation:
         return self.head(out, np.column_stack([e1, e2]) / self.m0)
 
     def decode(self, c: dict[str, np.ndarray], out: np.ndarray) -> dict[str, np.ndarray]:
-        """Predicted summary after the increment (``*_next`` columns) from network outputs A."""
+        """Predicted summary after the increment (``*_next`` columns) from network outputs."""
         c = self.augment(c)
         v = np.column_stack([c[k] for k in STATE_FIELDS])
-        Y = self.increment(out, c["deps1"], c["deps2"])
-        new = self.constrain(v[:, [_COL[k] for k in self.learned]] + Y * self._scales() * self.m0)
-        return {f"{k}_next": new[:, j] for j, k in enumerate(self.learned)}
-
-    def constrain(self, u: np.ndarray) -> np.ndarray:
-        """Learned fields (n, 6) made admissible: forces >= 0, Coulomb (eq. 1.3), Vs_nn, Vs_tt >= 0."""
-        u = u.copy()
-        u[:, 1:3] = np.maximum(u[:, 1:3], 0.0)
-        u[:, 3] = np.clip(u[:, 3], -self.tan_phi * u[:, 1], self.tan_phi * u[:, 1])
-        u[:, 4:6] = np.maximum(u[:, 4:6], 0.0)
-        if u.shape[1] > 6:  # Vs_nt within the PSD bound
-            bound = np.sqrt(u[:, 4] * u[:, 5])
-            u[:, 6] = np.clip(u[:, 6], -bound, bound)
-        return u
+        dl = np.column_stack([c["l1_next"] - c["l1"], c["l2_next"] - c["l2"]])
+        new, _ = self.advance(v, self.increment(out, c["deps1"], c["deps2"]), dl)
+        return {f"{k}_next": new[:, _COL[k]] for k in ("alpha", "N1", "N2", "T1") + MESO_FIELDS}
 
     # -- cell solver ----------------------------------------------------------------------
     def advance(self, v: np.ndarray, Y: np.ndarray, dl: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Summary states after length increments dl (n, 2), from targets Y = dz/m0 (n, 6); and flags."""
-        u = self.constrain(v[:, [_COL[k] for k in self.learned]] + Y * self._scales() * self.m0)
+        """Summary states after length increments dl (n, 2), from targets Y = dz/m0; and flags.
+
+        The lengths follow the strain, alpha the network, d1 and d2 the geometry (eq. 1.2); the
+        normal forces the network, N >= 0, and zero where the geometry has the grains apart
+        (d > 2r: a learned force never holds an open contact, nor grows one from nothing); T1 the
+        network within the Coulomb bound (eq. 1.3); V sigma is eq. 1.12 of these, plus for
+        richer cells the learned inner part, positive semi-definite."""
+        u = self._learned_values(v) + Y * self._scales() * self.m0
         a = u[:, 0]
         l1, l2 = v[:, 6] + dl[:, 0], v[:, 7] + dl[:, 1]
         d1 = l2 / (2.0 * np.sin(a))  # eq. 1.2
         d2 = l1 - 2.0 * d1 * np.cos(a)
-        nt = u[:, 6] if self.shear else np.zeros(len(u))
-        new = np.column_stack([d1, d2, a, u[:, 1], u[:, 2], u[:, 3], l1, l2, u[:, 4], u[:, 5], nt])
         two_r = 2.0 * self.radius
-        n1, n2, t1 = u[:, 1], u[:, 2], u[:, 3]
+        n1 = np.where(d1 < two_r, np.maximum(u[:, 1], 0.0), 0.0)
+        n2 = np.where(d2 < two_r, np.maximum(u[:, 2], 0.0), 0.0)
+        t1 = np.clip(u[:, 3], -self.tan_phi * n1, self.tan_phi * n1)
+        new = np.column_stack([d1, d2, a, n1, n2, t1, l1, l2, np.zeros((len(u), 3))])
+        new[:, 8:11] = self._hexagon(new)
+        if self.richer:  # compressive contact forces only: V sigma_nn, V sigma_tt >= 0
+            new[:, 8:10] = np.maximum(u[:, 4:6], 0.0)
         flags = np.column_stack([(n1 > 0) & (np.abs(t1) >= self.tan_phi * n1 * (1 - 1e-9)),
                                  n1 == 0, n2 == 0, l1 <= two_r, l2 <= two_r])
         return new, flags

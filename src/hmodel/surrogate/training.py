@@ -144,16 +144,25 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
 
 def train_on_sample(folder, config: TrainConfig, progress: Callable[[float], None] | None = None
                     ) -> tuple[Surrogate, list[dict]]:
-    """Train on a sample folder's train rows, evaluate on its test rows, and record the data's
-    provenance, the material and the test metrics in the model's metadata."""
+    """Train on a sample folder's train rows (or the union of several folders': a list), evaluate
+    on its (their) test rows, and record the data's provenance, the material and the test
+    metrics in the model's metadata. Several folders must share the material and the cells."""
     from .evaluation import evaluate
     from .rows import params_of, read_sample
 
-    cols, info = read_sample(folder, "train")
-    test, _ = read_sample(folder, "test")
+    folders = list(folder) if isinstance(folder, (list, tuple)) else [folder]
+    parts = [(read_sample(f, "train"), read_sample(f, "test")[0]) for f in folders]
+    (cols, info), test = parts[0]
     cell = info["provenance"]["options"].get("solver", "closed-form")
+    for (_, other), _ in parts[1:]:
+        if other["params"] != info["params"] or other["provenance"]["options"].get("solver", "closed-form") != cell:
+            raise InputError("samples to train on together must share the material parameters and the cell solver")
+    if len(parts) > 1:
+        cols = {k: np.concatenate([p[0][0][k] for p in parts]) for k in cols}
+        test = {k: np.concatenate([p[1][k] for p in parts]) for k in test}
     s, history = train(cols, params_of(info), config, progress, cell)
-    s.meta.update(training_data=info["provenance"], params=info["params"],
+    prov = info["provenance"] if len(parts) == 1 else [p[0][1]["provenance"] for p in parts]
+    s.meta.update(training_data=prov, params=info["params"],
                   metrics=evaluate(s, test, "sample test rows"), history_tail=history[-3:])
     return s, history
 
