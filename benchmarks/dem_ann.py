@@ -47,14 +47,15 @@ from hmodel.surrogate.solver import SurrogateSolver
 from hmodel.surrogate.training import TrainConfig, train_on_sample
 
 PARAMS = Params(sliding_rhs="equilibrium")
-#: REV_DATASET scaled down: 12 directions over -60:150, alpha0 38..59 every 7 deg (around the
-#: REV's alpha0 = 45 deg: the ANN-REV leaves the domain of a 46..88 deg dataset; 32 deg, near the
-#: closing limit, took > 15 min per shard), paths to 4 %, a start state every 0.4 %, 24 increments
-#: of magnitude spread over [0, 0.2 %], one sub-step.
-STANDARD_DATASET = DatasetSpec(kind=2, n_directions=12, theta_min=-60.0, theta_max=150.0,
-                          alpha0_min=38.0, alpha0_max=59.0, alpha0_step=7.0, max_strain=0.04,
-                          step=0.001, start_every=0.004, magnitude=0.002, magnitude_min=0.0,
-                          n_increments=24, substeps=1, shard_rows=3000, solver="dem:standard")
+#: The H-cell in DEM: the hexagon-center recipe below (72 directions over -60:150 at the REV's
+#: alpha0, paths to 8 %, starts every 0.2 % and the unloaded cell, one sub-step, tolerance 1e-7).
+#: (A spread of alpha0 around 45 deg at the default tolerance 1e-10 took > 15 min per shard.)
+STANDARD_SOLVER = "dem:standard:tol=1e-7,max_iter=100000"
+STANDARD_DATASET = DatasetSpec(kind=2, n_directions=72, theta_min=-60.0, theta_max=150.0,
+                               alpha0_min=45.0, alpha0_max=45.0, alpha0_step=1.0, max_strain=0.08,
+                               step=0.001, start_every=0.002, magnitude=0.002, magnitude_min=0.0,
+                               n_increments=24, substeps=1, shard_rows=4000, solver=STANDARD_SOLVER,
+                               from_unloaded=True)
 STANDARD_TRAINING = TrainConfig(formulation="compliance", width=64, depth=3, activation="silu",
                                 epochs=1000, patience=100, seed=0, device="cpu", max_minutes=5.0)
 #: The richer cell at the REV's alpha0 only (a surrogate of one mesostructure): 72 directions over
@@ -63,35 +64,41 @@ STANDARD_TRAINING = TrainConfig(formulation="compliance", width=64, depth=3, act
 #: The quasi-static tolerance 1e-7 (the solver's default 1e-10 is not reached by some of these
 #: cells within 100k steps, which held a whole batch).
 HEX_SOLVER = "dem:hexagon-center:tol=1e-7,max_iter=100000"
-HEX_DATASET = DatasetSpec(kind=2, n_directions=72, theta_min=-60.0, theta_max=150.0,
-                          alpha0_min=45.0, alpha0_max=45.0, alpha0_step=1.0, max_strain=0.08,
-                          step=0.001, start_every=0.002, magnitude=0.002, magnitude_min=0.0,
-                          n_increments=24, substeps=1, shard_rows=4000, solver=HEX_SOLVER,
-                          from_unloaded=True)
+HEX_DATASET = replace(STANDARD_DATASET, solver=HEX_SOLVER)
+#: The same paths after an isotropic cell strain of 0.1 % (a REV's consolidation to 100-250 kPa):
+#: the REV's cells turn from consolidation into shear, states the first dataset's proportional
+#: paths never reach. Added with ``--prestrained`` (measured worse: benchmarks/dem_ann_prestrained.json).
+HEX_PRESTRAINED = replace(HEX_DATASET, prestrain=0.001)
 HEX_TRAINING = TrainConfig(formulation="meso", width=64, depth=3, activation="silu",
                            epochs=1500, patience=60, seed=0, device="cpu", max_minutes=10.0)
-CASES = {"hexagon-center": (HEX_DATASET, HEX_TRAINING, HEX_SOLVER),
-         "standard": (STANDARD_DATASET, STANDARD_TRAINING, "dem:standard")}
+CASES = {"hexagon-center": ((HEX_DATASET,), HEX_TRAINING, HEX_SOLVER),
+         "standard": ((STANDARD_DATASET,), STANDARD_TRAINING, STANDARD_SOLVER)}
 
 
-def build_model(work: Path, spec: DatasetSpec, config: TrainConfig, n_train: int, n_test: int,
+def build_model(work: Path, specs, config: TrainConfig, n_train: int, n_test: int,
                 workers: int) -> tuple[Path, dict]:
-    """Dataset -> sample -> trained model file; returns its path and the stage timings."""
-    t = {}
+    """Datasets -> samples (``n_train``/``n_test`` rows each) -> one model trained on them all;
+    returns its path and the stage timings."""
+    t = {"dataset_s": 0.0, "sample_s": 0.0}
+    samples, rows, n_rows = [], [], []
+    for k, spec in enumerate(specs):
+        t0 = time.perf_counter()
+        ds = generate(spec, PARAMS, work / f"data-{k}", workers=workers)
+        t["dataset_s"] += time.perf_counter() - t0
+        n_te = min(n_test, ds.n_rows // 6)
+        n_tr = min(n_train, ds.n_rows - n_te - ds.n_rows // 20)  # cleaning drops a few rows
+        t0 = time.perf_counter()
+        write_split(ds, work / f"sample-{k}", n_tr, n_te)
+        t["sample_s"] += time.perf_counter() - t0
+        samples.append(work / f"sample-{k}")
+        rows.append(ds.n_rows)
+        n_rows.append((n_tr, n_te))
     t0 = time.perf_counter()
-    ds = generate(spec, PARAMS, work / "data", workers=workers)
-    t["dataset_s"] = time.perf_counter() - t0
-    rows = ds.n_rows
-    n_test = min(n_test, rows // 6)
-    n_train = min(n_train, rows - n_test - rows // 20)  # cleaning drops a few rows
-    t0 = time.perf_counter()
-    write_split(ds, work / "sample", n_train, n_test)
-    t["sample_s"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    model, history = train_on_sample(work / "sample", config)
+    model, history = train_on_sample(samples, config)
     t["training_s"] = time.perf_counter() - t0
     path = save(model, work / "model.safetensors")
-    info = {**t, "rows": rows, "train_rows": n_train, "test_rows": n_test, "epochs": len(history),
+    info = {**t, "rows": sum(rows), "train_rows": sum(a for a, _ in n_rows),
+            "test_rows": sum(b for _, b in n_rows), "epochs": len(history),
             "test_metrics": model.meta.get("metrics")}
     return path, info
 
@@ -107,16 +114,15 @@ def yade_startup(solver: str) -> float:
     return out
 
 
-def compare(model_path: Path, solver: str, n_thetas, axial: float, step: float, iso_step: float,
+def compare(model_path: Path, solver: str, n_thetas, axials, step: float, iso_step: float,
             repeat: int):
     from hmodel.surrogate.modelfile import load
 
-    paths = {s.name: s for s in standard_paths(axial)}
-    specs = [replace(paths["drained"], p0=(1e5, 2e5)), paths["undrained"]]
     rows = []
-    for n_theta in n_thetas:
+    for n_theta, axial in ((n, a) for n in n_thetas for a in axials):
         params = replace(PARAMS, n_theta=n_theta)
-        for spec in specs:
+        paths = {s.name: s for s in standard_paths(axial)}
+        for spec in (replace(paths["drained"], p0=(1e5, 2e5)), paths["undrained"]):
             dem = DEMSolver(solver)
             ann = SurrogateSolver(load(model_path), on_outside="error")
             ref, _ = run_path(params, spec, dem, step, iso_step)  # also starts YADE
@@ -130,11 +136,12 @@ def compare(model_path: Path, solver: str, n_thetas, axial: float, step: float, 
             except Exception as e:  # reported, not hidden
                 status, t_ann, dev = f"failed: {' '.join(str(e).split())[:160]}", float("nan"), []
             dev_cf = []
-            if solver == "dem:standard":  # the H-cell's closed form as a third reference
+            if solver.startswith("dem:standard"):  # the H-cell's closed form as a third reference
                 dev_cf = deviations(ref, run_path(params, spec, "closed-form", step, iso_step)[0])
             for b in range(len(spec.p0)):
                 d = dev[b] if dev else {}
-                rows.append({"path": spec.name, "n_theta": n_theta, "p0_kPa": spec.p0[b] / 1e3,
+                rows.append({"path": spec.name, "n_theta": n_theta, "axial_pct": 100 * axial,
+                             "p0_kPa": spec.p0[b] / 1e3,
                              "rows": len(ref.point(b)), "status": status,
                              "dem_peak_q_kPa": float(np.max(ref.point(b)["q"])) / 1e3,
                              "ann_q_max_dev_pct_of_peak": 100 * d.get("q_max_dev_rel", float("nan")),
@@ -155,7 +162,7 @@ def main() -> None:
     ap.add_argument("--mesostructure", choices=list(CASES), default="hexagon-center")
     ap.add_argument("--work", type=Path, default=None, help="default /tmp/hmodel-dem-ann-NAME")
     ap.add_argument("--n-theta", default="12,36")
-    ap.add_argument("--axial", type=float, default=0.03)
+    ap.add_argument("--axial", default="0.02,0.03", help="axial strains of the biaxial paths")
     ap.add_argument("--step", type=float, default=1e-3)
     ap.add_argument("--iso-step", type=float, default=2e-4)
     ap.add_argument("--repeat", type=int, default=3)
@@ -163,35 +170,40 @@ def main() -> None:
     ap.add_argument("--train", type=int, default=60000)
     ap.add_argument("--test", type=int, default=6000)
     ap.add_argument("--reuse", action="store_true", help="reuse the model file in --work")
+    ap.add_argument("--prestrained", action="store_true",
+                    help="hexagon-center: train on the prestrained dataset too")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
-    spec, config, solver = CASES[args.mesostructure]
+    specs, config, solver = CASES[args.mesostructure]
+    if args.prestrained:
+        specs = specs + (HEX_PRESTRAINED,)
     work = args.work or Path(f"/tmp/hmodel-dem-ann-{args.mesostructure}")
     out = args.out or Path(__file__).with_name(
-        "dem_ann.json" if args.mesostructure == "hexagon-center" else f"dem_ann_{args.mesostructure}.json")
+        ("dem_ann" if args.mesostructure == "hexagon-center" else f"dem_ann_{args.mesostructure}")
+        + ("_prestrained" if args.prestrained else "") + ".json")
     work.mkdir(parents=True, exist_ok=True)
     model = work / "model.safetensors"
     info = {}
     if not (args.reuse and model.is_file()):
-        model, info = build_model(work, spec, config, args.train, args.test, args.workers)
+        model, info = build_model(work, specs, config, args.train, args.test, args.workers)
     startup = yade_startup(solver)
-    rows = compare(model, solver, [int(n) for n in args.n_theta.split(",")], args.axial, args.step,
-                   args.iso_step, args.repeat)
+    rows = compare(model, solver, [int(n) for n in args.n_theta.split(",")],
+                   [float(a) for a in args.axial.split(",")], args.step, args.iso_step, args.repeat)
     if info:
         print(f"dataset {info['rows']} rows in {info['dataset_s']:.0f} s, sample {info['sample_s']:.1f} s, "
               f"training {info['training_s']:.0f} s ({info['epochs']} epochs, {info['train_rows']} rows)")
     print(f"{solver}: YADE start-up (first request of a fresh solver) {startup:.2f} s")
-    print(f"{'path':<10}{'ntheta':>7}{'p0 kPa':>8}{'rows':>6}{'peak q kPa':>11}{'ANN max dq %':>13}"
+    print(f"{'path':<10}{'ntheta':>7}{'axial%':>7}{'p0 kPa':>8}{'rows':>6}{'peak q kPa':>11}{'ANN max dq %':>13}"
           f"{'rms dq %':>10}{'CF max dq %':>12}{'DEM s':>8}{'ANN s':>9}{'DEM/ANN':>9}  status")
     for r in rows:
-        print(f"{r['path']:<10}{r['n_theta']:>7}{r['p0_kPa']:>8.0f}{r['rows']:>6}{r['dem_peak_q_kPa']:>11.1f}"
+        print(f"{r['path']:<10}{r['n_theta']:>7}{r['axial_pct']:>7.1f}{r['p0_kPa']:>8.0f}{r['rows']:>6}{r['dem_peak_q_kPa']:>11.1f}"
               f"{r['ann_q_max_dev_pct_of_peak']:>13.3f}{r['ann_q_rms_dev_pct_of_peak']:>10.3f}"
               f"{r['closed_form_q_max_dev_pct_of_peak']:>12.3f}{r['seconds_dem']:>8.2f}"
               f"{r['seconds_ann']:>9.4f}{r['dem_over_ann']:>9.0f}  {r['status']}")
     out.write_text(json.dumps({
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
-        "mesostructure": args.mesostructure, "solver": solver, "dataset": spec.to_dict(),
-        "training": config.__dict__, "build": info, "axial_strain": args.axial, "step": args.step,
+        "mesostructure": args.mesostructure, "solver": solver, "datasets": [s.to_dict() for s in specs],
+        "training": config.__dict__, "build": info, "axial_strains": args.axial, "step": args.step,
         "iso_step": args.iso_step, "yade_startup_s": startup, "rows": rows}, indent=1, default=str))
     print(f"wrote {out}")
 

@@ -33,13 +33,14 @@ from numba import njit
 from ..cell.closed_form import finish_increment, kernel_params, sliding_lambda, P_KN, P_KT, P_R, P_TAN
 from ..cell.state import FIELDS, initial_lengths
 from ..params import Params
+from .formulations import MaterialScales
 
 N_OUT = 24
 STICK, PLUS, MINUS = 0, 6, 15  # offsets of B_stick, [B_slide+, b_slide+], [B_slide-, b_slide-]
 
 
 @dataclass(frozen=True)
-class ComplianceFormulation:
+class ComplianceFormulation(MaterialScales):
     """Inputs, targets and the exact decoding of the compliance formulation for one material."""
 
     params: Params  #: the material (only its material parameters matter)
@@ -49,18 +50,6 @@ class ComplianceFormulation:
 
     def to_dict(self) -> dict:
         return {"name": self.name, "params": self.params.to_dict()}
-
-    @property
-    def radius(self) -> float:
-        return self.params.radius
-
-    @property
-    def tan_phi(self) -> float:
-        return self.params.tan_phi
-
-    @property
-    def force_scale(self) -> float:
-        return self.params.kn * 2 * self.params.radius
 
     def features(self, values: np.ndarray) -> np.ndarray:
         """Network inputs (n, 4) from packed cell states (n, 8) (:data:`hmodel.cell.FIELDS`)."""

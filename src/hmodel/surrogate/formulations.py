@@ -33,6 +33,25 @@ OUTPUTS = ("alpha_next", "N1_next", "N2_next", "T1_next")
 REPORT_INPUTS = ("deps1", "deps2", "alpha", "l1", "l2", "N1", "N2", "T1")
 
 
+class MaterialScales:
+    """Scales of a formulation whose material is ``self.params``: grain radius, friction
+    coefficient and the force unit F = kn 2r."""
+
+    params: Params
+
+    @property
+    def radius(self) -> float:
+        return self.params.radius
+
+    @property
+    def tan_phi(self) -> float:
+        return self.params.tan_phi
+
+    @property
+    def force_scale(self) -> float:
+        return self.params.kn * 2 * self.params.radius
+
+
 @dataclass(frozen=True)
 class Formulation:
     """Inputs/targets of one formulation for a material (force scale kn·2r, tan φg)."""
@@ -110,7 +129,7 @@ def make_formulation(name: str, params: Params, cell: str = "closed-form"):
     if name == "meso":
         from .meso import MesoFormulation
         return MesoFormulation(params, cell)
-    if cell not in ("closed-form", "dem:standard"):
+    if cell != "closed-form" and cell.split(":")[:2] != ["dem", "standard"]:
         raise InputError(f"the {name} formulation learns H-cells; cells of {cell!r} need --formulation meso")
     if name == "compliance":
         from .compliance import ComplianceFormulation

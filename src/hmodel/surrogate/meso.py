@@ -32,8 +32,8 @@ increments, whose dz is mostly DEM noise relative to m, weigh little; rows where
 opens (forces cut to zero within the increment: not of this form) are left out.
 
 The way back enforces what holds for every such cell: lengths from the strain, d1 and d2 from
-alpha and the lengths (eq. 1.2), N1, N2 >= 0 and zero where the geometry has the grains apart
-(d > 2r), |T1| <= tan(phi_g) N1 (eq. 1.3), Vs_nn, Vs_tt >= 0 (compressive contact forces),
+alpha and the lengths (eq. 1.2), N1, N2 >= 0 and zero where the geometry has the grains clearly
+apart (d > 2r (1 + 1e-3)), |T1| <= tan(phi_g) N1 (eq. 1.3), Vs_nn, Vs_tt >= 0 (compressive contact forces),
 and the meso-volume of the six driven
 grains' hexagon, V = 2 d1 sin(alpha) (d2 + d1 cos(alpha)) (eq. 1.20, the DEM cells' meso-volume).
 
@@ -62,7 +62,7 @@ from ..cell.mesostress import meso_vsigma
 from ..cell.state import FIELDS, CellState
 from ..errors import InputError
 from ..params import Params
-from .formulations import OUTPUTS
+from .formulations import OUTPUTS, MaterialScales
 
 MESO_FIELDS = ("Vs_nn", "Vs_tt", "Vs_nt")
 STATE_FIELDS = FIELDS + MESO_FIELDS
@@ -70,7 +70,7 @@ _COL = {k: j for j, k in enumerate(STATE_FIELDS)}
 
 
 @dataclass(frozen=True)
-class MesoFormulation:
+class MesoFormulation(MaterialScales):
     """Summary state, inputs, targets and decoding for cells of the solver ``cell``."""
 
     params: Params  #: the material the data was made with
@@ -105,6 +105,10 @@ class MesoFormulation:
         L = len(self.learned)
         return 2 * L + self.mechanisms * (L + 3)
     m0 = 1e-3  #: strain scale of the inputs and targets
+    #: Relative gap beyond which a hexagon contact is open whatever the network says: well above
+    #: the overlaps (~1e-4 of 2r at 100 kPa), so that a small error of the learned alpha, which
+    #: eq. 1.2 turns into d1, never opens a contact (a gate at d > 2r did, all at once in a REV).
+    gap_tol = 1e-3
 
     def __post_init__(self) -> None:
         if not (self.cell == "closed-form" or self.cell.startswith("dem:")):
@@ -113,18 +117,6 @@ class MesoFormulation:
     def to_dict(self) -> dict:
         return {"name": self.name, "params": self.params.to_dict(), "cell": self.cell,
                 "mechanisms": self.mechanisms}
-
-    @property
-    def radius(self) -> float:
-        return self.params.radius
-
-    @property
-    def tan_phi(self) -> float:
-        return self.params.tan_phi
-
-    @property
-    def force_scale(self) -> float:
-        return self.params.kn * 2 * self.params.radius
 
     @cached_property
     def _dem(self):
@@ -251,7 +243,7 @@ class MesoFormulation:
 
         The lengths follow the strain, alpha the network, d1 and d2 the geometry (eq. 1.2); the
         normal forces the network, N >= 0, and zero where the geometry has the grains apart
-        (d > 2r: a learned force never holds an open contact, nor grows one from nothing); T1 the
+        (d > 2r (1 + gap_tol): a learned force never holds an open contact); T1 the
         network within the Coulomb bound (eq. 1.3); V sigma is eq. 1.12 of these, plus for
         richer cells the learned inner part, positive semi-definite."""
         u = self._learned_values(v) + Y * self._scales() * self.m0
@@ -260,8 +252,9 @@ class MesoFormulation:
         d1 = l2 / (2.0 * np.sin(a))  # eq. 1.2
         d2 = l1 - 2.0 * d1 * np.cos(a)
         two_r = 2.0 * self.radius
-        n1 = np.where(d1 < two_r, np.maximum(u[:, 1], 0.0), 0.0)
-        n2 = np.where(d2 < two_r, np.maximum(u[:, 2], 0.0), 0.0)
+        apart = two_r * (1.0 + self.gap_tol)
+        n1 = np.where(d1 < apart, np.maximum(u[:, 1], 0.0), 0.0)
+        n2 = np.where(d2 < apart, np.maximum(u[:, 2], 0.0), 0.0)
         t1 = np.clip(u[:, 3], -self.tan_phi * n1, self.tan_phi * n1)
         new = np.column_stack([d1, d2, a, n1, n2, t1, l1, l2, np.zeros((len(u), 3))])
         new[:, 8:11] = self._hexagon(new)

@@ -23,8 +23,9 @@ def _act(name: str, x: np.ndarray) -> np.ndarray:
         return np.tanh(x)
     if name == "relu":
         return np.maximum(x, 0.0)
-    if name == "silu":
-        return x / (1.0 + np.exp(-x))
+    if name == "silu":  # x sigmoid(x), without overflow far outside the training domain
+        from scipy.special import expit
+        return x * expit(x)
     if name == "gelu":  # PyTorch's default (erf) form
         from scipy.special import erf
         return 0.5 * x * (1.0 + erf(x / np.sqrt(2.0)))
