@@ -15,7 +15,9 @@ paths at small n_theta. Two cases (``--mesostructure``):
   a third reference.
 
 Reported per path: max and RMS deviation of q relative to the DEM-REV's peak q (and the closed
-form's, as a reference), and the wall times at the same output resolution (same increments):
+form's, as a reference; for an ANN run that fails, over its rows before the failure, with the
+axial strain where it failed), overlay figures in ``WORK/figures``, and the wall times at the
+same output resolution (same increments):
 the ANN-REV as the best of ``--repeat`` runs after a warm-up, the DEM-REV with a warm YADE
 process (its start-up, measured on a fresh solver's first one-cell request, is listed apart).
 
@@ -115,7 +117,11 @@ def yade_startup(solver: str) -> float:
 
 
 def compare(model_path: Path, solver: str, n_thetas, axials, step: float, iso_step: float,
-            repeat: int):
+            repeat: int, figures: Path):
+    """Rows of the comparison table; overlay figures (DEM-REV vs ANN-REV) into ``figures``. A
+    failed ANN run keeps its rows up to the failure: deviations there, and where it failed."""
+    from hmodel.compare import plot_overlay
+    from hmodel.errors import SolverError
     from hmodel.surrogate.modelfile import load
 
     rows = []
@@ -128,13 +134,18 @@ def compare(model_path: Path, solver: str, n_thetas, axials, step: float, iso_st
             ref, _ = run_path(params, spec, dem, step, iso_step)  # also starts YADE
             calls0 = dem.yade().calls
             t_dem = best_of(lambda: run_path(params, spec, dem, step, iso_step), 1)
-            status = "ok"
+            status, failed_at = "ok", float("nan")
             try:
                 res, _ = run_path(params, spec, ann, step, iso_step)
                 t_ann = best_of(lambda: run_path(params, spec, ann, step, iso_step), repeat)
-                dev = deviations(ref, res)
-            except Exception as e:  # reported, not hidden
-                status, t_ann, dev = f"failed: {' '.join(str(e).split())[:160]}", float("nan"), []
+            except SolverError as e:  # reported, not hidden; compared up to the failure
+                status, t_ann, res = f"failed: {' '.join(str(e).split())[:160]}", float("nan"), e.partial
+                shear = res.stage("shear")
+                failed_at = float(np.max(shear["eps11"])) if len(shear) else 0.0
+            dev = deviations(ref, res) if len(res) else []
+            if len(res):
+                plot_overlay(f"{spec.name}, n_theta = {n_theta}, {solver}", ref, res, ("DEM-REV", "ANN-REV"),
+                             figures / f"{spec.name}_ntheta{n_theta}_axial{100 * axial:g}.png")
             dev_cf = []
             if solver.startswith("dem:standard"):  # the H-cell's closed form as a third reference
                 dev_cf = deviations(ref, run_path(params, spec, "closed-form", step, iso_step)[0])
@@ -144,6 +155,7 @@ def compare(model_path: Path, solver: str, n_thetas, axials, step: float, iso_st
                              "p0_kPa": spec.p0[b] / 1e3,
                              "rows": len(ref.point(b)), "status": status,
                              "dem_peak_q_kPa": float(np.max(ref.point(b)["q"])) / 1e3,
+                             "ann_failed_at_axial_pct": 100 * failed_at,
                              "ann_q_max_dev_pct_of_peak": 100 * d.get("q_max_dev_rel", float("nan")),
                              "ann_q_rms_dev_pct_of_peak": 100 * d.get("q_rms_dev_rel", float("nan")),
                              "ann_eps_v_max_dev_pct": 100 * d.get("eps_v_max_dev", float("nan")),
@@ -187,8 +199,10 @@ def main() -> None:
     if not (args.reuse and model.is_file()):
         model, info = build_model(work, specs, config, args.train, args.test, args.workers)
     startup = yade_startup(solver)
+    (work / "figures").mkdir(exist_ok=True)
     rows = compare(model, solver, [int(n) for n in args.n_theta.split(",")],
-                   [float(a) for a in args.axial.split(",")], args.step, args.iso_step, args.repeat)
+                   [float(a) for a in args.axial.split(",")], args.step, args.iso_step, args.repeat,
+                   work / "figures")
     if info:
         print(f"dataset {info['rows']} rows in {info['dataset_s']:.0f} s, sample {info['sample_s']:.1f} s, "
               f"training {info['training_s']:.0f} s ({info['epochs']} epochs, {info['train_rows']} rows)")
@@ -205,7 +219,7 @@ def main() -> None:
         "mesostructure": args.mesostructure, "solver": solver, "datasets": [s.to_dict() for s in specs],
         "training": config.__dict__, "build": info, "axial_strains": args.axial, "step": args.step,
         "iso_step": args.iso_step, "yade_startup_s": startup, "rows": rows}, indent=1, default=str))
-    print(f"wrote {out}")
+    print(f"wrote {out}; figures in {work / 'figures'}")
 
 
 if __name__ == "__main__":

@@ -32,6 +32,33 @@ def test_paths_do_what_they_say():
     assert np.abs(r["eps12"]).max() > 0.009 and np.abs(r["sig12"]).max() > 0
 
 
+def test_a_failed_run_keeps_its_rows_up_to_the_failure():
+    """run_path's SolverError carries the rows recorded before it (``partial``): the same rows
+    as a run of the same solver that does not fail, up to the failure."""
+    from hmodel.cell.closed_form import ClosedFormSolver
+    from hmodel.errors import SolverError
+
+    class FailsLater:  # the closed form through the generic driver, failing after `limit` calls
+        name, calls, limit = "fails-later", 0, float("inf")
+
+        def step(self, params, state, dl1, dl2):
+            self.calls += 1
+            if self.calls > self.limit:
+                raise SolverError("stopped on purpose")
+            return ClosedFormSolver().step(params, state, dl1, dl2)
+
+    spec = {s.name: s for s in standard_paths(0.02)}["undrained"]
+    counted = FailsLater()
+    full, _ = run_path(SMALL, spec, counted, 1e-3, 1e-4)
+    failing = FailsLater()
+    failing.limit = counted.calls // 2
+    with pytest.raises(SolverError, match="on purpose") as err:
+        run_path(SMALL, spec, failing, 1e-3, 1e-4)
+    part = err.value.partial
+    assert 0 < len(part) < len(full)
+    np.testing.assert_allclose(part["q"], full["q"][:len(part)], rtol=1e-9, atol=1e-6)
+
+
 @pytest.mark.parametrize("paths", [("drained", "undrained"), ("unload-reload", "rotation")])
 def test_shipped_surrogate_in_the_rev_reproduces_the_closed_form(paths):
     # Issue target: |Δq| ≤ 1 % of peak q and |Δεv| ≤ 0.1 % strain; no closed-form fallback.

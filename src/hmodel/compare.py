@@ -98,12 +98,20 @@ def standard_paths(axial: float = 0.1) -> list[PathSpec]:
 
 def run_path(params: Params, spec: PathSpec, solver: "str | CellSolver", step: float,
              iso_step: float) -> tuple[PathResult, float]:
+    """One path with one solver: its result and wall time. A run that fails raises its
+    SolverError with the rows recorded up to the failure as ``partial``."""
+    from .errors import SolverError
+
     rev = Rev(params, solver)
     rec = Recorder({"path": spec.name, "solver": rev.solver.name})
     t = time.perf_counter()
-    state = consolidate(rev, list(spec.p0), step=iso_step, recorder=rec)
-    rec.meta["eps11_start"] = float(state.eps[0, 0])
-    spec.build(rev, state, step, rec)
+    try:
+        state = consolidate(rev, list(spec.p0), step=iso_step, recorder=rec)
+        rec.meta["eps11_start"] = float(state.eps[0, 0])
+        spec.build(rev, state, step, rec)
+    except SolverError as e:
+        e.partial = rec.result()
+        raise
     return rec.result(), time.perf_counter() - t
 
 
