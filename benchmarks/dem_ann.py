@@ -69,10 +69,10 @@ HEX_SOLVER = "dem:hexagon-center:tol=1e-7,max_iter=100000"
 HEX_DATASET = replace(STANDARD_DATASET, solver=HEX_SOLVER)
 #: The same paths after an isotropic cell strain of 0.1 % (a REV's consolidation to 100-250 kPa):
 #: the REV's cells turn from consolidation into shear, states the first dataset's proportional
-#: paths never reach. Added with ``--prestrained`` (measured worse: benchmarks/dem_ann_prestrained.json).
+#: paths never reach. Added with ``--prestrained``.
 HEX_PRESTRAINED = replace(HEX_DATASET, prestrain=0.001)
-HEX_TRAINING = TrainConfig(formulation="meso", width=64, depth=3, activation="silu",
-                           epochs=1500, patience=60, seed=0, device="cpu", max_minutes=10.0)
+HEX_TRAINING = TrainConfig(formulation="meso", width=128, depth=3, activation="silu",
+                           epochs=1500, patience=60, seed=0, device="cpu", max_minutes=8.0)
 CASES = {"hexagon-center": ((HEX_DATASET,), HEX_TRAINING, HEX_SOLVER),
          "standard": ((STANDARD_DATASET,), STANDARD_TRAINING, STANDARD_SOLVER)}
 

@@ -134,23 +134,44 @@ def compare_path(params: Params, spec: PathSpec, other: "str | CellSolver", step
 
 
 def deviations(ref: PathResult, other: PathResult) -> list[dict]:
-    """Per material point: max and RMS deviation of q (relative to peak |q|) and of eps_v."""
+    """Per material point: max and RMS deviation of q (relative to peak |q|) and of eps_v.
+
+    Rows are matched stage by stage (consolidation, then shear), by their index within the
+    stage: a consolidation that reaches p0 one increment later (a slightly softer solver) must
+    not shift every shear row against the other solver's.
+    """
     out = []
     for b in range(ref.n_points):
-        a, c = ref.point(b), other.point(b)
-        n = min(len(a), len(c))
-        qa, qc = a["q"][:n], c["q"][:n]
+        a, c = _by_stage(ref.point(b), other.point(b))
+        qa, qc = a["q"], c["q"]
         # Isotropic paths have no peak q: there the scale is the peak mean stress.
-        peak = np.abs(qa).max()
-        if peak < 0.05 * np.abs(a["p"][:n]).max():
-            peak = np.abs(a["p"][:n]).max()
+        peak = np.abs(qa).max(initial=0.0)
+        if peak < 0.05 * np.abs(a["p"]).max(initial=0.0):
+            peak = np.abs(a["p"]).max()
         peak = max(peak, 1e-12)
-        ev = c["eps_v"][:n] - a["eps_v"][:n]
-        out.append({"point": b, "rows": n, "peak_q": float(peak),
-                    "q_max_dev_rel": float(np.abs(qc - qa).max() / peak),
-                    "q_rms_dev_rel": float(np.sqrt(np.mean((qc - qa) ** 2)) / peak),
-                    "eps_v_max_dev": float(np.abs(ev).max()), "eps_v_rms_dev": float(np.sqrt(np.mean(ev ** 2)))})
+        ev = c["eps_v"] - a["eps_v"]
+        out.append({"point": b, "rows": len(qa), "peak_q": float(peak),
+                    "q_max_dev_rel": float(np.abs(qc - qa).max(initial=0.0) / peak),
+                    "q_rms_dev_rel": float(np.sqrt(np.mean((qc - qa) ** 2)) / peak) if len(qa) else 0.0,
+                    "eps_v_max_dev": float(np.abs(ev).max(initial=0.0)),
+                    "eps_v_rms_dev": float(np.sqrt(np.mean(ev ** 2))) if len(ev) else 0.0})
     return out
+
+
+def _by_stage(a: PathResult, c: PathResult) -> tuple[dict, dict]:
+    """q, p, eps_v, eps11 of the rows of both results matched stage by stage (index within a
+    stage)."""
+    stages = list(dict.fromkeys(np.asarray(a["stage"]).tolist()))
+    keys = ("q", "p", "eps_v", "eps11")
+    pa, pc = {k: [] for k in keys}, {k: [] for k in keys}
+    for st in stages:
+        sa, sc = a["stage"] == st, c["stage"] == st
+        n = min(int(sa.sum()), int(sc.sum()))
+        for k in pa:
+            pa[k].append(np.asarray(a[k])[sa][:n])
+            pc[k].append(np.asarray(c[k])[sc][:n])
+    join = lambda d: {k: np.concatenate(v) if v else np.array([]) for k, v in d.items()}  # noqa: E731
+    return join(pa), join(pc)
 
 
 def _p0(r: PathResult) -> float:
@@ -161,7 +182,8 @@ def _p0(r: PathResult) -> float:
 
 def plot_overlay(name: str, ref: PathResult, other: PathResult, labels: tuple[str, str], path: Path) -> None:
     """q and volumetric strain against axial strain (or the path parameter), the stress path, and
-    the errors: the second solver's Δq relative to the first's peak q and its Δεv, row by row."""
+    the errors: the second solver's Δq relative to the first's peak q and its Δεv, row by row
+    within each stage."""
     fig, axes = plt.subplots(1, 4, figsize=(19, 4.3), constrained_layout=True)
     err_v = axes[3].twinx()
     for b in range(ref.n_points):
@@ -172,12 +194,12 @@ def plot_overlay(name: str, ref: PathResult, other: PathResult, labels: tuple[st
             axes[0].plot(x, r["q"] / 1e3, ls, label=tag)
             axes[1].plot(x, 100 * r["eps_v"], ls)
             axes[2].plot(r["p"] / 1e3, r["q"] / 1e3, ls)
-        a, o = ref.point(b), other.point(b)
-        n = min(len(a), len(o))
-        x = 100 * (a["eps11"][:n] - a["eps11"][0]) if name != "rotation" else np.arange(n)
-        peak = max(np.abs(a["q"]).max(), 1e-300)
-        axes[3].plot(x, 100 * (o["q"][:n] - a["q"][:n]) / peak, label=f"Δq, p0 = {_p0(a) / 1e3:.0f} kPa")
-        err_v.plot(x, 100 * (o["eps_v"][:n] - a["eps_v"][:n]), ":", color="0.4")
+        a, o = _by_stage(ref.point(b), other.point(b))  # rows matched as in deviations()
+        n = len(a["q"])
+        x = 100 * (a["eps11"] - ref.point(b)["eps11"][0]) if name != "rotation" else np.arange(n)
+        peak = max(np.abs(a["q"]).max(initial=0.0), 1e-300)
+        axes[3].plot(x, 100 * (o["q"] - a["q"]) / peak, label=f"Δq, p0 = {_p0(ref.point(b)) / 1e3:.0f} kPa")
+        err_v.plot(x, 100 * (o["eps_v"] - a["eps_v"]), ":", color="0.4")
     xl = "ε11 [%]" if name != "rotation" else "state along the path"
     axes[0].set(xlabel=xl, ylabel="q = σ11 − σ22 [kPa]", title=name)
     axes[1].set(xlabel=xl, ylabel="εv [%] (compression > 0)")
