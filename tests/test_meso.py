@@ -180,7 +180,8 @@ def test_sample_of_a_richer_dataset_keeps_the_extra_state(tmp_path):
     ds = generate(spec, PARAMS, tmp_path / "data")
     # add two extra columns to the shards and name them in the manifest: the layout of a richer cell
     from hmodel.data.generator import _table
-    from hmodel.data.store import column_array, sha256
+    from hmodel.data.schema import column_array
+    from hmodel.data.store import sha256
     m = json.loads((tmp_path / "data" / "manifest.json").read_text())
     for e in m["shards"]:
         path = tmp_path / "data" / e["file"]

@@ -31,7 +31,7 @@ from ..cell import CellState, get_solver
 from ..cell.state import initial_lengths
 from ..errors import InputError
 from ..params import Params
-from .schema import COLUMNS, EXTRA_COLUMNS, FLAG_COLUMNS, STATE, arrow_schema
+from .schema import EXTRA_COLUMNS, FLAG_COLUMNS, STATE, arrow_schema, to_arrow
 
 #: Field order of the packed cell state (hmodel.cell.state.FIELDS) for each schema column.
 _PACKED = {"d1": 0, "d2": 1, "alpha": 2, "N1": 3, "N2": 4, "T1": 5, "l1": 6, "l2": 7}
@@ -93,9 +93,9 @@ class DatasetSpec:
                              f"{self.alpha0_min}:{self.alpha0_max}")
         if self.magnitude_min is not None and not 0.0 <= self.magnitude_min <= self.magnitude:
             raise InputError(f"magnitude_min must lie in [0, magnitude], got {self.magnitude_min}")
+        if self.prestrain < 0:
+            raise InputError(f"prestrain must be positive or zero, got {self.prestrain}")
         if self.prestrain:
-            if self.prestrain < 0:
-                raise InputError(f"prestrain must be positive or zero, got {self.prestrain}")
             _ratio(self.prestrain, self.step, "prestrain", "step")
         if self.max_strain >= 1.0:
             raise InputError(f"max_strain must be below 1, got {self.max_strain}")
@@ -142,6 +142,11 @@ class DatasetSpec:
     @property
     def n_steps(self) -> int:
         return _ratio(self.max_strain, self.step, "max_strain", "step")
+
+    @property
+    def prestrain_steps(self) -> int:
+        """Isotropic steps of ``step`` applied before every path."""
+        return _ratio(self.prestrain, self.step, "prestrain", "step") if self.prestrain else 0
 
     @property
     def start_steps(self) -> np.ndarray:
@@ -205,9 +210,8 @@ def compute_shard(spec: DatasetSpec, params: Params, shard: int) -> pa.Table:
     make = getattr(solver, "initial_cells", None)
     cells = make(params, alpha0) if make is not None else initial_cells(params, alpha0)
     l10, l20 = cells.l1.copy(), cells.l2.copy()
-    if spec.prestrain:
-        for _ in range(_ratio(spec.prestrain, spec.step, "prestrain", "step")):
-            cells, _ = solver.step(params, cells, -l10 * spec.step, -l20 * spec.step)
+    for _ in range(spec.prestrain_steps):
+        cells, _ = solver.step(params, cells, -l10 * spec.step, -l20 * spec.step)
     dl1, dl2 = -l10 * spec.step * np.cos(theta), -l20 * spec.step * np.sin(theta)
     if spec.kind == 1:
         return _dataset1(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta)
@@ -275,9 +279,6 @@ def _table(deps, before, after, flags, labels) -> pa.Table:
     cols.update(alpha0=alpha0, path_id=paths.astype(np.int32), theta=theta, start_strain=start)
     n_extra = before.shape[1] - 8
     schema = arrow_schema(n_extra=n_extra)
-    arrays = [pa.array(np.ascontiguousarray(cols[c]), type=schema.field(c).type) for c in COLUMNS]
-    for c, v in zip(EXTRA_COLUMNS if n_extra else (),
-                    (before, after)):
-        arrays.append(pa.FixedSizeListArray.from_arrays(
-            pa.array(np.ascontiguousarray(v[:, 8:]).reshape(-1)), n_extra))
-    return pa.Table.from_arrays(arrays, schema=schema)
+    if n_extra:
+        cols.update(zip(EXTRA_COLUMNS, (before[:, 8:], after[:, 8:])))
+    return pa.Table.from_arrays([to_arrow(cols[f.name], f.type) for f in schema], schema=schema)

@@ -35,7 +35,7 @@ from .. import __version__
 from ..errors import InputError
 from ..io import write_outputs
 from .filters import DEFAULT_RULES, kept_rows
-from .schema import arrow_schema
+from .schema import arrow_schema, to_arrow
 from .store import Dataset, sha256
 
 METHODS = ("random", "grid", "lhs")
@@ -212,7 +212,7 @@ def write_split(ds: Dataset, out: "str | os.PathLike", n_train: int, n_test: int
     def writer(name: str, rows: np.ndarray):
         def write(path: Path) -> None:
             cols = {**ds.read(rows=rows), "row": rows}
-            table = pa.Table.from_arrays([_arrow(cols[f.name], f.type) for f in schema], schema=schema)
+            table = pa.Table.from_arrays([to_arrow(cols[f.name], f.type) for f in schema], schema=schema)
             pq.write_table(table, path, compression="zstd")
             meta["files"][name] = {"file": path.name, "rows": len(rows), "sha256": sha256(path)}
         return write
@@ -220,10 +220,3 @@ def write_split(ds: Dataset, out: "str | os.PathLike", n_train: int, n_test: int
     write_outputs(out, {"train.parquet": writer("train", train), "test.parquet": writer("test", test),
                         "manifest.json": lambda p: p.write_text(json.dumps(meta, indent=1) + "\n")})
     return meta
-
-
-def _arrow(values: np.ndarray, kind: pa.DataType) -> pa.Array:
-    if pa.types.is_fixed_size_list(kind):  # (rows, size) extra state
-        return pa.FixedSizeListArray.from_arrays(pa.array(np.ascontiguousarray(values).reshape(-1)),
-                                                 kind.list_size)
-    return pa.array(values, type=kind)

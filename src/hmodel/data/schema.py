@@ -21,6 +21,7 @@ closed form and of ``dem:standard`` have no extra column.
 
 from __future__ import annotations
 
+import numpy as np
 import pyarrow as pa
 
 #: Version of this schema; readers refuse datasets written with another one.
@@ -60,3 +61,20 @@ def arrow_schema(metadata: dict[bytes, bytes] | None = None, n_extra: int = 0) -
     if n_extra:
         fields += [pa.field(c, pa.list_(pa.float64(), n_extra), nullable=False) for c in EXTRA_COLUMNS]
     return pa.schema(fields, metadata=metadata)
+
+
+def to_arrow(values: np.ndarray, kind: pa.DataType) -> pa.Array:
+    """A column of values as Arrow; (rows, size) values for a fixed-size list column."""
+    if pa.types.is_fixed_size_list(kind):
+        return pa.FixedSizeListArray.from_arrays(pa.array(np.ascontiguousarray(values).reshape(-1)),
+                                                 kind.list_size)
+    return pa.array(np.ascontiguousarray(values), type=kind)
+
+
+def column_array(table: pa.Table, column: str) -> np.ndarray:
+    """A column of a shard or sample table as NumPy; a fixed-size list column as (rows, size)."""
+    col = table.column(column)
+    if pa.types.is_fixed_size_list(col.type):
+        flat = col.combine_chunks().flatten().to_numpy()
+        return flat.reshape(len(col), col.type.list_size)
+    return col.to_numpy()

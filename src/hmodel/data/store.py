@@ -29,7 +29,7 @@ from .. import __version__
 from ..errors import HModelError, InputError
 from ..params import Params
 from .generator import DatasetSpec, compute_shard
-from .schema import COLUMNS, EXTRA_COLUMNS, SCHEMA_VERSION, UNITS, arrow_schema
+from .schema import COLUMNS, EXTRA_COLUMNS, SCHEMA_VERSION, UNITS, arrow_schema, column_array
 from .workers import run_tasks
 
 MANIFEST = "manifest.json"
@@ -263,15 +263,6 @@ class Dataset:
             for c in cols:
                 parts[c].append(column_array(t, c))
         return {c: (np.concatenate(v) if v else _empty(c, self.n_extra)) for c, v in parts.items()}
-
-
-def column_array(table: pa.Table, column: str) -> np.ndarray:
-    """A column of a shard or sample table as NumPy; a fixed-size list column as (rows, size)."""
-    col = table.column(column)
-    if pa.types.is_fixed_size_list(col.type):
-        flat = col.combine_chunks().flatten().to_numpy()
-        return flat.reshape(len(col), col.type.list_size)
-    return col.to_numpy()
 
 
 def _empty(column: str, n_extra: int) -> np.ndarray:

@@ -244,8 +244,9 @@ class MesoFormulation(MaterialScales):
         The lengths follow the strain, alpha the network, d1 and d2 the geometry (eq. 1.2); the
         normal forces the network, N >= 0, and zero where the geometry has the grains apart
         (d > 2r (1 + gap_tol): a learned force never holds an open contact); T1 the
-        network within the Coulomb bound (eq. 1.3); V sigma is eq. 1.12 of these, plus for
-        richer cells the learned inner part, positive semi-definite."""
+        network within the Coulomb bound (eq. 1.3); V sigma is eq. 1.12 of these for H-cells, and
+        for richer cells the learned V sigma_nn, V sigma_tt >= 0 (compressive contact forces)
+        with V sigma_nt = 0."""
         u = self._learned_values(v) + Y * self._scales() * self.m0
         a = u[:, 0]
         l1, l2 = v[:, 6] + dl[:, 0], v[:, 7] + dl[:, 1]
@@ -257,9 +258,10 @@ class MesoFormulation(MaterialScales):
         n2 = np.where(d2 < apart, np.maximum(u[:, 2], 0.0), 0.0)
         t1 = np.clip(u[:, 3], -self.tan_phi * n1, self.tan_phi * n1)
         new = np.column_stack([d1, d2, a, n1, n2, t1, l1, l2, np.zeros((len(u), 3))])
-        new[:, 8:11] = self._hexagon(new)
-        if self.richer:  # compressive contact forces only: V sigma_nn, V sigma_tt >= 0
+        if self.richer:
             new[:, 8:10] = np.maximum(u[:, 4:6], 0.0)
+        else:
+            new[:, 8:11] = self._hexagon(new)
         flags = np.column_stack([(n1 > 0) & (np.abs(t1) >= self.tan_phi * n1 * (1 - 1e-9)),
                                  n1 == 0, n2 == 0, l1 <= two_r, l2 <= two_r])
         return new, flags

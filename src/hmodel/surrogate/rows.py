@@ -11,7 +11,8 @@ import pyarrow.parquet as pq
 from ..data import Dataset
 from ..data.filters import DEFAULT_RULES
 from ..data.sampling import sample_split
-from ..data.store import column_array, sha256
+from ..data.schema import column_array
+from ..data.store import sha256
 from ..errors import InputError
 from ..params import Params
 
