@@ -227,3 +227,79 @@ def test_training_on_several_samples_takes_their_union(tiny_model, tmp_path):
     with pytest.raises(InputError, match="share the material"):
         train_on_sample([tmp / "sample", tmp_path / "other-sample"], cfg)
 
+
+
+def test_windows_follow_the_paths_start_states(tiny_model):
+    """Rollout windows chain a path's consecutive start states: the strain step along theta,
+    the length change, the learned fields after each step; they stop at the path's end and
+    where a start state is missing."""
+    from hmodel.data import Dataset
+
+    _, tmp = tiny_model
+    form = MesoFormulation(PARAMS, "closed-form")
+    c = form.augment(Dataset.open(tmp / "data").read())
+    w = form.windows(c, 3)
+    n_paths, n_starts = 8, 10  # 0.002 ... 0.02: starts along each path (no unloaded one)
+    assert len(w["z0"]) == n_paths * (n_starts - 1)
+    assert w["mask"].sum(0).tolist() == [n_paths * (n_starts - k) for k in (1, 2, 3)]
+    first = (c["path_id"] == 0) & np.isclose(c["start_strain"], 0.002)
+    second = (c["path_id"] == 0) & np.isclose(c["start_strain"], 0.004)
+    i = np.flatnonzero(np.isclose(w["z0"][:, 6], c["l1"][first][0]) & np.isclose(w["z0"][:, 7], c["l2"][first][0]))
+    assert len(i) == 1
+    th = c["theta"][first][0]
+    np.testing.assert_allclose(w["e"][i[0], 0], 0.002 * np.array([np.cos(th), np.sin(th)]) / form.m0)
+    np.testing.assert_allclose(w["dl"][i[0], 0], [c["l1"][second][0] - c["l1"][first][0],
+                                                  c["l2"][second][0] - c["l2"][first][0]])
+    np.testing.assert_allclose(w["target"][i[0], 0], [c[k][second][0] for k in form.learned])
+    # a start state the data lacks ends the windows through it
+    gone = (c["path_id"] == 0) & np.isclose(c["start_strain"], 0.008)
+    w2 = form.windows({k: v[~gone] for k, v in c.items()}, 3)
+    assert w2["mask"].sum() < w["mask"].sum() - 3
+
+
+def test_rollout_error_rolls_out_what_the_rev_does():
+    """The rollout error that training charges (torch) equals the one of the NumPy way back the
+    REV uses, stepped from the same states with the same network."""
+    import torch
+
+    from hmodel.surrogate.model import Architecture
+    from hmodel.surrogate.training import build_network
+
+    form = MesoFormulation(PARAMS, "dem:hexagon-center", mechanisms=3)
+    rng = np.random.default_rng(3)
+    n, T = 16, 4
+    F, d = form.force_scale, 2 * PARAMS.radius
+    z0 = np.zeros((n, 11))
+    z0[:, 2] = np.radians(45) + rng.normal(0, 0.01, n)
+    z0[:, 6], z0[:, 7] = PARAMS.l10 * (1 - 1e-3), PARAMS.l20 * (1 - 1e-3)
+    z0[:, 3:6] = F * rng.uniform(0, 2e-4, (n, 3)) * [1, 1, 0.3]
+    z0[:, 8:10] = F * d * rng.uniform(0, 1e-3, (n, 2))
+    e = rng.normal(0, 1, (n, T, 2))
+    dl = -np.stack([PARAMS.l10 * e[..., 0], PARAMS.l20 * e[..., 1]], axis=-1) * form.m0
+    target = np.cumsum(rng.normal(0, 1, (n, T, 6)), axis=1) * form._scales() * form.m0 * 0.1 \
+        + form._learned_values(z0)[:, None, :]
+    mask = np.ones((n, T))
+    mask[:3, 2:] = 0.0
+    torch.manual_seed(0)
+    net = build_network(Architecture(16, 2, "silu"), 8, form.n_outputs).double()
+    off, scale = form.features(z0).mean(0), form.features(z0).std(0) + 1e-9
+    as_t = lambda a: torch.as_tensor(a, dtype=torch.float64)  # noqa: E731
+    with torch.no_grad():
+        got = float(form.rollout_error(net.float(), *(as_t(a) for a in (z0, e, dl, target, mask)),
+                                       lambda X: (X - as_t(off)) / as_t(scale)))
+    z, want = z0, 0.0
+    for k in range(T):
+        with torch.no_grad():
+            out = net(torch.as_tensor((form.features(z) - off) / scale, dtype=torch.float32)).double().numpy()
+        z, _ = form.advance(z, form.head(out, e[:, k]), dl[:, k])
+        err = (form._learned_values(z) - target[:, k]) / (form._scales() * form.m0)
+        want += ((err ** 2).mean(1) * mask[:, k]).sum()
+    assert got == pytest.approx(want / mask.sum(), rel=1e-6)
+
+
+def test_rollout_training_is_refused_where_it_does_not_apply(tiny_model):
+    _, tmp = tiny_model
+    with pytest.raises(InputError, match="formulation meso"):
+        TrainConfig(formulation="compliance", rollout=4)
+    with pytest.raises(InputError, match="richer cell"):
+        train_on_sample(tmp / "sample", TrainConfig(formulation="meso", rollout=4, epochs=1, device="cpu"))

@@ -31,6 +31,10 @@ Patience = Annotated[int, typer.Option(help="Epochs without validation improveme
 Seed = Annotated[int, typer.Option(help="Seed of the split, the initialization and the batches.")]
 Device = Annotated[str, typer.Option(help="auto (a GPU when there is one), cpu or cuda.")]
 MaxMinutes = Annotated[Optional[float], typer.Option(help="Stop training after this wall time.")]
+Mechanisms = Annotated[int, typer.Option(help="meso: kinks of the learned incremental response.")]
+Rollout = Annotated[int, typer.Option(help="meso of a richer cell: also train on rollouts of this many "
+                                           "steps along the data's paths (0: single increments only).")]
+RolloutWeight = Annotated[float, typer.Option(help="Weight of the rollout error in the loss.")]
 
 
 def _config(**kw):
@@ -47,6 +51,7 @@ def train_cmd(
     width: Width = 8, depth: Depth = 3, activation: Activation = "tanh", loss: Loss = "mse",
     epochs: Epochs = 300, batch_size: BatchSize = 1024, lr: Lr = 3e-3, patience: Patience = 30,
     seed: Seed = 0, device: Device = "auto", max_minutes: MaxMinutes = None,
+    mechanisms: Mechanisms = 4, rollout: Rollout = 0, rollout_weight: RolloutWeight = 1.0,
 ) -> None:
     """Train a surrogate on a sample's training rows (20 % held out for early stopping),
     evaluate it on the sample's test rows, and save it with its metrics."""
@@ -57,7 +62,8 @@ def train_cmd(
         raise InputError(f"--out must end in .safetensors, got {str(out)!r}")
     cfg = _config(formulation=formulation, normalization=normalization, width=width, depth=depth,
                   activation=activation, loss=loss, epochs=epochs, batch_size=batch_size, lr=lr,
-                  patience=patience, seed=seed, device=device, max_minutes=max_minutes)
+                  patience=patience, seed=seed, device=device, max_minutes=max_minutes,
+                  mechanisms=mechanisms, rollout=rollout, rollout_weight=rollout_weight)
     with LazyProgress("training") as progress:
         s, history = train_on_sample(data if len(data) > 1 else data[0], cfg, progress)
     modelfile.save(s, out)

@@ -122,13 +122,14 @@ class Formulation:
 FORMULATIONS = ("report", "increment", "compliance", "meso")
 
 
-def make_formulation(name: str, params: Params, cell: str = "closed-form"):
-    """The formulation ``name`` for the material of ``params`` and data of the cell solver ``cell``."""
+def make_formulation(name: str, params: Params, cell: str = "closed-form", mechanisms: int = 4):
+    """The formulation ``name`` for the material of ``params`` and data of the cell solver
+    ``cell`` (``mechanisms``: kinks of the ``meso`` formulation's incremental response)."""
     if name not in FORMULATIONS:
         raise InputError(f"unknown formulation {name!r} (known: {', '.join(FORMULATIONS)})")
     if name == "meso":
         from .meso import MesoFormulation
-        return MesoFormulation(params, cell)
+        return MesoFormulation(params, cell, mechanisms)
     if cell != "closed-form" and cell.split(":")[:2] != ["dem", "standard"]:
         raise InputError(f"the {name} formulation learns H-cells; cells of {cell!r} need --formulation meso")
     if name == "compliance":

@@ -173,8 +173,8 @@ class MesoFormulation(MaterialScales):
     def features(self, v: np.ndarray) -> np.ndarray:
         """X (n, 8 or 9) from summary states v (n, 11)."""
         d, F = 2 * self.radius, self.force_scale
-        return np.column_stack([v[:, 2], v[:, 6] / d, v[:, 7] / d, v[:, 3] / F, v[:, 4] / F,
-                                v[:, 5] / F, v[:, 8:10] / (F * d)])
+        return _stack([v[:, 2], v[:, 6] / d, v[:, 7] / d, v[:, 3] / F, v[:, 4] / F, v[:, 5] / F,
+                       v[:, 8] / (F * d), v[:, 9] / (F * d)])
 
     def _scales(self) -> np.ndarray:
         F, d = self.force_scale, 2 * self.radius
@@ -187,7 +187,7 @@ class MesoFormulation(MaterialScales):
 
     def _learned_values(self, v: np.ndarray) -> np.ndarray:
         """The learned fields (n, len(learned)) of summary states v (n, 11)."""
-        return np.column_stack([v[:, 2], v[:, 3], v[:, 4], v[:, 5]] + ([v[:, 8], v[:, 9]] if self.richer else []))
+        return _stack([v[:, 2], v[:, 3], v[:, 4], v[:, 5]] + ([v[:, 8], v[:, 9]] if self.richer else []))
 
     def inputs(self, c: dict[str, np.ndarray]) -> np.ndarray:
         c = self.augment(c)
@@ -247,21 +247,131 @@ class MesoFormulation(MaterialScales):
         network within the Coulomb bound (eq. 1.3); V sigma is eq. 1.12 of these for H-cells, and
         for richer cells the learned V sigma_nn, V sigma_tt >= 0 (compressive contact forces)
         with V sigma_nt = 0."""
-        u = self._learned_values(v) + Y * self._scales() * self.m0
+        cols = self._advanced(v, Y, dl)
+        new = np.column_stack(cols + [np.zeros(len(v))] * (len(STATE_FIELDS) - len(cols)))
+        if not self.richer:
+            new[:, 8:11] = self._hexagon(new)
+        n1, t1, l1, l2 = cols[3], cols[5], cols[6], cols[7]
+        two_r = 2.0 * self.radius
+        flags = np.column_stack([(n1 > 0) & (np.abs(t1) >= self.tan_phi * n1 * (1 - 1e-9)),
+                                 n1 == 0, cols[4] == 0, l1 <= two_r, l2 <= two_r])
+        return new, flags
+
+    def _advanced(self, v, Y, dl) -> list:
+        """The columns of :meth:`advance` (V sigma only for richer cells), for NumPy arrays or
+        torch tensors alike: the same way back in the REV and in rollout training."""
+        where, minimum, maximum, sin, cos = _ops(v)
+        u = self._learned_values(v) + Y * _like(self._scales() * self.m0, Y)
         a = u[:, 0]
         l1, l2 = v[:, 6] + dl[:, 0], v[:, 7] + dl[:, 1]
-        d1 = l2 / (2.0 * np.sin(a))  # eq. 1.2
-        d2 = l1 - 2.0 * d1 * np.cos(a)
-        two_r = 2.0 * self.radius
-        apart = two_r * (1.0 + self.gap_tol)
-        n1 = np.where(d1 < apart, np.maximum(u[:, 1], 0.0), 0.0)
-        n2 = np.where(d2 < apart, np.maximum(u[:, 2], 0.0), 0.0)
-        t1 = np.clip(u[:, 3], -self.tan_phi * n1, self.tan_phi * n1)
-        new = np.column_stack([d1, d2, a, n1, n2, t1, l1, l2, np.zeros((len(u), 3))])
-        if self.richer:
-            new[:, 8:10] = np.maximum(u[:, 4:6], 0.0)
-        else:
-            new[:, 8:11] = self._hexagon(new)
-        flags = np.column_stack([(n1 > 0) & (np.abs(t1) >= self.tan_phi * n1 * (1 - 1e-9)),
-                                 n1 == 0, n2 == 0, l1 <= two_r, l2 <= two_r])
-        return new, flags
+        d1 = l2 / (2.0 * sin(a))  # eq. 1.2
+        d2 = l1 - 2.0 * d1 * cos(a)
+        apart = 2.0 * self.radius * (1.0 + self.gap_tol)
+        n1 = where(d1 < apart, _positive(u[:, 1]), 0.0 * u[:, 1])
+        n2 = where(d2 < apart, _positive(u[:, 2]), 0.0 * u[:, 2])
+        t1 = minimum(maximum(u[:, 3], -self.tan_phi * n1), self.tan_phi * n1)  # eq. 1.3
+        cols = [d1, d2, a, n1, n2, t1, l1, l2]
+        if not self.richer:
+            return cols
+        vs = [_positive(u[:, 4]), _positive(u[:, 5])]
+        if self._reach:  # a loose cage: the inner grains carry nothing, V sigma is the hexagon's
+            r_n, r_t = self._hexagon_radii
+            clearance = minimum(l1 / 2 - r_n, ((d2 / 2) ** 2 + (l2 / 2) ** 2) ** 0.5 - r_t)
+            loose = clearance > self._reach * (1.0 + self.gap_tol)
+            ca, sa = cos(a), sin(a)
+            hexagon = (4 * n1 * d1 * ca * ca + 4 * t1 * d1 * ca * sa + 2 * n2 * d2,  # eq. 1.12
+                       4 * n1 * d1 * sa * sa - 4 * t1 * d1 * ca * sa)
+            vs = [where(loose, h, x) for h, x in zip(hexagon, vs)]
+        return cols + vs
+
+    @cached_property
+    def _reach(self) -> float:
+        """Half the span of a chain of all the cell's free grains (the sum of their radii; 0
+        for cells without free grains): a cage whose clearance at its centre exceeds it holds
+        them without force."""
+        m = self._dem.cell(self.params, self.params.alpha0)
+        return float(sum(r for r, d in zip(m.radii, m.drive) if d == "free"))
+
+    @cached_property
+    def _hexagon_radii(self) -> tuple[float, float]:
+        """Radii of the grains driven along n (1, 4) and along t (2, 3, 5, 6)."""
+        r = self._dem.cell(self.params, self.params.alpha0).radii
+        return float(r[0]), float(r[1])
+
+    # -- rollout training -------------------------------------------------------------------
+    def windows(self, c: dict[str, np.ndarray], length: int) -> dict[str, np.ndarray]:
+        """Stretches of ``length`` steps along the data's paths, for rollout training.
+
+        A Dataset 2's start states lie along proportional paths (``path_id``, direction
+        ``theta``, every ``start_every`` of cell strain): consecutive ones are the path's own
+        steps. From every start state, a window holds the next ``length`` steps (fewer near a
+        path's end, padded with zero steps of mask 0): summary states ``z0`` (W, 11), e = de/m0
+        ``e`` (W, T, 2), length increments ``dl`` (W, T, 2), the learned fields after each step
+        ``target`` (W, T, len(learned)) and ``mask`` (W, T)."""
+        c = self.augment(c)
+        key = np.column_stack([c["path_id"], c["start_strain"]])
+        _, first = np.unique(key, axis=0, return_index=True)  # sorted by path, then strain
+        pid, strain, theta = c["path_id"][first], c["start_strain"][first], c["theta"][first]
+        states = np.column_stack([c[k][first] for k in STATE_FIELDS])
+        learned = self._learned_values(states)
+        W = len(first)
+        steps = np.diff(strain)[np.diff(pid) == 0]
+        spacing = np.median(steps[steps > 0]) if np.any(steps > 0) else 0.0
+        out = {"z0": states, "e": np.zeros((W, length, 2)), "dl": np.zeros((W, length, 2)),
+               "target": np.repeat(learned[:, None, :], length, axis=1), "mask": np.zeros((W, length))}
+        for k in range(length):
+            nxt = np.arange(W) + k + 1
+            ok = nxt < W
+            nxt = np.where(ok, nxt, W - 1)
+            prev = nxt - 1
+            ok &= (pid[nxt] == pid[np.arange(W)]) & ((k == 0) | (out["mask"][:, max(k - 1, 0)] > 0))
+            step = strain[nxt] - strain[prev]
+            ok &= np.abs(step - spacing) <= 1e-6 * spacing  # a start state the sample lacks ends it
+            out["e"][ok, k] = (step[:, None] * np.column_stack([np.cos(theta), np.sin(theta)]))[ok] / self.m0
+            out["dl"][ok, k] = (states[nxt, 6:8] - states[prev, 6:8])[ok]
+            out["target"][ok, k:] = learned[nxt][ok][:, None, :]
+            out["mask"][ok, k] = 1.0
+        keep = out["mask"][:, 0] > 0
+        return {k: a[keep] for k, a in out.items()}
+
+    def rollout_error(self, net, z0, e, dl, target, mask, scale_inputs):
+        """Mean squared error (in units of dz/m0) of the learned fields along windows rolled out
+        with the network ``net`` (torch, float64 states): each step's state is the previous
+        step's output, as in a REV."""
+        z = z0
+        total = 0.0
+        scales = _like(self._scales() * self.m0, z0)
+        for k in range(e.shape[1]):
+            out = net(scale_inputs(self.features(z)).float()).double()
+            cols = self._advanced(z, self.head(out, e[:, k]), dl[:, k])
+            z = _stack(cols + [0.0 * cols[0]] * (len(STATE_FIELDS) - len(cols)))
+            err = (self._learned_values(z) - target[:, k]) / scales
+            total = total + ((err * err).mean(1) * mask[:, k]).sum()
+        return total / mask.sum().clamp(min=1.0)
+
+
+def _ops(a):
+    """where, minimum, maximum, sin, cos of NumPy or torch, after the type of ``a``."""
+    if isinstance(a, np.ndarray):
+        return np.where, np.minimum, np.maximum, np.sin, np.cos
+    import torch
+    return torch.where, torch.minimum, torch.maximum, torch.sin, torch.cos
+
+
+def _positive(x):
+    return 0.5 * (x + abs(x))
+
+
+def _like(const: np.ndarray, a):
+    """``const`` as an array of ``a``'s kind (a torch tensor of its dtype and device)."""
+    if isinstance(a, np.ndarray):
+        return const
+    import torch
+    return torch.as_tensor(const, dtype=a.dtype, device=a.device)
+
+
+def _stack(cols: list):
+    if isinstance(cols[0], np.ndarray):
+        return np.column_stack(cols)
+    import torch
+    return torch.stack(cols, dim=1)

@@ -35,6 +35,14 @@ class TrainConfig:
     seed: int = 0
     device: str = "auto"
     max_minutes: float | None = None
+    #: ``meso`` formulation: kinks of the incremental response (see :mod:`hmodel.surrogate.meso`).
+    mechanisms: int = 4
+    #: Rollout training (``meso`` of a richer cell): windows of this many steps along the data's
+    #: paths, each step fed the previous step's prediction, add ``rollout_weight`` times their
+    #: error to the loss (0: single increments only). A learned state drifts in a REV where
+    #: single-increment errors pile up; this charges the network for the pile-up.
+    rollout: int = 0
+    rollout_weight: float = 1.0
 
     def __post_init__(self) -> None:
         Architecture(self.width, self.depth, self.activation)
@@ -47,6 +55,10 @@ class TrainConfig:
                 raise InputError(f"{name} must be at least 1, got {getattr(self, name)}")
         if not self.lr > 0:
             raise InputError(f"lr must be positive, got {self.lr}")
+        if self.mechanisms < 0 or self.rollout < 0 or not self.rollout_weight >= 0:
+            raise InputError("mechanisms, rollout and rollout_weight must be positive or zero")
+        if self.rollout and self.formulation != "meso":
+            raise InputError("rollout training needs --formulation meso")
 
 
 def _device(name: str):
@@ -72,7 +84,7 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
 
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
-    form = make_formulation(config.formulation, params, cell)
+    form = make_formulation(config.formulation, params, cell, config.mechanisms)
     X, (Y, W), A = form.inputs(columns), form.targets(columns), form.aux(columns)
     n = len(X)
     if n < 10:
@@ -99,6 +111,8 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
     opt = torch.optim.Adam(net.parameters(), lr=config.lr)
     sched = torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=0.5, patience=max(1, config.patience // 3))
     loss_fn = _loss(config.loss, form.logit_column)
+    roll = _Rollout(form, columns, config, rng, xs, to, net) if config.rollout else None
+    n_batches = math.ceil(len(Xt) / config.batch_size)
     gen = torch.Generator(device="cpu").manual_seed(config.seed)
     best, best_state, stale, history = math.inf, None, 0, []
     t0 = time.perf_counter()
@@ -110,12 +124,16 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
             idx = order[i:i + config.batch_size]
             opt.zero_grad(set_to_none=True)
             loss = loss_fn(form.head(net(Xt[idx]), None if At is None else At[idx], Yt[idx]), Yt[idx], Wt[idx])
+            if roll is not None:
+                loss = loss + config.rollout_weight * roll.train_batch(i // config.batch_size, n_batches)
             loss.backward()
             opt.step()
             total += float(loss.detach()) * len(idx)
         net.eval()
         with torch.no_grad():
             v = float(loss_fn(form.head(net(Xv), Av, Yv), Yv, Wv))
+            if roll is not None:
+                v += config.rollout_weight * roll.validation()
         sched.step(v)
         history.append({"epoch": epoch + 1, "train_loss": total / len(Xt), "val_loss": v,
                         "lr": opt.param_groups[0]["lr"], "seconds": time.perf_counter() - t0})
@@ -165,6 +183,48 @@ def train_on_sample(folder, config: TrainConfig, progress: Callable[[float], Non
     s.meta.update(training_data=prov, params=info["params"],
                   metrics=evaluate(s, test, "sample test rows"), history_tail=history[-3:])
     return s, history
+
+
+class _Rollout:
+    """Windows along the data's paths (:meth:`MesoFormulation.windows`), split like the rows,
+    and their rollout errors for the training loop."""
+
+    def __init__(self, form, columns, config: TrainConfig, rng, xs, to, net):
+        import torch
+        if not getattr(form, "richer", False):
+            raise InputError("rollout training needs the meso formulation of a richer cell (DEM data "
+                             "whose V sigma is learned)")
+        w = form.windows(columns, config.rollout)
+        if len(w["z0"]) < 2:
+            raise InputError("rollout training needs data along paths (a Dataset 2 sample with its "
+                             "start states)")
+        perm = rng.permutation(len(w["z0"]))
+        n_val = max(1, int(round(config.val_fraction * len(perm))))
+        dev = next(net.parameters()).device
+        as64 = lambda a: torch.as_tensor(a, dtype=torch.float64, device=dev)  # noqa: E731
+        self.val = {k: as64(a[perm[:n_val]]) for k, a in w.items()}
+        self.train = {k: as64(a[perm[n_val:]]) for k, a in w.items()}
+        off, scale = as64(xs.offset), as64(xs.scale)
+        self.scale_inputs = lambda X: (X - off) / scale  # noqa: E731
+        self.form, self.net = form, net
+        self.gen = torch.Generator().manual_seed(config.seed)
+        self.order = torch.randperm(len(perm) - n_val, generator=self.gen)
+
+    def _error(self, part: dict, idx=None):
+        a = part if idx is None else {k: t[idx] for k, t in part.items()}
+        return self.form.rollout_error(self.net, a["z0"], a["e"], a["dl"], a["target"], a["mask"],
+                                       self.scale_inputs)
+
+    def train_batch(self, b: int, n_batches: int):
+        """Rollout error of the b-th of ``n_batches`` slices of the training windows."""
+        import torch
+        if b == 0:  # a new epoch: new slices
+            self.order = torch.randperm(len(self.order), generator=self.gen)
+        size = math.ceil(len(self.order) / n_batches)
+        return self._error(self.train, self.order[b * size:(b + 1) * size])
+
+    def validation(self) -> float:
+        return float(self._error(self.val))
 
 
 def _loss(kind: str, logit: int | None):
