@@ -303,3 +303,27 @@ def test_rollout_training_is_refused_where_it_does_not_apply(tiny_model):
         TrainConfig(formulation="compliance", rollout=4)
     with pytest.raises(InputError, match="richer cell"):
         train_on_sample(tmp / "sample", TrainConfig(formulation="meso", rollout=4, epochs=1, device="cpu"))
+
+
+def test_a_loose_cage_holds_its_free_grain_without_force():
+    """Hexagon-center: where the hexagon's clearance at its centre exceeds the centre grain's
+    radius, V sigma is the hexagon's own (eq. 1.12 of the advanced fields), whatever the network
+    says; where the cage squeezes the grain, the learned V sigma stands. Cells without free
+    grains (H-cells) have no such gate."""
+    form = MesoFormulation(PARAMS, "dem:hexagon-center")
+    r = PARAMS.radius
+    assert form._reach == pytest.approx((np.sqrt(3) - 1) * r) and MesoFormulation(PARAMS)._reach == 0
+    F, d = form.force_scale, 2 * r
+    v = np.zeros((2, 11))
+    v[:, 2] = np.radians(45)
+    v[:, 3], v[:, 4], v[:, 5] = 1e-4 * F, 0.5e-4 * F, 0.2e-4 * F
+    v[:, 8:10] = 5e-3 * F * d
+    v[:, 6], v[:, 7] = PARAMS.l10, PARAMS.l20
+    dl = np.array([[0.0, 0.01 * PARAMS.l20],     # t stretched: the cage opens (clearance > rc)
+                   [0.0, -0.001 * PARAMS.l20]])  # t squeezed: the centre grain is caught
+    Y = np.zeros((2, len(form.learned)))
+    new, _ = form.advance(v, Y, dl)
+    hexagon = meso_vsigma(PARAMS, CellState(np.ascontiguousarray(new[:, :8])))
+    np.testing.assert_allclose(new[0, 8:10], hexagon[0], rtol=1e-12)
+    np.testing.assert_allclose(new[1, 8:10], v[1, 8:10], rtol=1e-12)
+    assert not np.allclose(hexagon[1], v[1, 8:10])

@@ -36,6 +36,23 @@ alpha and the lengths (eq. 1.2), N1, N2 >= 0 and zero where the geometry has the
 apart (d > 2r (1 + 1e-3)), |T1| <= tan(phi_g) N1 (eq. 1.3), Vs_nn, Vs_tt >= 0 (compressive contact forces),
 and the meso-volume of the six driven
 grains' hexagon, V = 2 d1 sin(alpha) (d2 + d1 cos(alpha)) (eq. 1.20, the DEM cells' meso-volume).
+A cell with free grains (the hexagon-center cell) also gets a loose-cage gate: where the hexagon's
+clearance at its centre, min(l1/2 - r, |(d2/2, l2/2)| - r), exceeds the reach of its free grains
+(the sum of their radii) by more than gap_tol, they can rest without force and V sigma is the
+hexagon's own, eq. 1.12 of the advanced fields; the learned inner part V sigma - eq. 1.12 fades
+out linearly over the last ``cage_ramp`` of the reach before that. (On the hexagon-center DEM data,
+the rows this gate calls loose have V sigma within 1 % of max |V sigma| of eq. 1.12. Without the
+gate, cells that had opened completely in a REV regained a learned stress under further
+extension; with a sudden switch instead of the ramp, a REV's q dropped by up to 30 % of its peak
+in one increment where cages loosened.)
+
+Rollout training (``TrainConfig.rollout``): single-increment errors pile up along a path, and a
+REV feeds each cell its own previous output. :meth:`windows` cuts the data's paths (consecutive
+start states of a Dataset 2) into windows of a few steps, and :meth:`rollout_error` steps the
+network along them through the same way back as the REV (:meth:`_advanced`, NumPy and torch
+alike), adding that error to the loss. Measured on the hexagon-center cell (benchmarks/dem_ann.py,
+README): single-cell rollouts along the data's paths and cells driven along a DEM-REV's own
+drained histories drift far less; it costs some accuracy of the first increments from rest.
 
 Tried first and measured worse on closed-form REV paths (12 directions, 3 % axial strain, % of
 peak q): learning N1, N2 and Vs without the geometric gate (open cells' forces drift and grow
@@ -109,6 +126,8 @@ class MesoFormulation(MaterialScales):
     #: the overlaps (~1e-4 of 2r at 100 kPa), so that a small error of the learned alpha, which
     #: eq. 1.2 turns into d1, never opens a contact (a gate at d > 2r did, all at once in a REV).
     gap_tol = 1e-3
+    #: Width (relative to the free grains' reach) over which a cage's inner part fades out.
+    cage_ramp = 1e-3
 
     def __post_init__(self) -> None:
         if not (self.cell == "closed-form" or self.cell.startswith("dem:")):
@@ -277,11 +296,14 @@ class MesoFormulation(MaterialScales):
         if self._reach:  # a loose cage: the inner grains carry nothing, V sigma is the hexagon's
             r_n, r_t = self._hexagon_radii
             clearance = minimum(l1 / 2 - r_n, ((d2 / 2) ** 2 + (l2 / 2) ** 2) ** 0.5 - r_t)
-            loose = clearance > self._reach * (1.0 + self.gap_tol)
+            # weight of the learned inner part: 1 while the cage holds the grain, 0 once it is
+            # loose by gap_tol, linear between (V sigma stays continuous in the strain)
+            w = minimum(maximum((self._reach * (1.0 + self.gap_tol) - clearance)
+                                / (self._reach * self.cage_ramp), 0.0 * clearance), 0.0 * clearance + 1.0)
             ca, sa = cos(a), sin(a)
             hexagon = (4 * n1 * d1 * ca * ca + 4 * t1 * d1 * ca * sa + 2 * n2 * d2,  # eq. 1.12
                        4 * n1 * d1 * sa * sa - 4 * t1 * d1 * ca * sa)
-            vs = [where(loose, h, x) for h, x in zip(hexagon, vs)]
+            vs = [h + w * (x - h) for h, x in zip(hexagon, vs)]
         return cols + vs
 
     @cached_property
