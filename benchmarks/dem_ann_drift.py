@@ -33,6 +33,7 @@ from hmodel.data import Dataset
 from hmodel.dem.solver import DEMSolver
 from hmodel.loading.paths import biaxial, consolidate
 from hmodel.rev.rev import Rev
+from hmodel.surrogate.meso import STATE_FIELDS
 from hmodel.surrogate.modelfile import load
 from hmodel.surrogate.solver import SurrogateSolver
 
@@ -50,8 +51,7 @@ def data_paths(model, ds: Dataset, every: int = 6) -> list[dict]:
         th = float(c["theta"][on][0])
         strains = np.unique(c["start_strain"][on])
         ref = np.array([[c[k][on & (c["start_strain"] == s)][0] for k in ("Vs_nn", "Vs_tt")] for s in strains])
-        first = np.column_stack([c[k][on & (c["start_strain"] == strains[0])][:1] for k in
-                                 ("d1", "d2", "alpha", "N1", "N2", "T1", "l1", "l2", "Vs_nn", "Vs_tt", "Vs_nt")])
+        first = np.column_stack([c[k][on & (c["start_strain"] == strains[0])][:1] for k in STATE_FIELDS])
         z = CellState(first)
         dl = -np.array([P.l10 * np.cos(th), P.l20 * np.sin(th)]) * spec.step
         out = [z.values[0, 8:10]]

@@ -312,7 +312,7 @@ def test_a_loose_cage_holds_its_free_grain_without_force():
     grains (H-cells) have no such gate."""
     form = MesoFormulation(PARAMS, "dem:hexagon-center")
     r = PARAMS.radius
-    assert form._reach == pytest.approx((np.sqrt(3) - 1) * r) and MesoFormulation(PARAMS)._reach == 0
+    assert form._cage[0] == pytest.approx((np.sqrt(3) - 1) * r) and MesoFormulation(PARAMS)._cage[0] == 0
     F, d = form.force_scale, 2 * r
     v = np.zeros((2, 11))
     v[:, 2] = np.radians(45)

@@ -16,6 +16,15 @@ from .state import CellState
 
 
 @njit(cache=True, inline="always")
+def contact_vsigma(d1, d2, ca, sa, n1, n2, t1):
+    """(V sigma_nn, V sigma_tt) of the hexagon's six contacts (eq. 1.12; ca, sa = cos, sin of
+    alpha). Plain arithmetic: its ``py_func`` serves NumPy arrays and torch tensors too (the
+    meso surrogate's way back)."""
+    return (4.0 * n1 * d1 * ca * ca + 4.0 * t1 * d1 * ca * sa + 2.0 * n2 * d2,
+            4.0 * n1 * d1 * sa * sa - 4.0 * t1 * d1 * ca * sa)
+
+
+@njit(cache=True, inline="always")
 def vsigma_local(v, kn, two_r):
     """(V sigma_nn, V sigma_tt) of one cell from its packed state ``v`` (eq. 1.12).
 
@@ -23,11 +32,8 @@ def vsigma_local(v, kn, two_r):
     V sigma_nn when l1 <= 2r (grains 1-4) and 2 kn (2r - l2) l2 on V sigma_tt when l2 <= 2r
     (grains 2-6 and 3-5).
     """
-    d1, d2, a, n1, n2, t1, l1, l2 = v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]
-    ca = math.cos(a)
-    sa = math.sin(a)
-    vnn = 4.0 * n1 * d1 * ca * ca + 4.0 * t1 * d1 * ca * sa + 2.0 * n2 * d2
-    vtt = 4.0 * n1 * d1 * sa * sa - 4.0 * t1 * d1 * ca * sa
+    l1, l2 = v[6], v[7]
+    vnn, vtt = contact_vsigma(v[0], v[1], math.cos(v[2]), math.sin(v[2]), v[3], v[4], v[5])
     if l1 <= two_r:
         vnn += kn * (two_r - l1) * l1
     if l2 <= two_r:

@@ -75,7 +75,7 @@ from functools import cached_property
 
 import numpy as np
 
-from ..cell.mesostress import meso_vsigma
+from ..cell.mesostress import contact_vsigma, meso_vsigma
 from ..cell.state import FIELDS, CellState
 from ..errors import InputError
 from ..params import Params
@@ -293,32 +293,25 @@ class MesoFormulation(MaterialScales):
         if not self.richer:
             return cols
         vs = [_positive(u[:, 4]), _positive(u[:, 5])]
-        if self._reach:  # a loose cage: the inner grains carry nothing, V sigma is the hexagon's
-            r_n, r_t = self._hexagon_radii
+        reach, r_n, r_t = self._cage
+        if reach:  # a loose cage: the inner grains carry nothing, V sigma is the hexagon's
             clearance = minimum(l1 / 2 - r_n, ((d2 / 2) ** 2 + (l2 / 2) ** 2) ** 0.5 - r_t)
             # weight of the learned inner part: 1 while the cage holds the grain, 0 once it is
             # loose by gap_tol, linear between (V sigma stays continuous in the strain)
-            w = minimum(maximum((self._reach * (1.0 + self.gap_tol) - clearance)
-                                / (self._reach * self.cage_ramp), 0.0 * clearance), 0.0 * clearance + 1.0)
-            ca, sa = cos(a), sin(a)
-            hexagon = (4 * n1 * d1 * ca * ca + 4 * t1 * d1 * ca * sa + 2 * n2 * d2,  # eq. 1.12
-                       4 * n1 * d1 * sa * sa - 4 * t1 * d1 * ca * sa)
+            w = (reach * (1.0 + self.gap_tol) - clearance) / (reach * self.cage_ramp)
+            w = minimum(maximum(w, 0.0 * w), 0.0 * w + 1.0)
+            hexagon = contact_vsigma.py_func(d1, d2, cos(a), sin(a), n1, n2, t1)  # eq. 1.12
             vs = [h + w * (x - h) for h, x in zip(hexagon, vs)]
         return cols + vs
 
     @cached_property
-    def _reach(self) -> float:
-        """Half the span of a chain of all the cell's free grains (the sum of their radii; 0
-        for cells without free grains): a cage whose clearance at its centre exceeds it holds
-        them without force."""
+    def _cage(self) -> tuple[float, float, float]:
+        """The reach of the cell's free grains, half the span of a chain of them all (the sum of
+        their radii; 0 without free grains: a cage whose clearance at its centre exceeds it holds
+        them without force), and the radii of the grains driven along n (1, 4) and t (2, 3, 5, 6)."""
         m = self._dem.cell(self.params, self.params.alpha0)
-        return float(sum(r for r, d in zip(m.radii, m.drive) if d == "free"))
-
-    @cached_property
-    def _hexagon_radii(self) -> tuple[float, float]:
-        """Radii of the grains driven along n (1, 4) and along t (2, 3, 5, 6)."""
-        r = self._dem.cell(self.params, self.params.alpha0).radii
-        return float(r[0]), float(r[1])
+        reach = sum(r for r, d in zip(m.radii, m.drive) if d == "free")
+        return float(reach), float(m.radii[0]), float(m.radii[1])
 
     # -- rollout training -------------------------------------------------------------------
     def windows(self, c: dict[str, np.ndarray], length: int) -> dict[str, np.ndarray]:
@@ -340,7 +333,7 @@ class MesoFormulation(MaterialScales):
         steps = np.diff(strain)[np.diff(pid) == 0]
         spacing = np.median(steps[steps > 0]) if np.any(steps > 0) else 0.0
         out = {"z0": states, "e": np.zeros((W, length, 2)), "dl": np.zeros((W, length, 2)),
-               "target": np.repeat(learned[:, None, :], length, axis=1), "mask": np.zeros((W, length))}
+               "target": np.zeros((W, length, learned.shape[1])), "mask": np.zeros((W, length))}
         for k in range(length):
             nxt = np.arange(W) + k + 1
             ok = nxt < W
@@ -351,7 +344,7 @@ class MesoFormulation(MaterialScales):
             ok &= np.abs(step - spacing) <= 1e-6 * spacing  # a start state the sample lacks ends it
             out["e"][ok, k] = (step[:, None] * np.column_stack([np.cos(theta), np.sin(theta)]))[ok] / self.m0
             out["dl"][ok, k] = (states[nxt, 6:8] - states[prev, 6:8])[ok]
-            out["target"][ok, k:] = learned[nxt][ok][:, None, :]
+            out["target"][ok, k] = learned[nxt][ok]
             out["mask"][ok, k] = 1.0
         keep = out["mask"][:, 0] > 0
         return {k: a[keep] for k, a in out.items()}

@@ -111,7 +111,7 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
     opt = torch.optim.Adam(net.parameters(), lr=config.lr)
     sched = torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=0.5, patience=max(1, config.patience // 3))
     loss_fn = _loss(config.loss, form.logit_column)
-    roll = _Rollout(form, columns, config, rng, xs, to, net) if config.rollout else None
+    roll = _Rollout(form, columns, config, rng, xs, net) if config.rollout else None
     n_batches = math.ceil(len(Xt) / config.batch_size)
     gen = torch.Generator(device="cpu").manual_seed(config.seed)
     best, best_state, stale, history = math.inf, None, 0, []
@@ -189,7 +189,7 @@ class _Rollout:
     """Windows along the data's paths (:meth:`MesoFormulation.windows`), split like the rows,
     and their rollout errors for the training loop."""
 
-    def __init__(self, form, columns, config: TrainConfig, rng, xs, to, net):
+    def __init__(self, form, columns, config: TrainConfig, rng, xs, net):
         import torch
         if not getattr(form, "richer", False):
             raise InputError("rollout training needs the meso formulation of a richer cell (DEM data "
