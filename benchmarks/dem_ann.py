@@ -77,10 +77,17 @@ HEX_PRESTRAINED = replace(HEX_DATASET, prestrain=0.001)
 #: cells that open completely, as a REV's cells at 45 deg do in dilatant drained shear
 #: (10,368 rows, 20 s).
 HEX_UNLOADING = replace(HEX_DATASET, theta_min=150.0, theta_max=300.0, prestrain=0.001, max_strain=0.01)
+#: Dataset 3: the same increments (16 directions) from the states a 16-cell DEM-REV's cells pass
+#: through, drained at 50, 150 and 300 kPa and undrained at 100 and 300 kPa, every 0.1 % of axial
+#: strain to 4 %: the bent strain paths of a REV's cells (consolidation, then shear; dilation,
+#: opening). Pressures and directions apart from the compared REVs' (100, 200 kPa; 12, 36 cells).
+HEX_REV = replace(HEX_DATASET, kind=3, n_directions=16, theta_min=0.0, theta_max=90.0, max_strain=0.04,
+                  start_every=0.001, n_increments=16,
+                  rev_paths="drained:50e3,drained:150e3,drained:300e3,undrained:100e3,undrained:300e3")
 HEX_TRAINING = TrainConfig(formulation="meso", width=128, depth=3, activation="silu",
                            epochs=3000, patience=60, seed=0, device="cpu", max_minutes=14.0,
                            mechanisms=4, rollout=4, rollout_weight=0.5)
-CASES = {"hexagon-center": ((HEX_DATASET, HEX_UNLOADING), HEX_TRAINING, HEX_SOLVER),
+CASES = {"hexagon-center": ((HEX_DATASET, HEX_UNLOADING, HEX_REV), HEX_TRAINING, HEX_SOLVER),
          "standard": ((STANDARD_DATASET,), STANDARD_TRAINING, STANDARD_SOLVER)}
 
 

@@ -123,6 +123,53 @@ def test_prestrain_starts_every_path_from_the_consolidated_cell(tmp_path):
         replace(spec, prestrain=0.0015)
 
 
+def test_dataset3_starts_from_the_cells_of_a_rev_along_its_loading(tmp_path):
+    """Dataset 3: the increments of Dataset 2 from the states of a REV's cells, consolidated to p0
+    then sheared drained or undrained: the start states are those of the same REV run by hand,
+    every cell of the consolidated isotropic REV is alike, and each row is one solver step."""
+    from dataclasses import replace
+
+    from hmodel.loading.paths import biaxial, consolidate
+    from hmodel.rev import Rev
+
+    spec = DatasetSpec(kind=3, n_directions=8, max_strain=0.004, step=0.001, start_every=0.002,
+                       magnitude=0.001, n_increments=4, substeps=2, from_unloaded=True,
+                       rev_paths="drained:1e5,undrained:2e5")
+    ds = generate(spec, Params(), tmp_path / "d3")
+    c = ds.read()
+    assert ds.n_rows == spec.n_rows == 2 * 8 * 3 * 4 and len(ds.shards()) == 2
+    assert sorted(set(c["path_id"])) == list(range(16))
+    np.testing.assert_allclose(np.unique(c["theta"]), np.arange(8) * np.pi / 8)
+    np.testing.assert_allclose(np.unique(c["start_strain"]), [0.0, 0.002, 0.004])
+    params = Params(n_theta=8)
+    for loading, (name, p0) in enumerate(spec.rev_loadings):
+        rev = Rev(params)
+        s = consolidate(rev, [p0], step=0.0002)
+        rows = (c["path_id"] // 8 == loading)
+        rest = rows & (c["start_strain"] == 0)
+        assert np.ptp(c["N1"][rest]) <= 1e-12 * c["N1"][rest].max() and c["N1"][rest].min() > 0
+        for strain in (0.002, 0.004):
+            for _ in range(2):
+                s = biaxial(rev, s, 0.001, undrained=name == "undrained",
+                            lateral_stress=None if name == "undrained" else [p0], step=0.001)
+            at = rows & np.isclose(c["start_strain"], strain)
+            cell = c["path_id"][at] % 8
+            np.testing.assert_array_equal(c["N2"][at], s.cells.values[0, cell, 4])
+            np.testing.assert_array_equal(c["l1"][at], s.cells.values[0, cell, 6])
+        assert name == "undrained" or s.sig[0, 1] == pytest.approx(p0, rel=1e-6)
+    i = 37  # any row: the state after is the solver's, in two sub-steps on the initial lengths
+    cf = ClosedFormSolver()
+    state = _hand_state({k: c[k][i] for k in c})
+    a0 = math.radians(45)
+    for _ in range(2):
+        state, _ = cf.step(Params(), state, -(2 + 4 * math.cos(a0)) * c["deps1"][i] / 2,
+                           -4 * math.sin(a0) * c["deps2"][i] / 2)
+    assert state.N1 == pytest.approx(c["N1_next"][i], rel=1e-12, abs=1e-9)
+    assert state.alpha == pytest.approx(c["alpha_next"][i], rel=1e-14)
+    with pytest.raises(InputError, match="prestrain"):
+        replace(spec, prestrain=0.001)
+
+
 def test_dataset1_rows_hold_initial_state_and_total_strain(d1):
     c = d1.read()
     assert len(c["deps1"]) == d1.n_rows == SMALL1.n_rows
@@ -241,7 +288,8 @@ def test_manifest_mismatches_are_refused(d2, tmp_path):
 @pytest.mark.parametrize("bad", [
     dict(kind=3), dict(n_directions=0), dict(alpha0_min=30), dict(alpha0_max=90), dict(step=0),
     dict(max_strain=0.1005), dict(kind=2, start_every=0.0015), dict(magnitude=float("nan")),
-    dict(substeps=0), dict(max_strain=1.5),
+    dict(substeps=0), dict(max_strain=1.5), dict(kind=3, rev_paths="sheared:1e5"),
+    dict(kind=3, rev_paths="drained:-1e5"), dict(kind=3, rev_paths="drained"), dict(rev_paths="drained:1e5"),
 ])
 def test_bad_generator_options(bad):
     with pytest.raises(InputError):
@@ -350,6 +398,10 @@ def test_data_cli(d2, tmp_path, capsys):
     assert main(["data", "generate", "1", "--out", str(out), "--directions", "3", "--alpha0", "45",
                  "--max-strain", "0.05", "--workers", "1"]) == 0
     assert Dataset.open(out).n_rows == 3 * 50
+    assert main(["data", "generate", "3", "--out", str(tmp_path / "r"), "--directions", "4", "--rev-paths",
+                 "undrained:1e5", "--max-strain", "0.002", "--start-every", "0.001", "--increments", "2",
+                 "--substeps", "1", "--magnitude", "0.001", "--workers", "1"]) == 0
+    assert Dataset.open(tmp_path / "r").n_rows == 4 * 2 * 2  # cells x start states x increments
     assert main(["data", "info", str(d2.folder), "--out", str(tmp_path / "info")]) == 0
     text = (tmp_path / "info" / "cleaning.csv").read_text()
     assert "short" in text and "broken" in text

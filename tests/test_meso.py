@@ -222,6 +222,13 @@ def test_training_on_several_samples_takes_their_union(tiny_model, tmp_path):
     assert [p["source_checksum"] for p in model.meta["training_data"]] == [
         read_sample(tmp / "sample", "train")[1]["provenance"]["source_checksum"], ds.checksum]
     assert model.meta["train_rows"] + model.meta["val_rows"] == 700 + 200
+    # both samples count their paths from 0: in the union they stay apart, so the rollout windows
+    # of the union are those of each sample (none chains one sample's states to another's)
+    from hmodel.surrogate.training import union
+    parts = [read_sample(f, "train")[0] for f in (tmp / "sample", tmp_path / "sample")]
+    form = MesoFormulation(Params(sliding_rhs="equilibrium"), "closed-form")
+    n = [form.windows(c, 3)["mask"].sum() for c in parts]
+    assert form.windows(union(parts), 3)["mask"].sum() == sum(n) and min(n) > 0
     other = generate(spec, Params(sliding_rhs="equilibrium", kn=1e8), tmp_path / "other")
     write_split(other, tmp_path / "other-sample", 200, 50)
     with pytest.raises(InputError, match="share the material"):

@@ -51,7 +51,8 @@ def _solver(solver: str, mesostructure: str | None) -> str:
 @app.command("generate")
 def generate(
     dataset: Annotated[int, typer.Argument(help="1: monotonic paths from the initial state; "
-                                                "2: increments from their states.")],
+                                                "2: increments from their states; 3: increments from "
+                                                "the states of a REV's cells (--rev-paths).")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Dataset folder (Parquet shards + manifest.json).")],
     directions: Annotated[int, typer.Option(help="Path directions theta over the --theta range, inclusive.")] = 91,
     theta: Annotated[str, typer.Option(help="Range MIN:MAX [deg] of the path directions in the (eps1, eps2) "
@@ -62,6 +63,9 @@ def generate(
     start_every: Annotated[float, typer.Option(help="Dataset 2: strain between start states.")] = 0.01,
     from_unloaded: Annotated[bool, typer.Option("--from-unloaded", help="Dataset 2: increments from the unloaded cell too.")] = False,
     prestrain: Annotated[float, typer.Option(help="Isotropic cell strain applied before every path, as a REV's consolidation.")] = 0.0,
+    rev_paths: Annotated[str, typer.Option(help="Dataset 3: the REV's loading paths, drained:P0 or undrained:P0 [Pa], "
+                                                "comma-separated; --directions cells, sheared in axial steps of "
+                                                "--step to --max-strain.")] = "",
     magnitude: Annotated[float, typer.Option(help="Dataset 2: strain magnitude of an increment.")] = 0.01,
     magnitude_min: Annotated[Optional[float], typer.Option(help="Dataset 2: spread the magnitudes over "
                                                                 "[MIN, --magnitude] (default: all equal).")] = None,
@@ -84,7 +88,7 @@ def generate(
     t_min, t_max = _theta_range(theta)
     spec = DatasetSpec(kind=dataset, n_directions=directions, theta_min=t_min, theta_max=t_max, alpha0_min=a_min, alpha0_max=a_max,
                        alpha0_step=a_step, max_strain=max_strain, step=step, start_every=start_every, from_unloaded=from_unloaded,
-                       prestrain=prestrain,
+                       prestrain=prestrain, rev_paths=rev_paths,
                        magnitude=magnitude, magnitude_min=magnitude_min, n_increments=increments, substeps=substeps,
                        shard_rows=shard_rows, solver=_solver(solver, mesostructure))
     params = Params.parse_assignments(param)

@@ -13,6 +13,17 @@ has α0 number j and θ number i.
   magnitude ``magnitude`` in ``n_increments`` directions over [0, 2π), each applied in
   ``substeps`` equal sub-steps. With ``magnitude_min``, the magnitudes are spread over
   [magnitude_min, magnitude] instead (the surrogate of the ANN-based REV needs small increments).
+- **Dataset 3** (REV histories): the increments of Dataset 2, from the states a REV's own cells
+  pass through on biaxial paths (``rev_paths``, e.g. ``drained:50e3,undrained:150e3``): a REV of
+  ``n_directions`` cells of opening angle ``params.alpha0`` and the solver's cells, consolidated to
+  p0 in isotropic steps of ``step``/5, then sheared in axial steps of ``step`` to ``max_strain``;
+  its cells' states every ``start_every`` of axial strain (and the consolidated state, with
+  ``from_unloaded``) start the increments. A cell's strain path in a REV bends where the
+  consolidation turns into shear and again as the cell dilates or opens, states that no
+  proportional path of one cell reaches. One shard is one loading path; ``path_id`` is
+  ``loading * n_directions + cell``, ``theta`` the cell's direction in the REV and
+  ``start_strain`` the axial strain since consolidation; the α0 and θ grids and ``prestrain``
+  do not apply.
 
 Cell strains are measured on the initial lengths, compression positive: δl = −(l10, l20)·δε.
 A shard is a contiguous range of paths, so that any shard can be computed alone, in any
@@ -22,7 +33,7 @@ process, and always gives the same rows.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 import pyarrow as pa
@@ -33,6 +44,8 @@ from ..errors import InputError
 from ..params import Params
 from .schema import EXTRA_COLUMNS, FLAG_COLUMNS, STATE, arrow_schema, to_arrow
 
+#: The REV loading paths of Dataset 3.
+REV_LOADINGS = ("drained", "undrained")
 #: Field order of the packed cell state (hmodel.cell.state.FIELDS) for each schema column.
 _PACKED = {"d1": 0, "d2": 1, "alpha": 2, "N1": 3, "N2": 4, "T1": 5, "l1": 6, "l2": 7}
 
@@ -67,6 +80,8 @@ class DatasetSpec:
     #: as a REV's isotropic consolidation does; the path, its start states and ``start_strain``
     #: begin there (the "unloaded" start of ``from_unloaded`` is then the consolidated cell).
     prestrain: float = 0.0
+    #: Dataset 3: the REV's loading paths, ``drained:P0`` or ``undrained:P0`` [Pa], comma-separated.
+    rev_paths: str = ""
 
     def __post_init__(self) -> None:
         # One spelling per value (45 and 45.0 alike), so that manifests and shard bytes match.
@@ -74,8 +89,14 @@ class DatasetSpec:
             v = getattr(self, f.name)
             if "float" in str(f.type) and isinstance(v, (int, float)) and not isinstance(v, bool):
                 object.__setattr__(self, f.name, float(v))
-        if self.kind not in (1, 2):
-            raise InputError(f"dataset must be 1 or 2, got {self.kind}")
+        if self.kind not in (1, 2, 3):
+            raise InputError(f"dataset must be 1, 2 or 3, got {self.kind}")
+        if (self.kind == 3) != bool(self.rev_paths.strip()):
+            raise InputError("rev_paths (the REV's loading paths) must be given for dataset 3 and "
+                             f"only for it, got {self.rev_paths!r} for dataset {self.kind}")
+        if self.kind == 3 and self.prestrain:
+            raise InputError("prestrain does not apply to dataset 3 (its REV is consolidated to p0)")
+        self.rev_loadings  # parses and checks
         for name in ("n_directions", "n_increments", "substeps", "shard_rows"):
             v = getattr(self, name)
             if not isinstance(v, int) or v < 1:
@@ -100,11 +121,27 @@ class DatasetSpec:
         if self.max_strain >= 1.0:
             raise InputError(f"max_strain must be below 1, got {self.max_strain}")
         _ratio(self.max_strain, self.step, "max_strain", "step")
-        if self.kind == 2:
+        if self.kind >= 2:
             _ratio(self.start_every, self.step, "start_every", "step")
             _ratio(self.max_strain, self.start_every, "max_strain", "start_every")
 
     # -- grids -----------------------------------------------------------------------------
+    @property
+    def rev_loadings(self) -> list[tuple[str, float]]:
+        """Dataset 3: the REV's loading paths as (``drained`` or ``undrained``, p0 [Pa])."""
+        out = []
+        for item in filter(None, (t.strip() for t in self.rev_paths.split(","))):
+            name, _, value = item.partition(":")
+            try:
+                p0 = float(value)
+            except ValueError:
+                p0 = float("nan")
+            if name not in REV_LOADINGS or not (math.isfinite(p0) and p0 > 0):
+                raise InputError(f"a REV loading path is drained:P0 or undrained:P0 with P0 > 0 in Pa, "
+                                 f"got {item!r}")
+            out.append((name, p0))
+        return out
+
     @property
     def alpha0_deg(self) -> np.ndarray:
         n = int(math.floor((self.alpha0_max - self.alpha0_min) / self.alpha0_step + 1e-9)) + 1
@@ -137,6 +174,8 @@ class DatasetSpec:
 
     @property
     def n_paths(self) -> int:
+        if self.kind == 3:
+            return len(self.rev_loadings) * self.n_directions
         return len(self.alpha0_deg) * self.n_directions
 
     @property
@@ -161,6 +200,8 @@ class DatasetSpec:
 
     @property
     def paths_per_shard(self) -> int:
+        if self.kind == 3:  # one REV loading path per shard
+            return self.n_directions
         return max(1, self.shard_rows // self.rows_per_path)
 
     @property
@@ -203,6 +244,8 @@ def initial_cells(params: Params, alpha0: np.ndarray) -> CellState:
 def compute_shard(spec: DatasetSpec, params: Params, shard: int) -> pa.Table:
     """The rows of one shard, in path order (a pure function of its arguments)."""
     paths = spec.shard_paths(shard)
+    if spec.kind == 3:
+        return _rev_histories(spec, params, shard, paths)
     alpha0 = np.radians(spec.alpha0_deg)[paths // spec.n_directions]
     theta = spec.theta[paths % spec.n_directions]
     solver = get_solver(spec.solver)
@@ -236,20 +279,52 @@ def _dataset1(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta) -> pa
 
 
 def _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta, l0) -> pa.Table:
-    P = len(paths)
     starts = spec.start_steps
-    L, J = len(starts), spec.n_increments
-    nf = cells.values.shape[-1]
-    start = np.empty((P, L, nf))
+    start = np.empty((len(paths), len(starts), cells.values.shape[-1]))
     state, level = cells, 0
     if starts[0] == 0:
         start[:, 0] = cells.values
         level = 1
     for k in range(1, spec.n_steps + 1):
         state, _ = solver.step(params, state, dl1, dl2)
-        if level < L and k == starts[level]:
+        if level < len(starts) and k == starts[level]:
             start[:, level] = state.values
             level += 1
+    return _increments(spec, params, solver, start, l0, paths, alpha0, theta)
+
+
+def _rev_histories(spec, params, shard, paths) -> pa.Table:
+    """Dataset 3: the increments from the states of a REV's cells along one loading path."""
+    from ..loading.paths import biaxial, consolidate  # the loading layer sits above the data's
+    from ..rev import Rev
+
+    loading, p0 = spec.rev_loadings[shard]
+    solver = get_solver(spec.solver)
+    rev = Rev(replace(params, n_theta=spec.n_directions), solver)
+    cells0 = rev.initial(1).cells.values[0]
+    state = consolidate(rev, [p0], step=spec.step / 5)
+    starts = spec.start_steps
+    start = np.empty((spec.n_directions, len(starts), cells0.shape[-1]))
+    level = 0
+    if starts[0] == 0:
+        start[:, 0] = state.cells.values[0]
+        level = 1
+    undrained = loading == "undrained"
+    for k in range(1, spec.n_steps + 1):
+        state = biaxial(rev, state, spec.step, undrained=undrained,
+                        lateral_stress=None if undrained else [p0], step=spec.step)
+        if level < len(starts) and k == starts[level]:
+            start[:, level] = state.cells.values[0]
+            level += 1
+    alpha0 = np.full(len(paths), params.alpha0)
+    return _increments(spec, params, solver, start, (cells0[:, 6], cells0[:, 7]), paths, alpha0,
+                       rev.directions.theta)
+
+
+def _increments(spec, params, solver, start, l0, paths, alpha0, theta) -> pa.Table:
+    """Dataset-2 increments from start states (P, L, n_fields) of P paths."""
+    P, L, nf = start.shape
+    J = spec.n_increments
     phi = spec.increment_angles
     deps = spec.increment_magnitudes[:, None] * np.stack([np.cos(phi), np.sin(phi)], axis=-1)  # (J, 2)
     l10 = np.broadcast_to(l0[0][:, None, None], (P, L, J))  # strains on the initial lengths
@@ -260,7 +335,7 @@ def _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta, l0) -
     state = before
     for _ in range(spec.substeps):
         state, f = solver.step(params, state, sub1, sub2)
-    strain = spec.step * starts
+    strain = spec.step * spec.start_steps
     labels = (np.repeat(alpha0, L * J), np.repeat(paths, L * J), np.repeat(theta, L * J),
               np.tile(np.repeat(strain, J), P))
     return _table(np.tile(deps, (P * L, 1)), before.values.reshape(-1, nf),

@@ -9,7 +9,9 @@ forces in N (kn in N/m).
 Columns beyond the report's: ``alpha0`` (the cell's initial opening angle), ``path_id`` (the
 monotonic Dataset-1 path a row belongs to), ``theta`` (that path's loading direction in the
 (ε1, ε2) plane) and ``start_strain`` (its total strain at the state before; 0 for Dataset-1
-rows, whose state before is the initial state).
+rows, whose state before is the initial state). In Dataset 3 (REV histories), ``path_id`` is
+one cell of one REV loading path, ``theta`` that cell's direction in the REV and
+``start_strain`` the REV's axial strain since consolidation.
 
 Richer DEM cells (``solver = "dem:hexagon-center"`` etc.) have states beyond these 8 fields
 (grain centres and contact tangential forces, :mod:`hmodel.dem.solver`). Their shards carry two

@@ -138,6 +138,8 @@ def _prepare(folder: Path, header: dict, overwrite: bool) -> dict:
     path = folder / MANIFEST
     if path.is_file() and not overwrite:
         old = _read_manifest(path)
+        if isinstance(old.get("options"), dict):  # options added since it was written take their defaults
+            old = {**old, "options": DatasetSpec.from_dict(old["options"]).to_dict()}
         for key in ("format", "schema_version", "kind", "options", "params"):
             if old.get(key) != header[key]:
                 raise InputError(

@@ -76,7 +76,7 @@ from functools import cached_property
 import numpy as np
 
 from ..cell.mesostress import contact_vsigma, meso_vsigma
-from ..cell.state import FIELDS, CellState
+from ..cell.state import FIELDS, CellState, initial_lengths
 from ..errors import InputError
 from ..params import Params
 from .formulations import OUTPUTS, MaterialScales
@@ -317,21 +317,28 @@ class MesoFormulation(MaterialScales):
     def windows(self, c: dict[str, np.ndarray], length: int) -> dict[str, np.ndarray]:
         """Stretches of ``length`` steps along the data's paths, for rollout training.
 
-        A Dataset 2's start states lie along proportional paths (``path_id``, direction
-        ``theta``, every ``start_every`` of cell strain): consecutive ones are the path's own
-        steps. From every start state, a window holds the next ``length`` steps (fewer near a
+        The start states of a Dataset 2 (3) lie along paths (``path_id``: a proportional path
+        of one cell, or a REV's cell along its loading), every ``start_every`` of strain:
+        consecutive ones are the path's own steps, whose cell strain their lengths give. From every start state, a window holds the next ``length`` steps (fewer near a
         path's end, padded with zero steps of mask 0): summary states ``z0`` (W, 11), e = de/m0
         ``e`` (W, T, 2), length increments ``dl`` (W, T, 2), the learned fields after each step
         ``target`` (W, T, len(learned)) and ``mask`` (W, T)."""
         c = self.augment(c)
         key = np.column_stack([c["path_id"], c["start_strain"]])
         _, first = np.unique(key, axis=0, return_index=True)  # sorted by path, then strain
-        pid, strain, theta = c["path_id"][first], c["start_strain"][first], c["theta"][first]
+        pid, strain = c["path_id"][first], c["start_strain"][first]
+        l0 = np.column_stack(initial_lengths(self.radius, c["alpha0"][first]))
         states = np.column_stack([c[k][first] for k in STATE_FIELDS])
         learned = self._learned_values(states)
         W = len(first)
-        steps = np.diff(strain)[np.diff(pid) == 0]
-        spacing = np.median(steps[steps > 0]) if np.any(steps > 0) else 0.0
+        # each path's spacing of start states: its smallest step (the sample may lack some)
+        same = np.flatnonzero(np.diff(pid) == 0)
+        spacing = np.full(W, np.inf)
+        np.minimum.at(spacing, same + 1, np.diff(strain)[same])
+        paths, inverse = np.unique(pid, return_inverse=True)
+        per_path = np.full(len(paths), np.inf)
+        np.minimum.at(per_path, inverse, spacing)
+        spacing = per_path[inverse]
         out = {"z0": states, "e": np.zeros((W, length, 2)), "dl": np.zeros((W, length, 2)),
                "target": np.zeros((W, length, learned.shape[1])), "mask": np.zeros((W, length))}
         for k in range(length):
@@ -341,9 +348,10 @@ class MesoFormulation(MaterialScales):
             prev = nxt - 1
             ok &= (pid[nxt] == pid[np.arange(W)]) & ((k == 0) | (out["mask"][:, max(k - 1, 0)] > 0))
             step = strain[nxt] - strain[prev]
-            ok &= np.abs(step - spacing) <= 1e-6 * spacing  # a start state the sample lacks ends it
-            out["e"][ok, k] = (step[:, None] * np.column_stack([np.cos(theta), np.sin(theta)]))[ok] / self.m0
-            out["dl"][ok, k] = (states[nxt, 6:8] - states[prev, 6:8])[ok]
+            ok &= np.abs(step - spacing[nxt]) <= 1e-6 * spacing[nxt]  # a start state the sample lacks ends it
+            dl = states[nxt, 6:8] - states[prev, 6:8]
+            out["e"][ok, k] = -(dl / l0)[ok] / self.m0  # cell strain on the initial lengths
+            out["dl"][ok, k] = dl[ok]
             out["target"][ok, k] = learned[nxt][ok]
             out["mask"][ok, k] = 1.0
         keep = out["mask"][:, 0] > 0

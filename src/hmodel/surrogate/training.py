@@ -176,13 +176,25 @@ def train_on_sample(folder, config: TrainConfig, progress: Callable[[float], Non
         if other["params"] != info["params"] or other["provenance"]["options"].get("solver", "closed-form") != cell:
             raise InputError("samples to train on together must share the material parameters and the cell solver")
     if len(parts) > 1:
-        cols = {k: np.concatenate([p[0][0][k] for p in parts]) for k in cols}
-        test = {k: np.concatenate([p[1][k] for p in parts]) for k in test}
+        cols = union([p[0][0] for p in parts])
+        test = union([p[1] for p in parts])
     s, history = train(cols, params_of(info), config, progress, cell)
     prov = info["provenance"] if len(parts) == 1 else [p[0][1]["provenance"] for p in parts]
     s.meta.update(training_data=prov, params=info["params"],
                   metrics=evaluate(s, test, "sample test rows"), history_tail=history[-3:])
     return s, history
+
+
+def union(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """The rows of several samples as one; path ids count from 0 in every dataset, so each
+    sample's are shifted past the previous ones' (a path stays one path, for rollout windows)."""
+    shift, out = 0, {k: [] for k in parts[0]}
+    for cols in parts:
+        for k in out:
+            out[k].append(cols[k] + shift if k == "path_id" else cols[k])
+        if "path_id" in cols and len(cols["path_id"]):
+            shift += int(cols["path_id"].max()) + 1
+    return {k: np.concatenate(v) for k, v in out.items()}
 
 
 class _Rollout:

@@ -1,0 +1,121 @@
+"""Speed of the ANN-based H-model against the DEM-REV as the number of material points grows.
+
+A boundary-value problem runs many material points at once. Both REVs take a batch of points
+(the DEM solver sends every cell of every point in one YADE request per Newton trial; the ANN
+cells are one NumPy batch per state), so the ratio at one point understates the ratio at scale.
+Measured here, for the hexagon-center cell and the model of ``benchmarks/dem_ann.py``:
+
+- **REV**: drained biaxial paths of B material points (p0 spread over 100-200 kPa, consolidated
+  in isotropic steps of 2e-4, then ``--axial`` in steps of 1e-3, ``--n-theta`` cells), the
+  DEM-REV once with a warm YADE process, the ANN-REV as the best of ``--repeat`` runs; the
+  same increments and output resolution; the q deviation of the batch is reported too.
+- **cell**: one step of n cells (states of a consolidated DEM-REV, a shear increment of 1e-3):
+  the DEM solver's request against the ANN solver's step (network and way back).
+
+Prints a table, writes ``dem_ann_speed.json``.
+Usage: ``python benchmarks/dem_ann_speed.py [--model FILE] [--points 1,4,16]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from timing import best_of
+
+from hmodel import Params
+from hmodel.cell import CellState
+from hmodel.compare import deviations, run_path, standard_paths
+from hmodel.dem.solver import DEMSolver
+from hmodel.loading.paths import consolidate
+from hmodel.rev.rev import Rev
+from hmodel.surrogate.modelfile import load
+from hmodel.surrogate.solver import SurrogateSolver
+
+SOLVER = "dem:hexagon-center:tol=1e-7,max_iter=100000"
+PARAMS = Params(sliding_rhs="equilibrium")
+
+
+def rev_rows(model, points, n_theta: int, axial: float, repeat: int) -> list[dict]:
+    params = replace(PARAMS, n_theta=n_theta)
+    rows = []
+    for B in points:
+        spec = replace({s.name: s for s in standard_paths(axial)}["drained"],
+                       p0=tuple(np.linspace(1e5, 2e5, B)) if B > 1 else (1.5e5,))
+        dem = DEMSolver(SOLVER)
+        dem.step(params, dem.initial(params, (1,)), np.zeros(1), np.zeros(1))  # start YADE
+        calls = dem.yade().calls
+        t = time.perf_counter()
+        ref, _ = run_path(params, spec, dem, 1e-3, 2e-4)
+        t_dem = time.perf_counter() - t
+        calls = dem.yade().calls - calls
+        dem.yade().close()
+        ann = SurrogateSolver(model, on_outside="error")
+        res, _ = run_path(params, spec, ann, 1e-3, 2e-4)
+        t_ann = best_of(lambda: run_path(params, spec, ann, 1e-3, 2e-4), repeat)
+        dev = deviations(ref, res)
+        rows.append({"points": B, "n_theta": n_theta, "axial_pct": 100 * axial, "dem_requests": calls,
+                     "seconds_dem": t_dem, "seconds_ann": t_ann, "dem_over_ann": t_dem / t_ann,
+                     "q_max_dev_pct_of_peak": 100 * max(d["q_max_dev_rel"] for d in dev)})
+        print(f"REV  B={B:<4} n_theta={n_theta}  DEM {t_dem:8.2f} s ({calls} requests)  ANN {t_ann:8.4f} s  "
+              f"ratio {t_dem / t_ann:8.0f}  max dq {rows[-1]['q_max_dev_pct_of_peak']:.1f} %", flush=True)
+    return rows
+
+
+def cell_rows(model, sizes, repeat: int) -> list[dict]:
+    """One step of n cells: consolidated DEM-REV cells (36 directions) repeated, sheared by 1e-3."""
+    params = replace(PARAMS, n_theta=36)
+    dem = DEMSolver(SOLVER)
+    rev = Rev(params, dem)
+    cells = consolidate(rev, [1.5e5], step=2e-4).cells.values[0]
+    dl = rev.localize(CellState(cells), np.array([[1e-3, -5e-4, 0.0]]))[0]
+    f = model.formulation
+    ann = SurrogateSolver(model, on_outside="error")
+    rows = []
+    for n in sizes:
+        k = -(-n // len(cells))
+        full = np.tile(cells, (k, 1))[:n]
+        d = np.tile(dl, (k, 1))[:n]
+        # distinct rows (the DEM solver sends identical rows once): shift each length by < 1e-9
+        d = d * (1.0 + 1e-6 * np.arange(n)[:, None] / n)
+        t = time.perf_counter()
+        dem.step(params, CellState(full), d[:, 0], d[:, 1])
+        t_dem = time.perf_counter() - t
+        z = CellState(f.summary(full))
+        t_ann = best_of(lambda: ann.step(params, z, d[:, 0], d[:, 1]), repeat)
+        rows.append({"cells": n, "seconds_dem": t_dem, "seconds_ann": t_ann,
+                     "us_per_cell_dem": 1e6 * t_dem / n, "us_per_cell_ann": 1e6 * t_ann / n,
+                     "dem_over_ann": t_dem / t_ann})
+        print(f"cell n={n:<6} DEM {1e6 * t_dem / n:9.1f} us/cell  ANN {1e6 * t_ann / n:8.2f} us/cell  "
+              f"ratio {t_dem / t_ann:8.0f}", flush=True)
+    dem.yade().close()
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--model", type=Path, default=Path("/tmp/hmodel-dem-ann-hexagon-center/model.safetensors"))
+    ap.add_argument("--points", default="1,4,16")
+    ap.add_argument("--n-theta", type=int, default=36)
+    ap.add_argument("--axial", type=float, default=0.01)
+    ap.add_argument("--cells", default="36,576,2304")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--out", type=Path, default=Path(__file__).with_name("dem_ann_speed.json"))
+    args = ap.parse_args()
+    model = load(args.model)
+    cells = cell_rows(model, [int(n) for n in args.cells.split(",")], args.repeat)
+    revs = rev_rows(model, [int(b) for b in args.points.split(",")], args.n_theta, args.axial, args.repeat)
+    args.out.write_text(json.dumps({
+        "machine": {"platform": platform.platform(), "cpus": os.cpu_count()}, "model": str(args.model),
+        "solver": SOLVER, "cell": cells, "rev": revs}, indent=1))
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
