@@ -10,8 +10,10 @@ paths at small n_theta. Two cases (``--mesostructure``):
 - ``hexagon-center`` (default; the issue's richer cell): the hexagon with a free centre grain
   (radius ratio sqrt(3) - 1, touching grains 2, 3, 5, 6 at alpha0 = 45 deg), no closed form;
   the ``meso`` formulation (summary state with the Love-Weber meso-stress) trained with rollout
-  windows, on the recipe's data plus unloading paths from a consolidated cell; data and reference
-  DEM at the quasi-static tolerance 1e-7.
+  windows, on the recipe's data, unloading paths from a consolidated cell and a Dataset 3 (the
+  increments from the states of a 16-cell DEM-REV's cells along drained and undrained loadings
+  at other pressures than the compared ones); data and reference DEM at the quasi-static
+  tolerance 1e-7.
 - ``standard``: the H-cell in DEM, the ``compliance`` formulation; the closed form is listed as
   a third reference.
 
@@ -78,12 +80,14 @@ HEX_PRESTRAINED = replace(HEX_DATASET, prestrain=0.001)
 #: (10,368 rows, 20 s).
 HEX_UNLOADING = replace(HEX_DATASET, theta_min=150.0, theta_max=300.0, prestrain=0.001, max_strain=0.01)
 #: Dataset 3: the same increments (16 directions) from the states a 16-cell DEM-REV's cells pass
-#: through, drained at 50, 150 and 300 kPa and undrained at 100 and 300 kPa, every 0.1 % of axial
-#: strain to 4 %: the bent strain paths of a REV's cells (consolidation, then shear; dilation,
-#: opening). Pressures and directions apart from the compared REVs' (100, 200 kPa; 12, 36 cells).
+#: through, drained at 50, 75, 125, 150, 250 and 300 kPa and undrained at 100, 150 and 300 kPa,
+#: every 0.1 % of axial strain to 4 %: the bent strain paths of a REV's cells (consolidation, then
+#: shear; dilation, opening). Loadings and directions apart from the compared REVs' (drained 100
+#: and 200 kPa, undrained 200 kPa; 12 and 36 cells). 94,464 rows.
 HEX_REV = replace(HEX_DATASET, kind=3, n_directions=16, theta_min=0.0, theta_max=90.0, max_strain=0.04,
                   start_every=0.001, n_increments=16,
-                  rev_paths="drained:50e3,drained:150e3,drained:300e3,undrained:100e3,undrained:300e3")
+                  rev_paths="drained:50e3,drained:75e3,drained:125e3,drained:150e3,drained:250e3,"
+                            "drained:300e3,undrained:100e3,undrained:150e3,undrained:300e3")
 HEX_TRAINING = TrainConfig(formulation="meso", width=128, depth=3, activation="silu",
                            epochs=3000, patience=60, seed=0, device="cpu", max_minutes=14.0,
                            mechanisms=4, rollout=4, rollout_weight=0.5)

@@ -74,7 +74,7 @@ def cell_rows(model, sizes, repeat: int) -> list[dict]:
     dem = DEMSolver(SOLVER)
     rev = Rev(params, dem)
     cells = consolidate(rev, [1.5e5], step=2e-4).cells.values[0]
-    dl = rev.localize(CellState(cells), np.array([[1e-3, -5e-4, 0.0]]))[0]
+    dl = rev.localize(CellState(cells[None]), np.array([[1e-3, -5e-4, 0.0]]))[0]
     f = model.formulation
     ann = SurrogateSolver(model, on_outside="error")
     rows = []

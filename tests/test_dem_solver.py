@@ -49,6 +49,9 @@ def test_step_is_pure_and_batch_independent():
     # a cell alone gives what it gives in a batch (each cell is frozen once balanced)
     alone, _ = solver.step(PARAMS, type(s1)(s1.values[1:2]), dl1[1:2], dl2[1:2])
     assert np.allclose(alone.values[0], a.values[1], rtol=1e-9, atol=1e-9)
+    # so a batch sent in requests of at most two cells gives the same
+    split, fs = get_solver("dem:standard:max_cells=2").step(PARAMS, s1, dl1, dl2)
+    assert np.allclose(split.values, a.values, rtol=1e-9, atol=1e-9) and np.array_equal(fs.flags, fa.flags)
 
 
 @needs_yade
@@ -97,6 +100,15 @@ def test_data_generate_with_dem(tmp_path):
     table = pq.read_table(tmp_path / "centre" / "part-00000.parquet")
     manifest = json.loads((tmp_path / "centre" / "manifest.json").read_text())
     assert len(manifest["extra_fields"]) == 35 and table.column("state_extra").type.list_size == 35
+    # Dataset 3 from a DEM-REV of richer cells: the consolidated cells of an isotropic REV are alike
+    assert main(["data", "generate", "3", "-o", str(tmp_path / "rev"), "--directions", "4", "--rev-paths",
+                 "undrained:1e5", "--max-strain", "0.001", "--start-every", "0.001", "--from-unloaded",
+                 "--increments", "2", "--magnitude", "0.001", "--substeps", "1", "--workers", "1",
+                 "--solver", "dem", "--mesostructure", "hexagon-center:tol=1e-7"]) == 0
+    rev = Dataset.open(tmp_path / "rev").read()
+    assert len(rev["N1"]) == 4 * 2 * 2 and rev["state_extra"].shape == (16, 35)
+    rest = rev["start_strain"] == 0
+    assert rev["N1"][rest].min() > 0 and np.ptp(rev["N1"][rest]) <= 1e-3 * rev["N1"][rest].max()
 
 
 def test_failing_yade_leaves_no_shard(tmp_path, monkeypatch, capsys):

@@ -51,7 +51,11 @@ class DEMOptions:
     detect_margin : float
         Relative margin of contact detection on the first step only (initially touching grains).
     timeout : float
-        Wall-clock limit of the YADE process [s].
+        Wall-clock limit of the YADE process [s] (of one request of the cell solver).
+    max_cells : int
+        Cells per request of the cell solver (:mod:`hmodel.dem.solver`): the cells of a request
+        share one scene, where balanced cells are frozen but still stepped, so one cell slow to
+        balance holds every cell of its request (a 10,000-cell request ran past the timeout).
     """
 
     tol: float = 1e-4
@@ -62,9 +66,10 @@ class DEMOptions:
     check_every: int = 10
     detect_margin: float = 0.01
     timeout: float = 600.0
+    max_cells: int = 1000
 
     def __post_init__(self) -> None:
-        if not (self.tol > 0 and self.max_iter >= 0 and self.substeps >= 1 and 0 <= self.damping < 1
+        if not (self.max_cells >= 1 and self.tol > 0 and self.max_iter >= 0 and self.substeps >= 1 and 0 <= self.damping < 1
                 and 0 < self.dt_safety <= 1 and self.check_every >= 1 and self.detect_margin >= 0):
             raise InputError(f"invalid DEM options {self}")
 

@@ -71,8 +71,8 @@ def _parse(spec: str) -> tuple[str, dict, dict]:
 
 
 #: DEMOptions fields that a solver spec may set (``dem:hexagon-center:tol=1e-7``).
-_NUMERICS = ("tol", "max_iter", "substeps", "damping", "dt_safety", "check_every", "timeout")
-_INTEGER = ("max_iter", "substeps", "check_every")
+_NUMERICS = ("tol", "max_iter", "substeps", "damping", "dt_safety", "check_every", "timeout", "max_cells")
+_INTEGER = ("max_iter", "substeps", "check_every", "max_cells")
 
 
 class DEMSolver:
@@ -232,7 +232,10 @@ class DEMSolver:
             req["cells"].append({"radii": r.tolist(), "pos": pos[k].tolist(), "drive": list(proto.drive),
                                  "l": [float(values[k, 6]), float(values[k, 7])],
                                  "half_width": half, "half_height": height, "increment": dl[k].tolist(), "shear": shear})
-        result = self.yade().request(req, timeout=o.timeout)
+        cells, result = req.pop("cells"), {"cells": []}
+        for k in range(0, len(cells), o.max_cells):
+            part = self.yade().request({**req, "cells": cells[k:k + o.max_cells]}, timeout=o.timeout)
+            result["cells"] += part["cells"]
         n = len(values)
         new_pos = np.array([c["pos"] for c in result["cells"]], float).reshape(n, self.n_grains, 2)
         new_ft = np.zeros((n, len(self.pairs)))
