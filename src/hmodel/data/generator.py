@@ -33,6 +33,7 @@ process, and always gives the same rows.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
@@ -279,17 +280,14 @@ def _dataset1(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta) -> pa
 
 
 def _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta, l0) -> pa.Table:
-    starts = spec.start_steps
-    start = np.empty((len(paths), len(starts), cells.values.shape[-1]))
-    state, level = cells, 0
-    if starts[0] == 0:
-        start[:, 0] = cells.values
-        level = 1
-    for k in range(1, spec.n_steps + 1):
+    state = cells
+
+    def advance() -> np.ndarray:
+        nonlocal state
         state, _ = solver.step(params, state, dl1, dl2)
-        if level < len(starts) and k == starts[level]:
-            start[:, level] = state.values
-            level += 1
+        return state.values
+
+    start = _start_states(spec, cells.values, advance)
     return _increments(spec, params, solver, start, l0, paths, alpha0, theta)
 
 
@@ -303,22 +301,35 @@ def _rev_histories(spec, params, shard, paths) -> pa.Table:
     rev = Rev(replace(params, n_theta=spec.n_directions), solver)
     cells0 = rev.initial(1).cells.values[0]
     state = consolidate(rev, [p0], step=spec.step / 5)
-    starts = spec.start_steps
-    start = np.empty((spec.n_directions, len(starts), cells0.shape[-1]))
-    level = 0
-    if starts[0] == 0:
-        start[:, 0] = state.cells.values[0]
-        level = 1
     undrained = loading == "undrained"
-    for k in range(1, spec.n_steps + 1):
+
+    def advance() -> np.ndarray:
+        nonlocal state
         state = biaxial(rev, state, spec.step, undrained=undrained,
                         lateral_stress=None if undrained else [p0], step=spec.step)
-        if level < len(starts) and k == starts[level]:
-            start[:, level] = state.cells.values[0]
-            level += 1
+        return state.cells.values[0]
+
+    start = _start_states(spec, state.cells.values[0], advance)
     alpha0 = np.full(len(paths), params.alpha0)
     return _increments(spec, params, solver, start, (cells0[:, 6], cells0[:, 7]), paths, alpha0,
                        rev.directions.theta)
+
+
+def _start_states(spec, first: np.ndarray, advance: Callable[[], np.ndarray]) -> np.ndarray:
+    """The states (P, L, n_fields) of P paths at the spec's start steps: ``first`` (P, n_fields)
+    at step 0, then what ``advance()`` returns at each step."""
+    starts = spec.start_steps
+    out = np.empty((first.shape[0], len(starts), first.shape[1]))
+    level = 0
+    if starts[0] == 0:
+        out[:, 0] = first
+        level = 1
+    for k in range(1, spec.n_steps + 1):
+        values = advance()
+        if level < len(starts) and k == starts[level]:
+            out[:, level] = values
+            level += 1
+    return out
 
 
 def _increments(spec, params, solver, start, l0, paths, alpha0, theta) -> pa.Table:
