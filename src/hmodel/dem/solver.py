@@ -223,26 +223,26 @@ class DEMSolver:
                "density": 1.0, "mass": 4.0 / 3.0 * math.pi * r_ref ** 3, "gap": 2.0 * r_ref,
                "tol": o.tol, "max_iter": o.max_iter, "substeps": o.substeps, "damping": o.damping,
                "dt_safety": o.dt_safety, "check_every": o.check_every,
-               "detect_margin": o.detect_margin, "cells": []}
+               "detect_margin": o.detect_margin}
+        cells = []
         for k in range(len(values)):
             half = float(np.max(np.abs(pos[k, :, 0]) + r))
             height = float(np.max(np.abs(pos[k, :, 1]) + r))
             shear = [[int(i), int(j), float(ft[k, p])] for p, (i, j) in enumerate(self.pairs)
                      if closed[k, p] and ft[k, p] != 0.0]
-            req["cells"].append({"radii": r.tolist(), "pos": pos[k].tolist(), "drive": list(proto.drive),
-                                 "l": [float(values[k, 6]), float(values[k, 7])],
-                                 "half_width": half, "half_height": height, "increment": dl[k].tolist(), "shear": shear})
-        cells, result = req.pop("cells"), {"cells": []}
+            cells.append({"radii": r.tolist(), "pos": pos[k].tolist(), "drive": list(proto.drive),
+                          "l": [float(values[k, 6]), float(values[k, 7])], "half_width": half,
+                          "half_height": height, "increment": dl[k].tolist(), "shear": shear})
+        done = []
         for k in range(0, len(cells), o.max_cells):
-            part = self.yade().request({**req, "cells": cells[k:k + o.max_cells]}, timeout=o.timeout)
-            result["cells"] += part["cells"]
+            done += self.yade().request({**req, "cells": cells[k:k + o.max_cells]}, timeout=o.timeout)["cells"]
         n = len(values)
-        new_pos = np.array([c["pos"] for c in result["cells"]], float).reshape(n, self.n_grains, 2)
+        new_pos = np.array([c["pos"] for c in done], float).reshape(n, self.n_grains, 2)
         new_ft = np.zeros((n, len(self.pairs)))
         col = {tuple(p): k for k, p in enumerate(self.pairs)}
         contact = np.zeros((n, len(self.pairs)), bool)
         fn = np.zeros((n, len(self.pairs)))
-        for k, c in enumerate(result["cells"]):
+        for k, c in enumerate(done):
             for row in c["contacts"]:
                 p = col[(int(row[0]), int(row[1]))]
                 contact[k, p] = True

@@ -319,8 +319,9 @@ class MesoFormulation(MaterialScales):
 
         The start states of a Dataset 2 (3) lie along paths (``path_id``: a proportional path
         of one cell, or a REV's cell along its loading), every ``start_every`` of strain:
-        consecutive ones are the path's own steps, whose cell strain their lengths give. From every start state, a window holds the next ``length`` steps (fewer near a
-        path's end, padded with zero steps of mask 0): summary states ``z0`` (W, 11), e = de/m0
+        consecutive ones are the path's own steps, whose cell strain their lengths give. From
+        every start state, a window holds the next ``length`` steps (fewer near a path's end,
+        padded with zero steps of mask 0): summary states ``z0`` (W, 11), e = de/m0
         ``e`` (W, T, 2), length increments ``dl`` (W, T, 2), the learned fields after each step
         ``target`` (W, T, len(learned)) and ``mask`` (W, T)."""
         c = self.augment(c)
@@ -332,13 +333,11 @@ class MesoFormulation(MaterialScales):
         learned = self._learned_values(states)
         W = len(first)
         # each path's spacing of start states: its smallest step (the sample may lack some)
-        same = np.flatnonzero(np.diff(pid) == 0)
-        spacing = np.full(W, np.inf)
-        np.minimum.at(spacing, same + 1, np.diff(strain)[same])
         paths, inverse = np.unique(pid, return_inverse=True)
-        per_path = np.full(len(paths), np.inf)
-        np.minimum.at(per_path, inverse, spacing)
-        spacing = per_path[inverse]
+        same = np.flatnonzero(np.diff(pid) == 0)
+        spacing = np.full(len(paths), np.inf)
+        np.minimum.at(spacing, inverse[same], np.diff(strain)[same])
+        spacing = spacing[inverse]
         out = {"z0": states, "e": np.zeros((W, length, 2)), "dl": np.zeros((W, length, 2)),
                "target": np.zeros((W, length, learned.shape[1])), "mask": np.zeros((W, length))}
         for k in range(length):
@@ -346,7 +345,7 @@ class MesoFormulation(MaterialScales):
             ok = nxt < W
             nxt = np.where(ok, nxt, W - 1)
             prev = nxt - 1
-            ok &= (pid[nxt] == pid[np.arange(W)]) & ((k == 0) | (out["mask"][:, max(k - 1, 0)] > 0))
+            ok &= (pid[nxt] == pid) & ((k == 0) | (out["mask"][:, max(k - 1, 0)] > 0))
             step = strain[nxt] - strain[prev]
             ok &= np.abs(step - spacing[nxt]) <= 1e-6 * spacing[nxt]  # a start state the sample lacks ends it
             dl = states[nxt, 6:8] - states[prev, 6:8]
