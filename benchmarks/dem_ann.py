@@ -17,6 +17,9 @@ paths at small n_theta. Two cases (``--mesostructure``):
 - ``standard``: the H-cell in DEM, the ``compliance`` formulation; the closed form is listed as
   a third reference.
 
+The hexagon-center ANN-REV is an ensemble of three networks trained alike (seeds 0, 1, 2;
+``--members``), whose increments it averages; each member alone is reported too.
+
 Reported per path: max and RMS deviation of q relative to the DEM-REV's peak q (and the closed
 form's, as a reference; for an ANN run that fails, over its rows before the failure, with the
 axial strain where it failed), overlay figures in ``WORK/figures``, and the wall times at the
@@ -24,7 +27,7 @@ same output resolution (same increments):
 the ANN-REV as the best of ``--repeat`` runs after a warm-up, the DEM-REV with a warm YADE
 process (its start-up, measured on a fresh solver's first one-cell request, is listed apart).
 
-Usage: ``python benchmarks/dem_ann.py [--mesostructure NAME] [--work DIR] [--reuse]``; prints
+Usage: ``python benchmarks/dem_ann.py [--mesostructure NAME] [--work DIR] [--reuse] [--members N]``; prints
 a table, writes ``dem_ann.json`` (``dem_ann_standard.json`` for the standard cell).
 """
 
@@ -47,7 +50,7 @@ from hmodel.data import DatasetSpec
 from hmodel.data.sampling import write_split
 from hmodel.data.store import generate
 from hmodel.dem.solver import DEMSolver
-from hmodel.surrogate.modelfile import save
+from hmodel.surrogate.modelfile import load, save
 from hmodel.surrogate.solver import SurrogateSolver
 from hmodel.surrogate.training import TrainConfig, train_on_sample
 
@@ -91,15 +94,23 @@ HEX_REV = replace(HEX_DATASET, kind=3, n_directions=16, theta_min=0.0, theta_max
 HEX_TRAINING = TrainConfig(formulation="meso", width=128, depth=3, activation="silu",
                            epochs=3000, patience=60, seed=0, device="cpu", max_minutes=14.0,
                            mechanisms=4, rollout=4, rollout_weight=0.5)
+#: Networks per ANN-REV: an ensemble of three for the richer cell (seeds 0-2, averaged
+#: increments; single networks trained alike differed by ~1 % of peak q, in both directions).
+MEMBERS = {"hexagon-center": 3, "standard": 1}
 CASES = {"hexagon-center": ((HEX_DATASET, HEX_UNLOADING, HEX_REV), HEX_TRAINING, HEX_SOLVER),
          "standard": ((STANDARD_DATASET,), STANDARD_TRAINING, STANDARD_SOLVER)}
 
 
-def build_model(work: Path, specs, config: TrainConfig, n_train: int, n_test: int,
-                workers: int) -> tuple[Path, dict]:
-    """Datasets -> samples (``n_train``/``n_test`` rows each) -> one model trained on them all;
-    returns its path and the stage timings."""
-    t = {"dataset_s": 0.0, "sample_s": 0.0}
+def build_models(work: Path, specs, config: TrainConfig, n_train: int, n_test: int, workers: int,
+                 members: int, reuse: bool) -> tuple[list[Path], dict]:
+    """Datasets -> samples (``n_train``/``n_test`` rows each) -> ``members`` models trained on
+    them all alike, with seeds ``config.seed + k`` (an ensemble; ``work/model-K.safetensors``,
+    kept with ``reuse``); returns their paths and the stage timings of this run."""
+    paths = [work / f"model-{k}.safetensors" for k in range(members)]
+    todo = [k for k, p in enumerate(paths) if not (reuse and p.is_file())]
+    t = {"dataset_s": 0.0, "sample_s": 0.0, "training_s": [], "epochs": [], "test_metrics": []}
+    if not todo:
+        return paths, {}
     samples, rows, n_rows = [], [], []
     for k, spec in enumerate(specs):
         t0 = time.perf_counter()
@@ -113,14 +124,16 @@ def build_model(work: Path, specs, config: TrainConfig, n_train: int, n_test: in
         samples.append(work / f"sample-{k}")
         rows.append(ds.n_rows)
         n_rows.append((n_tr, n_te))
-    t0 = time.perf_counter()
-    model, history = train_on_sample(samples, config)
-    t["training_s"] = time.perf_counter() - t0
-    path = save(model, work / "model.safetensors")
-    info = {**t, "rows": sum(rows), "train_rows": sum(a for a, _ in n_rows),
-            "test_rows": sum(b for _, b in n_rows), "epochs": len(history),
-            "test_metrics": model.meta.get("metrics")}
-    return path, info
+    for k in todo:
+        t0 = time.perf_counter()
+        model, history = train_on_sample(samples, replace(config, seed=config.seed + k))
+        t["training_s"].append(time.perf_counter() - t0)
+        t["epochs"].append(len(history))
+        t["test_metrics"].append(model.meta.get("metrics"))
+        save(model, paths[k])
+    info = {**t, "trained_members": todo, "rows": sum(rows), "train_rows": sum(a for a, _ in n_rows),
+            "test_rows": sum(b for _, b in n_rows)}
+    return paths, info
 
 
 def yade_startup(solver: str) -> float:
@@ -134,13 +147,14 @@ def yade_startup(solver: str) -> float:
     return out
 
 
-def compare(model_path: Path, solver: str, n_thetas, axials, step: float, iso_step: float,
+def compare(model_paths: list[Path], solver: str, n_thetas, axials, step: float, iso_step: float,
             repeat: int, figures: Path):
     """Rows of the comparison table; overlay figures (DEM-REV vs ANN-REV) into ``figures``. A
-    failed ANN run keeps its rows up to the failure: deviations there, and where it failed."""
+    failed ANN run keeps its rows up to the failure: deviations there, and where it failed. The
+    ANN-REV is the ensemble of the models; each member alone is listed too (max deviation, or
+    nan where it failed)."""
     from hmodel.compare import plot_overlay
     from hmodel.errors import SolverError
-    from hmodel.surrogate.modelfile import load
 
     rows = []
     for n_theta, axial in ((n, a) for n in n_thetas for a in axials):
@@ -148,8 +162,16 @@ def compare(model_path: Path, solver: str, n_thetas, axials, step: float, iso_st
         paths = {s.name: s for s in standard_paths(axial)}
         for spec in (replace(paths["drained"], p0=(1e5, 2e5)), paths["undrained"]):
             dem = DEMSolver(solver)
-            ann = SurrogateSolver(load(model_path), on_outside="error")
+            models = [load(p) for p in model_paths]
+            ann = SurrogateSolver(models, on_outside="error")
+            alone = []
             ref, _ = run_path(params, spec, dem, step, iso_step)  # also starts YADE
+            for m in models if len(models) > 1 else []:
+                try:
+                    alone.append([d["q_max_dev_rel"] for d in deviations(
+                        ref, run_path(params, spec, SurrogateSolver(m, on_outside="error"), step, iso_step)[0])])
+                except SolverError:
+                    alone.append([float("nan")] * len(spec.p0))
             calls0 = dem.yade().calls
             t_dem = best_of(lambda: run_path(params, spec, dem, step, iso_step), 1)
             status, failed_at = "ok", float("nan")
@@ -176,6 +198,7 @@ def compare(model_path: Path, solver: str, n_thetas, axials, step: float, iso_st
                              "ann_failed_at_axial_pct": 100 * failed_at,
                              "ann_q_max_dev_pct_of_peak": 100 * d.get("q_max_dev_rel", float("nan")),
                              "ann_q_rms_dev_pct_of_peak": 100 * d.get("q_rms_dev_rel", float("nan")),
+                             "members_q_max_dev_pct_of_peak": [100 * a[b] for a in alone],
                              "ann_eps_v_max_dev_pct": 100 * d.get("eps_v_max_dev", float("nan")),
                              "closed_form_q_max_dev_pct_of_peak":
                                  100 * dev_cf[b]["q_max_dev_rel"] if dev_cf else float("nan"),
@@ -199,12 +222,16 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--train", type=int, default=60000)
     ap.add_argument("--test", type=int, default=6000)
-    ap.add_argument("--reuse", action="store_true", help="reuse the model file in --work")
+    ap.add_argument("--width", type=int, default=None, help="hidden-layer width (default: the case's)")
+    ap.add_argument("--members", type=int, default=None, help="networks of the ensemble (default: the case's)")
+    ap.add_argument("--reuse", action="store_true", help="reuse the model files in --work")
     ap.add_argument("--prestrained", action="store_true",
                     help="hexagon-center: train on the prestrained dataset too")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     specs, config, solver = CASES[args.mesostructure]
+    if args.width:
+        config = replace(config, width=args.width)
     if args.prestrained:
         specs = specs + (HEX_PRESTRAINED,)
     work = args.work or Path(f"/tmp/hmodel-dem-ann-{args.mesostructure}")
@@ -212,20 +239,19 @@ def main() -> None:
         ("dem_ann" if args.mesostructure == "hexagon-center" else f"dem_ann_{args.mesostructure}")
         + ("_prestrained" if args.prestrained else "") + ".json")
     work.mkdir(parents=True, exist_ok=True)
-    model = work / "model.safetensors"
-    info = {}
-    if not (args.reuse and model.is_file()):
-        model, info = build_model(work, specs, config, args.train, args.test, args.workers)
-    elif out.is_file():  # the same model: keep the record of how it was built
+    members = args.members or MEMBERS[args.mesostructure]
+    models, info = build_models(work, specs, config, args.train, args.test, args.workers, members, args.reuse)
+    if not info and out.is_file():  # the same models: keep the record of how they were built
         info = json.loads(out.read_text()).get("build", {})
     startup = yade_startup(solver)
     (work / "figures").mkdir(exist_ok=True)
-    rows = compare(model, solver, [int(n) for n in args.n_theta.split(",")],
+    rows = compare(models, solver, [int(n) for n in args.n_theta.split(",")],
                    [float(a) for a in args.axial.split(",")], args.step, args.iso_step, args.repeat,
                    work / "figures")
     if info:
         print(f"dataset {info['rows']} rows in {info['dataset_s']:.0f} s, sample {info['sample_s']:.1f} s, "
-              f"training {info['training_s']:.0f} s ({info['epochs']} epochs, {info['train_rows']} rows)")
+              f"training of members {info['trained_members']}: {[round(x) for x in info['training_s']]} s "
+              f"({info['epochs']} epochs, {info['train_rows']} rows)")
     print(f"{solver}: YADE start-up (first request of a fresh solver) {startup:.2f} s")
     print(f"{'path':<10}{'ntheta':>7}{'axial%':>7}{'p0 kPa':>8}{'rows':>6}{'peak q kPa':>11}{'ANN max dq %':>13}"
           f"{'rms dq %':>10}{'CF max dq %':>12}{'DEM s':>8}{'ANN s':>9}{'DEM/ANN':>9}  status")
@@ -233,11 +259,20 @@ def main() -> None:
         print(f"{r['path']:<10}{r['n_theta']:>7}{r['axial_pct']:>7.1f}{r['p0_kPa']:>8.0f}{r['rows']:>6}{r['dem_peak_q_kPa']:>11.1f}"
               f"{r['ann_q_max_dev_pct_of_peak']:>13.3f}{r['ann_q_rms_dev_pct_of_peak']:>10.3f}"
               f"{r['closed_form_q_max_dev_pct_of_peak']:>12.3f}{r['seconds_dem']:>8.2f}"
-              f"{r['seconds_ann']:>9.4f}{r['dem_over_ann']:>9.0f}  {r['status']}")
+              f"{r['seconds_ann']:>9.4f}{r['dem_over_ann']:>9.0f}  {r['status']}"
+              + (f"  (members: {', '.join(f'{x:.2f}' for x in r['members_q_max_dev_pct_of_peak'])})"
+                 if r["members_q_max_dev_pct_of_peak"] else ""))
+    metas = [load(p).meta for p in models]
+    members_info = [{"file": str(p), "seed": m.get("config", {}).get("seed"), "epochs": m.get("epochs_run"),
+                     "training_s": m.get("seconds"), "best_val_loss": m.get("best_val_loss")}
+                    for p, m in zip(models, metas)]
+    for r in members_info:
+        print(f"member seed {r['seed']}: {r['epochs']} epochs in {r['training_s']:.0f} s, "
+              f"validation loss {r['best_val_loss']:.3g}")
     out.write_text(json.dumps({
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
         "mesostructure": args.mesostructure, "solver": solver, "datasets": [s.to_dict() for s in specs],
-        "training": config.__dict__, "build": info, "axial_strains": args.axial, "step": args.step,
+        "training": config.__dict__, "build": info, "members": members_info, "axial_strains": args.axial, "step": args.step,
         "iso_step": args.iso_step, "yade_startup_s": startup, "rows": rows}, indent=1, default=str))
     print(f"wrote {out}; figures in {work / 'figures'}")
 

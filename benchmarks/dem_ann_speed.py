@@ -10,7 +10,9 @@ Measured here, for the hexagon-center cell and the model of ``benchmarks/dem_ann
   DEM-REV once with a warm YADE process, the ANN-REV as the best of ``--repeat`` runs; the
   same increments and output resolution; the q deviation of the batch is reported too.
 - **cell**: one step of n cells (states of a consolidated DEM-REV, a shear increment of 1e-3):
-  the DEM solver's request against the ANN solver's step (network and way back).
+  the DEM solver's request against the ANN solver's step (network and way back), a fresh
+  solver each time, so that the network runs (a solver reuses the outputs of the states it
+  saw last).
 
 Prints a table, writes ``dem_ann_speed.json``.
 Usage: ``python benchmarks/dem_ann_speed.py [--model FILE] [--points 1,4,16]``.
@@ -42,7 +44,13 @@ SOLVER = "dem:hexagon-center:tol=1e-7,max_iter=100000"
 PARAMS = Params(sliding_rhs="equilibrium")
 
 
-def rev_rows(model, points, n_theta: int, axial: float, repeat: int) -> list[dict]:
+def _variants(models) -> list[tuple[str, list]]:
+    """The ANN solvers timed: the model (``ann``), and for an ensemble its first network alone
+    (``ann_one``) too."""
+    return [("ann", models)] + ([("ann_one", models[:1])] if len(models) > 1 else [])
+
+
+def rev_rows(models, points, n_theta: int, axial: float, repeat: int) -> list[dict]:
     params = replace(PARAMS, n_theta=n_theta)
     rows = []
     for B in points:
@@ -56,27 +64,30 @@ def rev_rows(model, points, n_theta: int, axial: float, repeat: int) -> list[dic
         t_dem = time.perf_counter() - t
         calls = dem.yade().calls - calls
         dem.yade().close()
-        ann = SurrogateSolver(model, on_outside="error")
-        res, _ = run_path(params, spec, ann, 1e-3, 2e-4)
-        t_ann = best_of(lambda: run_path(params, spec, ann, 1e-3, 2e-4), repeat)
-        dev = deviations(ref, res)
-        rows.append({"points": B, "n_theta": n_theta, "axial_pct": 100 * axial, "dem_requests": calls,
-                     "seconds_dem": t_dem, "seconds_ann": t_ann, "dem_over_ann": t_dem / t_ann,
-                     "q_max_dev_pct_of_peak": 100 * max(d["q_max_dev_rel"] for d in dev)})
-        print(f"REV  B={B:<4} n_theta={n_theta}  DEM {t_dem:8.2f} s ({calls} requests)  ANN {t_ann:8.4f} s  "
-              f"ratio {t_dem / t_ann:8.0f}  max dq {rows[-1]['q_max_dev_pct_of_peak']:.1f} %", flush=True)
+        row = {"points": B, "n_theta": n_theta, "axial_pct": 100 * axial, "dem_requests": calls,
+               "seconds_dem": t_dem}
+        for key, ms in _variants(models):
+            ann = SurrogateSolver(ms, on_outside="error")
+            res, _ = run_path(params, spec, ann, 1e-3, 2e-4)
+            t_ann = best_of(lambda: run_path(params, spec, ann, 1e-3, 2e-4), repeat)
+            row |= {f"seconds_{key}": t_ann, f"dem_over_{key}": t_dem / t_ann,
+                    f"q_max_dev_pct_of_peak_{key}": 100 * max(d["q_max_dev_rel"] for d in deviations(ref, res))}
+        rows.append(row)
+        print(f"REV  B={B:<4} n_theta={n_theta}  DEM {t_dem:8.2f} s ({calls} requests)  "
+              + "  ".join(f"{k}: {row[f'seconds_{k}']:.4f} s, ratio {row[f'dem_over_{k}']:.0f}, "
+                          f"max dq {row[f'q_max_dev_pct_of_peak_{k}']:.1f} %" for k, _ in _variants(models)),
+              flush=True)
     return rows
 
 
-def cell_rows(model, sizes, repeat: int) -> list[dict]:
+def cell_rows(models, sizes, repeat: int) -> list[dict]:
     """One step of n cells: consolidated DEM-REV cells (36 directions) repeated, sheared by 1e-3."""
     params = replace(PARAMS, n_theta=36)
     dem = DEMSolver(SOLVER)
     rev = Rev(params, dem)
     cells = consolidate(rev, [1.5e5], step=2e-4).cells.values[0]
     dl = rev.localize(CellState(cells[None]), np.array([[1e-3, -5e-4, 0.0]]))[0]
-    f = model.formulation
-    ann = SurrogateSolver(model, on_outside="error")
+    f = models[0].formulation
     rows = []
     for n in sizes:
         k = -(-n // len(cells))
@@ -88,19 +99,25 @@ def cell_rows(model, sizes, repeat: int) -> list[dict]:
         dem.step(params, CellState(full), d[:, 0], d[:, 1])
         t_dem = time.perf_counter() - t
         z = CellState(f.summary(full))
-        t_ann = best_of(lambda: ann.step(params, z, d[:, 0], d[:, 1]), repeat)
-        rows.append({"cells": n, "seconds_dem": t_dem, "seconds_ann": t_ann,
-                     "us_per_cell_dem": 1e6 * t_dem / n, "us_per_cell_ann": 1e6 * t_ann / n,
-                     "dem_over_ann": t_dem / t_ann})
-        print(f"cell n={n:<6} DEM {1e6 * t_dem / n:9.1f} us/cell  ANN {1e6 * t_ann / n:8.2f} us/cell  "
-              f"ratio {t_dem / t_ann:8.0f}", flush=True)
+        # a fresh solver each time: the solver keeps the network's outputs of the states it saw
+        # last (a Newton iteration's trials reuse them), which would leave the network untimed
+        row = {"cells": n, "seconds_dem": t_dem, "us_per_cell_dem": 1e6 * t_dem / n}
+        for key, ms in _variants(models):
+            t_ann = best_of(lambda: SurrogateSolver(ms, on_outside="error").step(params, z, d[:, 0], d[:, 1]),
+                            repeat)
+            row |= {f"seconds_{key}": t_ann, f"us_per_cell_{key}": 1e6 * t_ann / n, f"dem_over_{key}": t_dem / t_ann}
+        rows.append(row)
+        print(f"cell n={n:<6} DEM {1e6 * t_dem / n:9.1f} us/cell  "
+              + "  ".join(f"{k}: {row[f'us_per_cell_{k}']:.2f} us/cell, ratio {row[f'dem_over_{k}']:.0f}"
+                          for k, _ in _variants(models)), flush=True)
     dem.yade().close()
     return rows
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--model", type=Path, default=Path("/tmp/hmodel-dem-ann-hexagon-center/model.safetensors"))
+    ap.add_argument("--model", default="+".join(f"/tmp/hmodel-dem-ann-hexagon-center/model-{k}.safetensors"
+                                                for k in range(3)), help="a model file, or an ensemble A+B+...")
     ap.add_argument("--points", default="1,4,16")
     ap.add_argument("--n-theta", type=int, default=36)
     ap.add_argument("--axial", type=float, default=0.01)
@@ -108,11 +125,11 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("dem_ann_speed.json"))
     args = ap.parse_args()
-    model = load(args.model)
-    cells = cell_rows(model, [int(n) for n in args.cells.split(",")], args.repeat)
-    revs = rev_rows(model, [int(b) for b in args.points.split(",")], args.n_theta, args.axial, args.repeat)
+    models = [load(p) for p in args.model.split("+")]
+    cells = cell_rows(models, [int(n) for n in args.cells.split(",")], args.repeat)
+    revs = rev_rows(models, [int(b) for b in args.points.split(",")], args.n_theta, args.axial, args.repeat)
     args.out.write_text(json.dumps({
-        "machine": {"platform": platform.platform(), "cpus": os.cpu_count()}, "model": str(args.model),
+        "machine": {"platform": platform.platform(), "cpus": os.cpu_count()}, "model": args.model, "members": len(models),
         "solver": SOLVER, "cell": cells, "rev": revs}, indent=1))
     print(f"wrote {args.out}")
 

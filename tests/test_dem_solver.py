@@ -43,11 +43,20 @@ def test_step_is_pure_and_batch_independent():
     dl1, dl2 = np.array([-5e-3, -5e-3, 2e-3]), np.array([-3e-3, 1e-3, -3e-3])
     s1, _ = solver.step(PARAMS, s0, dl1, dl2)
     a, fa = solver.step(PARAMS, s1, dl1, dl2)
-    b, fb = solver.step(PARAMS, s1, dl1, dl2)
+    b, fb = get_solver("dem:standard").step(PARAMS, s1, dl1, dl2)  # another YADE process
     assert np.array_equal(a.values, b.values) and np.array_equal(fa.flags, fb.flags)
+    # the rows of the previous request (a Newton iteration's converged points) are not sent again
+    calls = solver.yade().calls
+    again, _ = solver.step(PARAMS, s1, dl1, dl2)
+    assert solver.yade().calls == calls and np.array_equal(again.values, a.values)
+    other = dl1.copy()
+    other[0] = -4e-3
+    mixed, fm = solver.step(PARAMS, s1, other, dl2)
+    assert solver.yade().calls == calls + 1 and np.array_equal(mixed.values[1:], a.values[1:])
+    assert not np.allclose(mixed.values[0], a.values[0]) and np.array_equal(fm.flags[1:], fa.flags[1:])
     assert np.array_equal(s1.values, solver.step(PARAMS, s0, dl1, dl2)[0].values)  # input untouched
     # a cell alone gives what it gives in a batch (each cell is frozen once balanced)
-    alone, _ = solver.step(PARAMS, type(s1)(s1.values[1:2]), dl1[1:2], dl2[1:2])
+    alone, _ = get_solver("dem:standard").step(PARAMS, type(s1)(s1.values[1:2]), dl1[1:2], dl2[1:2])
     assert np.allclose(alone.values[0], a.values[1], rtol=1e-9, atol=1e-9)
     # so a batch sent in requests of at most two cells gives the same
     split, fs = get_solver("dem:standard:max_cells=2").step(PARAMS, s1, dl1, dl2)

@@ -334,3 +334,35 @@ def test_a_loose_cage_holds_its_free_grain_without_force():
     np.testing.assert_allclose(new[0, 8:10], hexagon[0], rtol=1e-12)
     np.testing.assert_allclose(new[1, 8:10], v[1, 8:10], rtol=1e-12)
     assert not np.allclose(hexagon[1], v[1, 8:10])
+
+
+def test_an_ensemble_averages_its_members_increments(tiny_model):
+    """Two networks trained alike (other seed): the ensemble's learned alpha (never clipped on
+    the way back) is the mean of the members' after one step; one member is the model itself;
+    a compliance model, or members of other formulations, are refused."""
+    model, tmp = tiny_model
+    cfg = TrainConfig(formulation="meso", width=32, depth=2, activation="silu", epochs=40,
+                      patience=40, device="cpu", seed=1)
+    other = load(save(train_on_sample(tmp / "sample", cfg)[0], tmp / "other.safetensors"))
+    form = model.formulation
+    z = CellState(form.summary(_cells(n=30, steps=8).values))
+    rng = np.random.default_rng(2)
+    dl1, dl2 = PARAMS.l10 * rng.uniform(-1e-3, 1e-3, 30), PARAMS.l20 * rng.uniform(-1e-3, 1e-3, 30)
+    a, b = (SurrogateSolver(m).step(PARAMS, z, dl1, dl2)[0].values for m in (model, other))
+    ens = SurrogateSolver([model, other])
+    e = ens.step(PARAMS, z, dl1, dl2)[0].values
+    assert not np.allclose(a[:, 2], b[:, 2], rtol=0, atol=1e-9)  # the members differ
+    np.testing.assert_allclose(e[:, 2], 0.5 * (a[:, 2] + b[:, 2]), rtol=1e-13)
+    np.testing.assert_array_equal(SurrogateSolver([model]).step(PARAMS, z, dl1, dl2)[0].values, a)
+    assert ens.counts["network_cells"] == 30
+    # through the solver spec, as the CLI gives it
+    from hmodel.cell import get_solver
+    spec = get_solver(f"surrogate:{tmp / 'meso.safetensors'}+{tmp / 'other.safetensors'}")
+    np.testing.assert_array_equal(spec.step(PARAMS, z, dl1, dl2)[0].values, e)
+    from hmodel.surrogate.shipped import load_shipped
+    with pytest.raises(InputError, match="meso-formulation"):
+        SurrogateSolver([load_shipped(), load_shipped()])
+    with pytest.raises(InputError, match="at least one"):
+        SurrogateSolver([])
+    with pytest.raises(InputError, match="different formulations"):
+        SurrogateSolver([model, replace(other, formulation=replace(form, mechanisms=2))])

@@ -237,7 +237,9 @@ class MesoFormulation(MaterialScales):
         """dz/m0 = A e + sum_k <n_k . e - c_k^2> B_k from network outputs (n, n_outputs); NumPy
         or torch."""
         L = len(self.learned)
-        dz = (out[:, :2 * L].reshape(-1, L, 2) @ e[:, :, None])[:, :, 0]
+        # A e with A row-major (L x 2): columns 0, 2, ... multiply e1, 1, 3, ... e2 (a batch of
+        # (L x 2) @ (2 x 1) products, written out: 5x faster in NumPy)
+        dz = out[:, 0:2 * L:2] * e[:, 0:1] + out[:, 1:2 * L:2] * e[:, 1:2]
         for k in range(self.mechanisms):
             base = 2 * L + k * (L + 3)
             load = (out[:, base:base + 2] * e).sum(1) - out[:, base + 2] ** 2

@@ -13,11 +13,18 @@ Newton iteration is an exact, compiled application of the learned compliances.
 
 Cells whose inputs lie outside the training domain are either handed to the closed-form
 solver (``on_outside="fallback"``) or stop the run (``"error"``); ``counts`` reports how many.
+
+An ensemble (``SurrogateSolver([m1, m2, ...])``, ``--solver surrogate:A+B+C``) of ``meso``
+models of one formulation (networks trained alike, e.g. with other seeds) averages the members'
+increments dz before the way back: independent training errors of the members partly cancel
+(measured on the hexagon-center cell: README), at the cost of one network per member. A cell is
+outside the training domain when it is outside any member's.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -40,12 +47,14 @@ class SurrogateSolver:
     #: is continuous there), which a 1e-10 tolerance can fall into.
     stress_rtol = 1e-7
 
-    def __init__(self, model: Surrogate, on_outside: str = "fallback", margin: float = 0.0,
-                 opening: str = "rule"):
+    def __init__(self, model: Surrogate | Sequence[Surrogate], on_outside: str = "fallback",
+                 margin: float = 0.0, opening: str = "rule"):
         if on_outside not in ("fallback", "error"):
             raise InputError(f"on_outside must be fallback or error, got {on_outside!r}")
         if opening not in ("rule", "classifier"):
             raise InputError(f"opening must be rule or classifier, got {opening!r}")
+        self.members = _members(model)
+        model = self.members[0]
         self.model, self.on_outside, self.margin, self.opening = model, on_outside, margin, opening
         self.closed_form = ClosedFormSolver()
         self.counts = {"cell_updates": 0, "network_cells": 0, "outside": 0, "substeps": 0}
@@ -119,8 +128,9 @@ class SurrogateSolver:
         (``on_outside="error"``) or are extrapolated and counted."""
         f = self.model.formulation
         X = f.features(v)
-        out_net, out = self._network(v, X)
-        new, flags = f.advance(v, f.increment(out_net, e1, e2), dl)
+        outs, out = self._network(v, X)
+        Y = sum(f.increment(o, e1, e2) for o in outs) / len(outs)  # an ensemble's mean increment
+        new, flags = f.advance(v, Y, dl)
         self.counts["outside"] += int(out.sum())
         if out.any() and self.on_outside == "error":
             i = int(np.flatnonzero(out)[0])
@@ -130,21 +140,25 @@ class SurrogateSolver:
 
     def _advance(self, params, v, dl):
         """Compliance formulation: one exact increment with the learned compliances of the states."""
-        comp, out_mask = self._network(v, self.model.formulation.features(v))
+        (comp,), out_mask = self._network(v, self.model.formulation.features(v))
         new, flags = self.model.formulation.advance(v, dl, comp)
         self._outside(params, v, dl, out_mask, new, flags,
                       lambda i: ", ".join(f"{k}={v[i, j]:.4g}" for j, k in enumerate(FIELDS)))
         return new, flags
 
     def _network(self, v, X):
-        """Network outputs and out-of-domain mask for states ``v`` (inputs X, from the state
-        only); kept while the states do not change, so that the trial increments of one Newton
-        iteration cost no inference."""
+        """Every member's network outputs and the out-of-domain mask for states ``v`` (inputs
+        X, from the state only); kept while the states do not change, so that the
+        trial increments of one Newton iteration cost no inference."""
         for seen, comp, mask in self._cache:
             if seen.shape == v.shape and np.array_equal(seen, v):
                 return comp, mask
         self.counts["network_cells"] += len(v)
-        comp, mask = self.model.forward(X), self.model.outside(X, self.margin)
+        # float32 for meso models (checked against float64 on every DEM-REV path of the README);
+        # compliance models stay float64: in float32 the shipped one stalled on unload-reload
+        single = self.model.formulation.name == "meso"
+        comp = [m.forward(X, single=single) for m in self.members]
+        mask = np.any([m.outside(X, self.margin) for m in self.members], axis=0)
         self._cache = [(v.copy(), comp, mask)] + self._cache[:1]
         return comp, mask
 
@@ -207,6 +221,21 @@ class SurrogateSolver:
         return f.decode(cols, Y)
 
 
+def _members(model) -> list[Surrogate]:
+    """The models of a solver: one, or an ensemble of ``meso`` models of one formulation."""
+    members = list(model) if isinstance(model, Sequence) else [model]
+    if not members:
+        raise InputError("an ensemble of surrogates needs at least one model")
+    first = members[0].formulation
+    if len(members) > 1 and first.name != "meso":
+        raise InputError(f"an ensemble averages increments of meso-formulation models, got {first.name!r} models")
+    for m in members[1:]:
+        if m.formulation.to_dict() != first.to_dict():
+            raise InputError("the ensemble's models have different formulations (cell solver, material "
+                             "or mechanisms): train every member on the same data and settings")
+    return members
+
+
 def _same(a, b) -> bool:
     if isinstance(a, (int, float)) and isinstance(b, (int, float)):
         return math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-12)
@@ -214,9 +243,10 @@ def _same(a, b) -> bool:
 
 
 def load_solver(spec: str, on_outside: str = "fallback") -> SurrogateSolver:
-    """``surrogate`` (the shipped default), ``surrogate:NAME`` (a shipped model) or
-    ``surrogate:PATH``."""
+    """``surrogate`` (the shipped default), ``surrogate:NAME`` (a shipped model),
+    ``surrogate:PATH`` or an ensemble ``surrogate:PATH+PATH+...``."""
     from .modelfile import load
     from .shipped import model_path
 
-    return SurrogateSolver(load(model_path(spec.partition(":")[2])), on_outside)
+    models = [load(model_path(ref)) for ref in spec.partition(":")[2].split("+")]
+    return SurrogateSolver(models if len(models) > 1 else models[0], on_outside)
