@@ -4,7 +4,8 @@ first shear increments, and whether the REV increment changes it.
 For the ensemble of ``benchmarks/dem_ann.py`` against the DEM-REV, drained at 100 and 200 kPa
 (nθ = 12): the rows of consolidation and of the first ``--axial`` of shear at increments of
 ``--step`` (volumetric strain and q of both), and the max |Δq| / peak q over 1 % paths at REV
-increments of 10⁻³, 5·10⁻⁴ and 2.5·10⁻⁴.
+increments of 10⁻³, 5·10⁻⁴ and 2.5·10⁻⁴; and whether the ensemble's first shear increment is
+linear in the strain, as an elastic one is (:func:`onset`).
 
 Prints both tables, writes ``dem_ann_start.json``.
 Usage: ``python benchmarks/dem_ann_start.py [--model A+B+C]``.
@@ -40,6 +41,35 @@ def both(models, axial: float, step: float):
     return ref, res
 
 
+def onset(models, step: float) -> list[dict]:
+    """Is the ensemble's first shear increment linear, as an elastic one is? For the consolidated
+    ANN-REV cells under a first shear increment (axial ``step``, lateral extension step/2), the
+    learned V sigma increments per unit strain summed over the cells, for 10^-3 of the
+    increment (the tangent) and for the whole increment; they differ
+    where a learned mechanism (an onset of sliding) is active within the increment."""
+    from hmodel.cell import CellState
+    from hmodel.loading.paths import consolidate
+    from hmodel.rev.rev import Rev
+
+    rev = Rev(PARAMS, SurrogateSolver(models, on_outside="error"))
+    f = models[0].formulation
+    out = []
+    for p0 in P0:
+        v = consolidate(rev, [p0], step=2e-4).cells.values[0]
+        dl = rev.localize(CellState(v[None]), np.array([[step, -step / 2, 0.0]]))[0]
+        e1, e2 = -dl[:, 0] / PARAMS.l10, -dl[:, 1] / PARAMS.l20
+        X = f.features(v)
+        row = {"p0_kPa": p0 / 1e3}
+        for key, s in (("tangent", 1e-3), ("whole_step", 1.0)):
+            dz = np.mean([f.increment(m.forward(X, single=True), s * e1, s * e2) for m in models], axis=0) / s
+            row[f"sum_dVs_nn_{key}"], row[f"sum_dVs_tt_{key}"] = float(dz[:, 4].sum()), float(dz[:, 5].sum())
+        out.append(row)
+        print(f"{p0 / 1e3:g} kPa, first shear increment: sum of learned dVs_nn / e over the cells "
+              f"{row['sum_dVs_nn_tangent']:.3f} (tangent) vs {row['sum_dVs_nn_whole_step']:.3f} (whole step); "
+              f"dVs_tt {row['sum_dVs_tt_tangent']:.3f} vs {row['sum_dVs_tt_whole_step']:.3f}")
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--model", default="+".join(f"/tmp/hmodel-dem-ann-hexagon-center/model-{k}.safetensors"
@@ -65,6 +95,7 @@ def main() -> None:
             rows.append(row)
             print(f"{row['p0_kPa']:>7.0f} {row['stage']:<14}{row['eps11_pct']:>9.4f}{row['eps_v_dem_pct']:>12.4f}"
                   f"{row['eps_v_ann_pct']:>12.4f}{row['q_dem_kPa']:>11.2f}{row['q_ann_kPa']:>11.2f}")
+    kinks = onset(models, args.step)
     steps = []
     for step in (1e-3, 5e-4, 2.5e-4):
         dev = deviations(*both(models, 0.01, step))
@@ -73,7 +104,8 @@ def main() -> None:
         print(f"REV increment {step:g}, to 1 % axial: max |dq| / peak q " + ", ".join(
             f"{p0 / 1e3:g} kPa {100 * d['q_max_dev_rel']:.2f} %" for p0, d in zip(P0, dev)))
     args.out.write_text(json.dumps({"model": args.model, "solver": SOLVER, "n_theta": PARAMS.n_theta,
-                                    "step": args.step, "rows": rows, "step_sensitivity": steps}, indent=1))
+                                    "step": args.step, "rows": rows, "first_step_linearity": kinks,
+                                    "step_sensitivity": steps}, indent=1))
     print(f"wrote {args.out}")
 
 
