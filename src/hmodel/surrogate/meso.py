@@ -236,15 +236,33 @@ class MesoFormulation(MaterialScales):
     def head(self, out, e, target=None):
         """dz/m0 = A e + sum_k <n_k . e - c_k^2> B_k from network outputs (n, n_outputs); NumPy
         or torch."""
+        return self.apply(self.response(out), e)
+
+    def response(self, out):
+        """The response of network outputs (n, n_outputs): tangent A (n, L, 2) and, per
+        mechanism, n_k (n, K, 2), c_k^2 (n, K) and B_k (n, K, L); NumPy or torch."""
         L = len(self.learned)
-        # A e with A row-major (L x 2): columns 0, 2, ... multiply e1, 1, 3, ... e2 (a batch of
-        # (L x 2) @ (2 x 1) products, written out: 5x faster in NumPy)
-        dz = out[:, 0:2 * L:2] * e[:, 0:1] + out[:, 1:2 * L:2] * e[:, 1:2]
-        for k in range(self.mechanisms):
-            base = 2 * L + k * (L + 3)
-            load = (out[:, base:base + 2] * e).sum(1) - out[:, base + 2] ** 2
-            dz = dz + (0.5 * (load + abs(load)))[:, None] * out[:, base + 3:base + 3 + L]
-        return dz
+        mech = out[:, 2 * L:].reshape(-1, self.mechanisms, L + 3)
+        return out[:, :2 * L].reshape(-1, L, 2), mech[:, :, :2], mech[:, :, 2] ** 2, mech[:, :, 3:]
+
+    @staticmethod
+    def apply(response, e):
+        """dz/m0 of a :meth:`response` for strains e = de/m0 (n, 2); NumPy or torch."""
+        A, n, c2, B = response
+        e1, e2 = e[:, 0:1], e[:, 1:2]
+        load = n[:, :, 0] * e1 + n[:, :, 1] * e2 - c2
+        einsum = np.einsum if isinstance(load, np.ndarray) else _torch().einsum  # 3.5x a broadcast sum
+        return A[:, :, 0] * e1 + A[:, :, 1] * e2 + einsum("nk,nkl->nl", _positive(load), B)
+
+    @staticmethod
+    def mean_response(responses: list) -> tuple:
+        """The response whose increment is the mean of the members' (an ensemble; NumPy): the
+        mean tangent, and every member's mechanisms with its flow divided by their number."""
+        if len(responses) == 1:
+            return responses[0]
+        A, n, c2, B = zip(*responses)
+        return (sum(A) / len(A), np.concatenate(n, axis=1), np.concatenate(c2, axis=1),
+                np.concatenate(B, axis=1) / len(B))
 
     def increment(self, out: np.ndarray, e1: np.ndarray, e2: np.ndarray) -> np.ndarray:
         """dz/m0 from network outputs and cell strains."""
@@ -380,6 +398,11 @@ def _ops(a):
         return np.where, np.minimum, np.maximum, np.sin, np.cos
     import torch
     return torch.where, torch.minimum, torch.maximum, torch.sin, torch.cos
+
+
+def _torch():
+    import torch
+    return torch
 
 
 def _positive(x):

@@ -128,9 +128,8 @@ class SurrogateSolver:
         (``on_outside="error"``) or are extrapolated and counted."""
         f = self.model.formulation
         X = f.features(v)
-        outs, out = self._network(v, X)
-        Y = sum(f.increment(o, e1, e2) for o in outs) / len(outs)  # an ensemble's mean increment
-        new, flags = f.advance(v, Y, dl)
+        response, out = self._network(v, X)
+        new, flags = f.advance(v, f.apply(response, np.column_stack([e1, e2]) / f.m0), dl)
         self.counts["outside"] += int(out.sum())
         if out.any() and self.on_outside == "error":
             i = int(np.flatnonzero(out)[0])
@@ -140,14 +139,15 @@ class SurrogateSolver:
 
     def _advance(self, params, v, dl):
         """Compliance formulation: one exact increment with the learned compliances of the states."""
-        (comp,), out_mask = self._network(v, self.model.formulation.features(v))
+        comp, out_mask = self._network(v, self.model.formulation.features(v))
         new, flags = self.model.formulation.advance(v, dl, comp)
         self._outside(params, v, dl, out_mask, new, flags,
                       lambda i: ", ".join(f"{k}={v[i, j]:.4g}" for j, k in enumerate(FIELDS)))
         return new, flags
 
     def _network(self, v, X):
-        """Every member's network outputs and the out-of-domain mask for states ``v`` (inputs
+        """Network outputs (``meso``: the response of the members' mean increment, see
+        ``MesoFormulation.mean_response``) and the out-of-domain mask for states ``v`` (inputs
         X, from the state only); kept while the states do not change, so that the
         trial increments of one Newton iteration cost no inference."""
         for seen, comp, mask in self._cache:
@@ -156,8 +156,10 @@ class SurrogateSolver:
         self.counts["network_cells"] += len(v)
         # float32 for meso models (checked against float64 on every DEM-REV path of the README);
         # compliance models stay float64: in float32 the shipped one stalled on unload-reload
-        single = self.model.formulation.name == "meso"
-        comp = [m.forward(X, single=single) for m in self.members]
+        f = self.model.formulation
+        meso = f.name == "meso"
+        outs = [m.forward(X, single=meso) for m in self.members]
+        comp = f.mean_response([f.response(o) for o in outs]) if meso else outs[0]
         mask = np.any([m.outside(X, self.margin) for m in self.members], axis=0)
         self._cache = [(v.copy(), comp, mask)] + self._cache[:1]
         return comp, mask
