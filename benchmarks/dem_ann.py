@@ -147,7 +147,7 @@ def yade_startup(solver: str) -> float:
     return out
 
 
-def compare(model_paths: list[Path], solver: str, n_thetas, axials, step: float, iso_step: float,
+def compare(models: list, solver: str, n_thetas, axials, step: float, iso_step: float,
             repeat: int, figures: Path):
     """Rows of the comparison table; overlay figures (DEM-REV vs ANN-REV) into ``figures``. A
     failed ANN run keeps its rows up to the failure: deviations there, and where it failed. The
@@ -162,7 +162,6 @@ def compare(model_paths: list[Path], solver: str, n_thetas, axials, step: float,
         paths = {s.name: s for s in standard_paths(axial)}
         for spec in (replace(paths["drained"], p0=(1e5, 2e5)), paths["undrained"]):
             dem = DEMSolver(solver)
-            models = [load(p) for p in model_paths]
             ann = SurrogateSolver(models, on_outside="error")
             alone = []
             ref, _ = run_path(params, spec, dem, step, iso_step)  # also starts YADE
@@ -240,11 +239,12 @@ def main() -> None:
         + ("_prestrained" if args.prestrained else "") + ".json")
     work.mkdir(parents=True, exist_ok=True)
     members = args.members or MEMBERS[args.mesostructure]
-    models, info = build_models(work, specs, config, args.train, args.test, args.workers, members, args.reuse)
+    model_files, info = build_models(work, specs, config, args.train, args.test, args.workers, members, args.reuse)
     if not info and out.is_file():  # the same models: keep the record of how they were built
         info = json.loads(out.read_text()).get("build", {})
     startup = yade_startup(solver)
     (work / "figures").mkdir(exist_ok=True)
+    models = [load(p) for p in model_files]
     rows = compare(models, solver, [int(n) for n in args.n_theta.split(",")],
                    [float(a) for a in args.axial.split(",")], args.step, args.iso_step, args.repeat,
                    work / "figures")
@@ -262,10 +262,9 @@ def main() -> None:
               f"{r['seconds_ann']:>9.4f}{r['dem_over_ann']:>9.0f}  {r['status']}"
               + (f"  (members: {', '.join(f'{x:.2f}' for x in r['members_q_max_dev_pct_of_peak'])})"
                  if r["members_q_max_dev_pct_of_peak"] else ""))
-    metas = [load(p).meta for p in models]
-    members_info = [{"file": str(p), "seed": m.get("config", {}).get("seed"), "epochs": m.get("epochs_run"),
-                     "training_s": m.get("seconds"), "best_val_loss": m.get("best_val_loss")}
-                    for p, m in zip(models, metas)]
+    members_info = [{"file": str(p), "seed": m.meta.get("config", {}).get("seed"), "epochs": m.meta.get("epochs_run"),
+                     "training_s": m.meta.get("seconds"), "best_val_loss": m.meta.get("best_val_loss")}
+                    for p, m in zip(model_files, models)]
     for r in members_info:
         print(f"member seed {r['seed']}: {r['epochs']} epochs in {r['training_s']:.0f} s, "
               f"validation loss {r['best_val_loss']:.3g}")

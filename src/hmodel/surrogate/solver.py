@@ -54,18 +54,17 @@ class SurrogateSolver:
         if opening not in ("rule", "classifier"):
             raise InputError(f"opening must be rule or classifier, got {opening!r}")
         self.members = _members(model)
-        model = self.members[0]
-        self.model, self.on_outside, self.margin, self.opening = model, on_outside, margin, opening
+        self.model, self.on_outside, self.margin, self.opening = self.members[0], on_outside, margin, opening
         self.closed_form = ClosedFormSolver()
         self.counts = {"cell_updates": 0, "network_cells": 0, "outside": 0, "substeps": 0}
         # (states, network outputs, outside mask) of the last two batches of states seen: a
         # Newton iteration's state and the copies its finite-difference tangent probes.
         self._cache: list[tuple] = []
         self._checked = None
-        r = model.input_range
+        r = self.model.input_range
         # Largest trained strain increment: the bound of the deps1, deps2 inputs (strain-input
         # formulations; the compliance formulation is exact for any increment of its regime).
-        f = model.formulation
+        f = self.model.formulation
         if r is None or f.name in ("compliance", "meso"):  # exact / homogeneous in the increment
             self.max_increment = math.inf
         else:
@@ -250,5 +249,4 @@ def load_solver(spec: str, on_outside: str = "fallback") -> SurrogateSolver:
     from .modelfile import load
     from .shipped import model_path
 
-    models = [load(model_path(ref)) for ref in spec.partition(":")[2].split("+")]
-    return SurrogateSolver(models if len(models) > 1 else models[0], on_outside)
+    return SurrogateSolver([load(model_path(ref)) for ref in spec.partition(":")[2].split("+")], on_outside)
