@@ -77,6 +77,13 @@ HEX_DATASET = replace(STANDARD_DATASET, solver=HEX_SOLVER)
 #: the REV's cells turn from consolidation into shear, states the first dataset's proportional
 #: paths never reach. Added with ``--prestrained``.
 HEX_PRESTRAINED = replace(HEX_DATASET, prestrain=0.001)
+#: The first shear increments at low confinement: the same 72 directions from the cell after an
+#: isotropic cell strain of 0.02 % and 0.04 % (a REV consolidated to ~70 and ~135 kPa; the data
+#: above has start states at 0 and 0.2 % only), paths to 0.4 % in steps of 0.01 %, a start state
+#: every 0.05 % and the consolidated cell, 24 increments each: 31,104 rows. Added with
+#: ``--low-pressure``.
+HEX_LOW = tuple(replace(HEX_DATASET, prestrain=e, step=1e-4, max_strain=0.004, start_every=5e-4)
+                for e in (2e-4, 4e-4))
 #: Unloading from a consolidated cell: paths over 150:300 deg (extension and the mixed
 #: directions the first dataset leaves out) after an isotropic cell strain of 0.1 %, to 1 %:
 #: cells that open completely, as a REV's cells at 45 deg do in dilatant drained shear
@@ -91,9 +98,12 @@ HEX_REV = replace(HEX_DATASET, kind=3, n_directions=16, theta_min=0.0, theta_max
                   start_every=0.001, n_increments=16,
                   rev_paths="drained:50e3,drained:75e3,drained:125e3,drained:150e3,drained:250e3,"
                             "drained:300e3,undrained:100e3,undrained:150e3,undrained:300e3")
+#: Errors weighed as errors of the secant dz/|de| down to increments of 2.5e-4 (``secant_floor``):
+#: on dz/m0 the first shear increments from a consolidated cell were left to the large increments,
+#: and every network was too soft there at 100 kPa (README).
 HEX_TRAINING = TrainConfig(formulation="meso", width=128, depth=3, activation="silu",
-                           epochs=3000, patience=60, seed=0, device="cpu", max_minutes=14.0,
-                           mechanisms=4, rollout=4, rollout_weight=0.5)
+                           epochs=3000, patience=60, seed=0, device="cpu", max_minutes=20.0,
+                           mechanisms=4, rollout=4, rollout_weight=0.5, secant_floor=2.5e-4)
 #: Networks per ANN-REV: an ensemble of three for the richer cell (seeds 0-2, averaged
 #: increments; single networks trained alike differed by ~1 % of peak q, in both directions).
 MEMBERS = {"hexagon-center": 3, "standard": 1}
@@ -226,6 +236,8 @@ def main() -> None:
     ap.add_argument("--reuse", action="store_true", help="reuse the model files in --work")
     ap.add_argument("--prestrained", action="store_true",
                     help="hexagon-center: train on the prestrained dataset too")
+    ap.add_argument("--low-pressure", action="store_true",
+                    help="hexagon-center: train on the low-confinement datasets too")
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
     specs, config, solver = CASES[args.mesostructure]
@@ -233,10 +245,12 @@ def main() -> None:
         config = replace(config, width=args.width)
     if args.prestrained:
         specs = specs + (HEX_PRESTRAINED,)
+    if args.low_pressure:
+        specs = specs + HEX_LOW
     work = args.work or Path(f"/tmp/hmodel-dem-ann-{args.mesostructure}")
     out = args.out or Path(__file__).with_name(
         ("dem_ann" if args.mesostructure == "hexagon-center" else f"dem_ann_{args.mesostructure}")
-        + ("_prestrained" if args.prestrained else "") + ".json")
+        + ("_prestrained" if args.prestrained else "") + ("_low" if args.low_pressure else "") + ".json")
     work.mkdir(parents=True, exist_ok=True)
     members = args.members or MEMBERS[args.mesostructure]
     model_files, info = build_models(work, specs, config, args.train, args.test, args.workers, members, args.reuse)

@@ -94,7 +94,7 @@ def rev_cells(model, solver: str, p0: float, n_theta: int, axial: float = 0.03) 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--model", type=Path, default=WORK / "model.safetensors")
+    ap.add_argument("--model", type=Path, default=WORK / "model-0.safetensors")
     ap.add_argument("--data", type=Path, default=WORK / "data-0")
     ap.add_argument("--p0", type=float, default=1e5)
     ap.add_argument("--n-theta", type=int, default=12)

@@ -9,6 +9,9 @@ Measured here, for the hexagon-center cell and the model of ``benchmarks/dem_ann
   in isotropic steps of 2e-4, then ``--axial`` in steps of 1e-3, ``--n-theta`` cells), the
   DEM-REV once with a warm YADE process, the ANN-REV as the best of ``--repeat`` runs; the
   same increments and output resolution; the q deviation of the batch is reported too.
+- **the networks' ceiling**: the DEM-REV's time over the time of the network evaluations alone
+  that one ANN-REV run makes (its rows, timed as batches of the run's size): the ratio a driver
+  without any other cost would reach.
 - **cell**: one step of n cells (states of a consolidated DEM-REV, a shear increment of 1e-3):
   the DEM solver's request against the ANN solver's step (network and way back), a fresh
   solver each time, so that the network runs (a solver reuses the outputs of the states it
@@ -69,15 +72,29 @@ def rev_rows(models, points, n_theta: int, axial: float, repeat: int) -> list[di
         for key, ms in _variants(models):
             ann = SurrogateSolver(ms, on_outside="error")
             res, _ = run_path(params, spec, ann, 1e-3, 2e-4)
+            # the networks alone: the rows one run evaluates, timed in batches of the run's size
+            rows_run = ann.counts["network_cells"]
             t_ann = best_of(lambda: run_path(params, spec, ann, 1e-3, 2e-4), repeat)
+            t_net = rows_run * network_seconds_per_row(ms, B * n_theta, repeat)
             row |= {f"seconds_{key}": t_ann, f"dem_over_{key}": t_dem / t_ann,
+                    f"network_rows_{key}": rows_run, f"seconds_network_{key}": t_net,
+                    f"dem_over_network_{key}": t_dem / t_net,
                     f"q_max_dev_pct_of_peak_{key}": 100 * max(d["q_max_dev_rel"] for d in deviations(ref, res))}
         rows.append(row)
         print(f"REV  B={B:<4} n_theta={n_theta}  DEM {t_dem:8.2f} s ({calls} requests)  "
-              + "  ".join(f"{k}: {row[f'seconds_{k}']:.4f} s, ratio {row[f'dem_over_{k}']:.0f}, "
+              + "  ".join(f"{k}: {row[f'seconds_{k}']:.4f} s, ratio {row[f'dem_over_{k}']:.0f} "
+                          f"(networks alone {row[f'dem_over_network_{k}']:.0f}), "
                           f"max dq {row[f'q_max_dev_pct_of_peak_{k}']:.1f} %" for k, _ in _variants(models)),
               flush=True)
     return rows
+
+
+def network_seconds_per_row(models, n: int, repeat: int) -> float:
+    """Seconds per row of the members' forward passes (float32, as the solver runs them) on
+    batches of n rows spread over the first member's training domain."""
+    lo, hi = models[0].input_range
+    X = lo + (hi - lo) * np.random.default_rng(0).random((n, len(lo)))
+    return best_of(lambda: [m.forward(X, single=True) for m in models], max(repeat, 5)) / n
 
 
 def cell_rows(models, sizes, repeat: int) -> list[dict]:

@@ -222,3 +222,44 @@ def test_surrogate_cli(sample, tmp_path, capsys):
         assert main(bad) != 0
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and word in err[0], err
+
+
+@pytest.mark.parametrize("activation", ["tanh", "relu", "silu", "gelu", "elu"])
+def test_numpy_forward_matches_torch(activation):
+    """The NumPy forward pass (blocks, in-place activations and scaling) is PyTorch's MLP, in
+    float64 to round-off and in float32 to its precision, over more rows than one block."""
+    import torch
+    from hmodel.surrogate.model import BLOCK_ROWS
+    rng = np.random.default_rng(0)
+    sizes = [5, 24, 17, 7]
+    weights = [(rng.normal(size=(o, i)) / np.sqrt(i), rng.normal(size=o)) for i, o in zip(sizes, sizes[1:])]
+    s = Surrogate(make_formulation("report", Params()), Architecture(24, 2, activation),
+                  Affine("zscore", rng.normal(size=5), rng.uniform(0.5, 2, 5)),
+                  Affine("zscore", rng.normal(size=7), rng.uniform(0.5, 2, 7)), weights)
+    layers = []
+    for k, (W, b) in enumerate(weights):
+        lin = torch.nn.Linear(W.shape[1], W.shape[0]).double()
+        lin.weight.data, lin.bias.data = torch.from_numpy(W), torch.from_numpy(b)
+        layers += [lin] + ([{"tanh": torch.nn.Tanh(), "relu": torch.nn.ReLU(), "silu": torch.nn.SiLU(),
+                             "gelu": torch.nn.GELU(), "elu": torch.nn.ELU()}[activation]]
+                           if k < len(weights) - 1 else [])
+    X = rng.normal(size=(2 * BLOCK_ROWS + 3, 5)) * 3
+    with torch.no_grad():
+        ref = s.y_scaler.inverse(torch.nn.Sequential(*layers)(torch.from_numpy(s.x_scaler.transform(X))).numpy())
+    np.testing.assert_allclose(s.forward(X), ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+    np.testing.assert_allclose(s.forward(X, single=True), ref, rtol=0, atol=2e-6 * np.abs(ref).max())
+    assert s.forward(X[:0]).shape == (0, 7)
+
+
+def test_secant_weights_turn_increment_errors_into_secant_errors():
+    from hmodel.surrogate.training import secant_weights
+    e = np.array([[3.0, 4.0], [0.3, 0.4], [0.0, 0.0], [0.03, 0.04]])  # |e| = 5, 0.5, 0, 0.05
+    w = secant_weights(e, 0.1)
+    np.testing.assert_allclose(w, [1 / 25, 4.0, 100.0, 100.0])
+    # the same secant error weighs the same, whatever the increment's size
+    dz_err = np.linalg.norm(e[:2], axis=1) * 0.01
+    np.testing.assert_allclose(w[:2] * dz_err ** 2, 1e-4)
+    with pytest.raises(InputError, match="secant_floor"):
+        TrainConfig(formulation="meso", secant_floor=-1.0)
+    with pytest.raises(InputError, match="meso"):
+        TrainConfig(formulation="increment", secant_floor=1e-4)

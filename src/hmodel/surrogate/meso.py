@@ -27,8 +27,11 @@ margin), with one mechanism per independent kink. The increments of the data (<=
 the state so little that the second-order term is below the data's noise. The form gives
 exactly no change for no strain (no bias to accumulate over the thousands of increments of a
 path); the network sees the state only, so the REV's Newton iterations and their
-finite-difference probes reuse one evaluation per state. Loss: on dz/m0, so that small
-increments, whose dz is mostly DEM noise relative to m, weigh little; rows where a closed cell
+finite-difference probes reuse one evaluation per state. Loss: on dz/m0, an increment's error
+counting in proportion to its size; or, with ``TrainConfig.secant_floor``, on the secant dz/|de|
+down to increments of that size, which gives the first, elastic increments from a state their
+weight (on the hexagon-center cell the loss on dz/m0 left them to the large increments' sliding,
+and every network's ANN-REV was 2-4 % of peak q off at 100 kPa; README). Rows where a closed cell
 opens (forces cut to zero within the increment: not of this form) are left out.
 
 The way back enforces what holds for every such cell: lengths from the strain, d1 and d2 from

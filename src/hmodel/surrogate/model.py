@@ -27,24 +27,25 @@ ACTIVATIONS = ("tanh", "relu", "silu", "gelu", "elu")
 BLOCK_ROWS = 512
 
 
-def _act(name: str, x: np.ndarray) -> np.ndarray:
+def _act_inplace(name: str, x: np.ndarray) -> None:
+    """x = activation(x), in place (the pre-activations are not needed again)."""
     if name == "tanh":
-        return np.tanh(x)
-    if name == "relu":
-        return np.maximum(x, 0.0)
-    if name == "silu":  # x sigmoid(x) = x (1 + tanh(x/2))/2: no overflow, in place (3x faster than expit)
+        np.tanh(x, out=x)
+    elif name == "relu":
+        np.maximum(x, 0.0, out=x)
+    elif name == "silu":  # x sigmoid(x) = x (1 + tanh(x/2))/2: no overflow (3x faster than expit)
         t = np.multiply(x, 0.5)
         np.tanh(t, out=t)
         t *= 0.5
         t += 0.5
-        t *= x
-        return t
-    if name == "gelu":  # PyTorch's default (erf) form
+        x *= t
+    elif name == "gelu":  # PyTorch's default (erf) form
         from scipy.special import erf
-        return 0.5 * x * (1.0 + erf(x * 0.7071067811865476))
-    if name == "elu":
-        return np.where(x > 0, x, np.expm1(np.minimum(x, 0.0)))
-    raise InputError(f"unknown activation {name!r} (known: {', '.join(ACTIVATIONS)})")
+        x *= 0.5 * (1.0 + erf(x * 0.7071067811865476))
+    elif name == "elu":
+        x[...] = np.where(x > 0, x, np.expm1(np.minimum(x, 0.0)))
+    else:
+        raise InputError(f"unknown activation {name!r} (known: {', '.join(ACTIVATIONS)})")
 
 
 @dataclass(frozen=True)
@@ -93,20 +94,25 @@ class Surrogate:
 
     def forward(self, X: np.ndarray, single: bool = False) -> np.ndarray:
         """Network targets Y (n, n_outputs) for inputs X (n, n_inputs) in physical units; the
-        layers in float32 with ``single`` (see the module docstring)."""
+        layers in float32 with ``single`` (see the module docstring). Every product is written
+        into one of two block buffers and the output scaled in place: fresh arrays of this size
+        are new pages from the OS each time, whose faults took half of the time (measured)."""
         z = self.x_scaler.transform(np.asarray(X, float))
-        if single:
-            z = z.astype(np.float32)
         *hidden, (W_out, b_out) = self._layers32 if single else [(W.T, b) for W, b in self.weights]
-        out = np.empty((len(z), len(b_out)))
+        z = z.astype(hidden[0][0].dtype if hidden else W_out.dtype, copy=False)
+        out = np.empty((len(z), len(b_out)), z.dtype)
+        width = max((W.shape[1] for W, _ in hidden), default=0)
+        buffers = np.empty((2, min(BLOCK_ROWS, len(z)), width), z.dtype)
         for i in range(0, len(z), BLOCK_ROWS):
             h = z[i:i + BLOCK_ROWS]
-            for W, b in hidden:
-                h = h @ W
+            for k, (W, b) in enumerate(hidden):
+                h = np.matmul(h, W, out=buffers[k % 2, :len(h), :W.shape[1]])
                 h += b
-                h = _act(self.architecture.activation, h)
-            out[i:i + BLOCK_ROWS] = h @ W_out + b_out
-        return self.y_scaler.inverse(out)
+                _act_inplace(self.architecture.activation, h)
+            np.matmul(h, W_out, out=out[i:i + BLOCK_ROWS])
+        out = out.astype(float, copy=False)
+        out += b_out
+        return self.y_scaler.inverse(out, out=out)
 
     def predict(self, columns: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """State after the increment (alpha_next, N1_next, N2_next, T1_next) from database-style

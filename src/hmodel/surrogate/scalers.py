@@ -30,8 +30,11 @@ class Affine:
     def transform(self, X: np.ndarray) -> np.ndarray:
         return (X - self.offset) / self.scale
 
-    def inverse(self, Z: np.ndarray) -> np.ndarray:
-        return Z * self.scale + self.offset
+    def inverse(self, Z: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Z * scale + offset; into ``out`` (which may be Z) when given."""
+        out = np.multiply(Z, self.scale, out=out)
+        out += self.offset
+        return out
 
 
 def fit_scaler(method: str, X: np.ndarray) -> Affine:

@@ -43,6 +43,10 @@ class TrainConfig:
     #: single-increment errors pile up; this charges the network for the pile-up.
     rollout: int = 0
     rollout_weight: float = 1.0
+    #: ``meso``: weigh each row's error as an error of the secant dz/|de| instead of dz/m0, for
+    #: increments down to this strain (smaller ones weigh as this): the loss on dz/m0 leaves the
+    #: first increments of a loading to the large ones, whose sliding dominates it (0: off).
+    secant_floor: float = 0.0
 
     def __post_init__(self) -> None:
         Architecture(self.width, self.depth, self.activation)
@@ -59,6 +63,10 @@ class TrainConfig:
             raise InputError("mechanisms, rollout and rollout_weight must be positive or zero")
         if self.rollout and self.formulation != "meso":
             raise InputError("rollout training needs --formulation meso")
+        if not self.secant_floor >= 0:
+            raise InputError(f"secant_floor must be positive or zero, got {self.secant_floor}")
+        if self.secant_floor and self.formulation != "meso":
+            raise InputError("secant weighting needs --formulation meso")
 
 
 def _device(name: str):
@@ -86,6 +94,8 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
     rng = np.random.default_rng(config.seed)
     form = make_formulation(config.formulation, params, cell, config.mechanisms)
     X, (Y, W), A = form.inputs(columns), form.targets(columns), form.aux(columns)
+    if config.secant_floor:
+        W = W * secant_weights(A, config.secant_floor / form.m0)[:, None]
     n = len(X)
     if n < 10:
         raise InputError(f"need at least 10 training rows, got {n}")
@@ -237,6 +247,12 @@ class _Rollout:
 
     def validation(self) -> float:
         return float(self._error(self.val))
+
+
+def secant_weights(e: np.ndarray, floor: float) -> np.ndarray:
+    """Row weights (m0/|de|)^2 = 1/|e|^2 for strains e = de/m0 (n, 2), |e| taken as at least
+    ``floor``: they turn a squared error of dz/m0 into one of the secant dz/|de| (times m0)."""
+    return 1.0 / np.maximum(np.linalg.norm(e, axis=1), floor) ** 2
 
 
 def _loss(kind: str, logit: int | None):
