@@ -264,9 +264,11 @@ def test_windows_follow_the_paths_start_states(tiny_model):
     assert w2["mask"].sum() < w["mask"].sum() - 3
 
 
-def test_rollout_error_rolls_out_what_the_rev_does():
+@pytest.mark.parametrize("substeps", [1, 3])
+def test_rollout_error_rolls_out_what_the_rev_does(substeps):
     """The rollout error that training charges (torch) equals the one of the NumPy way back the
-    REV uses, stepped from the same states with the same network."""
+    REV uses, stepped from the same states with the same network; with sub-steps, the REV at a
+    finer increment than the data's."""
     import torch
 
     from hmodel.surrogate.model import Architecture
@@ -293,12 +295,13 @@ def test_rollout_error_rolls_out_what_the_rev_does():
     as_t = lambda a: torch.as_tensor(a, dtype=torch.float64)  # noqa: E731
     with torch.no_grad():
         got = float(form.rollout_error(net.float(), *(as_t(a) for a in (z0, e, dl, target, mask)),
-                                       lambda X: (X - as_t(off)) / as_t(scale)))
+                                       lambda X: (X - as_t(off)) / as_t(scale), substeps))
     z, want = z0, 0.0
     for k in range(T):
-        with torch.no_grad():
-            out = net(torch.as_tensor((form.features(z) - off) / scale, dtype=torch.float32)).double().numpy()
-        z, _ = form.advance(z, form.head(out, e[:, k]), dl[:, k])
+        for _ in range(substeps):
+            with torch.no_grad():
+                out = net(torch.as_tensor((form.features(z) - off) / scale, dtype=torch.float32)).double().numpy()
+            z, _ = form.advance(z, form.head(out, e[:, k] / substeps), dl[:, k] / substeps)
         err = (form._learned_values(z) - target[:, k]) / (form._scales() * form.m0)
         want += ((err ** 2).mean(1) * mask[:, k]).sum()
     assert got == pytest.approx(want / mask.sum(), rel=1e-6)
@@ -308,6 +311,8 @@ def test_rollout_training_is_refused_where_it_does_not_apply(tiny_model):
     _, tmp = tiny_model
     with pytest.raises(InputError, match="formulation meso"):
         TrainConfig(formulation="compliance", rollout=4)
+    with pytest.raises(InputError, match="rollout_substeps"):
+        TrainConfig(formulation="meso", rollout=4, rollout_substeps=0)
     with pytest.raises(InputError, match="richer cell"):
         train_on_sample(tmp / "sample", TrainConfig(formulation="meso", rollout=4, epochs=1, device="cpu"))
 

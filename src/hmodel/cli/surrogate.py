@@ -35,6 +35,8 @@ Mechanisms = Annotated[int, typer.Option(help="meso: kinks of the learned increm
 Rollout = Annotated[int, typer.Option(help="meso of a richer cell: also train on rollouts of this many "
                                            "steps along the data's paths (0: single increments only).")]
 RolloutWeight = Annotated[float, typer.Option(help="Weight of the rollout error in the loss.")]
+RolloutSubsteps = Annotated[int, typer.Option(help="Network steps per data step of a rollout (a REV at a "
+                                                   "finer increment than the data's).")]
 SecantFloor = Annotated[float, typer.Option(help="meso: weigh errors as errors of the secant dz/|de|, "
                                                  "increments below this strain as this (0: of dz/m0).")]
 
@@ -54,7 +56,7 @@ def train_cmd(
     epochs: Epochs = 300, batch_size: BatchSize = 1024, lr: Lr = 3e-3, patience: Patience = 30,
     seed: Seed = 0, device: Device = "auto", max_minutes: MaxMinutes = None,
     mechanisms: Mechanisms = 4, rollout: Rollout = 0, rollout_weight: RolloutWeight = 1.0,
-    secant_floor: SecantFloor = 0.0,
+    rollout_substeps: RolloutSubsteps = 1, secant_floor: SecantFloor = 0.0,
 ) -> None:
     """Train a surrogate on a sample's training rows (20 % held out for early stopping),
     evaluate it on the sample's test rows, and save it with its metrics."""
@@ -67,7 +69,7 @@ def train_cmd(
                   activation=activation, loss=loss, epochs=epochs, batch_size=batch_size, lr=lr,
                   patience=patience, seed=seed, device=device, max_minutes=max_minutes,
                   mechanisms=mechanisms, rollout=rollout, rollout_weight=rollout_weight,
-                  secant_floor=secant_floor)
+                  rollout_substeps=rollout_substeps, secant_floor=secant_floor)
     with LazyProgress("training") as progress:
         s, history = train_on_sample(data if len(data) > 1 else data[0], cfg, progress)
     modelfile.save(s, out)

@@ -384,17 +384,19 @@ class MesoFormulation(MaterialScales):
         keep = out["mask"][:, 0] > 0
         return {k: a[keep] for k, a in out.items()}
 
-    def rollout_error(self, net, z0, e, dl, target, mask, scale_inputs):
+    def rollout_error(self, net, z0, e, dl, target, mask, scale_inputs, substeps: int = 1):
         """Mean squared error (in units of dz/m0) of the learned fields along windows rolled out
         with the network ``net`` (torch, float64 states): each step's state is the previous
-        step's output, as in a REV."""
+        step's output, as in a REV; each data step taken in ``substeps`` equal network steps
+        (a REV at a finer increment than the data's)."""
         z = z0
         total = 0.0
         scales = _like(self._scales() * self.m0, z0)
         for k in range(e.shape[1]):
-            out = net(scale_inputs(self.features(z)).float()).double()
-            cols = self._advanced(z, self.head(out, e[:, k]), dl[:, k])
-            z = _stack(cols + [0.0 * cols[0]] * (len(STATE_FIELDS) - len(cols)))
+            for _ in range(substeps):
+                out = net(scale_inputs(self.features(z)).float()).double()
+                cols = self._advanced(z, self.head(out, e[:, k] / substeps), dl[:, k] / substeps)
+                z = _stack(cols + [0.0 * cols[0]] * (len(STATE_FIELDS) - len(cols)))
             err = (self._learned_values(z) - target[:, k]) / scales
             total = total + ((err * err).mean(1) * mask[:, k]).sum()
         return total / mask.sum().clamp(min=1.0)

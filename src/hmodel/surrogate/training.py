@@ -43,6 +43,9 @@ class TrainConfig:
     #: single-increment errors pile up; this charges the network for the pile-up.
     rollout: int = 0
     rollout_weight: float = 1.0
+    #: Network steps per data step of a rollout window (a REV at a finer increment than the
+    #: data's; 1: the data's steps).
+    rollout_substeps: int = 1
     #: ``meso``: weigh each row's error as an error of the secant dz/|de| instead of dz/m0, for
     #: increments down to this strain (smaller ones weigh as this): the loss on dz/m0 leaves the
     #: first increments of a loading to the large ones, whose sliding dominates it (0: off).
@@ -54,7 +57,7 @@ class TrainConfig:
             raise InputError(f"unknown loss {self.loss!r} (known: {', '.join(LOSSES)})")
         if not 0 < self.val_fraction < 1:
             raise InputError(f"val_fraction must lie in (0, 1), got {self.val_fraction}")
-        for name in ("epochs", "batch_size", "patience"):
+        for name in ("epochs", "batch_size", "patience", "rollout_substeps"):
             if getattr(self, name) < 1:
                 raise InputError(f"{name} must be at least 1, got {getattr(self, name)}")
         if not self.lr > 0:
@@ -228,14 +231,14 @@ class _Rollout:
         self.train = {k: as64(a[perm[n_val:]]) for k, a in w.items()}
         off, scale = as64(xs.offset), as64(xs.scale)
         self.scale_inputs = lambda X: (X - off) / scale  # noqa: E731
-        self.form, self.net = form, net
+        self.form, self.net, self.substeps = form, net, config.rollout_substeps
         self.gen = torch.Generator().manual_seed(config.seed)
         self.order = torch.randperm(len(perm) - n_val, generator=self.gen)
 
     def _error(self, part: dict, idx=None):
         a = part if idx is None else {k: t[idx] for k, t in part.items()}
         return self.form.rollout_error(self.net, a["z0"], a["e"], a["dl"], a["target"], a["mask"],
-                                       self.scale_inputs)
+                                       self.scale_inputs, self.substeps)
 
     def train_batch(self, b: int, n_batches: int):
         """Rollout error of the b-th of ``n_batches`` slices of the training windows."""
