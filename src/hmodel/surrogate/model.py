@@ -96,10 +96,9 @@ class Surrogate:
         """Network targets Y (n, n_outputs) for inputs X (n, n_inputs) in physical units; the
         layers in float32 with ``single`` (see the module docstring). Every product is written
         into one of two block buffers and the output scaled in place: fresh arrays of this size
-        are new pages from the OS each time, whose faults took half of the time (measured)."""
-        z = self.x_scaler.transform(np.asarray(X, float))
+        are new pages from the OS each time (at 9,216 rows 0.62 against 0.95 us per row, measured)."""
         *hidden, (W_out, b_out) = self._layers32 if single else [(W.T, b) for W, b in self.weights]
-        z = z.astype(hidden[0][0].dtype if hidden else W_out.dtype, copy=False)
+        z = self.x_scaler.transform(np.asarray(X, float)).astype(W_out.dtype, copy=False)
         out = np.empty((len(z), len(b_out)), z.dtype)
         width = max((W.shape[1] for W, _ in hidden), default=0)
         buffers = np.empty((2, min(BLOCK_ROWS, len(z)), width), z.dtype)
