@@ -26,7 +26,8 @@ import numpy as np
 from numba import njit
 
 from .errors import InputError
-from .loading.compiled import NOT_CONVERGED, _fd_tangent, _solve_point, _trial, kernel_inputs, supports
+from .loading.compiled import (NOT_CONVERGED, _fd_tangent, _solve_point, _trial, cell_responses, kernel_inputs,
+                               supports)
 from .loading.control import Tangent
 from .rev import Rev, RevState
 
@@ -67,11 +68,11 @@ def second_order_work(deps: np.ndarray, dsig: np.ndarray) -> tuple[np.ndarray, n
 
 
 @njit(cache=True, error_model="numpy")
-def _strain_probe_kernel(values, eps, probes, geo, p, mode, volume0, sig):
+def _strain_probe_kernel(values, eps, probes, geo, p, mode, volume0, sig, resp):
     out = np.empty_like(values)
     flags = np.empty((values.shape[0], 5), dtype=np.bool_)
     for k in range(probes.shape[0]):
-        _trial(values, eps, probes[k], geo, p, mode, volume0, out, flags, sig[k])
+        _trial(values, eps, probes[k], geo, p, mode, volume0, out, flags, sig[k], resp)
 
 
 @dataclass(frozen=True)
@@ -111,8 +112,9 @@ def strain_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1
     if supports(rev):
         geo, p = kernel_inputs(rev)
         sig = np.empty((n, 3))
-        _strain_probe_kernel(np.ascontiguousarray(one.cells.values[0]), one.eps[0],
-                             np.ascontiguousarray(probes), geo, p, rev._mode, rev.volume0, sig)
+        values = np.ascontiguousarray(one.cells.values[0])
+        _strain_probe_kernel(values, one.eps[0], np.ascontiguousarray(probes), geo, p, rev._mode,
+                             rev.volume0, sig, cell_responses(rev, values))
     else:
         sig = rev.step(one.select(np.zeros(n, dtype=np.int64)), probes).sig
     return Envelope("strain", probes, sig - one.sig[0])
@@ -120,9 +122,9 @@ def strain_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1
 
 @njit(cache=True, error_model="numpy")
 def _stress_probe_kernel(values, flags, eps, sig, K, targets, geo, p, mode, volume0, rtol,
-                         max_iter, h, deps_out):
+                         max_iter, h, deps_out, resp):
     n, m = values.shape
-    buf = np.empty((4, n, 8))
+    buf = np.empty((4, n, m))
     bufflags = np.empty((4, n, 5), dtype=np.bool_)
     S = np.ones(3, dtype=np.bool_)
     M = np.eye(3)
@@ -134,7 +136,7 @@ def _stress_probe_kernel(values, flags, eps, sig, K, targets, geo, p, mode, volu
         Kk = K.copy()
         has = np.ones(1, dtype=np.bool_)
         status = _solve_point(v, f, e, s, Kk, has, S, M, targets[k], geo, p, mode, volume0, rtol,
-                              max_iter, 0, h, buf, bufflags)
+                              max_iter, 0, h, buf, bufflags, resp)
         for j in range(3):
             deps_out[k, j] = np.nan if status == NOT_CONVERGED else e[j] - eps[j]
 
@@ -145,19 +147,20 @@ def stress_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1
     point ``point`` (mixed control solved per probe; NaN where no response exists)."""
     _check(n, magnitude)
     if not supports(rev):
-        raise InputError("stress probes need the closed-form cell solver")
+        raise InputError("stress probes need a compiled cell solver (the closed form or a meso surrogate)")
     one = state.select(slice(point, point + 1))
     dsig = magnitude * float(one.p[0]) * probe_directions(n)
     geo, p = kernel_inputs(rev)
     values = np.ascontiguousarray(one.cells.values[0])
     flags = np.ascontiguousarray(one.flags.flags[0])
     K = np.empty((3, 3))
+    resp = cell_responses(rev, values)
     _fd_tangent(values, one.eps[0], np.zeros(3), geo, p, rev._mode, rev.volume0, FD_STEP,
-                np.empty_like(values), np.empty_like(flags), K)
+                np.empty_like(values), np.empty_like(flags), K, resp)
     deps = np.empty((n, 3))
     _stress_probe_kernel(values, flags, one.eps[0].copy(), one.sig[0].copy(), K,
                          np.ascontiguousarray(one.sig[0] + dsig), geo, p, rev._mode,
-                         rev.volume0, 1e-10, 24, FD_STEP, deps)
+                         rev.volume0, 1e-10, 24, FD_STEP, deps, resp)
     return Envelope("stress", deps, dsig)
 
 

@@ -27,6 +27,9 @@ from ..cell.mesostress import vsigma_local
 from ..cell.state import CellFlags, CellState
 from ..rev import Rev, RevState
 from ..rev.kernels import cell_dl, weighted_global
+from ..surrogate import meso_kernel
+from ..surrogate.meso_kernel import meso_increment
+from ..surrogate.solver import SurrogateSolver
 from .control import Control, Tangent, solve_increment
 from .result import FRACTIONS
 
@@ -35,26 +38,46 @@ OK, NOT_CONVERGED = 0, 1
 
 
 def supports(rev: Rev) -> bool:
-    """Whether ``rev`` can run compiled segments (its cells are the closed form's)."""
-    return type(rev.solver) is ClosedFormSolver
+    """Whether ``rev`` can run compiled segments: its cells are the closed form's, or a ``meso``
+    surrogate's (whose trials apply a response learned once per state)."""
+    return type(rev.solver) is ClosedFormSolver or _meso(rev)
+
+
+def _meso(rev: Rev) -> bool:
+    return type(rev.solver) is SurrogateSolver and rev.solver.model.formulation.name == "meso"
 
 
 def kernel_inputs(rev: Rev) -> tuple[np.ndarray, np.ndarray]:
     """(geo, p) for :func:`_trial`: the direction factors cos², sin², sin·cos and their weighted
-    versions (6, n_theta), and the packed cell parameters."""
+    versions (6, n_theta), and the packed cell parameters (for a meso surrogate, followed by its
+    formulation's constants)."""
     d = rev.directions
     w = d.weights
     geo = np.ascontiguousarray(np.stack([d.cos2, d.sin2, d.sincos, w * d.cos2, w * d.sin2,
                                          w * d.sincos]))
+    if _meso(rev):
+        return geo, meso_kernel.kernel_params(rev.solver.model.formulation, rev.params)
     return geo, kernel_params(rev.params)
 
 
-@njit(cache=True, error_model="numpy")
-def _trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig):
-    """REV step of one material point: cells ``values`` (n, 8) -> ``out``, stress -> ``sig``.
+def cell_responses(rev: Rev, values: np.ndarray) -> np.ndarray:
+    """Per-cell inputs of :func:`_trial` that depend on the cells' states (..., n_fields): a meso
+    surrogate's packed learned responses (..., R), one network evaluation for all (which also
+    checks the training domain); nothing (..., 0) for the closed form."""
+    if not _meso(rev):
+        return np.empty((*values.shape[:-1], 0))
+    flat = np.ascontiguousarray(values.reshape(-1, values.shape[-1]))
+    packed = meso_kernel.pack_responses(rev.solver.meso_response(rev.params, flat))
+    return packed.reshape(*values.shape[:-1], packed.shape[-1])
 
-    Same operations, in the same order, as ``Rev.localize``, the cell kernel and
-    ``Rev.stress``. Returns False when a cell increment failed.
+
+@njit(cache=True, error_model="numpy")
+def _trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
+    """REV step of one material point: cells ``values`` (n, n_fields) -> ``out``, stress -> ``sig``.
+
+    Same operations, in the same order, as ``Rev.localize``, the cell solver and ``Rev.stress``:
+    the closed-form cell kernel, or with learned responses ``resp`` (n, R > 0) the meso
+    surrogate's trial (``meso_kernel.meso_increment``). Returns False when a cell increment failed.
     """
     cos2, sin2, sincos, wcos2, wsin2, wsincos = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5]
     two_r = 2.0 * p[P_R]
@@ -64,11 +87,15 @@ def _trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig):
     s22 = 0.0
     s12 = 0.0
     ok = True
+    meso = resp.shape[1] > 0
     for i in range(values.shape[0]):
-        dl1, dl2 = cell_dl(values[i], e11, e22, e12, cos2[i], sin2[i], sincos[i], mode, p[P_R])
-        if not cell_increment(values[i], dl1, dl2, p, out[i], flags[i]):
-            ok = False
-        vnn, vtt = vsigma_local(out[i], kn, two_r)
+        dl1, dl2 = cell_dl(values, i, e11, e22, e12, cos2[i], sin2[i], sincos[i], mode, p[P_R])
+        if meso:
+            ok &= meso_increment(values, i, dl1, dl2, p, resp, out, flags)
+            vnn, vtt = out[i, 8], out[i, 9]  # V sigma_nt = 0
+        else:
+            ok &= cell_increment(values[i], dl1, dl2, p, out[i], flags[i])
+            vnn, vtt = vsigma_local(out[i], kn, two_r)
         a11, a22, a12 = weighted_global(vnn, vtt, wcos2[i], wsin2[i], wsincos[i])
         s11 += a11
         s22 += a22
@@ -84,16 +111,16 @@ def _trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig):
 
 
 @njit(cache=True, error_model="numpy")
-def _fd_tangent(values, eps, x, geo, p, mode, volume0, h, out, flags, K):
+def _fd_tangent(values, eps, x, geo, p, mode, volume0, h, out, flags, K, resp):
     """K[i, j] = dsig_i / dx_j by forward differences at trial increment x."""
     sig0 = np.empty(3)
     sig1 = np.empty(3)
     xp = x.copy()
-    _trial(values, eps, xp, geo, p, mode, volume0, out, flags, sig0)
+    _trial(values, eps, xp, geo, p, mode, volume0, out, flags, sig0, resp)
     for j in range(3):
         xp[:] = x
         xp[j] += h
-        _trial(values, eps, xp, geo, p, mode, volume0, out, flags, sig1)
+        _trial(values, eps, xp, geo, p, mode, volume0, out, flags, sig1, resp)
         for i in range(3):
             K[i, j] = (sig1[i] - sig0[i]) / h
 
@@ -139,7 +166,7 @@ def _broken(flags):
 
 @njit(cache=True, error_model="numpy")
 def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rtol, max_iter,
-                  h, buf, bufflags, x, sig_out):
+                  h, buf, bufflags, x, sig_out, resp):
     """Newton-Broyden on the stress rows of one point (mirrors ``control._newton``).
 
     Returns (converged, slot): ``buf[slot]``/``bufflags[slot]`` hold the solution, or, when
@@ -157,7 +184,7 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rt
         scale[r] = max(max(abs(v[r]), smax), 1.0)
     x[:] = 0.0
     if not has_K[0]:
-        _fd_tangent(values, eps, x, geo, p, mode, volume0, h, buf[1], bufflags[1], K)
+        _fd_tangent(values, eps, x, geo, p, mode, volume0, h, buf[1], bufflags[1], K, resp)
         has_K[0] = True
     _residual(x, sig, S, M, v, R)
     xt, ok = _newton_step(x, R, K, S, M)
@@ -165,7 +192,7 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rt
         return False, -1
     trust = 4.0 * max(math.sqrt(xt[0] ** 2 + xt[1] ** 2 + xt[2] ** 2), 1e-8)
     cur = 0
-    if not _trial(values, eps, xt, geo, p, mode, volume0, buf[cur], bufflags[cur], sig_t):
+    if not _trial(values, eps, xt, geo, p, mode, volume0, buf[cur], bufflags[cur], sig_t, resp):
         return False, -1
     _residual(xt, sig_t, S, M, v, R)
     best_key = 1e300
@@ -189,7 +216,7 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rt
             break
         if it == max_iter // 3:  # stalled: fresh finite-difference tangent at the current trial
             _fd_tangent(values, eps, xt, geo, p, mode, volume0, h, buf[1 - cur],
-                        bufflags[1 - cur], K)
+                        bufflags[1 - cur], K, resp)
         x_new, ok = _newton_step(xt, R, K, S, M)
         if not ok:
             return False, -1
@@ -198,7 +225,8 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rt
         if nrm > trust:  # trust region: a correction never exceeds a few predictor increments
             dx *= trust / nrm
         nxt = 1 - cur
-        if not _trial(values, eps, xt + dx, geo, p, mode, volume0, buf[nxt], bufflags[nxt], sig_n):
+        if not _trial(values, eps, xt + dx, geo, p, mode, volume0, buf[nxt], bufflags[nxt], sig_n,
+                      resp):
             return False, -1
         # Broyden's rank-one secant update, skipped across a cell event (a jump).
         smooth = True
@@ -222,7 +250,7 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rt
 
 @njit(cache=True, error_model="numpy")
 def _solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rtol,
-                 max_iter, max_events, h, buf, bufflags):
+                 max_iter, max_events, h, buf, bufflags, resp):
     """One mixed-control increment of one material point, its state updated in place.
 
     Mirrors ``control.solve_increment``: when Newton stalls inside the jump of a cell event,
@@ -237,7 +265,7 @@ def _solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volum
         n_stress += S[r]
     if n_stress == 0:
         x = np.linalg.solve(M, v)
-        if not _trial(values, eps, x, geo, p, mode, volume0, buf[0], bufflags[0], sig_new):
+        if not _trial(values, eps, x, geo, p, mode, volume0, buf[0], bufflags[0], sig_new, resp):
             return NOT_CONVERGED
         values[:] = buf[0]
         flags[:] = bufflags[0]
@@ -250,7 +278,7 @@ def _solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volum
     sig0 = sig.copy()
     for event in range(max_events + 1):
         done, slot = _newton_point(values, eps, sig, K, has_K, S, M, target, geo, p, mode,
-                                   volume0, rtol, max_iter, h, buf, bufflags, x, sig_new)
+                                   volume0, rtol, max_iter, h, buf, bufflags, x, sig_new, resp)
         if slot < 0 or (not done and event == max_events):
             break
         if event == 0 and not done:  # keep the start state, to restore it on failure
@@ -276,7 +304,7 @@ def _solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volum
 
 @njit(cache=True, error_model="numpy")
 def _run_steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin, k_end,
-               geo, p, mode, volume0, rtol, max_iter, max_events, h, rec, status):
+               geo, p, mode, volume0, rtol, max_iter, max_events, h, rec, status, resp):
     """Increments k_begin..k_end-1 (1-based k of n_steps) of a segment for B material points.
 
     Stops after the first increment where a point fails (``status[b] != OK``) and returns its
@@ -284,7 +312,7 @@ def _run_steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_b
     and the cell fractions sliding, broken, contact14, contact26.
     """
     B, n = values.shape[0], values.shape[1]
-    buf = np.empty((4, n, 8))
+    buf = np.empty((4, n, values.shape[2]))
     bufflags = np.empty((4, n, 5), dtype=np.bool_)
     v = np.empty(3)
     for k in range(k_begin, k_end):
@@ -297,7 +325,7 @@ def _run_steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_b
                     v[r] = end[b, r] / n_steps
             status[b] = _solve_point(values[b], flags[b], eps[b], sig[b], K[b], has_K[b:b + 1],
                                      S, M, v, geo, p, mode, volume0, rtol, max_iter, max_events,
-                                     h, buf, bufflags)
+                                     h, buf, bufflags, resp[b])
             failed |= status[b] != OK
             row = rec[k - k_begin, b]
             row[:3] = eps[b]
@@ -344,6 +372,7 @@ class CompiledSegment:
         self.has_K = np.full(B, tangent.K is not None and tangent.K.shape[0] == B)
         self.K = tangent.K.copy() if self.has_K.all() else np.zeros((B, 3, 3))
         self.geo, self.p = kernel_inputs(rev)
+        self.meso = _meso(rev)
         self.rtol, self.max_iter, self.max_events = rtol, max_iter, max_events
 
     def state(self) -> RevState:
@@ -355,16 +384,21 @@ class CompiledSegment:
         B = self.eps.shape[0]
         rec = np.empty((k_end - k_begin, B, 10))
         status = np.zeros(B, dtype=np.int64)
+        # A meso surrogate's responses belong to the states an increment starts from: one
+        # increment per kernel call, the network evaluated between them for every cell at once.
+        stride = 1 if self.meso else k_end - k_begin
         k = k_begin
         while k < k_end:
+            resp = cell_responses(self.rev, self.values)
             k = _run_steps(self.values, self.flags, self.eps, self.sig, self.K, self.has_K,
-                           self.S, self.M, self.start, self.end, self.n_steps, k, k_end, self.geo,
-                           self.p, self.rev._mode, self.rev.volume0, self.rtol, self.max_iter,
-                           self.max_events, self.tangent.fd_step, rec[k - k_begin:], status)
-            if k == k_end:
-                break
-            self._hand_back(k, status != OK, rec[k - k_begin])
-            k += 1
+                           self.S, self.M, self.start, self.end, self.n_steps, k,
+                           min(k + stride, k_end), self.geo, self.p, self.rev._mode,
+                           self.rev.volume0, self.rtol, self.max_iter, self.max_events,
+                           self.tangent.fd_step, rec[k - k_begin:], status, resp)
+            if status.any():
+                self._hand_back(k, status != OK, rec[k - k_begin])
+                status[:] = OK
+                k += 1
         self.tangent.K = self.K.copy()
         return rec
 

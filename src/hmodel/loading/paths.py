@@ -142,7 +142,8 @@ def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_S
                               f"(p = {state.p.tolist()} Pa at strain {state.eps[:, 0].tolist()})")
     M = np.array([[1.0, -1.0, 0.0], [0.5, 0.5, 0.0], [0.0, 0.0, 1.0]])
     values = np.stack([np.zeros_like(p0), p0, np.zeros_like(p0)], axis=1)
-    state = solve_increment(rev, state, Control(np.array([False, True, False]), M, values), Tangent())
+    # (a segment of one increment: compiled where the solver allows it)
+    state = run_segment(rev, state, Segment((False, True, False), M, values, 1, "consolidation"))
     if recorder is not None:
         recorder.record(state, "consolidation")
     return state

@@ -16,20 +16,22 @@ LOC_CELL, LOC_BOX, LOC_VIRTUAL = 0, 1, 2
 
 
 @njit(cache=True, inline="always")
-def cell_dl(v, e11, e22, e12, c2, s2, sc, mode, radius):
-    """(dl1, dl2) of one cell with packed state ``v`` at direction (cos², sin², sin·cos).
+def cell_dl(values, k, e11, e22, e12, c2, s2, sc, mode, radius):
+    """(dl1, dl2) of cell k of packed states ``values`` at direction (cos², sin², sin·cos).
 
     dl = -(L1 deps_nn, L2 deps_tt) (eq. 1.1 with shear), where L1, L2 are l1, l2
     (``LOC_CELL``), l1 + 2r, l2 + 2r (``LOC_BOX``, eq. 1.19) or the virtual rectangle
-    l1* = l1 - d1 cos(alpha), l2 (``LOC_VIRTUAL``, eq. 1.21).
+    l1* = l1 - d1 cos(alpha), l2 (``LOC_VIRTUAL``, eq. 1.21). (The row is indexed, not sliced:
+    cheaper in the compiled trial loops.)
     """
     enn = e11 * c2 + e22 * s2 + 2.0 * e12 * sc
     ett = e11 * s2 + e22 * c2 - 2.0 * e12 * sc
+    l1, l2 = values[k, 6], values[k, 7]
     if mode == LOC_BOX:
-        return -(v[6] + 2.0 * radius) * enn, -(v[7] + 2.0 * radius) * ett
+        return -(l1 + 2.0 * radius) * enn, -(l2 + 2.0 * radius) * ett
     if mode == LOC_VIRTUAL:
-        return -(v[6] - v[0] * math.cos(v[2])) * enn, -v[7] * ett
-    return -v[6] * enn, -v[7] * ett
+        return -(l1 - values[k, 0] * math.cos(values[k, 2])) * enn, -l2 * ett
+    return -l1 * enn, -l2 * ett
 
 
 @njit(cache=True)
@@ -39,7 +41,7 @@ def localize(values, deps, cos2, sin2, sincos, mode, radius, dl):
     for b in range(deps.shape[0]):
         for i in range(n_theta):
             k = b * n_theta + i
-            dl[k, 0], dl[k, 1] = cell_dl(values[k], deps[b, 0], deps[b, 1], deps[b, 2], cos2[i],
+            dl[k, 0], dl[k, 1] = cell_dl(values, k, deps[b, 0], deps[b, 1], deps[b, 2], cos2[i],
                                          sin2[i], sincos[i], mode, radius)
 
 

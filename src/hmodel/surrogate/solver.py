@@ -122,19 +122,26 @@ class SurrogateSolver:
         return CellState(values.reshape(*shape, n_state)), CellFlags(flags.reshape(*shape, 5))
 
     def _one_meso(self, params, v, e1, e2, dl):
-        """``meso`` formulation: one learned increment of the summary state. There is no closed
-        form to fall back to: cells outside the training domain stop the run
+        """``meso`` formulation: one learned increment of the summary state."""
+        f = self.model.formulation
+        response = self.meso_response(params, v)
+        return f.advance(v, f.apply(response, np.column_stack([e1, e2]) / f.m0), dl)
+
+    def meso_response(self, params: Params, v: np.ndarray) -> tuple:
+        """The learned response (``MesoFormulation.response``; an ensemble's mean) of summary
+        states v (n, 11), which every trial increment from these states applies. There is no
+        closed form to fall back to: cells outside the training domain stop the run
         (``on_outside="error"``) or are extrapolated and counted."""
+        self.check(params)
         f = self.model.formulation
         X = f.features(v)
         response, out = self._network(v, X)
-        new, flags = f.advance(v, f.apply(response, np.column_stack([e1, e2]) / f.m0), dl)
         self.counts["outside"] += int(out.sum())
         if out.any() and self.on_outside == "error":
             i = int(np.flatnonzero(out)[0])
             raise SolverError(f"{int(out.sum())} cell(s) outside the surrogate's training domain, e.g. "
                               + ", ".join(f"{k}={x:.4g}" for k, x in zip(f.input_names, X[i])))
-        return new, flags
+        return response
 
     def _advance(self, params, v, dl):
         """Compliance formulation: one exact increment with the learned compliances of the states."""

@@ -1,0 +1,111 @@
+"""The ``meso`` surrogate's trial increment as a compiled per-cell kernel (the REV's fast path).
+
+A meso network sees the state only, so within one increment every Newton trial of a material
+point applies the same learned response to another strain: ``dz = A e + sum_k <n_k . e - c_k^2>
+B_k``, then the way back (:meth:`MesoFormulation._advanced`). :func:`meso_increment` is that
+trial for one cell, in the same operations as the NumPy way back; the compiled loading driver
+(:mod:`hmodel.loading.compiled`) runs it inside its Newton loop, so a trial costs no Python
+call and no network evaluation. :func:`pack_responses` lays the responses of a batch of states
+out as rows of one array; :func:`kernel_params` packs the formulation's constants after the
+closed-form kernel's parameters.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..cell.closed_form import P_KN, P_R, P_TAN, kernel_params as cell_kernel_params
+from ..cell.mesostress import contact_vsigma, vsigma_local
+from ..params import Params
+
+# Indices of the meso constants in the packed parameters (after the closed form's 7).
+Q_L10, Q_L20, Q_M0, Q_L, Q_GAP, Q_REACH, Q_RN, Q_RT, Q_RAMP, Q_SCALES = range(7, 17)
+
+
+def kernel_params(formulation, params: Params) -> np.ndarray:
+    """The closed-form kernel's parameters, then the meso constants: initial lengths, strain
+    scale m0, number of learned fields L, gap tolerance, the cage (reach, r_n, r_t, ramp) and the
+    learned fields' scales times m0."""
+    reach, r_n, r_t = formulation._cage
+    scales = formulation._scales() * formulation.m0
+    return np.concatenate([cell_kernel_params(params), [
+        params.l10, params.l20, formulation.m0, len(scales), formulation.gap_tol, reach, r_n, r_t,
+        formulation.cage_ramp], scales])
+
+
+def pack_responses(response: tuple) -> np.ndarray:
+    """Rows (n, 2L + K (3 + L)) of a response (A (n, L, 2), n_k (n, K, 2), c_k^2 (n, K),
+    B_k (n, K, L)): A row-major, then per mechanism n_k, c_k^2 and B_k."""
+    A, nk, c2, B = response
+    n = A.shape[0]
+    mech = np.concatenate([nk, c2[:, :, None], B], axis=2).reshape(n, -1)
+    return np.ascontiguousarray(np.concatenate([A.reshape(n, -1), mech], axis=1))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def meso_increment(values, i, dl1, dl2, p, resp, out, flags):
+    """Advance the summary state ``values[i]`` (11,) of cell i by length increments (dl1, dl2)
+    with its packed response ``resp[i]``; write the new state into ``out[i]`` and its flags into
+    ``flags[i]``; returns False when the new state is not finite. The steps of
+    ``SurrogateSolver._one_meso``: e = de/m0 with de = -dl/l0, the response, then
+    ``MesoFormulation._advanced`` and ``advance``'s flags. (Rows are indexed, never sliced: a
+    slice per cell cost as much as the arithmetic, measured.)"""
+    e1 = -dl1 / p[Q_L10] / p[Q_M0]
+    e2 = -dl2 / p[Q_L20] / p[Q_M0]
+    L = int(p[Q_L])
+    richer = L > 4
+    r = resp
+    # dz/m0 of the learned fields alpha, N1, N2, T1 (and Vs_nn, Vs_tt): the tangent, then every
+    # mechanism that loads
+    z0, z1 = r[i, 0] * e1 + r[i, 1] * e2, r[i, 2] * e1 + r[i, 3] * e2
+    z2, z3 = r[i, 4] * e1 + r[i, 5] * e2, r[i, 6] * e1 + r[i, 7] * e2
+    z4 = r[i, 8] * e1 + r[i, 9] * e2 if richer else 0.0
+    z5 = r[i, 10] * e1 + r[i, 11] * e2 if richer else 0.0
+    for b in range(2 * L, r.shape[1], L + 3):
+        load = r[i, b] * e1 + r[i, b + 1] * e2 - r[i, b + 2]
+        if load > 0.0:
+            z0 += load * r[i, b + 3]
+            z1 += load * r[i, b + 4]
+            z2 += load * r[i, b + 5]
+            z3 += load * r[i, b + 6]
+            if richer:
+                z4 += load * r[i, b + 7]
+                z5 += load * r[i, b + 8]
+    s = Q_SCALES
+    a = values[i, 2] + z0 * p[s]
+    u1 = values[i, 3] + z1 * p[s + 1]
+    u2 = values[i, 4] + z2 * p[s + 2]
+    u3 = values[i, 5] + z3 * p[s + 3]
+    r_grain, tan_phi = p[P_R], p[P_TAN]
+    two_r = 2.0 * r_grain
+    ca, sa = math.cos(a), math.sin(a)
+    l1, l2 = values[i, 6] + dl1, values[i, 7] + dl2
+    d1 = l2 / (2.0 * sa)  # eq. 1.2
+    d2 = l1 - 2.0 * d1 * ca
+    apart = two_r * (1.0 + p[Q_GAP])
+    n1 = max(u1, 0.0) if d1 < apart else 0.0
+    n2 = max(u2, 0.0) if d2 < apart else 0.0
+    t1 = min(max(u3, -tan_phi * n1), tan_phi * n1)  # eq. 1.3
+    o = out
+    o[i, 0], o[i, 1], o[i, 2], o[i, 3], o[i, 4], o[i, 5], o[i, 6], o[i, 7] = d1, d2, a, n1, n2, t1, l1, l2
+    if richer:  # the learned V sigma, compressive
+        vnn = max(values[i, 8] + z4 * p[s + 4], 0.0)
+        vtt = max(values[i, 9] + z5 * p[s + 5], 0.0)
+        reach = p[Q_REACH]
+        if reach > 0.0:  # the loose-cage gate (MesoFormulation._advanced)
+            clearance = min(l1 / 2 - p[Q_RN], math.sqrt((d2 / 2) ** 2 + (l2 / 2) ** 2) - p[Q_RT])
+            w = min(max((reach * (1.0 + p[Q_GAP]) - clearance) / (reach * p[Q_RAMP]), 0.0), 1.0)
+            hnn, htt = contact_vsigma(d1, d2, ca, sa, n1, n2, t1)  # eq. 1.12
+            vnn, vtt = hnn + w * (vnn - hnn), htt + w * (vtt - htt)
+    else:  # an H-cell: eq. 1.12 of the fields
+        vnn, vtt = vsigma_local(o[i], p[P_KN], two_r)
+    o[i, 8], o[i, 9], o[i, 10] = vnn, vtt, 0.0
+    flags[i, 0] = n1 > 0 and abs(t1) >= tan_phi * n1 * (1 - 1e-9)
+    flags[i, 1] = n1 == 0
+    flags[i, 2] = n2 == 0
+    flags[i, 3] = l1 <= two_r
+    flags[i, 4] = l2 <= two_r
+    return math.isfinite(d1 + d2 + a + n1 + n2 + t1 + vnn + vtt)

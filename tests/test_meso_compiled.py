@@ -1,0 +1,107 @@
+"""The meso surrogate's compiled trial and loading path against its NumPy way back and the
+generic driver (same algorithm, same numbers), without YADE."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from hmodel import Params
+from hmodel.cell import CellState
+from hmodel.compare import run_path, standard_paths
+from hmodel.loading import Recorder, Segment, consolidate, run_segment
+from hmodel.loading.compiled import supports
+from hmodel.rev import Rev
+from hmodel.surrogate.meso import MesoFormulation
+from hmodel.surrogate.meso_kernel import kernel_params, meso_increment, pack_responses
+from hmodel.surrogate.solver import SurrogateSolver
+from test_meso import PARAMS, _cells, tiny_model  # noqa: F401  (the module-scoped fixture)
+
+
+def _kernel(form, v, response, dl):
+    p = kernel_params(form, PARAMS)
+    r = pack_responses(response)
+    out, flags = np.empty_like(v), np.empty((len(v), 5), dtype=np.bool_)
+    for i in range(len(v)):
+        assert meso_increment(v, i, dl[i, 0], dl[i, 1], p, r, out, flags)
+    return out, flags
+
+
+@pytest.mark.parametrize("cell", ["closed-form", "dem:hexagon-center"])
+def test_kernel_is_the_numpy_way_back(cell):
+    """Random responses on cells that stick, slide and open, strains of both signs: every
+    branch of the way back (mechanisms loading or not, forces clipped at zero, the Coulomb cap,
+    the loose-cage ramp of the hexagon-center cell) gives the NumPy result to round-off."""
+    form = MesoFormulation(PARAMS, cell, mechanisms=3)
+    rng = np.random.default_rng(0)
+    v = form.summary(_cells(n=200, steps=25, seed=1).values)
+    if form.richer:  # a learned meso-stress of the size of the hexagon's
+        v[:, 8:10] *= rng.uniform(0.5, 1.5, (len(v), 2))
+    out = rng.normal(size=(len(v), form.n_outputs))
+    out[:, :2 * len(form.learned)] *= 5.0
+    response = form.response(out)
+    e = rng.uniform(-2e-3, 2e-3, (len(v), 2))
+    dl = -e * np.array([PARAMS.l10, PARAMS.l20])
+    ref, ref_flags = form.advance(v, form.apply(response, e / form.m0), dl)
+    got, flags = _kernel(form, v, response, dl)
+    scale = np.abs(ref).max(axis=0) + 1e-300
+    np.testing.assert_allclose(got / scale, ref / scale, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(flags, ref_flags)
+    # the branches were visited: loading and idle mechanisms, clipped forces, the cap
+    A, n, c2, B = response
+    load = np.einsum("nkj,nj->nk", n, e / form.m0) - c2
+    assert (load > 0).any() and (load <= 0).any()
+    assert (ref[:, 3] == 0).any() and (ref[:, 3] > 0).any() and ref_flags[:, 0].any()
+
+
+def test_an_ensembles_mean_response_packs_every_members_mechanisms():
+    form = MesoFormulation(PARAMS, "dem:hexagon-center", mechanisms=2)
+    rng = np.random.default_rng(3)
+    v = form.summary(_cells(n=50, steps=20).values)
+    members = [form.response(rng.normal(size=(len(v), form.n_outputs))) for _ in range(3)]
+    mean = form.mean_response(members)
+    e = rng.uniform(-1e-3, 1e-3, (len(v), 2))
+    dl = -e * np.array([PARAMS.l10, PARAMS.l20])
+    ref, _ = form.advance(v, form.apply(mean, e / form.m0), dl)
+    got, _ = _kernel(form, v, mean, dl)
+    scale = np.abs(ref).max(axis=0) + 1e-300
+    np.testing.assert_allclose(got / scale, ref / scale, rtol=0, atol=1e-12)
+
+
+SEGMENTS = {
+    "drained": Segment.components("ESE", [0.004, 1e5, 0.0], 8, "shear"),
+    "undrained": Segment((False, False, False), np.array([[1.0, 0, 0], [1.0, 1.0, 0], [0, 0, 1.0]]),
+                         np.array([0.004, 0.0, 0.0]), 8, "shear"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(SEGMENTS))
+def test_compiled_meso_rev_equals_the_generic_driver(tiny_model, name):  # noqa: F811
+    model, _ = tiny_model
+    solver = SurrogateSolver(model, on_outside="fallback")
+    rev = Rev(PARAMS, solver)
+    assert supports(rev)
+    s0 = consolidate(rev, [0.8e5, 1.2e5])
+    runs = []
+    for compiled in (True, False):
+        rec = Recorder()
+        runs.append((run_segment(rev, s0, SEGMENTS[name], recorder=rec, compiled=compiled), rec.result()))
+    (sc, rc), (sg, rg) = runs
+    for col in ("eps11", "eps22", "sig11", "sig22", "sig12", "frac_sliding", "frac_open"):
+        np.testing.assert_allclose(rc[col], rg[col], rtol=1e-6, atol=1e-6 * np.abs(rg["p"]).max())
+    np.testing.assert_allclose(sc.cells.values, sg.cells.values, rtol=1e-6, atol=1e-9 * PARAMS.kn)
+    assert np.all(sc.sig[:, 0] > s0.sig[:, 0])
+
+
+def test_compiled_meso_rev_checks_the_training_domain(tiny_model):  # noqa: F811
+    """Each increment's states go through the network once, with the domain check of the
+    generic path: ``on_outside="error"`` stops a path that leaves it."""
+    from hmodel import SolverError
+    model, _ = tiny_model
+    paths = {p.name: p for p in standard_paths(0.05)}
+    solver = SurrogateSolver(model, on_outside="error")
+    with pytest.raises(SolverError, match="outside the surrogate's training domain"):
+        run_path(PARAMS, replace(paths["drained"], p0=(3e5,)), solver, 1e-3, 2e-4)
+    assert solver.counts["outside"] > 0
