@@ -32,6 +32,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 from timing import best_of
 
 from hmodel import Params
@@ -47,10 +48,21 @@ SOLVER = "dem:hexagon-center:tol=1e-7,max_iter=100000"
 PARAMS = Params(sliding_rhs="equilibrium")
 
 
-def _variants(models) -> list[tuple[str, list]]:
-    """The ANN solvers timed: the model (``ann``), and for an ensemble its first network alone
-    (``ann_one``) too."""
-    return [("ann", models)] + ([("ann_one", models[:1])] if len(models) > 1 else [])
+class GenericDriver(SurrogateSolver):
+    """The same solver run by the generic Python driver: the compiled loading path takes the
+    surrogate solver itself only (``hmodel.loading.compiled.supports``)."""
+
+
+def _variants(models) -> list[tuple[str, list, type]]:
+    """The ANN solvers timed: the model (``ann``), the same through the generic driver
+    (``ann_generic``), and for an ensemble its first network alone (``ann_one``) too."""
+    return ([("ann", models, SurrogateSolver), ("ann_generic", models, GenericDriver)]
+            + ([("ann_one", models[:1], SurrogateSolver)] if len(models) > 1 else []))
+
+
+def _step_variants(models) -> list[tuple[str, list]]:
+    """The variants of one solver step (no driver): the model, and an ensemble's first network."""
+    return [(k, ms) for k, ms, kind in _variants(models) if kind is SurrogateSolver]
 
 
 def rev_rows(models, points, n_theta: int, axial: float, repeat: int) -> list[dict]:
@@ -69,8 +81,8 @@ def rev_rows(models, points, n_theta: int, axial: float, repeat: int) -> list[di
         dem.yade().close()
         row = {"points": B, "n_theta": n_theta, "axial_pct": 100 * axial, "dem_requests": calls,
                "seconds_dem": t_dem}
-        for key, ms in _variants(models):
-            ann = SurrogateSolver(ms, on_outside="error")
+        for key, ms, kind in _variants(models):
+            ann = kind(ms, on_outside="error")
             res, _ = run_path(params, spec, ann, 1e-3, 2e-4)
             # the networks alone: the rows one run evaluates, timed in batches of the run's size
             rows_run = ann.counts["network_cells"]
@@ -84,7 +96,7 @@ def rev_rows(models, points, n_theta: int, axial: float, repeat: int) -> list[di
         print(f"REV  B={B:<4} n_theta={n_theta}  DEM {t_dem:8.2f} s ({calls} requests)  "
               + "  ".join(f"{k}: {row[f'seconds_{k}']:.4f} s, ratio {row[f'dem_over_{k}']:.0f} "
                           f"(networks alone {row[f'dem_over_network_{k}']:.0f}), "
-                          f"max dq {row[f'q_max_dev_pct_of_peak_{k}']:.1f} %" for k, _ in _variants(models)),
+                          f"max dq {row[f'q_max_dev_pct_of_peak_{k}']:.1f} %" for k, *_ in _variants(models)),
               flush=True)
     return rows
 
@@ -119,22 +131,22 @@ def cell_rows(models, sizes, repeat: int) -> list[dict]:
         # a fresh solver each time: the solver keeps the network's outputs of the states it saw
         # last (a Newton iteration's trials reuse them), which would leave the network untimed
         row = {"cells": n, "seconds_dem": t_dem, "us_per_cell_dem": 1e6 * t_dem / n}
-        for key, ms in _variants(models):
+        for key, ms in _step_variants(models):
             t_ann = best_of(lambda: SurrogateSolver(ms, on_outside="error").step(params, z, d[:, 0], d[:, 1]),
                             repeat)
             row |= {f"seconds_{key}": t_ann, f"us_per_cell_{key}": 1e6 * t_ann / n, f"dem_over_{key}": t_dem / t_ann}
         rows.append(row)
         print(f"cell n={n:<6} DEM {1e6 * t_dem / n:9.1f} us/cell  "
               + "  ".join(f"{k}: {row[f'us_per_cell_{k}']:.2f} us/cell, ratio {row[f'dem_over_{k}']:.0f}"
-                          for k, _ in _variants(models)), flush=True)
+                          for k, _ in _step_variants(models)), flush=True)
     dem.yade().close()
     return rows
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--model", default="+".join(f"/tmp/hmodel-dem-ann-hexagon-center/model-{k}.safetensors"
-                                                for k in range(3)), help="a model file, or an ensemble A+B+...")
+    ap.add_argument("--model", default="/tmp/hmodel-dem-ann-hexagon-center/model-0.safetensors",
+                    help="a model file, or an ensemble A+B+...")
     ap.add_argument("--points", default="1,4,16")
     ap.add_argument("--n-theta", type=int, default=36)
     ap.add_argument("--axial", type=float, default=0.01)
@@ -143,11 +155,13 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("dem_ann_speed.json"))
     args = ap.parse_args()
     models = [load(p) for p in args.model.split("+")]
-    cells = cell_rows(models, [int(n) for n in args.cells.split(",")], args.repeat)
-    revs = rev_rows(models, [int(b) for b in args.points.split(",")], args.n_theta, args.axial, args.repeat)
+    # one core each: YADE runs single-threaded (-j1), so NumPy's BLAS does too
+    with threadpool_limits(limits=1):
+        cells = cell_rows(models, [int(n) for n in args.cells.split(",")], args.repeat)
+        revs = rev_rows(models, [int(b) for b in args.points.split(",")], args.n_theta, args.axial, args.repeat)
     args.out.write_text(json.dumps({
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count()}, "model": args.model, "members": len(models),
-        "solver": SOLVER, "cell": cells, "rev": revs}, indent=1))
+        "solver": SOLVER, "threads": 1, "cell": cells, "rev": revs}, indent=1))
     print(f"wrote {args.out}")
 
 

@@ -1,10 +1,10 @@
 """Where the ANN-REV of the hexagon-center cell misses at low confinement: consolidation and the
 first shear increments, and whether the REV increment changes it.
 
-For the ensemble of ``benchmarks/dem_ann.py`` against the DEM-REV, drained at 100 and 200 kPa
+For the model of ``benchmarks/dem_ann.py`` (one network, or an ensemble) against the DEM-REV, drained at 100 and 200 kPa
 (nθ = 12): the rows of consolidation and of the first ``--axial`` of shear at increments of
 ``--step`` (volumetric strain and q of both), and the max |Δq| / peak q over 1 % paths at REV
-increments of 10⁻³, 5·10⁻⁴ and 2.5·10⁻⁴; and whether the ensemble's first shear increment is
+increments of 10⁻³, 5·10⁻⁴ and 2.5·10⁻⁴; and whether the model's first shear increment is
 linear in the strain, as an elastic one is (:func:`onset`).
 
 Prints both tables, writes ``dem_ann_start.json``.
@@ -42,7 +42,7 @@ def both(models, axial: float, step: float):
 
 
 def onset(models, step: float) -> list[dict]:
-    """Is the ensemble's first shear increment linear, as an elastic one is? For the consolidated
+    """Is the model's first shear increment linear, as an elastic one is? For the consolidated
     ANN-REV cells under a first shear increment (axial ``step``, lateral extension step/2), the
     learned V sigma increments per unit strain summed over the cells, for 10^-3 of the
     increment (the tangent) and for the whole increment; they differ
@@ -72,8 +72,8 @@ def onset(models, step: float) -> list[dict]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--model", default="+".join(f"/tmp/hmodel-dem-ann-hexagon-center/model-{k}.safetensors"
-                                                for k in range(3)), help="a model file, or an ensemble A+B+...")
+    ap.add_argument("--model", default="/tmp/hmodel-dem-ann-hexagon-center/model-0.safetensors",
+                    help="a model file, or an ensemble A+B+...")
     ap.add_argument("--step", type=float, default=2.5e-4)
     ap.add_argument("--axial", type=float, default=0.002)
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("dem_ann_start.json"))

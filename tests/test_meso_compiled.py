@@ -20,13 +20,19 @@ from hmodel.surrogate.solver import SurrogateSolver
 from test_meso import PARAMS, _cells, tiny_model  # noqa: F401  (the module-scoped fixture)
 
 
-def _kernel(form, v, response, dl):
-    p = kernel_params(form, PARAMS)
-    r = pack_responses(response)
+def _kernel_against_numpy(form, v, response, e):
+    """The kernel's new states and flags for cell strains e (n, 2) against the NumPy way back's
+    (to round-off); returns the NumPy ones."""
+    dl = -e * np.array([PARAMS.l10, PARAMS.l20])
+    ref, ref_flags = form.advance(v, form.apply(response, e / form.m0), dl)
+    p, r = kernel_params(form, PARAMS), pack_responses(response, v)
     out, flags = np.empty_like(v), np.empty((len(v), 5), dtype=np.bool_)
     for i in range(len(v)):
         assert meso_increment(v, i, dl[i, 0], dl[i, 1], p, r, out, flags)
-    return out, flags
+    scale = np.abs(ref).max(axis=0) + 1e-300
+    np.testing.assert_allclose(out / scale, ref / scale, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(flags, ref_flags)
+    return ref, ref_flags
 
 
 @pytest.mark.parametrize("cell", ["closed-form", "dem:hexagon-center"])
@@ -43,12 +49,7 @@ def test_kernel_is_the_numpy_way_back(cell):
     out[:, :2 * len(form.learned)] *= 5.0
     response = form.response(out)
     e = rng.uniform(-2e-3, 2e-3, (len(v), 2))
-    dl = -e * np.array([PARAMS.l10, PARAMS.l20])
-    ref, ref_flags = form.advance(v, form.apply(response, e / form.m0), dl)
-    got, flags = _kernel(form, v, response, dl)
-    scale = np.abs(ref).max(axis=0) + 1e-300
-    np.testing.assert_allclose(got / scale, ref / scale, rtol=0, atol=1e-12)
-    np.testing.assert_array_equal(flags, ref_flags)
+    ref, ref_flags = _kernel_against_numpy(form, v, response, e)
     # the branches were visited: loading and idle mechanisms, clipped forces, the cap
     A, n, c2, B = response
     load = np.einsum("nkj,nj->nk", n, e / form.m0) - c2
@@ -61,13 +62,7 @@ def test_an_ensembles_mean_response_packs_every_members_mechanisms():
     rng = np.random.default_rng(3)
     v = form.summary(_cells(n=50, steps=20).values)
     members = [form.response(rng.normal(size=(len(v), form.n_outputs))) for _ in range(3)]
-    mean = form.mean_response(members)
-    e = rng.uniform(-1e-3, 1e-3, (len(v), 2))
-    dl = -e * np.array([PARAMS.l10, PARAMS.l20])
-    ref, _ = form.advance(v, form.apply(mean, e / form.m0), dl)
-    got, _ = _kernel(form, v, mean, dl)
-    scale = np.abs(ref).max(axis=0) + 1e-300
-    np.testing.assert_allclose(got / scale, ref / scale, rtol=0, atol=1e-12)
+    _kernel_against_numpy(form, v, form.mean_response(members), rng.uniform(-1e-3, 1e-3, (len(v), 2)))
 
 
 SEGMENTS = {
@@ -105,3 +100,28 @@ def test_compiled_meso_rev_checks_the_training_domain(tiny_model):  # noqa: F811
     with pytest.raises(SolverError, match="outside the surrogate's training domain"):
         run_path(PARAMS, replace(paths["drained"], p0=(3e5,)), solver, 1e-3, 2e-4)
     assert solver.counts["outside"] > 0
+
+
+def test_trials_are_counted_and_the_previous_increment_starts_newton(tiny_model):  # noqa: F811
+    """A strain-controlled increment takes one trial; a drained one starts from the point's
+    previous increment, which after the first increment meets the strain rows exactly."""
+    from hmodel.loading.compiled import CompiledSegment
+    from hmodel.loading.control import Tangent
+    model, _ = tiny_model
+    rev = Rev(PARAMS, SurrogateSolver(model, on_outside="fallback"))
+    s0 = consolidate(rev, [0.8e5, 1.2e5])
+    for name in ("undrained", "drained"):
+        seg = SEGMENTS[name]
+        M = np.asarray(seg.matrix, float)
+        runner = CompiledSegment(rev, s0, seg.stress_rows, M, s0.sig @ M.T,
+                                 np.broadcast_to(seg.values, (2, 3)), seg.n_steps, Tangent())
+        runner.run(1, seg.n_steps + 1)
+        if name == "undrained":
+            np.testing.assert_array_equal(runner.trials, seg.n_steps)
+            assert np.isnan(runner.guess).all()  # no Newton, no first trial to remember
+        else:  # the finite-difference tangent (4) and at least one trial per increment
+            assert np.all(runner.trials >= seg.n_steps + 4)
+            last = runner.state().eps - s0.eps
+            assert np.all(np.isfinite(runner.guess))
+            np.testing.assert_allclose(runner.guess[:, 0], seg.values[0] / seg.n_steps, rtol=1e-12)
+            assert np.all(np.abs(runner.guess[:, 1]) < np.abs(last[:, 1]))

@@ -136,7 +136,8 @@ def _stress_probe_kernel(values, flags, eps, sig, K, targets, geo, p, mode, volu
         Kk = K.copy()
         has = np.ones(1, dtype=np.bool_)
         status = _solve_point(v, f, e, s, Kk, has, S, M, targets[k], geo, p, mode, volume0, rtol,
-                              max_iter, 0, h, buf, bufflags, resp)
+                              max_iter, 0, h, buf, bufflags, resp, np.empty(0),
+                              np.zeros(1, dtype=np.int64))
         for j in range(3):
             deps_out[k, j] = np.nan if status == NOT_CONVERGED else e[j] - eps[j]
 

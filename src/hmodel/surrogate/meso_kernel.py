@@ -22,27 +22,45 @@ from ..cell.mesostress import contact_vsigma, vsigma_local
 from ..params import Params
 
 # Indices of the meso constants in the packed parameters (after the closed form's 7).
-Q_L10, Q_L20, Q_M0, Q_L, Q_GAP, Q_REACH, Q_RN, Q_RT, Q_RAMP, Q_SCALES = range(7, 17)
+Q_E1, Q_E2, Q_L, Q_GAP, Q_REACH, Q_RN, Q_RT, Q_RAMP, Q_SCALES = range(7, 16)
 
 
 def kernel_params(formulation, params: Params) -> np.ndarray:
-    """The closed-form kernel's parameters, then the meso constants: initial lengths, strain
-    scale m0, number of learned fields L, gap tolerance, the cage (reach, r_n, r_t, ramp) and the
-    learned fields' scales times m0."""
+    """The closed-form kernel's parameters, then the meso constants: 1/(l0 m0) along n and t
+    (e = -dl/(l0 m0)), the number of learned fields L, the gap tolerance, the cage (reach, r_n,
+    r_t, 1/(reach ramp)) and the learned fields' scales times m0. (Products by inverses: the
+    divisions cost a tenth of a trial, measured.)"""
     reach, r_n, r_t = formulation._cage
     scales = formulation._scales() * formulation.m0
+    m0 = formulation.m0
     return np.concatenate([cell_kernel_params(params), [
-        params.l10, params.l20, formulation.m0, len(scales), formulation.gap_tol, reach, r_n, r_t,
-        formulation.cage_ramp], scales])
+        1.0 / (params.l10 * m0), 1.0 / (params.l20 * m0), len(scales), formulation.gap_tol, reach,
+        r_n, r_t, 1.0 / (reach * formulation.cage_ramp) if reach else 0.0], scales])
 
 
-def pack_responses(response: tuple) -> np.ndarray:
-    """Rows (n, 2L + K (3 + L)) of a response (A (n, L, 2), n_k (n, K, 2), c_k^2 (n, K),
-    B_k (n, K, L)): A row-major, then per mechanism n_k, c_k^2 and B_k."""
+def pack_responses(response: tuple, values: np.ndarray) -> np.ndarray:
+    """Rows (n, 2L + K (3 + L) + 2) of a response (A (n, L, 2), n_k (n, K, 2), c_k^2 (n, K),
+    B_k (n, K, L)) of summary states ``values`` (n, 11): A row-major, then per mechanism n_k,
+    c_k^2 and B_k, then cos and sin of the states' alpha (a trial turns alpha by little: its
+    cos and sin follow by the angle-sum formulas, cheaper than two libm calls per cell)."""
     A, nk, c2, B = response
     n = A.shape[0]
     mech = np.concatenate([nk, c2[:, :, None], B], axis=2).reshape(n, -1)
-    return np.ascontiguousarray(np.concatenate([A.reshape(n, -1), mech], axis=1))
+    a = values[:, 2]
+    return np.ascontiguousarray(np.concatenate([A.reshape(n, -1), mech, np.cos(a)[:, None],
+                                                np.sin(a)[:, None]], axis=1))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _turned(c0, s0, a, da):
+    """(cos, sin) of a = a0 + da from c0, s0 = cos a0, sin a0: Taylor series of da to the
+    rounding of float64 for |da| <= 0.02 (the next terms < 1e-20), libm beyond."""
+    if abs(da) > 0.02:
+        return math.cos(a), math.sin(a)
+    d2 = da * da
+    cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24 - d2 * (1.0 / 720 - d2 / 40320)))
+    sd = da * (1.0 - d2 * (1.0 / 6 - d2 * (1.0 / 120 - d2 / 5040)))
+    return c0 * cd - s0 * sd, s0 * cd + c0 * sd
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -53,8 +71,8 @@ def meso_increment(values, i, dl1, dl2, p, resp, out, flags):
     ``SurrogateSolver._one_meso``: e = de/m0 with de = -dl/l0, the response, then
     ``MesoFormulation._advanced`` and ``advance``'s flags. (Rows are indexed, never sliced: a
     slice per cell cost as much as the arithmetic, measured.)"""
-    e1 = -dl1 / p[Q_L10] / p[Q_M0]
-    e2 = -dl2 / p[Q_L20] / p[Q_M0]
+    e1 = -dl1 * p[Q_E1]
+    e2 = -dl2 * p[Q_E2]
     L = int(p[Q_L])
     richer = L > 4
     r = resp
@@ -64,7 +82,8 @@ def meso_increment(values, i, dl1, dl2, p, resp, out, flags):
     z2, z3 = r[i, 4] * e1 + r[i, 5] * e2, r[i, 6] * e1 + r[i, 7] * e2
     z4 = r[i, 8] * e1 + r[i, 9] * e2 if richer else 0.0
     z5 = r[i, 10] * e1 + r[i, 11] * e2 if richer else 0.0
-    for b in range(2 * L, r.shape[1], L + 3):
+    R = r.shape[1] - 2  # then cos, sin of the state's alpha
+    for b in range(2 * L, R, L + 3):
         load = r[i, b] * e1 + r[i, b + 1] * e2 - r[i, b + 2]
         if load > 0.0:
             z0 += load * r[i, b + 3]
@@ -75,13 +94,14 @@ def meso_increment(values, i, dl1, dl2, p, resp, out, flags):
                 z4 += load * r[i, b + 7]
                 z5 += load * r[i, b + 8]
     s = Q_SCALES
-    a = values[i, 2] + z0 * p[s]
+    da = z0 * p[s]
+    a = values[i, 2] + da
     u1 = values[i, 3] + z1 * p[s + 1]
     u2 = values[i, 4] + z2 * p[s + 2]
     u3 = values[i, 5] + z3 * p[s + 3]
     r_grain, tan_phi = p[P_R], p[P_TAN]
     two_r = 2.0 * r_grain
-    ca, sa = math.cos(a), math.sin(a)
+    ca, sa = _turned(r[i, R], r[i, R + 1], a, da)
     l1, l2 = values[i, 6] + dl1, values[i, 7] + dl2
     d1 = l2 / (2.0 * sa)  # eq. 1.2
     d2 = l1 - 2.0 * d1 * ca
@@ -97,7 +117,7 @@ def meso_increment(values, i, dl1, dl2, p, resp, out, flags):
         reach = p[Q_REACH]
         if reach > 0.0:  # the loose-cage gate (MesoFormulation._advanced)
             clearance = min(l1 / 2 - p[Q_RN], math.sqrt((d2 / 2) ** 2 + (l2 / 2) ** 2) - p[Q_RT])
-            w = min(max((reach * (1.0 + p[Q_GAP]) - clearance) / (reach * p[Q_RAMP]), 0.0), 1.0)
+            w = min(max((reach * (1.0 + p[Q_GAP]) - clearance) * p[Q_RAMP], 0.0), 1.0)
             hnn, htt = contact_vsigma(d1, d2, ca, sa, n1, n2, t1)  # eq. 1.12
             vnn, vtt = hnn + w * (vnn - hnn), htt + w * (vtt - htt)
     else:  # an H-cell: eq. 1.12 of the fields

@@ -9,7 +9,10 @@ for a zero increment is subtracted from its answer (see :meth:`SurrogateSolver._
 eq. 1.2 (d1 = l2 / (2 sin α), d2 = l1 − 2 d1 cos α), so the state stays geometrically
 consistent. With the ``compliance`` formulation (:mod:`hmodel.surrogate.compliance`) the
 network sees the state only: it is evaluated once per state, and every trial increment of a
-Newton iteration is an exact, compiled application of the learned compliances.
+Newton iteration is an exact, compiled application of the learned compliances. A ``meso``
+network also sees the state only; the REV's loading paths then run in the compiled driver
+(:mod:`hmodel.loading.compiled`), which takes :meth:`SurrogateSolver.meso_response` once per
+increment and applies it in :func:`hmodel.surrogate.meso_kernel.meso_increment`.
 
 Cells whose inputs lie outside the training domain are either handed to the closed-form
 solver (``on_outside="fallback"``) or stop the run (``"error"``); ``counts`` reports how many.
