@@ -21,8 +21,7 @@ def cell_dl(values, k, e11, e22, e12, c2, s2, sc, mode, radius):
 
     dl = -(L1 deps_nn, L2 deps_tt) (eq. 1.1 with shear), where L1, L2 are l1, l2
     (``LOC_CELL``), l1 + 2r, l2 + 2r (``LOC_BOX``, eq. 1.19) or the virtual rectangle
-    l1* = l1 - d1 cos(alpha), l2 (``LOC_VIRTUAL``, eq. 1.21). (The row is indexed, not sliced:
-    cheaper in the compiled trial loops.)
+    l1* = l1 - d1 cos(alpha), l2 (``LOC_VIRTUAL``, eq. 1.21).
     """
     enn = e11 * c2 + e22 * s2 + 2.0 * e12 * sc
     ett = e11 * s2 + e22 * c2 - 2.0 * e12 * sc
