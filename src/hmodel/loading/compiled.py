@@ -34,8 +34,7 @@ from ..cell.mesostress import vsigma_local
 from ..cell.state import CellFlags, CellState
 from ..rev import Rev, RevState
 from ..rev.kernels import cell_dl, weighted_global
-from ..surrogate import meso_kernel
-from ..surrogate.meso_kernel import meso_increment
+from ..surrogate.meso_kernel import kernel_params as meso_kernel_params, meso_increment, pack_responses
 from ..surrogate.solver import SurrogateSolver
 from .control import Control, Tangent, solve_increment
 from .result import FRACTIONS
@@ -63,7 +62,7 @@ def kernel_inputs(rev: Rev) -> tuple[np.ndarray, np.ndarray]:
     geo = np.ascontiguousarray(np.stack([d.cos2, d.sin2, d.sincos, w * d.cos2, w * d.sin2,
                                          w * d.sincos]))
     if _meso(rev):
-        return geo, meso_kernel.kernel_params(rev.solver.model.formulation, rev.params)
+        return geo, meso_kernel_params(rev.solver.model.formulation, rev.params)
     return geo, kernel_params(rev.params)
 
 
@@ -74,7 +73,7 @@ def cell_responses(rev: Rev, values: np.ndarray) -> np.ndarray:
     if not _meso(rev):
         return np.empty((*values.shape[:-1], 0))
     flat = np.ascontiguousarray(values.reshape(-1, values.shape[-1]))
-    packed = meso_kernel.pack_responses(rev.solver.meso_response(rev.params, flat), flat)
+    packed = pack_responses(rev.solver.meso_response(rev.params, flat), flat)
     return packed.reshape(*values.shape[:-1], packed.shape[-1])
 
 
