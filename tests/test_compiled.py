@@ -107,4 +107,4 @@ def test_only_the_closed_form_solver_is_compiled():
     s0 = consolidate(rev, [1e5])
     a = run_segment(rev_w, s0, SEGMENTS["drained"])
     b = run_segment(rev, s0, SEGMENTS["drained"])
-    np.testing.assert_allclose(a.sig, b.sig, rtol=1e-7)
+    np.testing.assert_allclose(a.sig, b.sig, rtol=1e-7, atol=1e-7 * np.abs(b.sig).max())  # sig12 is roundoff

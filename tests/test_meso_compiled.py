@@ -15,7 +15,7 @@ from hmodel.loading import Recorder, Segment, consolidate, run_segment
 from hmodel.loading.compiled import supports
 from hmodel.rev import Rev
 from hmodel.surrogate.meso import MesoFormulation
-from hmodel.surrogate.meso_kernel import kernel_params, meso_increment, pack_responses
+from hmodel.surrogate.meso_kernel import kernel_params, meso_increment, pack_outputs, pack_responses
 from hmodel.surrogate.solver import SurrogateSolver
 from test_meso import PARAMS, _cells, tiny_model  # noqa: F401  (the module-scoped fixture)
 
@@ -55,6 +55,17 @@ def test_kernel_is_the_numpy_way_back(cell):
     load = np.einsum("nkj,nj->nk", n, e / form.m0) - c2
     assert (load > 0).any() and (load <= 0).any()
     assert (ref[:, 3] == 0).any() and (ref[:, 3] > 0).any() and ref_flags[:, 0].any()
+
+
+def test_one_networks_outputs_pack_as_its_response():
+    """The compiled path packs one network's outputs directly; the rows are those of its
+    response (tangent, then n_k, c_k^2, B_k per mechanism, then cos and sin of alpha)."""
+    for cell in ("closed-form", "dem:hexagon-center"):
+        form = MesoFormulation(PARAMS, cell, mechanisms=3)
+        v = form.summary(_cells(n=20, steps=5, seed=2).values)
+        out = np.random.default_rng(1).normal(size=(len(v), form.n_outputs))
+        np.testing.assert_array_equal(pack_outputs(out, len(form.learned), v),
+                                      pack_responses(form.response(out), v))
 
 
 def test_an_ensembles_mean_response_packs_every_members_mechanisms():

@@ -170,9 +170,14 @@ class MesoFormulation(MaterialScales):
 
     def initial(self, shape: tuple[int, ...] = ()) -> CellState:
         """Summary of unloaded cells of opening angle params.alpha0."""
+        return CellState(np.broadcast_to(self._unloaded, (*shape, self.n_state)).copy())
+
+    @cached_property
+    def _unloaded(self) -> np.ndarray:
+        """The summary (11,) of an unloaded cell (a DEM cell's takes ~1 ms: once)."""
         full = (CellState.initial(self.params, (1,)) if self.cell == "closed-form"
                 else self._dem.initial(self.params, (1,))).values
-        return CellState(np.broadcast_to(self.summary(full)[0], (*shape, self.n_state)).copy())
+        return self.summary(full)[0]
 
     def meso(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(V sigma) (..., 3) and meso-volume (...) of summary states (..., 11), for the REV."""

@@ -44,11 +44,44 @@ def pack_responses(response: tuple, values: np.ndarray) -> np.ndarray:
     cos and sin follow by the angle-sum formulas, 72 against 80 ns per cell-trial with two libm
     calls, measured)."""
     A, nk, c2, B = response
-    n = A.shape[0]
-    mech = np.concatenate([nk, c2[:, :, None], B], axis=2).reshape(n, -1)
-    a = values[:, 2]
-    return np.ascontiguousarray(np.concatenate([A.reshape(n, -1), mech, np.cos(a)[:, None],
-                                                np.sin(a)[:, None]], axis=1))
+    n, L, K = A.shape[0], A.shape[1], c2.shape[1]
+    out = np.empty((n, 2 * L + K * (3 + L) + 2))
+    _pack(A, nk, c2, B, values, out)  # one pass: 0.075 against 0.14 ms at 2,304 rows (measured)
+    return out
+
+
+def pack_outputs(out: np.ndarray, n_learned: int, values: np.ndarray) -> np.ndarray:
+    """:func:`pack_responses` of one network's outputs (n, 2L + K (L + 3)) (``response(out)``),
+    whose layout the packed rows keep: the outputs with c_k squared, then cos and sin of alpha."""
+    n, width = out.shape
+    packed = np.empty((n, width + 2))
+    packed[:, :width] = out
+    c = packed[:, 2 * n_learned + 2:width:n_learned + 3]  # a view: squared in place
+    c *= c
+    np.cos(values[:, 2], out=packed[:, width])
+    np.sin(values[:, 2], out=packed[:, width + 1])
+    return packed
+
+
+@njit(cache=True, error_model="numpy")
+def _pack(A, nk, c2, B, values, out):
+    n, L, K = A.shape[0], A.shape[1], c2.shape[1]
+    for i in range(n):
+        j = 0
+        for a in range(L):
+            out[i, j] = A[i, a, 0]
+            out[i, j + 1] = A[i, a, 1]
+            j += 2
+        for k in range(K):
+            out[i, j] = nk[i, k, 0]
+            out[i, j + 1] = nk[i, k, 1]
+            out[i, j + 2] = c2[i, k]
+            j += 3
+            for a in range(L):
+                out[i, j] = B[i, k, a]
+                j += 1
+        out[i, j] = math.cos(values[i, 2])
+        out[i, j + 1] = math.sin(values[i, 2])
 
 
 @njit(cache=True, inline="always", error_model="numpy")

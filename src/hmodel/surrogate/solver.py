@@ -35,6 +35,7 @@ from ..cell import FIELDS, CellFlags, CellState
 from ..cell.closed_form import ClosedFormSolver
 from ..errors import InputError, SolverError
 from ..params import Params
+from .meso_kernel import pack_outputs, pack_responses
 from .model import Surrogate
 
 #: Parameters a surrogate is specific to (it was trained on cells with these values).
@@ -130,48 +131,59 @@ class SurrogateSolver:
         response = self.meso_response(params, v)
         return f.advance(v, f.apply(response, np.column_stack([e1, e2]) / f.m0), dl)
 
-    def meso_response(self, params: Params, v: np.ndarray) -> tuple:
+    def meso_response(self, params: Params, v: np.ndarray, packed: bool = False):
         """The learned response (``MesoFormulation.response``; an ensemble's mean) of summary
-        states v (n, 11), which every trial increment from these states applies. There is no
-        closed form to fall back to: cells outside the training domain stop the run
+        states v (n, 11), which every trial increment from these states applies; with ``packed``,
+        its rows for the compiled trial (:func:`~hmodel.surrogate.meso_kernel.pack_responses`;
+        one network's outputs are those rows already, but for c_k squared). There is no closed
+        form to fall back to: cells outside the training domain stop the run
         (``on_outside="error"``) or are extrapolated and counted."""
         self.check(params)
         f = self.model.formulation
         X = f.features(v)
-        response, out = self._network(v, X)
+        outs, out = self._network(v, X)
         self.counts["outside"] += int(out.sum())
         if out.any() and self.on_outside == "error":
             i = int(np.flatnonzero(out)[0])
             raise SolverError(f"{int(out.sum())} cell(s) outside the surrogate's training domain, e.g. "
                               + ", ".join(f"{k}={x:.4g}" for k, x in zip(f.input_names, X[i])))
-        return response
+        if packed and len(outs) == 1:
+            return pack_outputs(outs[0], len(f.learned), v)
+        response = f.mean_response([f.response(o) for o in outs])
+        return pack_responses(response, v) if packed else response
 
     def _advance(self, params, v, dl):
         """Compliance formulation: one exact increment with the learned compliances of the states."""
-        comp, out_mask = self._network(v, self.model.formulation.features(v))
-        new, flags = self.model.formulation.advance(v, dl, comp)
+        outs, out_mask = self._network(v, self.model.formulation.features(v))
+        new, flags = self.model.formulation.advance(v, dl, outs[0])
         self._outside(params, v, dl, out_mask, new, flags,
                       lambda i: ", ".join(f"{k}={v[i, j]:.4g}" for j, k in enumerate(FIELDS)))
         return new, flags
 
     def _network(self, v, X):
-        """Network outputs (``meso``: the response of the members' mean increment, see
-        ``MesoFormulation.mean_response``) and the out-of-domain mask for states ``v`` (inputs
-        X, from the state only); kept while the states do not change, so that the
-        trial increments of one Newton iteration cost no inference."""
-        for seen, comp, mask in self._cache:
+        """Every member's network outputs and the out-of-domain mask for states ``v`` (inputs
+        X, from the state only); kept while the states do not change, so that the trial
+        increments of one Newton iteration cost no inference."""
+        for seen, outs, mask in self._cache:
             if seen.shape == v.shape and np.array_equal(seen, v):
-                return comp, mask
-        self.counts["network_cells"] += len(v)
+                return outs, mask
+        # A state equal to the one before it is evaluated once: the cells of an isotropic REV
+        # are all alike until shear starts (18 % of the network rows of a drained test, see
+        # README), and finding them costs two comparisons per field.
+        first = np.ones(len(v), bool)
+        first[1:] = np.any(v[1:] != v[:-1], axis=1)
+        Xu = X if first.all() else X[first]
+        self.counts["network_cells"] += len(Xu)
         # float32 for meso models (checked against float64 on every DEM-REV path of the README);
         # compliance models stay float64: in float32 the shipped one stalled on unload-reload
-        f = self.model.formulation
-        meso = f.name == "meso"
-        outs = [m.forward(X, single=meso) for m in self.members]
-        comp = f.mean_response([f.response(o) for o in outs]) if meso else outs[0]
-        mask = np.any([m.outside(X, self.margin) for m in self.members], axis=0)
-        self._cache = [(v.copy(), comp, mask)] + self._cache[:1]
-        return comp, mask
+        single = self.model.formulation.name == "meso"
+        outs = [m.forward(Xu, single=single) for m in self.members]
+        mask = np.any([m.outside(Xu, self.margin) for m in self.members], axis=0)
+        if not first.all():
+            row = np.cumsum(first) - 1
+            outs, mask = [o[row] for o in outs], mask[row]
+        self._cache = [(v.copy(), outs, mask)] + self._cache[:1]
+        return outs, mask
 
     def _outside(self, params, v, dl, mask, new, flags, describe):
         """Count the cells outside the training domain; stop or hand them to the closed form."""
