@@ -50,6 +50,7 @@ from hmodel.data import DatasetSpec
 from hmodel.data.sampling import write_split
 from hmodel.data.store import generate
 from hmodel.dem.solver import DEMSolver
+from hmodel.surrogate.distill import DistillConfig, distill_on_sample
 from hmodel.surrogate.modelfile import load, save
 from hmodel.surrogate.solver import SurrogateSolver
 from hmodel.surrogate.training import TrainConfig, train_on_sample
@@ -109,6 +110,10 @@ HEX_TRAINING = TrainConfig(formulation="meso", width=96, depth=3, activation="si
 #: Networks per ANN-REV: one. An ensemble (``--members``, seeds 0, 1, ..., averaged increments)
 #: of three 128-wide networks was within 0.29-1.38 % of peak q, at three times the cost (README).
 MEMBERS = {"hexagon-center": 1, "standard": 1}
+#: The compared ANN-REV of the hexagon-center cell: the 96x3 network distilled into a 64x3 one
+#: (``hmodel.surrogate.distill``), half the products per cell; the teacher is listed beside it.
+STUDENT = {"hexagon-center": DistillConfig(width=64, depth=3, raw_weight=0.01, patience=30,
+                                           max_minutes=25.0), "standard": None}
 CASES = {"hexagon-center": ((HEX_DATASET, HEX_UNLOADING, HEX_REV), HEX_TRAINING, HEX_SOLVER),
          "standard": ((STANDARD_DATASET,), STANDARD_TRAINING, STANDARD_SOLVER)}
 
@@ -148,6 +153,20 @@ def build_models(work: Path, specs, config: TrainConfig, n_train: int, n_test: i
     return paths, info
 
 
+def build_student(work: Path, teacher: Path, n_samples: int, config: DistillConfig, reuse: bool
+                  ) -> tuple[Path, dict]:
+    """``teacher`` distilled on its training samples (``work/sample-K``) into
+    ``work/student-WxD.safetensors`` (kept with ``reuse``); its path and the stage's record."""
+    path = work / f"student-{config.width}x{config.depth}.safetensors"
+    if reuse and path.is_file():
+        return path, {}
+    t0 = time.perf_counter()
+    student, history = distill_on_sample(load(teacher), [work / f"sample-{k}" for k in range(n_samples)], config)
+    save(student, path)
+    return path, {"distill_s": time.perf_counter() - t0, "epochs": len(history),
+                  "best_val_loss": student.meta["best_val_loss"], "config": config.__dict__}
+
+
 def yade_startup(solver: str) -> float:
     """Wall time of a fresh DEM solver's first request (one unloaded cell, no increment)."""
     s = DEMSolver(solver)
@@ -160,11 +179,11 @@ def yade_startup(solver: str) -> float:
 
 
 def compare(models: list, solver: str, n_thetas, axials, step: float, iso_step: float,
-            repeat: int, figures: Path):
+            repeat: int, figures: Path, others: dict | None = None):
     """Rows of the comparison table; overlay figures (DEM-REV vs ANN-REV) into ``figures``. A
     failed ANN run keeps its rows up to the failure: deviations there, and where it failed. The
-    ANN-REV is the ensemble of the models; each member alone is listed too (max deviation, or
-    nan where it failed)."""
+    ANN-REV is the ensemble of the models; ``others`` (name: models; default each member of an
+    ensemble alone) are listed too (max deviation, or nan where it failed)."""
     from hmodel.compare import plot_overlay
     from hmodel.errors import SolverError
 
@@ -175,14 +194,16 @@ def compare(models: list, solver: str, n_thetas, axials, step: float, iso_step: 
         for spec in (replace(paths["drained"], p0=(1e5, 2e5)), paths["undrained"]):
             dem = DEMSolver(solver)
             ann = SurrogateSolver(models, on_outside="error")
-            alone = []
+            alone = {}
             ref, _ = run_path(params, spec, dem, step, iso_step)  # also starts YADE
-            for m in models if len(models) > 1 else []:
+            if others is None:
+                others = {f"member {k}": [m] for k, m in enumerate(models)} if len(models) > 1 else {}
+            for name, ms in others.items():
                 try:
-                    alone.append([d["q_max_dev_rel"] for d in deviations(
-                        ref, run_path(params, spec, SurrogateSolver(m, on_outside="error"), step, iso_step)[0])])
+                    alone[name] = [d["q_max_dev_rel"] for d in deviations(
+                        ref, run_path(params, spec, SurrogateSolver(ms, on_outside="error"), step, iso_step)[0])]
                 except SolverError:
-                    alone.append([float("nan")] * len(spec.p0))
+                    alone[name] = [float("nan")] * len(spec.p0)
             calls0 = dem.yade().calls
             t_dem = best_of(lambda: run_path(params, spec, dem, step, iso_step), 1)
             status, failed_at = "ok", float("nan")
@@ -209,7 +230,7 @@ def compare(models: list, solver: str, n_thetas, axials, step: float, iso_step: 
                              "ann_failed_at_axial_pct": 100 * failed_at,
                              "ann_q_max_dev_pct_of_peak": 100 * d.get("q_max_dev_rel", float("nan")),
                              "ann_q_rms_dev_pct_of_peak": 100 * d.get("q_rms_dev_rel", float("nan")),
-                             "members_q_max_dev_pct_of_peak": [100 * a[b] for a in alone],
+                             "others_q_max_dev_pct_of_peak": {k: 100 * a[b] for k, a in alone.items()},
                              "ann_eps_v_max_dev_pct": 100 * d.get("eps_v_max_dev", float("nan")),
                              "closed_form_q_max_dev_pct_of_peak":
                                  100 * dev_cf[b]["q_max_dev_rel"] if dev_cf else float("nan"),
@@ -236,6 +257,8 @@ def main() -> None:
     ap.add_argument("--width", type=int, default=None, help="hidden-layer width (default: the case's)")
     ap.add_argument("--members", type=int, default=None, help="networks of the ensemble (default: the case's)")
     ap.add_argument("--reuse", action="store_true", help="reuse the model files in --work")
+    ap.add_argument("--no-student", action="store_true",
+                    help="compare the trained network(s), not the case's distilled student")
     ap.add_argument("--prestrained", action="store_true",
                     help="hexagon-center: train on the prestrained dataset too")
     ap.add_argument("--low-pressure", action="store_true",
@@ -261,9 +284,17 @@ def main() -> None:
     startup = yade_startup(solver)
     (work / "figures").mkdir(exist_ok=True)
     models = [load(p) for p in model_files]
+    others, student_info = None, {}
+    student_config = None if args.no_student else STUDENT[args.mesostructure]
+    if student_config is not None:  # the student is compared, its teacher(s) listed beside it
+        student_file, student_info = build_student(work, model_files[0], len(specs), student_config, args.reuse)
+        if not student_info and out.is_file():
+            student_info = json.loads(out.read_text()).get("student", {})
+        others = {f"teacher {models[0].architecture.width}x{models[0].architecture.depth}": models}
+        models, model_files = [load(student_file)], [student_file]
     rows = compare(models, solver, [int(n) for n in args.n_theta.split(",")],
                    [float(a) for a in args.axial.split(",")], args.step, args.iso_step, args.repeat,
-                   work / "figures")
+                   work / "figures", others)
     if info:
         print(f"dataset {info['rows']} rows in {info['dataset_s']:.0f} s, sample {info['sample_s']:.1f} s, "
               f"training of members {info['trained_members']}: {[round(x) for x in info['training_s']]} s "
@@ -276,8 +307,8 @@ def main() -> None:
               f"{r['ann_q_max_dev_pct_of_peak']:>13.3f}{r['ann_q_rms_dev_pct_of_peak']:>10.3f}"
               f"{r['closed_form_q_max_dev_pct_of_peak']:>12.3f}{r['seconds_dem']:>8.2f}"
               f"{r['seconds_ann']:>9.4f}{r['dem_over_ann']:>9.0f}  {r['status']}"
-              + (f"  (members: {', '.join(f'{x:.2f}' for x in r['members_q_max_dev_pct_of_peak'])})"
-                 if r["members_q_max_dev_pct_of_peak"] else ""))
+              + (f"  ({', '.join(f'{k}: {x:.2f}' for k, x in r['others_q_max_dev_pct_of_peak'].items())})"
+                 if r["others_q_max_dev_pct_of_peak"] else ""))
     members_info = [{"file": str(p), "seed": m.meta.get("config", {}).get("seed"), "epochs": m.meta.get("epochs_run"),
                      "training_s": m.meta.get("seconds"), "best_val_loss": m.meta.get("best_val_loss")}
                     for p, m in zip(model_files, models)]
@@ -287,7 +318,7 @@ def main() -> None:
     out.write_text(json.dumps({
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
         "mesostructure": args.mesostructure, "solver": solver, "datasets": [s.to_dict() for s in specs],
-        "training": config.__dict__, "build": info, "members": members_info, "axial_strains": args.axial, "step": args.step,
+        "training": config.__dict__, "build": info, "student": student_info, "members": members_info, "axial_strains": args.axial, "step": args.step,
         "iso_step": args.iso_step, "yade_startup_s": startup, "rows": rows}, indent=1, default=str))
     print(f"wrote {out}; figures in {work / 'figures'}")
 

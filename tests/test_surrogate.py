@@ -132,6 +132,9 @@ def test_model_file_round_trips_exactly(model, tmp_path, sample):
     assert back.outside(far).all()
     save(back, tmp_path / "again.safetensors")
     np.testing.assert_array_equal(load(tmp_path / "again.safetensors").predict(cols)["N1_next"], p1["N1_next"])
+    # metadata carried over from another model never overrides the file's own description
+    back.meta["architecture"] = {"width": 99, "depth": 9, "activation": "relu", "n_layers": 10}
+    assert load(save(back, tmp_path / "third.safetensors")).architecture == s.architecture
 
 
 def test_loading_never_unpickles(model, tmp_path, monkeypatch):

@@ -1,4 +1,4 @@
-"""``hmodel surrogate train | evaluate | sweep``: neural surrogates of the H-cell (report §2.4-2.5)."""
+"""``hmodel surrogate train | distill | evaluate | sweep``: neural surrogates of the H-cell (report §2.4-2.5)."""
 
 from __future__ import annotations
 
@@ -76,6 +76,42 @@ def train_cmd(
     r2 = {m["output"]: m["r2"] for m in s.meta["metrics"] if m["quantity"] == "state after"}
     typer.echo(f"wrote {out}: {len(history)} epochs in {s.meta['seconds']:.0f} s; test R² "
                + ", ".join(f"{k} {v:.6f}" for k, v in r2.items()))
+
+
+@app.command("distill")
+def distill_cmd(
+    teacher: Annotated[Path, typer.Argument(help="The meso model file to distil (the teacher).")],
+    data: Annotated[list[Path], typer.Argument(help="The teacher's sample folder(s): their train rows' "
+                                                    "states, their test rows for the metrics.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Model file to write (.safetensors).")],
+    width: Width = 64, depth: Depth = 3,
+    activation: Annotated[Optional[str], typer.Option(help="tanh, relu, silu, gelu or elu (default: "
+                                                           "the teacher's).")] = None,
+    strains: Annotated[int, typer.Option(help="Random strains per state, besides its own.")] = 3,
+    raw_weight: Annotated[float, typer.Option(help="Weight of the raw outputs' difference in the loss.")] = 0.01,
+    epochs: Epochs = 3000, batch_size: BatchSize = 1024, lr: Lr = 3e-3,
+    patience: Annotated[int, typer.Option(help="Epochs without validation improvement before the "
+                                               "learning rate is halved.")] = 30,
+    min_lr: Annotated[float, typer.Option(help="Stop once the learning rate is below this.")] = 1e-5,
+    seed: Seed = 0, device: Device = "cpu", max_minutes: MaxMinutes = None,
+) -> None:
+    """Distil a meso surrogate into a narrower network: the student learns the teacher's
+    increments on the teacher's training states (a cheaper ANN-based H-model)."""
+    from ..surrogate import modelfile
+    from ..surrogate.distill import DistillConfig, distill_on_sample
+
+    if out.suffix != ".safetensors":
+        raise InputError(f"--out must end in .safetensors, got {str(out)!r}")
+    cfg = DistillConfig(width=width, depth=depth, activation=activation, strains=strains,
+                        raw_weight=raw_weight, epochs=epochs, batch_size=batch_size, lr=lr,
+                        patience=patience, min_lr=min_lr, seed=seed, device=device,
+                        max_minutes=max_minutes)
+    model = modelfile.load(teacher)
+    with LazyProgress("distilling") as progress:
+        s, history = distill_on_sample(model, data if len(data) > 1 else data[0], cfg, progress)
+    modelfile.save(s, out)
+    typer.echo(f"wrote {out}: {s.architecture.width}x{s.architecture.depth} student of {teacher}, "
+               f"{len(history)} epochs in {s.meta['seconds']:.0f} s, validation loss {s.meta['best_val_loss']:.3g}")
 
 
 @app.command("evaluate")

@@ -59,12 +59,13 @@ def save(s: Surrogate, path: "str | os.PathLike") -> Path:
 
     path = Path(path)
     f = s.formulation
-    meta = {"format": FORMAT, "format_version": FORMAT_VERSION, "hmodel": __version__,
+    # the model's own description last: metadata carried over from another model (a loaded
+    # file's, a teacher's) never overrides it
+    meta = {**s.meta, "format": FORMAT, "format_version": FORMAT_VERSION, "hmodel": __version__,
             "formulation": f.to_dict(),
             "architecture": {"width": s.architecture.width, "depth": s.architecture.depth,
                              "activation": s.architecture.activation, "n_layers": len(s.weights)},
-            "normalization": s.x_scaler.method, **{k: v for k, v in s.meta.items()
-                                                    if k not in ("format", "format_version")}}
+            "normalization": s.x_scaler.method}
     meta_json = json.dumps(meta, sort_keys=True)
     tensors = _tensors(s)
     header = {"hmodel": meta_json, "checksum": _digest(tensors, meta_json)}

@@ -163,9 +163,7 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
             break
         if config.max_minutes is not None and time.perf_counter() - t0 > 60 * config.max_minutes:
             break
-    net.load_state_dict(best_state)
-    weights = [(m.weight.detach().cpu().double().numpy(), m.bias.detach().cpu().double().numpy())
-               for m in net if isinstance(m, torch.nn.Linear)]
+    weights = best_weights(net, best_state)
     meta = {"config": asdict(config), "epochs_run": len(history), "best_val_loss": best,
             "train_rows": int(len(tr)), "val_rows": int(len(val)),
             "seconds": history[-1]["seconds"] if history else 0.0, "device": str(dev)}
@@ -285,6 +283,14 @@ def fit_target_scaler(method: str, Y: np.ndarray, W: np.ndarray, logit: int | No
         a = fit_scaler(method, Y[rows, j:j + 1] if rows.any() else Y[:, j:j + 1])
         offset[j], scale[j] = a.offset[0], a.scale[0]
     return Affine(method, offset, scale)
+
+
+def best_weights(net, state: dict) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(W, b) per linear layer in float64 of ``net`` with the kept (best) ``state`` loaded."""
+    import torch
+    net.load_state_dict(state)
+    return [(m.weight.detach().cpu().double().numpy(), m.bias.detach().cpu().double().numpy())
+            for m in net if isinstance(m, torch.nn.Linear)]
 
 
 def build_network(arch: Architecture, n_in: int, n_out: int):

@@ -1,0 +1,172 @@
+"""Distilling a meso surrogate into a narrower network (a cheaper ANN-based H-model).
+
+A REV evaluates its network once per increment for every cell of every material point, so the
+network's width sets most of an ANN-REV's cost. A narrower network trained on the data alone
+reached a lower validation loss than the recipe's wider one and was still less accurate along
+REV paths (README). Here the narrower network (the student) learns the trained one (the
+teacher) instead: on the teacher's training states, and for each of them its own strain and
+``strains`` random ones (directions uniform, magnitudes drawn from the data's), the student's
+increment dz/m0 = A e + sum_k <n_k . e - c_k^2> B_k is fitted to the teacher's, each error
+weighed as one of the secant dz/|de| (the teacher's ``secant_floor``). ``raw_weight`` adds the
+squared difference of the raw outputs (each scaled by the teacher's spread over the states),
+which holds the student to the teacher's mechanisms, not just to their sum (measured: the
+validation loss fell faster). The student keeps the teacher's formulation, scalers and
+training domain; its metadata names the teacher and the distillation's settings.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from .model import Architecture, Surrogate
+from .training import _device, best_weights, build_network, secant_weights
+
+
+@dataclass(frozen=True)
+class DistillConfig:
+    width: int = 64
+    depth: int = 3
+    #: the teacher's activation when None
+    activation: str | None = None
+    #: random strains per state, besides the state's own
+    strains: int = 3
+    raw_weight: float = 0.01
+    epochs: int = 3000
+    batch_size: int = 1024
+    lr: float = 3e-3
+    #: epochs without validation improvement before the learning rate is halved
+    patience: int = 30
+    #: training ends once the learning rate falls below this
+    min_lr: float = 1e-5
+    val_fraction: float = 0.1
+    seed: int = 0
+    device: str = "cpu"
+    max_minutes: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.activation is not None:
+            Architecture(self.width, self.depth, self.activation)
+        for name in ("width", "depth", "epochs", "batch_size", "patience"):
+            if getattr(self, name) < 1:
+                raise InputError(f"{name} must be at least 1, got {getattr(self, name)}")
+        if self.strains < 0 or not self.raw_weight >= 0:
+            raise InputError("strains and raw_weight must be positive or zero")
+        if not self.lr > 0 or not self.min_lr > 0:
+            raise InputError(f"lr and min_lr must be positive, got {self.lr}, {self.min_lr}")
+        if not 0 < self.val_fraction < 1:
+            raise InputError(f"val_fraction must lie in (0, 1), got {self.val_fraction}")
+
+
+def distill(teacher: Surrogate, columns: dict[str, np.ndarray], config: DistillConfig = DistillConfig(),
+            progress: Callable[[float], None] | None = None) -> tuple[Surrogate, list[dict]]:
+    """A ``config.width`` x ``config.depth`` student of the meso surrogate ``teacher``, on the
+    states of database rows ``columns`` (the teacher's training rows); and its history."""
+    import torch
+
+    form = teacher.formulation
+    if form.name != "meso":
+        raise InputError(f"distillation needs a meso-formulation teacher, got {form.name!r}")
+    arch = Architecture(config.width, config.depth, config.activation or teacher.architecture.activation)
+    torch.manual_seed(config.seed)
+    rng = np.random.default_rng(config.seed)
+    gen = torch.Generator().manual_seed(config.seed)
+    X, E = form.inputs(columns), form.aux(columns)
+    n = len(X)
+    if n < 10:
+        raise InputError(f"need at least 10 rows to distil on, got {n}")
+    dev = _device(config.device)
+    as64 = lambda a: torch.as_tensor(a, dtype=torch.float64, device=dev)  # noqa: E731
+    Z = torch.as_tensor(teacher.x_scaler.transform(X), dtype=torch.float32, device=dev)
+    T = as64(teacher.forward(X))  # the teacher's outputs in float64
+    spread = T.std(0).clamp(min=1e-12)
+    E = as64(E)
+    magnitude = np.linalg.norm(form.aux(columns), axis=1)
+    floor = teacher.meta.get("config", {}).get("secant_floor") or 2.5e-4
+
+    def strains(rows):
+        """Each state's own strain, then ``strains`` random ones: (e, state row) pairs."""
+        k = len(rows) * config.strains
+        m = as64(magnitude[rng.integers(0, n, k)])
+        a = torch.rand(k, generator=gen, dtype=torch.float64).to(dev) * (2 * math.pi)
+        e = torch.cat([E[rows], torch.stack([m * torch.cos(a), m * torch.sin(a)], 1)])
+        return e, torch.cat([rows] * (1 + config.strains))
+
+    def loss(rows, e, at, raw: bool):
+        out = net(Z[at]).double()
+        d = form.head(out, e) - form.head(T[at], e)
+        w = as64(secant_weights(e.cpu().numpy(), floor / form.m0))
+        total = ((d * d).sum(1) * w).mean()
+        if raw and config.raw_weight:
+            r = (out[:len(rows)] - T[rows]) / spread
+            total = total + config.raw_weight * (r * r).mean()
+        return total
+
+    perm = torch.as_tensor(rng.permutation(n), device=dev)
+    n_val = max(1, int(round(config.val_fraction * n)))
+    val, tr = perm[:n_val], perm[n_val:]
+    val_e, val_at = strains(val)
+    net = build_network(arch, X.shape[1], form.n_outputs).to(dev)
+    opt = torch.optim.Adam(net.parameters(), lr=config.lr)
+    sched = torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=0.5, patience=config.patience)
+    best, best_state, history, t0 = math.inf, None, [], time.perf_counter()
+    for epoch in range(config.epochs):
+        net.train()
+        order = tr[torch.randperm(len(tr), generator=gen).to(dev)]
+        total = 0.0
+        for i in range(0, len(order), config.batch_size):
+            rows = order[i:i + config.batch_size]
+            e, at = strains(rows)
+            opt.zero_grad(set_to_none=True)
+            batch = loss(rows, e, at, raw=True)
+            batch.backward()
+            opt.step()
+            total += float(batch.detach()) * len(rows)
+        net.eval()
+        with torch.no_grad():  # the validation loss: the increments only, comparable across raw_weight
+            v = float(loss(val, val_e, val_at, raw=False))
+        sched.step(v)
+        history.append({"epoch": epoch + 1, "train_loss": total / len(tr), "val_loss": v,
+                        "lr": opt.param_groups[0]["lr"], "seconds": time.perf_counter() - t0})
+        if v < best:
+            best = v
+            best_state = {k: t.detach().clone() for k, t in net.state_dict().items()}
+        if progress is not None:
+            progress((epoch + 1) / config.epochs)
+        if not math.isfinite(v):
+            raise InputError(f"distillation diverged at epoch {epoch + 1}; lower --lr")
+        if opt.param_groups[0]["lr"] < config.min_lr:
+            break
+        if config.max_minutes is not None and time.perf_counter() - t0 > 60 * config.max_minutes:
+            break
+    weights = best_weights(net, best_state)
+    meta = {k: v for k, v in teacher.meta.items() if k in ("params", "training_data")}
+    meta.update(distilled={"teacher": {k: teacher.meta.get(k) for k in
+                                       ("architecture", "config", "best_val_loss", "epochs_run")},
+                           "config": asdict(config)},
+                epochs_run=len(history), best_val_loss=best, seconds=history[-1]["seconds"],
+                device=str(dev))
+    return Surrogate(form, arch, teacher.x_scaler, teacher.y_scaler, weights, meta,
+                     teacher.input_range), history
+
+
+def distill_on_sample(teacher: Surrogate, folder, config: DistillConfig = DistillConfig(),
+                      progress: Callable[[float], None] | None = None) -> tuple[Surrogate, list[dict]]:
+    """:func:`distill` on a sample folder's train rows (or several folders' together: the
+    teacher's training samples), with the test metrics of the folders' test rows in the
+    student's metadata (as ``train_on_sample``)."""
+    from .evaluation import evaluate
+    from .rows import read_sample
+    from .training import union
+
+    folders = list(folder) if isinstance(folder, (list, tuple)) else [folder]
+    train = union([read_sample(f, "train")[0] for f in folders])
+    test = union([read_sample(f, "test")[0] for f in folders])
+    s, history = distill(teacher, train, config, progress)
+    s.meta.update(metrics=evaluate(s, test, "sample test rows"), history_tail=history[-3:])
+    return s, history
