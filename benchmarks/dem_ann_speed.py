@@ -53,19 +53,21 @@ class GenericDriver(SurrogateSolver):
     surrogate solver itself only (``hmodel.loading.compiled.supports``)."""
 
 
-def _variants(models) -> list[tuple[str, list, type]]:
+def _variants(models, teacher=()) -> list[tuple[str, list, type]]:
     """The ANN solvers timed: the model (``ann``), the same through the generic driver
-    (``ann_generic``), and for an ensemble its first network alone (``ann_one``) too."""
+    (``ann_generic``), for an ensemble its first network alone (``ann_one``), and the network
+    a distilled model learned from (``teacher``), when given."""
     return ([("ann", models, SurrogateSolver), ("ann_generic", models, GenericDriver)]
-            + ([("ann_one", models[:1], SurrogateSolver)] if len(models) > 1 else []))
+            + ([("ann_one", models[:1], SurrogateSolver)] if len(models) > 1 else [])
+            + ([("teacher", list(teacher), SurrogateSolver)] if teacher else []))
 
 
-def _step_variants(models) -> list[tuple[str, list]]:
-    """The variants of one solver step (no driver): the model, and an ensemble's first network."""
-    return [(k, ms) for k, ms, kind in _variants(models) if kind is SurrogateSolver]
+def _step_variants(models, teacher=()) -> list[tuple[str, list]]:
+    """The variants of one solver step (no driver): all but the generic driver."""
+    return [(k, ms) for k, ms, kind in _variants(models, teacher) if kind is SurrogateSolver]
 
 
-def rev_rows(models, points, n_theta: int, axial: float, repeat: int) -> list[dict]:
+def rev_rows(models, points, n_theta: int, axial: float, repeat: int, teacher=()) -> list[dict]:
     params = replace(PARAMS, n_theta=n_theta)
     rows = []
     for B in points:
@@ -81,7 +83,7 @@ def rev_rows(models, points, n_theta: int, axial: float, repeat: int) -> list[di
         dem.yade().close()
         row = {"points": B, "n_theta": n_theta, "axial_pct": 100 * axial, "dem_requests": calls,
                "seconds_dem": t_dem}
-        for key, ms, kind in _variants(models):
+        for key, ms, kind in _variants(models, teacher):
             ann = kind(ms, on_outside="error")
             res, _ = run_path(params, spec, ann, 1e-3, 2e-4)
             # the networks alone: the rows one run evaluates, timed in batches of the run's size
@@ -96,7 +98,7 @@ def rev_rows(models, points, n_theta: int, axial: float, repeat: int) -> list[di
         print(f"REV  B={B:<4} n_theta={n_theta}  DEM {t_dem:8.2f} s ({calls} requests)  "
               + "  ".join(f"{k}: {row[f'seconds_{k}']:.4f} s, ratio {row[f'dem_over_{k}']:.0f} "
                           f"(networks alone {row[f'dem_over_network_{k}']:.0f}), "
-                          f"max dq {row[f'q_max_dev_pct_of_peak_{k}']:.1f} %" for k, *_ in _variants(models)),
+                          f"max dq {row[f'q_max_dev_pct_of_peak_{k}']:.1f} %" for k, *_ in _variants(models, teacher)),
               flush=True)
     return rows
 
@@ -109,7 +111,7 @@ def network_seconds_per_row(models, n: int, repeat: int) -> float:
     return best_of(lambda: [m.forward(X, single=True) for m in models], max(repeat, 5)) / n
 
 
-def cell_rows(models, sizes, repeat: int) -> list[dict]:
+def cell_rows(models, sizes, repeat: int, teacher=()) -> list[dict]:
     """One step of n cells: consolidated DEM-REV cells (36 directions) repeated, sheared by 1e-3."""
     params = replace(PARAMS, n_theta=36)
     dem = DEMSolver(SOLVER)
@@ -131,22 +133,23 @@ def cell_rows(models, sizes, repeat: int) -> list[dict]:
         # a fresh solver each time: the solver keeps the network's outputs of the states it saw
         # last (a Newton iteration's trials reuse them), which would leave the network untimed
         row = {"cells": n, "seconds_dem": t_dem, "us_per_cell_dem": 1e6 * t_dem / n}
-        for key, ms in _step_variants(models):
+        for key, ms in _step_variants(models, teacher):
             t_ann = best_of(lambda: SurrogateSolver(ms, on_outside="error").step(params, z, d[:, 0], d[:, 1]),
                             repeat)
             row |= {f"seconds_{key}": t_ann, f"us_per_cell_{key}": 1e6 * t_ann / n, f"dem_over_{key}": t_dem / t_ann}
         rows.append(row)
         print(f"cell n={n:<6} DEM {1e6 * t_dem / n:9.1f} us/cell  "
               + "  ".join(f"{k}: {row[f'us_per_cell_{k}']:.2f} us/cell, ratio {row[f'dem_over_{k}']:.0f}"
-                          for k, _ in _step_variants(models)), flush=True)
+                          for k, _ in _step_variants(models, teacher)), flush=True)
     dem.yade().close()
     return rows
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--model", default="/tmp/hmodel-dem-ann-hexagon-center/model-0.safetensors",
-                    help="a model file, or an ensemble A+B+...")
+    ap.add_argument("--model", default="/tmp/hmodel-dem-ann-hexagon-center/student-64x3.safetensors",
+                    help="a model file, or an ensemble A+B+... (default: dem_ann.py's distilled student)")
+    ap.add_argument("--teacher", default=None, help="also time this model (the student's teacher)")
     ap.add_argument("--points", default="1,4,16")
     ap.add_argument("--n-theta", type=int, default=36)
     ap.add_argument("--axial", type=float, default=0.01)
@@ -155,12 +158,15 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("dem_ann_speed.json"))
     args = ap.parse_args()
     models = [load(p) for p in args.model.split("+")]
+    teacher = [load(p) for p in args.teacher.split("+")] if args.teacher else []
     # one core each: YADE runs single-threaded (-j1), so NumPy's BLAS does too
     with threadpool_limits(limits=1):
-        cells = cell_rows(models, [int(n) for n in args.cells.split(",")], args.repeat)
-        revs = rev_rows(models, [int(b) for b in args.points.split(",")], args.n_theta, args.axial, args.repeat)
+        cells = cell_rows(models, [int(n) for n in args.cells.split(",")], args.repeat, teacher)
+        revs = rev_rows(models, [int(b) for b in args.points.split(",")], args.n_theta, args.axial, args.repeat,
+                        teacher)
     args.out.write_text(json.dumps({
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count()}, "model": args.model, "members": len(models),
+        "teacher": args.teacher,
         "solver": SOLVER, "threads": 1, "cell": cells, "rev": revs}, indent=1))
     print(f"wrote {args.out}")
 

@@ -1,15 +1,15 @@
-"""A trained surrogate of the H-cell increment: formulation, scalers and an MLP.
+"""A trained surrogate of the H-cell increment: formulation, scalers and an MLP, used from NumPy.
 
-Prediction runs the network on the saved weights. In float64 (``forward(X)``) the layers are
-plain NumPy matrix products, faster than a framework call for the small MLPs of report §2.4,
-in blocks whose activations stay in cache. ``forward(X, single=True)`` runs the layers in
-float32, the precision the network was trained in (outputs within ~4e-7 of float64, measured),
-through PyTorch's linear layers: for the meso networks of the DEM cells (64-96 wide, thousands
-of cells per call) 0.74 against 0.87 ms (64x3) and 1.31 against 1.41 ms (96x3) per 2,304 rows
-on one thread, against NumPy's float32 products (measured). The solver uses it for ``meso``
-models only (see ``SurrogateSolver._network``). Networks with the strain increment among their
-inputs need float64: the Newton iterations' finite-difference probes differentiate their
-output, and float32 round-off made those tangents noise.
+Prediction runs the network as plain NumPy matrix products on the saved weights: for the small
+MLPs of report §2.4 this is faster than calling a framework per batch and keeps inference free
+of PyTorch. Training (``hmodel.surrogate.training``) uses PyTorch. (PyTorch's float32 linear
+layers run a 2,304-row batch 7-15 % faster alone, but a 64-point ANN-REV run on one thread
+took 46 against 28 ms with them, measured; the cause, perhaps its thread pool between calls,
+was not pinned down.) The rows run in blocks whose activations stay in cache. ``forward(X, single=True)`` runs the layers in float32, the
+precision the network was trained in (outputs within ~4e-7 of float64, measured; 2-5x faster);
+the solver uses it for ``meso`` models only (see ``SurrogateSolver._network``). Networks with
+the strain increment among their inputs need float64: the Newton iterations' finite-difference
+probes differentiate their output, and float32 round-off made those tangents noise.
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ from .formulations import Formulation
 from .scalers import Affine
 
 ACTIVATIONS = ("tanh", "relu", "silu", "gelu", "elu")
-#: Rows per block of the float64 forward pass: 512 x 128 activations stay in a core's L2 cache
-#: (one block of 2304 rows ran 2x slower per row, measured in float32).
+#: Rows per block of the forward pass: 512 x 128 float32 activations stay in a core's L2 cache
+#: (one block of 2304 rows ran 2x slower per row, measured).
 BLOCK_ROWS = 512
 
 
@@ -90,42 +90,20 @@ class Surrogate:
         return np.any((X < lo - pad) | (X > hi + pad), axis=1)
 
     @cached_property
-    def _torch_layers(self) -> list:
-        """(W, b) per layer as float32 torch tensors, for :meth:`forward` with ``single``."""
-        import torch
-        return [(torch.from_numpy(np.ascontiguousarray(W, np.float32)),
-                 torch.from_numpy(np.ascontiguousarray(b, np.float32))) for W, b in self.weights]
+    def _layers32(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(W^T, b) per layer in float32, contiguous for the row-major products."""
+        return [(np.ascontiguousarray(W.T, np.float32), np.asarray(b, np.float32)) for W, b in self.weights]
 
     def forward(self, X: np.ndarray, single: bool = False) -> np.ndarray:
         """Network targets Y (n, n_outputs) for inputs X (n, n_inputs) in physical units; the
-        layers in float32 with ``single`` (see the module docstring)."""
-        z = self.x_scaler.transform(np.asarray(X, float))
-        out = self._forward32(z) if single else self._forward64(z)
-        return self.y_scaler.inverse(out, out=out)
-
-    def _forward32(self, z: np.ndarray) -> np.ndarray:
-        import torch
-        F = torch.nn.functional
-        *hidden, last = self._torch_layers
-        name = self.architecture.activation
-        if name not in ACTIVATIONS:
-            raise InputError(f"unknown activation {name!r} (known: {', '.join(ACTIVATIONS)})")
-        act = {"tanh": torch.tanh_, "relu": torch.relu_, "silu": lambda h: F.silu(h, inplace=True),
-               "gelu": F.gelu, "elu": lambda h: F.elu(h, inplace=True)}[name]  # gelu: erf form
-        with torch.inference_mode():
-            h = torch.from_numpy(z.astype(np.float32))
-            for W, b in hidden:
-                h = act(F.linear(h, W, b))
-            return F.linear(h, *last).numpy().astype(float)
-
-    def _forward64(self, z: np.ndarray) -> np.ndarray:
-        """Every product is written into one of two block buffers: fresh arrays of this size
-        are new pages from the OS each time (at 9,216 rows 0.62 against 0.95 us per row,
-        measured)."""
-        *hidden, (W_out, b_out) = [(W.T, b) for W, b in self.weights]
-        out = np.empty((len(z), len(b_out)))
+        layers in float32 with ``single`` (see the module docstring). Every product is written
+        into one of two block buffers and the output scaled in place: fresh arrays of this size
+        are new pages from the OS each time (at 9,216 rows 0.62 against 0.95 us per row, measured)."""
+        *hidden, (W_out, b_out) = self._layers32 if single else [(W.T, b) for W, b in self.weights]
+        z = self.x_scaler.transform(np.asarray(X, float)).astype(W_out.dtype, copy=False)
+        out = np.empty((len(z), len(b_out)), z.dtype)
         width = max((W.shape[1] for W, _ in hidden), default=0)
-        buffers = np.empty((2, min(BLOCK_ROWS, len(z)), width))
+        buffers = np.empty((2, min(BLOCK_ROWS, len(z)), width), z.dtype)
         for i in range(0, len(z), BLOCK_ROWS):
             h = z[i:i + BLOCK_ROWS]
             for k, (W, b) in enumerate(hidden):
@@ -133,8 +111,9 @@ class Surrogate:
                 h += b
                 _act_inplace(self.architecture.activation, h)
             np.matmul(h, W_out, out=out[i:i + BLOCK_ROWS])
+        out = out.astype(float, copy=False)
         out += b_out
-        return out
+        return self.y_scaler.inverse(out, out=out)
 
     def predict(self, columns: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """State after the increment (alpha_next, N1_next, N2_next, T1_next) from database-style
