@@ -35,7 +35,7 @@ from ..cell import FIELDS, CellFlags, CellState
 from ..cell.closed_form import ClosedFormSolver
 from ..errors import InputError, SolverError
 from ..params import Params
-from .meso_kernel import pack_outputs, pack_responses
+from .meso_kernel import advance_cells, kernel_params, pack_outputs, pack_responses
 from .model import Surrogate
 
 #: Parameters a surrogate is specific to (it was trained on cells with these values).
@@ -126,10 +126,12 @@ class SurrogateSolver:
         return CellState(values.reshape(*shape, n_state)), CellFlags(flags.reshape(*shape, 5))
 
     def _one_meso(self, params, v, e1, e2, dl):
-        """``meso`` formulation: one learned increment of the summary state."""
-        f = self.model.formulation
-        response = self.meso_response(params, v)
-        return f.advance(v, f.apply(response, np.column_stack([e1, e2]) / f.m0), dl)
+        """``meso`` formulation: one learned increment of the summary state, in the compiled
+        way back (``MesoFormulation.advance`` in one pass; tested against it)."""
+        new, flags, _ = advance_cells(v, np.ascontiguousarray(dl, float),
+                                      kernel_params(self.model.formulation, params),
+                                      self.meso_response(params, v, packed=True))
+        return new, flags
 
     def meso_response(self, params: Params, v: np.ndarray, packed: bool = False):
         """The learned response (``MesoFormulation.response``; an ensemble's mean) of summary
