@@ -28,7 +28,7 @@ def _kernel_against_numpy(form, v, response, e):
     p, r = kernel_params(form, PARAMS), pack_responses(response, v)
     out, flags = np.empty_like(v), np.empty((len(v), 5), dtype=np.bool_)
     for i in range(len(v)):
-        assert meso_increment(v, i, dl[i, 0], dl[i, 1], p, r, out, flags)
+        assert meso_increment(v, i, dl[i, 0], dl[i, 1], p, r, out, flags, False, 0.0, 0.0, np.empty(2))
     scale = np.abs(ref).max(axis=0) + 1e-300
     np.testing.assert_allclose(out / scale, ref / scale, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(flags, ref_flags)
@@ -130,9 +130,58 @@ def test_trials_are_counted_and_the_previous_increment_starts_newton(tiny_model)
         if name == "undrained":
             np.testing.assert_array_equal(runner.trials, seg.n_steps)
             assert np.isnan(runner.guess).all()  # no Newton, no first trial to remember
-        else:  # the finite-difference tangent (4) and at least one trial per increment
-            assert np.all(runner.trials >= seg.n_steps + 4)
+        else:  # the slope at no strain (one trial) and at least one trial per increment
+            assert np.all(runner.trials >= seg.n_steps + 1)
             last = runner.state().eps - s0.eps
             assert np.all(np.isfinite(runner.guess))
             np.testing.assert_allclose(runner.guess[:, 0], seg.values[0] / seg.n_steps, rtol=1e-12)
             assert np.all(np.abs(runner.guess[:, 1]) < np.abs(last[:, 1]))
+
+
+def test_trial_slope_is_the_derivative_of_the_trial_stress(tiny_model):  # noqa: F811
+    """The stress derivative a meso trial gives along a strain direction equals the central
+    finite difference of the trial stress (where both step sizes agree: no regime changes in
+    between), on a sheared REV's cells in every direction."""
+    from hmodel.loading.compiled import _trial, _trial_tangent, cell_responses, kernel_inputs
+    model, _ = tiny_model
+    rev = Rev(PARAMS, SurrogateSolver(model, on_outside="fallback"))
+    s = run_segment(rev, consolidate(rev, [1e5]), SEGMENTS["drained"])
+    geo, p = kernel_inputs(rev)
+    resp = cell_responses(rev, s.cells.values)[0]
+    values, eps = s.cells.values[0], s.eps[0]
+    out, flags = np.empty_like(values), np.empty((len(values), 5), dtype=np.bool_)
+    rng = np.random.default_rng(3)
+    checked = 0
+    for _ in range(30):
+        x, u = rng.normal(0.0, 3e-4, 3), rng.normal(size=3)
+        sig, slope = np.empty(3), np.empty(3)
+        assert _trial_tangent(values, eps, x, geo, p, rev._mode, rev.volume0, out, flags, sig, resp, u, slope)
+        fd = []
+        for h in (1e-7, 1e-8):
+            plus, minus = np.empty(3), np.empty(3)
+            _trial(values, eps, x + h * u, geo, p, rev._mode, rev.volume0, out, flags, plus, resp)
+            _trial(values, eps, x - h * u, geo, p, rev._mode, rev.volume0, out, flags, minus, resp)
+            fd.append((plus - minus) / (2 * h))
+        size = np.abs(fd[0]).max()
+        if np.abs(fd[0] - fd[1]).max() <= 1e-5 * size:
+            np.testing.assert_allclose(slope, fd[1], rtol=0, atol=1e-5 * size)
+            checked += 1
+    assert checked >= 20
+
+
+def test_free_direction_is_normal_to_the_strain_rows():
+    from hmodel.loading.compiled import _free_direction
+    for name in ("drained", "undrained"):
+        seg = SEGMENTS[name]
+        M = np.asarray(seg.matrix, float)
+        u = _free_direction(np.asarray(seg.stress_rows), M)
+        if name == "undrained":  # no stress row: nothing free
+            assert u.shape == (0,)
+        else:
+            assert np.linalg.norm(u) > 0
+            for r in range(3):
+                if not seg.stress_rows[r]:
+                    assert abs(M[r] @ u) <= 1e-15 * np.linalg.norm(u)
+    M = np.array([[1.0, -1.0, 0.0], [0.5, 0.5, 0.0], [0.0, 0.0, 1.0]])  # consolidation's last step
+    u = _free_direction(np.array([False, True, False]), M)
+    np.testing.assert_allclose(u / u[0], [1.0, 1.0, 0.0])

@@ -85,6 +85,20 @@ def _trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
     the closed-form cell kernel, or with learned responses ``resp`` (n, R > 0) the meso
     surrogate's trial (``meso_kernel.meso_increment``). Returns False when a cell increment failed.
     """
+    return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, False,
+                       deps, sig)
+
+
+@njit(cache=True, error_model="numpy")
+def _trial_tangent(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, u, dsig):
+    """:func:`_trial` of a meso surrogate that also gives ``dsig``, the derivative of the stress
+    along the strain direction ``u`` (3,): exact within every cell's regime."""
+    return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, True, u,
+                       dsig)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, tangent, u, dsig):
     cos2, sin2, sincos, wcos2, wsin2, wsincos = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5]
     two_r = 2.0 * p[P_R]
     kn = p[P_KN]
@@ -92,13 +106,26 @@ def _trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
     s11 = 0.0
     s22 = 0.0
     s12 = 0.0
+    d11 = 0.0
+    d22 = 0.0
+    d12 = 0.0
+    dv = np.empty(2)
     ok = True
     meso = resp.shape[1] > 0
     for i in range(values.shape[0]):
         dl1, dl2 = cell_dl(values, i, e11, e22, e12, cos2[i], sin2[i], sincos[i], mode, p[P_R])
         if meso:
-            ok &= meso_increment(values, i, dl1, dl2, p, resp, out, flags)
+            ddl1 = ddl2 = 0.0
+            if tangent:  # cell_dl is linear in the strain: its derivative along u is cell_dl(u)
+                ddl1, ddl2 = cell_dl(values, i, u[0], u[1], u[2], cos2[i], sin2[i], sincos[i], mode,
+                                     p[P_R])
+            ok &= meso_increment(values, i, dl1, dl2, p, resp, out, flags, tangent, ddl1, ddl2, dv)
             vnn, vtt = out[i, 8], out[i, 9]  # V sigma_nt = 0
+            if tangent:
+                b11, b22, b12 = weighted_global(dv[0], dv[1], wcos2[i], wsin2[i], wsincos[i])
+                d11 += b11
+                d22 += b22
+                d12 += b12
         else:
             ok &= cell_increment(values[i], dl1, dl2, p, out[i], flags[i])
             vnn, vtt = vsigma_local(out[i], kn, two_r)
@@ -113,6 +140,11 @@ def _trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
     sig[0] = s11 / v
     sig[1] = s22 / v
     sig[2] = s12 / v
+    if tangent:  # d(S / V) = dS / V - sig dV / V
+        dvol = volume0 * (-(1 - t22) * u[0] - (1 - t11) * u[1] - 2.0 * t12 * u[2])
+        dsig[0] = (d11 - sig[0] * dvol) / v
+        dsig[1] = (d22 - sig[1] * dvol) / v
+        dsig[2] = (d12 - sig[2] * dvol) / v
     return ok
 
 
@@ -166,6 +198,34 @@ def _newton_step(x, R, K, S, M):
 
 
 @njit(cache=True, error_model="numpy")
+def _free_direction(S, M):
+    """The strain direction (3,) the strain rows of M leave free when exactly one row is a
+    stress row (their cross product); empty otherwise."""
+    rows = np.empty(2, dtype=np.int64)
+    n = 0
+    for r in range(3):
+        if not S[r]:
+            if n == 2:
+                return np.zeros(0)
+            rows[n] = r
+            n += 1
+    if n != 2:
+        return np.zeros(0)
+    a, b = M[rows[0]], M[rows[1]]
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+@njit(cache=True, error_model="numpy")
+def _set_slope(K, u, du):
+    """K u = du, K unchanged on directions normal to u (a rank-one update)."""
+    uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2]
+    for a in range(3):
+        c = (du[a] - (K[a, 0] * u[0] + K[a, 1] * u[1] + K[a, 2] * u[2])) / uu
+        for j in range(3):
+            K[a, j] += c * u[j]
+
+
+@njit(cache=True, error_model="numpy")
 def _residual(x, sig, S, M, v, R):
     for r in range(3):
         a = sig if S[r] else x
@@ -207,9 +267,23 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rt
     for r in range(3):
         scale[r] = max(max(abs(v[r]), smax), 1.0)
     x[:] = 0.0
+    # A meso surrogate with one stress row: each trial also gives the stress derivative along
+    # the strain direction u left free by the strain rows, which replaces Broyden's secant along
+    # u (Newton with the exact slope of the current regimes: 4.0 against 3.1 trials per drained
+    # increment in a model of this loop, measured)
+    u = _free_direction(S, M) if resp.shape[1] > 0 else np.zeros(0)
+    exact = u.shape[0] > 0
+    du = np.empty(3)
     if not has_K[0]:
-        _fd_tangent(values, eps, x, geo, p, mode, volume0, h, buf[1], bufflags[1], K, resp)
-        trials[0] += 4
+        if exact:  # one trial at no strain, its slope along u
+            K[:, :] = 0.0
+            _trial_tangent(values, eps, x, geo, p, mode, volume0, buf[1], bufflags[1], sig_t, resp, u,
+                           du)
+            _set_slope(K, u, du)
+            trials[0] += 1
+        else:
+            _fd_tangent(values, eps, x, geo, p, mode, volume0, h, buf[1], bufflags[1], K, resp)
+            trials[0] += 4
         has_K[0] = True
     _residual(x, sig, S, M, v, R)
     xt, ok = _newton_step(x, R, K, S, M)
@@ -228,7 +302,12 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rt
             trust = max(trust, 4.0 * math.sqrt(xt[0] ** 2 + xt[1] ** 2 + xt[2] ** 2))
     cur = 0
     trials[0] += 1
-    if not _trial(values, eps, xt, geo, p, mode, volume0, buf[cur], bufflags[cur], sig_t, resp):
+    if exact:
+        if not _trial_tangent(values, eps, xt, geo, p, mode, volume0, buf[cur], bufflags[cur], sig_t,
+                              resp, u, du):
+            return False, -1
+        _set_slope(K, u, du)
+    elif not _trial(values, eps, xt, geo, p, mode, volume0, buf[cur], bufflags[cur], sig_t, resp):
         return False, -1
     _residual(xt, sig_t, S, M, v, R)
     best_key = 1e300
@@ -265,11 +344,17 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rt
         if nrm > trust:  # trust region: a correction never exceeds a few predictor increments
             dx *= trust / nrm
         trials[0] += 1
-        if not _trial(values, eps, xt + dx, geo, p, mode, volume0, buf[nxt], bufflags[nxt], sig_n,
-                      resp):
+        if exact:
+            if not _trial_tangent(values, eps, xt + dx, geo, p, mode, volume0, buf[nxt],
+                                  bufflags[nxt], sig_n, resp, u, du):
+                return False, -1
+            _set_slope(K, u, du)
+        elif not _trial(values, eps, xt + dx, geo, p, mode, volume0, buf[nxt], bufflags[nxt], sig_n,
+                        resp):
             return False, -1
-        # Broyden's rank-one secant update, skipped across a cell event (a jump).
-        smooth = True
+        # Broyden's rank-one secant update, skipped across a cell event (a jump) and where the
+        # slope is exact.
+        smooth = not exact
         for i in range(values.shape[0]):
             if ((bufflags[nxt, i, 1] or bufflags[nxt, i, 2])
                     != (bufflags[cur, i, 1] or bufflags[cur, i, 2])):

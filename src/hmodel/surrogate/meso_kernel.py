@@ -105,24 +105,37 @@ def _turned(c0, s0, a, da):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def meso_increment(values, i, dl1, dl2, p, resp, out, flags):
+def meso_increment(values, i, dl1, dl2, p, resp, out, flags, tangent, ddl1, ddl2, dv):
     """Advance the summary state ``values[i]`` (11,) of cell i by length increments (dl1, dl2)
     with its packed response ``resp[i]``; write the new state into ``out[i]`` and its flags into
     ``flags[i]``; returns False when the new state is not finite. The steps of
     ``SurrogateSolver._one_meso``: e = de/m0 with de = -dl/l0, the response, then
     ``MesoFormulation._advanced`` and ``advance``'s flags. (Rows are indexed, never sliced:
-    with four slices per cell a trial took 127 against 78 ns per cell, measured.)"""
+    with four slices per cell a trial took 127 against 78 ns per cell, measured.)
+
+    With ``tangent`` (a literal at each call site, so that the plain trial compiles without it),
+    also the derivative of the new (V sigma_nn, V sigma_tt) along the length increments
+    (ddl1, ddl2), into ``dv`` (2,): exact within the cell's regime (which mechanisms load, which
+    forces are clipped or capped, the cage gate's branch)."""
     e1 = -dl1 * p[Q_E1]
     e2 = -dl2 * p[Q_E2]
+    f1 = -ddl1 * p[Q_E1]
+    f2 = -ddl2 * p[Q_E2]
     L = int(p[Q_L])
     richer = L > 4
     r = resp
     # dz/m0 of the learned fields alpha, N1, N2, T1 (and Vs_nn, Vs_tt): the tangent, then every
-    # mechanism that loads
+    # mechanism that loads (and their derivatives g along the direction)
     z0, z1 = r[i, 0] * e1 + r[i, 1] * e2, r[i, 2] * e1 + r[i, 3] * e2
     z2, z3 = r[i, 4] * e1 + r[i, 5] * e2, r[i, 6] * e1 + r[i, 7] * e2
     z4 = r[i, 8] * e1 + r[i, 9] * e2 if richer else 0.0
     z5 = r[i, 10] * e1 + r[i, 11] * e2 if richer else 0.0
+    g0 = g1 = g2 = g3 = g4 = g5 = 0.0
+    if tangent:
+        g0, g1 = r[i, 0] * f1 + r[i, 1] * f2, r[i, 2] * f1 + r[i, 3] * f2
+        g2, g3 = r[i, 4] * f1 + r[i, 5] * f2, r[i, 6] * f1 + r[i, 7] * f2
+        g4 = r[i, 8] * f1 + r[i, 9] * f2 if richer else 0.0
+        g5 = r[i, 10] * f1 + r[i, 11] * f2 if richer else 0.0
     R = r.shape[1] - 2  # then cos, sin of the state's alpha
     for b in range(2 * L, R, L + 3):
         load = r[i, b] * e1 + r[i, b + 1] * e2 - r[i, b + 2]
@@ -134,6 +147,15 @@ def meso_increment(values, i, dl1, dl2, p, resp, out, flags):
             if richer:
                 z4 += load * r[i, b + 7]
                 z5 += load * r[i, b + 8]
+            if tangent:
+                dload = r[i, b] * f1 + r[i, b + 1] * f2
+                g0 += dload * r[i, b + 3]
+                g1 += dload * r[i, b + 4]
+                g2 += dload * r[i, b + 5]
+                g3 += dload * r[i, b + 6]
+                if richer:
+                    g4 += dload * r[i, b + 7]
+                    g5 += dload * r[i, b + 8]
     s = Q_SCALES
     da = z0 * p[s]
     a = values[i, 2] + da
@@ -152,17 +174,56 @@ def meso_increment(values, i, dl1, dl2, p, resp, out, flags):
     t1 = min(max(u3, -tan_phi * n1), tan_phi * n1)  # eq. 1.3
     o = out
     o[i, 0], o[i, 1], o[i, 2], o[i, 3], o[i, 4], o[i, 5], o[i, 6], o[i, 7] = d1, d2, a, n1, n2, t1, l1, l2
+    if tangent:  # the same steps, differentiated
+        d_a = g0 * p[s]
+        dca, dsa = -sa * d_a, ca * d_a
+        dd1 = ddl2 / (2.0 * sa) - d1 * dsa / sa
+        dd2 = ddl1 - 2.0 * (dd1 * ca + d1 * dca)
+        dn1 = g1 * p[s + 1] if (d1 < apart and u1 > 0.0) else 0.0
+        dn2 = g2 * p[s + 2] if (d2 < apart and u2 > 0.0) else 0.0
+        if u3 >= tan_phi * n1:
+            dt1 = tan_phi * dn1
+        elif u3 <= -tan_phi * n1:
+            dt1 = -tan_phi * dn1
+        else:
+            dt1 = g3 * p[s + 3]
+        # eq. 1.12 differentiated
+        c2, s2, cs = ca * ca, sa * sa, ca * sa
+        dc2, ds2, dcs = 2.0 * ca * dca, 2.0 * sa * dsa, dca * sa + ca * dsa
+        dhnn = (4.0 * (dn1 * d1 * c2 + n1 * dd1 * c2 + n1 * d1 * dc2)
+                + 4.0 * (dt1 * d1 * cs + t1 * dd1 * cs + t1 * d1 * dcs) + 2.0 * (dn2 * d2 + n2 * dd2))
+        dhtt = (4.0 * (dn1 * d1 * s2 + n1 * dd1 * s2 + n1 * d1 * ds2)
+                - 4.0 * (dt1 * d1 * cs + t1 * dd1 * cs + t1 * d1 * dcs))
     if richer:  # the learned V sigma, compressive
         vnn = max(values[i, 8] + z4 * p[s + 4], 0.0)
         vtt = max(values[i, 9] + z5 * p[s + 5], 0.0)
+        if tangent:
+            dvnn = g4 * p[s + 4] if vnn > 0.0 else 0.0
+            dvtt = g5 * p[s + 5] if vtt > 0.0 else 0.0
         reach = p[Q_REACH]
         if reach > 0.0:  # the loose-cage gate (MesoFormulation._advanced)
-            clearance = min(l1 / 2 - p[Q_RN], math.sqrt((d2 / 2) ** 2 + (l2 / 2) ** 2) - p[Q_RT])
-            w = min(max((reach * (1.0 + p[Q_GAP]) - clearance) * p[Q_RAMP], 0.0), 1.0)
+            diag = math.sqrt((d2 / 2) ** 2 + (l2 / 2) ** 2)
+            along_n = l1 / 2 - p[Q_RN] <= diag - p[Q_RT]
+            clearance = l1 / 2 - p[Q_RN] if along_n else diag - p[Q_RT]
+            w_raw = (reach * (1.0 + p[Q_GAP]) - clearance) * p[Q_RAMP]
+            w = min(max(w_raw, 0.0), 1.0)
             hnn, htt = contact_vsigma(d1, d2, ca, sa, n1, n2, t1)  # eq. 1.12
+            if tangent:
+                dclear = ddl1 / 2 if along_n else (d2 * dd2 + l2 * ddl2) / (4.0 * diag)
+                dw = -dclear * p[Q_RAMP] if 0.0 < w_raw < 1.0 else 0.0
+                dvnn = dhnn + dw * (vnn - hnn) + w * (dvnn - dhnn)
+                dvtt = dhtt + dw * (vtt - htt) + w * (dvtt - dhtt)
             vnn, vtt = hnn + w * (vnn - hnn), htt + w * (vtt - htt)
     else:  # an H-cell: eq. 1.12 of the fields
         vnn, vtt = vsigma_local(o[i], p[P_KN], two_r)
+        if tangent:
+            dvnn, dvtt = dhnn, dhtt
+            if l1 <= two_r:  # the extra contacts of vsigma_local
+                dvnn += p[P_KN] * (two_r - 2.0 * l1) * ddl1
+            if l2 <= two_r:
+                dvtt += 2.0 * p[P_KN] * (two_r - 2.0 * l2) * ddl2
+    if tangent:
+        dv[0], dv[1] = dvnn, dvtt
     o[i, 8], o[i, 9], o[i, 10] = vnn, vtt, 0.0
     flags[i, 0] = n1 > 0 and abs(t1) >= tan_phi * n1 * (1 - 1e-9)
     flags[i, 1] = n1 == 0
@@ -179,7 +240,8 @@ def advance_cells(values, dl, p, resp):
     the new states, the flags and whether all are finite."""
     out = np.empty_like(values)
     flags = np.empty((values.shape[0], 5), dtype=np.bool_)
+    unused = np.empty(2)
     ok = True
     for i in range(values.shape[0]):
-        ok &= meso_increment(values, i, dl[i, 0], dl[i, 1], p, resp, out, flags)
+        ok &= meso_increment(values, i, dl[i, 0], dl[i, 1], p, resp, out, flags, False, 0.0, 0.0, unused)
     return out, flags, ok
