@@ -10,9 +10,11 @@ from hmodel.data.sampling import write_split
 from hmodel.dem.yade import available
 from hmodel.loading import run_biaxial
 from hmodel.params import Params
+from hmodel.surrogate.distill import DistillConfig, _TeacherRollouts, distill
 from hmodel.surrogate.modelfile import load, save
+from hmodel.surrogate.rows import read_sample
 from hmodel.surrogate.solver import SurrogateSolver
-from hmodel.surrogate.training import TrainConfig, train_on_sample
+from hmodel.surrogate.training import TrainConfig, torch_network, train_on_sample
 
 needs_yade = pytest.mark.skipif(not available(), reason="YADE is not installed (apt-get install -y yade)")
 
@@ -82,3 +84,11 @@ def test_meso_surrogate_of_the_hexagon_center_cell_runs_next_to_its_dem_rev(tmp_
     loaded = load(save(model, tmp_path / "m.safetensors"))
     assert loaded.formulation.name == "meso" and loaded.formulation.cell == solver
     _side_by_side(SurrogateSolver(loaded, on_outside="fallback"), solver, rtol=0.25)
+
+    # distilled: a student follows the teacher's rollouts along the data's paths, whose targets
+    # are the teacher's own (the teacher itself is off them by float32 round-off only)
+    cols, _ = read_sample(tmp_path / "sample", "train")
+    cfg = DistillConfig(width=8, depth=2, epochs=3, rollout=2)
+    assert _TeacherRollouts(loaded, cols, cfg, np.random.default_rng(0), torch_network(loaded)).validation() < 1e-12
+    student, history = distill(loaded, cols, cfg)
+    assert student.architecture.width == 8 and np.isfinite(history[-1]["val_loss"])

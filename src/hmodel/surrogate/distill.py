@@ -25,7 +25,7 @@ import numpy as np
 
 from ..errors import InputError
 from .model import Architecture, Surrogate
-from .training import _device, best_weights, build_network, secant_weights
+from .training import _device, _Rollout, best_weights, build_network, secant_weights, torch_network
 
 
 @dataclass(frozen=True)
@@ -37,6 +37,11 @@ class DistillConfig:
     #: random strains per state, besides the state's own
     strains: int = 3
     raw_weight: float = 0.01
+    #: richer cells: windows of this many steps along the data's paths, rolled out by the
+    #: teacher and the student from the same states; ``rollout_weight`` times the squared
+    #: difference of their learned fields joins the loss (0: single increments only)
+    rollout: int = 4
+    rollout_weight: float = 0.5
     epochs: int = 3000
     batch_size: int = 1024
     lr: float = 3e-3
@@ -55,8 +60,8 @@ class DistillConfig:
         for name in ("width", "depth", "epochs", "batch_size", "patience"):
             if getattr(self, name) < 1:
                 raise InputError(f"{name} must be at least 1, got {getattr(self, name)}")
-        if self.strains < 0 or not self.raw_weight >= 0:
-            raise InputError("strains and raw_weight must be positive or zero")
+        if self.strains < 0 or not self.raw_weight >= 0 or self.rollout < 0 or not self.rollout_weight >= 0:
+            raise InputError("strains, raw_weight, rollout and rollout_weight must be positive or zero")
         if not self.lr > 0 or not self.min_lr > 0:
             raise InputError(f"lr and min_lr must be positive, got {self.lr}, {self.min_lr}")
         if not 0 < self.val_fraction < 1:
@@ -112,6 +117,8 @@ def distill(teacher: Surrogate, columns: dict[str, np.ndarray], config: DistillC
     val, tr = perm[:n_val], perm[n_val:]
     val_e, val_at = strains(val)
     net = build_network(arch, X.shape[1], form.n_outputs).to(dev)
+    roll = (_TeacherRollouts(teacher, columns, config, rng, net)
+            if config.rollout and config.rollout_weight and form.richer else None)
     opt = torch.optim.Adam(net.parameters(), lr=config.lr)
     sched = torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=0.5, patience=config.patience)
     best, best_state, history, t0 = math.inf, None, [], time.perf_counter()
@@ -124,12 +131,17 @@ def distill(teacher: Surrogate, columns: dict[str, np.ndarray], config: DistillC
             e, at = strains(rows)
             opt.zero_grad(set_to_none=True)
             batch = loss(rows, e, at, raw=True)
+            if roll is not None:
+                batch = batch + config.rollout_weight * roll.train_batch(i // config.batch_size,
+                                                                         math.ceil(len(order) / config.batch_size))
             batch.backward()
             opt.step()
             total += float(batch.detach()) * len(rows)
         net.eval()
-        with torch.no_grad():  # the validation loss: the increments only, comparable across raw_weight
+        with torch.no_grad():  # the validation loss: increments and rollouts, not the raw outputs
             v = float(loss(val, val_e, val_at, raw=False))
+            if roll is not None:
+                v += config.rollout_weight * roll.validation()
         sched.step(v)
         history.append({"epoch": epoch + 1, "train_loss": total / len(tr), "val_loss": v,
                         "lr": opt.param_groups[0]["lr"], "seconds": time.perf_counter() - t0})
@@ -170,3 +182,16 @@ def distill_on_sample(teacher: Surrogate, folder, config: DistillConfig = Distil
     s, history = distill(teacher, train, config, progress)
     s.meta.update(metrics=evaluate(s, test, "sample test rows"), history_tail=history[-3:])
     return s, history
+
+
+class _TeacherRollouts(_Rollout):
+    """Rollout windows of the data (as in training), with the teacher's own rollouts from the
+    same start states as their targets: the student learns the teacher's paths, not the data's."""
+
+    def __init__(self, teacher: Surrogate, columns, config: DistillConfig, rng, net):
+        import torch
+        super().__init__(teacher.formulation, columns, config, rng, teacher.x_scaler, net)
+        t_net = torch_network(teacher)
+        with torch.no_grad():
+            for part in (self.train, self.val):
+                part["target"] = self.form.rollout(t_net, part["z0"], part["e"], part["dl"], self.scale_inputs)

@@ -389,22 +389,28 @@ class MesoFormulation(MaterialScales):
         keep = out["mask"][:, 0] > 0
         return {k: a[keep] for k, a in out.items()}
 
-    def rollout_error(self, net, z0, e, dl, target, mask, scale_inputs, substeps: int = 1):
-        """Mean squared error (in units of dz/m0) of the learned fields along windows rolled out
-        with the network ``net`` (torch, float64 states): each step's state is the previous
-        step's output, as in a REV; each data step taken in ``substeps`` equal network steps
-        (a REV at a finer increment than the data's)."""
+    def rollout(self, net, z0, e, dl, scale_inputs, substeps: int = 1):
+        """The learned fields (W, T, len(learned)) after each step of windows rolled out with the
+        network ``net`` (torch, float64 states): each step's state is the previous step's
+        output, as in a REV; each data step taken in ``substeps`` equal network steps (a REV at
+        a finer increment than the data's)."""
         z = z0
-        total = 0.0
-        scales = _like(self._scales() * self.m0, z0)
+        fields = []
         for k in range(e.shape[1]):
             for _ in range(substeps):
                 out = net(scale_inputs(self.features(z)).float()).double()
                 cols = self._advanced(z, self.head(out, e[:, k] / substeps), dl[:, k] / substeps)
                 z = _stack(cols + [0.0 * cols[0]] * (len(STATE_FIELDS) - len(cols)))
-            err = (self._learned_values(z) - target[:, k]) / scales
-            total = total + ((err * err).mean(1) * mask[:, k]).sum()
-        return total / mask.sum().clamp(min=1.0)
+            fields.append(self._learned_values(z))
+        return _torch().stack(fields, 1)
+
+    def rollout_error(self, net, z0, e, dl, target, mask, scale_inputs, substeps: int = 1):
+        """Mean squared error (in units of dz/m0) of the learned fields along windows rolled out
+        with ``net`` (:meth:`rollout`) against ``target`` (W, T, len(learned)), steps weighed
+        by ``mask`` (W, T)."""
+        scales = _like(self._scales() * self.m0, z0)
+        err = (self.rollout(net, z0, e, dl, scale_inputs, substeps) - target) / scales
+        return ((err * err).mean(2) * mask).sum() / mask.sum().clamp(min=1.0)
 
 
 def _ops(a):

@@ -105,6 +105,21 @@ def _turned(c0, s0, a, da):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _times_tangent(r, i, e1, e2, richer):
+    """A e: the response's tangent (rows 0-11 of r[i], row-major) times the strain (e1, e2)."""
+    return (r[i, 0] * e1 + r[i, 1] * e2, r[i, 2] * e1 + r[i, 3] * e2, r[i, 4] * e1 + r[i, 5] * e2,
+            r[i, 6] * e1 + r[i, 7] * e2, r[i, 8] * e1 + r[i, 9] * e2 if richer else 0.0,
+            r[i, 10] * e1 + r[i, 11] * e2 if richer else 0.0)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _plus_flow(r, i, b, c, richer, z0, z1, z2, z3, z4, z5):
+    """z + c B_k, the mechanism's flow B_k at r[i, b:]."""
+    return (z0 + c * r[i, b], z1 + c * r[i, b + 1], z2 + c * r[i, b + 2], z3 + c * r[i, b + 3],
+            z4 + c * r[i, b + 4] if richer else z4, z5 + c * r[i, b + 5] if richer else z5)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def meso_increment(values, i, dl1, dl2, p, resp, out, flags, tangent, ddl1, ddl2, dv):
     """Advance the summary state ``values[i]`` (11,) of cell i by length increments (dl1, dl2)
     with its packed response ``resp[i]``; write the new state into ``out[i]`` and its flags into
@@ -126,36 +141,18 @@ def meso_increment(values, i, dl1, dl2, p, resp, out, flags, tangent, ddl1, ddl2
     r = resp
     # dz/m0 of the learned fields alpha, N1, N2, T1 (and Vs_nn, Vs_tt): the tangent, then every
     # mechanism that loads (and their derivatives g along the direction)
-    z0, z1 = r[i, 0] * e1 + r[i, 1] * e2, r[i, 2] * e1 + r[i, 3] * e2
-    z2, z3 = r[i, 4] * e1 + r[i, 5] * e2, r[i, 6] * e1 + r[i, 7] * e2
-    z4 = r[i, 8] * e1 + r[i, 9] * e2 if richer else 0.0
-    z5 = r[i, 10] * e1 + r[i, 11] * e2 if richer else 0.0
+    z0, z1, z2, z3, z4, z5 = _times_tangent(r, i, e1, e2, richer)
     g0 = g1 = g2 = g3 = g4 = g5 = 0.0
     if tangent:
-        g0, g1 = r[i, 0] * f1 + r[i, 1] * f2, r[i, 2] * f1 + r[i, 3] * f2
-        g2, g3 = r[i, 4] * f1 + r[i, 5] * f2, r[i, 6] * f1 + r[i, 7] * f2
-        g4 = r[i, 8] * f1 + r[i, 9] * f2 if richer else 0.0
-        g5 = r[i, 10] * f1 + r[i, 11] * f2 if richer else 0.0
+        g0, g1, g2, g3, g4, g5 = _times_tangent(r, i, f1, f2, richer)
     R = r.shape[1] - 2  # then cos, sin of the state's alpha
     for b in range(2 * L, R, L + 3):
         load = r[i, b] * e1 + r[i, b + 1] * e2 - r[i, b + 2]
         if load > 0.0:
-            z0 += load * r[i, b + 3]
-            z1 += load * r[i, b + 4]
-            z2 += load * r[i, b + 5]
-            z3 += load * r[i, b + 6]
-            if richer:
-                z4 += load * r[i, b + 7]
-                z5 += load * r[i, b + 8]
+            z0, z1, z2, z3, z4, z5 = _plus_flow(r, i, b + 3, load, richer, z0, z1, z2, z3, z4, z5)
             if tangent:
-                dload = r[i, b] * f1 + r[i, b + 1] * f2
-                g0 += dload * r[i, b + 3]
-                g1 += dload * r[i, b + 4]
-                g2 += dload * r[i, b + 5]
-                g3 += dload * r[i, b + 6]
-                if richer:
-                    g4 += dload * r[i, b + 7]
-                    g5 += dload * r[i, b + 8]
+                g0, g1, g2, g3, g4, g5 = _plus_flow(r, i, b + 3, r[i, b] * f1 + r[i, b + 1] * f2, richer,
+                                                    g0, g1, g2, g3, g4, g5)
     s = Q_SCALES
     da = z0 * p[s]
     a = values[i, 2] + da

@@ -229,7 +229,7 @@ class _Rollout:
         self.train = {k: as64(a[perm[n_val:]]) for k, a in w.items()}
         off, scale = as64(xs.offset), as64(xs.scale)
         self.scale_inputs = lambda X: (X - off) / scale  # noqa: E731
-        self.form, self.net, self.substeps = form, net, config.rollout_substeps
+        self.form, self.net, self.substeps = form, net, getattr(config, "rollout_substeps", 1)
         self.gen = torch.Generator().manual_seed(config.seed)
         self.order = torch.randperm(len(perm) - n_val, generator=self.gen)
 
@@ -247,7 +247,9 @@ class _Rollout:
         return self._error(self.train, self.order[b * size:(b + 1) * size])
 
     def validation(self) -> float:
-        return float(self._error(self.val))
+        import torch
+        with torch.no_grad():
+            return float(self._error(self.val))
 
 
 def secant_weights(e: np.ndarray, floor: float) -> np.ndarray:
@@ -291,6 +293,17 @@ def best_weights(net, state: dict) -> list[tuple[np.ndarray, np.ndarray]]:
     net.load_state_dict(state)
     return [(m.weight.detach().cpu().double().numpy(), m.bias.detach().cpu().double().numpy())
             for m in net if isinstance(m, torch.nn.Linear)]
+
+
+def torch_network(model: Surrogate):
+    """The torch MLP of a trained surrogate, its weights loaded (float32, as trained)."""
+    import torch
+    net = build_network(model.architecture, len(model.x_scaler.offset), len(model.weights[-1][1]))
+    with torch.no_grad():
+        for layer, (W, b) in zip([m for m in net if isinstance(m, torch.nn.Linear)], model.weights):
+            layer.weight.copy_(torch.as_tensor(W))
+            layer.bias.copy_(torch.as_tensor(b))
+    return net
 
 
 def build_network(arch: Architecture, n_in: int, n_out: int):
