@@ -111,9 +111,10 @@ HEX_TRAINING = TrainConfig(formulation="meso", width=96, depth=3, activation="si
 #: of three 128-wide networks was within 0.29-1.38 % of peak q, at three times the cost (README).
 MEMBERS = {"hexagon-center": 1, "standard": 1}
 #: The compared ANN-REV of the hexagon-center cell: the 96x3 network distilled into a 64x3 one
-#: (``hmodel.surrogate.distill``), half the products per cell; the teacher is listed beside it.
-STUDENT = {"hexagon-center": DistillConfig(width=64, depth=3, raw_weight=0.01, patience=30,
-                                           max_minutes=25.0), "standard": None}
+#: (``hmodel.surrogate.distill``: increments, raw outputs and 4-step rollouts of the teacher),
+#: half the products per cell; the teacher is listed beside it.
+STUDENT = {"hexagon-center": DistillConfig(width=64, depth=3, raw_weight=0.01, rollout=4, rollout_weight=0.5,
+                                           patience=30, max_minutes=25.0), "standard": None}
 CASES = {"hexagon-center": ((HEX_DATASET, HEX_UNLOADING, HEX_REV), HEX_TRAINING, HEX_SOLVER),
          "standard": ((STANDARD_DATASET,), STANDARD_TRAINING, STANDARD_SOLVER)}
 
