@@ -64,8 +64,15 @@ def test_one_networks_outputs_pack_as_its_response():
         form = MesoFormulation(PARAMS, cell, mechanisms=3)
         v = form.summary(_cells(n=20, steps=5, seed=2).values)
         out = np.random.default_rng(1).normal(size=(len(v), form.n_outputs))
-        np.testing.assert_array_equal(pack_outputs(out, len(form.learned), v),
-                                      pack_responses(form.response(out), v))
+        a, b = pack_outputs(out, len(form.learned), v), pack_responses(form.response(out), v)
+        c = slice(2 * len(form.learned) + 2, form.n_outputs, len(form.learned) + 3)  # c_k, squared by the trial
+        np.testing.assert_array_equal(np.abs(a[:, c]), b[:, c])
+        a[:, c] = b[:, c]
+        np.testing.assert_array_equal(a, b)
+        wide = np.empty((len(v), form.n_outputs + 2))
+        wide[:, :-2] = out
+        assert pack_outputs(wide[:, :-2], len(form.learned), v, wide) is wide  # no copy
+        np.testing.assert_array_equal(wide[:, -2:], a[:, -2:])
 
 
 def test_an_ensembles_mean_response_packs_every_members_mechanisms():

@@ -137,9 +137,9 @@ class SurrogateSolver:
         """The learned response (``MesoFormulation.response``; an ensemble's mean) of summary
         states v (n, 11), which every trial increment from these states applies; with ``packed``,
         its rows for the compiled trial (:func:`~hmodel.surrogate.meso_kernel.pack_responses`;
-        one network's outputs are those rows already, but for c_k squared). There is no closed
-        form to fall back to: cells outside the training domain stop the run
-        (``on_outside="error"``) or are extrapolated and counted."""
+        one network's outputs are those rows already, followed by cos and sin of alpha in two
+        spare columns). There is no closed form to fall back to: cells outside the training
+        domain stop the run (``on_outside="error"``) or are extrapolated and counted."""
         self.check(params)
         f = self.model.formulation
         X = f.features(v)
@@ -149,15 +149,17 @@ class SurrogateSolver:
             i = int(np.flatnonzero(out)[0])
             raise SolverError(f"{int(out.sum())} cell(s) outside the surrogate's training domain, e.g. "
                               + ", ".join(f"{k}={x:.4g}" for k, x in zip(f.input_names, X[i])))
+        width = f.n_outputs
         if packed and len(outs) == 1:
-            return pack_outputs(outs[0], len(f.learned), v)
-        response = f.mean_response([f.response(o) for o in outs])
+            wide = outs[0] if outs[0].shape[1] == width + 2 else None
+            return pack_outputs(outs[0][:, :width], len(f.learned), v, wide)
+        response = f.mean_response([f.response(o[:, :width]) for o in outs])
         return pack_responses(response, v) if packed else response
 
     def _advance(self, params, v, dl):
         """Compliance formulation: one exact increment with the learned compliances of the states."""
         outs, out_mask = self._network(v, self.model.formulation.features(v))
-        new, flags = self.model.formulation.advance(v, dl, outs[0])
+        new, flags = self.model.formulation.advance(v, dl, outs[0])  # compliance: no spare columns
         self._outside(params, v, dl, out_mask, new, flags,
                       lambda i: ", ".join(f"{k}={v[i, j]:.4g}" for j, k in enumerate(FIELDS)))
         return new, flags
@@ -179,7 +181,9 @@ class SurrogateSolver:
         # float32 for meso models (checked against float64 on every DEM-REV path of the README);
         # compliance models stay float64: in float32 the shipped one stalled on unload-reload
         single = self.model.formulation.name == "meso"
-        outs = [m.forward(Xu, single=single) for m in self.members]
+        # one meso network: two spare columns, where meso_response(packed=True) puts cos and sin
+        spare = 2 if single and len(self.members) == 1 else 0
+        outs = [m.forward(Xu, single=single, spare=spare) for m in self.members]
         mask = np.any([m.outside(Xu, self.margin) for m in self.members], axis=0)
         if not first.all():
             row = np.cumsum(first) - 1
