@@ -47,6 +47,19 @@ def _act_inplace(name: str, x: np.ndarray) -> None:
 
 
 @njit(cache=True)
+def _outside(X, lo, hi):
+    """Rows of X with an input below lo or above hi (one pass: the NumPy form took 0.6 ms of a
+    64-point ANN-REV run, measured)."""
+    out = np.zeros(X.shape[0], dtype=np.bool_)
+    for i in range(X.shape[0]):
+        for j in range(X.shape[1]):
+            if X[i, j] < lo[j] or X[i, j] > hi[j]:
+                out[i] = True
+                break
+    return out
+
+
+@njit(cache=True)
 def _scaled_back(raw, bias, scale, offset, out):
     """out[:, :m] = (raw + bias) * scale + offset in float64, of float32 products raw (n, m)."""
     for i in range(raw.shape[0]):
@@ -91,7 +104,7 @@ class Surrogate:
             return np.zeros(len(X), bool)
         lo, hi = self.input_range
         pad = margin * (hi - lo)
-        return np.any((X < lo - pad) | (X > hi + pad), axis=1)
+        return _outside(np.asarray(X, float), lo - pad, hi + pad)
 
     @cached_property
     def _layers32(self) -> list[tuple[np.ndarray, np.ndarray]]:
