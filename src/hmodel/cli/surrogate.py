@@ -89,6 +89,9 @@ def distill_cmd(
                                                            "the teacher's).")] = None,
     strains: Annotated[int, typer.Option(help="Random strains per state, besides its own.")] = 3,
     raw_weight: Annotated[float, typer.Option(help="Weight of the raw outputs' difference in the loss.")] = 0.01,
+    rollout: Annotated[int, typer.Option(help="Richer cells: steps of the windows along the data's paths "
+                                              "that the student rolls out beside the teacher (0: none).")] = 4,
+    rollout_weight: Annotated[float, typer.Option(help="Weight of the rollouts' difference in the loss.")] = 0.5,
     epochs: Epochs = 3000, batch_size: BatchSize = 1024, lr: Lr = 3e-3,
     patience: Annotated[int, typer.Option(help="Epochs without validation improvement before the "
                                                "learning rate is halved.")] = 30,
@@ -103,7 +106,7 @@ def distill_cmd(
     if out.suffix != ".safetensors":
         raise InputError(f"--out must end in .safetensors, got {str(out)!r}")
     cfg = DistillConfig(width=width, depth=depth, activation=activation, strains=strains,
-                        raw_weight=raw_weight, epochs=epochs, batch_size=batch_size, lr=lr,
+                        raw_weight=raw_weight, rollout=rollout, rollout_weight=rollout_weight, epochs=epochs, batch_size=batch_size, lr=lr,
                         patience=patience, min_lr=min_lr, seed=seed, device=device,
                         max_minutes=max_minutes)
     model = modelfile.load(teacher)
