@@ -154,18 +154,14 @@ def build_models(work: Path, specs, config: TrainConfig, n_train: int, n_test: i
     return paths, info
 
 
-def build_student(work: Path, teacher: Path, n_samples: int, config: DistillConfig, reuse: bool
-                  ) -> tuple[Path, dict]:
+def build_student(work: Path, teacher: Path, n_samples: int, config: DistillConfig, reuse: bool) -> Path:
     """``teacher`` distilled on its training samples (``work/sample-K``) into
-    ``work/student-WxD.safetensors`` (kept with ``reuse``); its path and the stage's record."""
+    ``work/student-WxD.safetensors`` (kept with ``reuse``)."""
     path = work / f"student-{config.width}x{config.depth}.safetensors"
-    if reuse and path.is_file():
-        return path, {}
-    t0 = time.perf_counter()
-    student, history = distill_on_sample(load(teacher), [work / f"sample-{k}" for k in range(n_samples)], config)
-    save(student, path)
-    return path, {"distill_s": time.perf_counter() - t0, "epochs": len(history),
-                  "best_val_loss": student.meta["best_val_loss"], "config": config.__dict__}
+    if not (reuse and path.is_file()):
+        student, _ = distill_on_sample(load(teacher), [work / f"sample-{k}" for k in range(n_samples)], config)
+        save(student, path)
+    return path
 
 
 def yade_startup(solver: str) -> float:
@@ -288,9 +284,10 @@ def main() -> None:
     others, student_info = None, {}
     student_config = None if args.no_student else STUDENT[args.mesostructure]
     if student_config is not None:  # the student is compared, its teacher(s) listed beside it
-        student_file, student_info = build_student(work, model_files[0], len(specs), student_config, args.reuse)
-        if not student_info and out.is_file():
-            student_info = json.loads(out.read_text()).get("student", {})
+        student_file = build_student(work, model_files[0], len(specs), student_config, args.reuse)
+        meta = load(student_file).meta  # the record of how it was made travels in the file
+        student_info = {"file": str(student_file), "epochs": meta["epochs_run"], "distill_s": meta["seconds"],
+                        "best_val_loss": meta["best_val_loss"], "config": meta["distilled"]["config"]}
         others = {f"teacher {models[0].architecture.width}x{models[0].architecture.depth}": models}
         models, model_files = [load(student_file)], [student_file]
     rows = compare(models, solver, [int(n) for n in args.n_theta.split(",")],
