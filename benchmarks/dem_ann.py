@@ -307,12 +307,14 @@ def main() -> None:
               f"{r['seconds_ann']:>9.4f}{r['dem_over_ann']:>9.0f}  {r['status']}"
               + (f"  ({', '.join(f'{k}: {x:.2f}' for k, x in r['others_q_max_dev_pct_of_peak'].items())})"
                  if r["others_q_max_dev_pct_of_peak"] else ""))
-    members_info = [{"file": str(p), "seed": m.meta.get("config", {}).get("seed"), "epochs": m.meta.get("epochs_run"),
+    members_info = [{"file": str(p), "architecture": f"{m.architecture.width}x{m.architecture.depth}",
+                     "seed": (m.meta.get("config") or m.meta.get("distilled", {}).get("config", {})).get("seed"),
+                     "distilled": "distilled" in m.meta, "epochs": m.meta.get("epochs_run"),
                      "training_s": m.meta.get("seconds"), "best_val_loss": m.meta.get("best_val_loss")}
                     for p, m in zip(model_files, models)]
     for r in members_info:
-        print(f"member seed {r['seed']}: {r['epochs']} epochs in {r['training_s']:.0f} s, "
-              f"validation loss {r['best_val_loss']:.3g}")
+        print(f"{'student' if r['distilled'] else 'member'} {r['architecture']} seed {r['seed']}: {r['epochs']} "
+              f"epochs in {r['training_s']:.0f} s, validation loss {r['best_val_loss']:.3g}")
     out.write_text(json.dumps({
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
         "mesostructure": args.mesostructure, "solver": solver, "datasets": [s.to_dict() for s in specs],
