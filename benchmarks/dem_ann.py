@@ -17,8 +17,9 @@ paths at small n_theta. Two cases (``--mesostructure``):
 - ``standard``: the H-cell in DEM, the ``compliance`` formulation; the closed form is listed as
   a third reference.
 
-The hexagon-center ANN-REV is an ensemble of three networks trained alike (seeds 0, 1, 2;
-``--members``), whose increments it averages; each member alone is reported too.
+The hexagon-center ANN-REV is the 64x3 student distilled from one 96x3 network (``STUDENT``;
+``--no-student``: the network itself), the network listed beside it; ``--members N`` trains an
+ensemble of N networks alike (seeds 0 ... N-1), whose increments it averages, each listed alone.
 
 Reported per path: max and RMS deviation of q relative to the DEM-REV's peak q (and the closed
 form's, as a reference; for an ANN run that fails, over its rows before the failure, with the
