@@ -106,9 +106,9 @@ def distill_cmd(
     if out.suffix != ".safetensors":
         raise InputError(f"--out must end in .safetensors, got {str(out)!r}")
     cfg = DistillConfig(width=width, depth=depth, activation=activation, strains=strains,
-                        raw_weight=raw_weight, rollout=rollout, rollout_weight=rollout_weight, epochs=epochs, batch_size=batch_size, lr=lr,
-                        patience=patience, min_lr=min_lr, seed=seed, device=device,
-                        max_minutes=max_minutes)
+                        raw_weight=raw_weight, rollout=rollout, rollout_weight=rollout_weight,
+                        epochs=epochs, batch_size=batch_size, lr=lr, patience=patience, min_lr=min_lr,
+                        seed=seed, device=device, max_minutes=max_minutes)
     model = modelfile.load(teacher)
     with LazyProgress("distilling") as progress:
         s, history = distill_on_sample(model, data if len(data) > 1 else data[0], cfg, progress)

@@ -10,7 +10,10 @@ increment dz/m0 = A e + sum_k <n_k . e - c_k^2> B_k is fitted to the teacher's, 
 weighed as one of the secant dz/|de| (the teacher's ``secant_floor``). ``raw_weight`` adds the
 squared difference of the raw outputs (each scaled by the teacher's spread over the states),
 which holds the student to the teacher's mechanisms, not just to their sum (measured: the
-validation loss fell faster). The student keeps the teacher's formulation, scalers and
+validation loss fell faster). For a richer cell ``rollout_weight`` adds the difference of the two
+networks' rollouts of ``rollout`` steps from the data's path states: without it, a 64x3 student
+as good on single increments was 2.58 % of peak q off a DEM-REV path, with it 1.55 % (README).
+The student keeps the teacher's formulation, scalers and
 training domain; its metadata names the teacher and the distillation's settings.
 """
 
@@ -90,8 +93,8 @@ def distill(teacher: Surrogate, columns: dict[str, np.ndarray], config: DistillC
     Z = torch.as_tensor(teacher.x_scaler.transform(X), dtype=torch.float32, device=dev)
     T = as64(teacher.forward(X))  # the teacher's outputs in float64
     spread = T.std(0).clamp(min=1e-12)
+    magnitude = np.linalg.norm(E, axis=1)
     E = as64(E)
-    magnitude = np.linalg.norm(form.aux(columns), axis=1)
     floor = teacher.meta.get("config", {}).get("secant_floor") or 2.5e-4
 
     def strains(rows):
@@ -105,8 +108,7 @@ def distill(teacher: Surrogate, columns: dict[str, np.ndarray], config: DistillC
     def loss(rows, e, at, raw: bool):
         out = net(Z[at]).double()
         d = form.head(out, e) - form.head(T[at], e)
-        w = as64(secant_weights(e.cpu().numpy(), floor / form.m0))
-        total = ((d * d).sum(1) * w).mean()
+        total = ((d * d).sum(1) * secant_weights(e, floor / form.m0)).mean()
         if raw and config.raw_weight:
             r = (out[:len(rows)] - T[rows]) / spread
             total = total + config.raw_weight * (r * r).mean()
@@ -121,6 +123,7 @@ def distill(teacher: Surrogate, columns: dict[str, np.ndarray], config: DistillC
             if config.rollout and config.rollout_weight and form.richer else None)
     opt = torch.optim.Adam(net.parameters(), lr=config.lr)
     sched = torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=0.5, patience=config.patience)
+    n_batches = math.ceil(len(tr) / config.batch_size)
     best, best_state, history, t0 = math.inf, None, [], time.perf_counter()
     for epoch in range(config.epochs):
         net.train()
@@ -132,8 +135,7 @@ def distill(teacher: Surrogate, columns: dict[str, np.ndarray], config: DistillC
             opt.zero_grad(set_to_none=True)
             batch = loss(rows, e, at, raw=True)
             if roll is not None:
-                batch = batch + config.rollout_weight * roll.train_batch(i // config.batch_size,
-                                                                         math.ceil(len(order) / config.batch_size))
+                batch = batch + config.rollout_weight * roll.train_batch(i // config.batch_size, n_batches)
             batch.backward()
             opt.step()
             total += float(batch.detach()) * len(rows)

@@ -5,8 +5,8 @@ MLPs of report §2.4 this is faster than calling a framework per batch and keeps
 of PyTorch. Training (``hmodel.surrogate.training``) uses PyTorch. (PyTorch's float32 linear
 layers run a 2,304-row batch 7-15 % faster alone, but a 64-point ANN-REV run on one thread
 took 46 against 28 ms with them, measured; the cause, perhaps its thread pool between calls,
-was not pinned down.) The rows run in blocks whose activations stay in cache. ``forward(X, single=True)`` runs the layers in float32, the
-precision the network was trained in (outputs within ~4e-7 of float64, measured; 2-5x faster);
+was not pinned down.) The rows run in blocks whose activations stay in cache.
+``forward(X, single=True)`` runs the layers in float32, the precision the network was trained in (outputs within ~4e-7 of float64, measured; 2-5x faster);
 the solver uses it for ``meso`` models only (see ``SurrogateSolver._network``). Networks with
 the strain increment among their inputs need float64: the Newton iterations' finite-difference
 probes differentiate their output, and float32 round-off made those tangents noise.
@@ -140,8 +140,8 @@ class Surrogate:
             for k, (W, b) in enumerate(hidden):
                 h = np.matmul(h, W, out=buffers[k % 2, :len(h), :W.shape[1]])
                 h += b
-                if silu:  # h = x/2 (halved layers): silu(x) = h (1 + tanh h), no overflow
-                    # (3x faster than expit)
+                if silu:  # h = x/2 (halved layers): silu(x) = h (1 + tanh h); no overflow,
+                    # 3x faster than expit
                     t = np.tanh(h, out=buffers[2, :len(h), :W.shape[1]])
                     t += 1.0
                     h *= t

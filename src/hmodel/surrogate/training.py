@@ -252,10 +252,13 @@ class _Rollout:
             return float(self._error(self.val))
 
 
-def secant_weights(e: np.ndarray, floor: float) -> np.ndarray:
+def secant_weights(e, floor: float):
     """Row weights (m0/|de|)^2 = 1/|e|^2 for strains e = de/m0 (n, 2), |e| taken as at least
-    ``floor``: they turn a squared error of dz/m0 into one of the secant dz/|de| (times m0)."""
-    return 1.0 / np.maximum(np.linalg.norm(e, axis=1), floor) ** 2
+    ``floor``: they turn a squared error of dz/m0 into one of the secant dz/|de| (times m0).
+    NumPy or torch."""
+    if isinstance(e, np.ndarray):
+        return 1.0 / np.maximum(np.linalg.norm(e, axis=1), floor) ** 2
+    return 1.0 / e.norm(dim=1).clamp(min=floor) ** 2
 
 
 def _loss(kind: str, logit: int | None):
