@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 
 from .errors import InputError
-from .loading.compiled import (NOT_CONVERGED, _fd_tangent, _solve_point, _trial, cell_responses, kernel_inputs,
+from .loading.compiled import (NOT_CONVERGED, TRIAL_LIMITS, _fd_tangent, _solve_point, _trial, cell_responses, kernel_inputs,
                                supports)
 from .loading.control import Tangent
 from .rev import Rev, RevState
@@ -137,7 +137,7 @@ def _stress_probe_kernel(values, flags, eps, sig, K, targets, geo, p, mode, volu
         has = np.ones(1, dtype=np.bool_)
         status = _solve_point(v, f, e, s, Kk, has, S, M, targets[k], geo, p, mode, volume0, rtol,
                               max_iter, 0, h, buf, bufflags, resp, np.empty(0),
-                              np.zeros(1, dtype=np.int64))
+                              np.zeros(1, dtype=np.int64), TRIAL_LIMITS)
         for j in range(3):
             deps_out[k, j] = np.nan if status == NOT_CONVERGED else e[j] - eps[j]
 

@@ -43,7 +43,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..cell.state import FIELDS, FLAGS, CellFlags, CellState
-from ..errors import InputError
+from ..errors import InputError, SolverError
 from ..params import Params
 from .mesostructure import CONSTRUCTORS, TYPE1, TYPE1_SIGN, TYPE2, Mesostructure, build
 from .scene import DEMOptions
@@ -208,6 +208,13 @@ class DEMSolver:
         if not np.all(np.isfinite(dl)):
             raise InputError("DEM increments must be finite")
         flat = values.reshape(-1, self.n_fields)
+        # A length increment as long as the cell itself is no cell increment (a run-away
+        # Newton trial): refused before YADE is asked to drive grains through each other.
+        worst = np.abs(dl) / np.maximum(np.abs(flat[:, 6:8]), 1e-300) if len(flat) else np.zeros((0, 2))
+        if worst.size and worst.max() >= 1.0:
+            k = np.unravel_index(int(np.argmax(worst)), worst.shape)
+            raise SolverError(f"{self.name}: a cell length increment of {dl[k]:.3g} m on a cell of "
+                              f"length {flat[k[0], 6 + k[1]]:.3g} m (at most the cell's length)")
         if flat.shape[0] == 0:
             return CellState(values.copy()), CellFlags.none(shape)
         rows, inverse = np.unique(np.hstack([flat, dl]), axis=0, return_inverse=True)

@@ -38,11 +38,13 @@ from ..rev import Rev, RevState
 from ..rev.kernels import cell_dl, weighted_global
 from ..surrogate.meso_kernel import kernel_params as meso_kernel_params, meso_increment
 from ..surrogate.solver import SurrogateSolver
-from .control import Control, Tangent, solve_increment
+from .control import MAX_TRIAL_STRAIN, STEP_MULTIPLE, Control, Tangent, solve_increment
 from .result import FRACTIONS
 
 # Kernel status per material point and increment.
 OK, NOT_CONVERGED = 0, 1
+#: The generic driver's bounds on a trial strain increment, for the kernels (``control.trial_cap``).
+TRIAL_LIMITS = np.array([MAX_TRIAL_STRAIN, STEP_MULTIPLE])
 
 
 def supports(rev: Rev) -> bool:
@@ -266,16 +268,33 @@ def _broken(flags):
 
 
 @njit(cache=True, error_model="numpy")
+def _bound(x, cap):
+    """Scales x (3,) in place back onto the ball of radius cap if outside; whether it did."""
+    nrm = math.sqrt(x[0] ** 2 + x[1] ** 2 + x[2] ** 2)
+    if nrm <= cap:
+        return False
+    for j in range(3):
+        x[j] *= cap / nrm
+    return True
+
+
+@njit(cache=True, error_model="numpy")
 def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rtol, max_iter,
-                  h, buf, bufflags, x, sig_out, resp, guess, trials):
+                  h, buf, bufflags, x, sig_out, resp, guess, trials, limits):
     """Newton-Broyden on the stress rows of one point (mirrors ``control._newton``).
 
     Returns (converged, slot): ``buf[slot]``/``bufflags[slot]`` hold the solution, or, when
     Newton stalls, the trial with the most broken cells (the event state); ``x`` and
     ``sig_out`` receive its strain increment and stress. Slots 0-2 hold the current, the best
     and the next trial (indices, not copies). Returns slot -1 when a cell increment or the
-    Jacobian fails.
+    Jacobian fails, or when Newton stalled with every trial held at the strain cap
+    (``limits`` = (MAX_TRIAL_STRAIN, STEP_MULTIPLE), see ``control.trial_cap``).
     """
+    strain = 0.0
+    for r in range(3):
+        if not S[r]:
+            strain += v[r] ** 2
+    cap = max(limits[0], limits[1] * math.sqrt(strain))
     R = np.empty(3)
     sig_t = np.empty(3)
     sig_n = np.empty(3)
@@ -304,6 +323,7 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rt
     xt, ok = _newton_step(x, R, K, S, M)
     if not ok:
         return False, -1
+    _bound(xt, cap)
     trust = 4.0 * max(math.sqrt(xt[0] ** 2 + xt[1] ** 2 + xt[2] ** 2), 1e-8)
     if guess.shape[0] and math.isfinite(guess[0]):
         # first trial: the last increment's strain, its strain rows moved to this increment's
@@ -315,6 +335,7 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rt
         if dg is not None:
             xt = guess + dg
             trust = max(trust, 4.0 * math.sqrt(xt[0] ** 2 + xt[1] ** 2 + xt[2] ** 2))
+    held = _bound(xt, cap)
     cur = 0
     trials[0] += 1
     if not _slope_trial(values, eps, xt, geo, p, mode, volume0, buf[cur], bufflags[cur], sig_t,
@@ -329,7 +350,9 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rt
             if S[r]:
                 res = max(res, abs(R[r]))
         key = -_broken(bufflags[cur]) + res / (1.0 + res)
-        if key < best_key:  # the event fallback's candidate: most broken cells, then residual
+        # the event fallback's candidate: most broken cells, then residual (a trial held at the
+        # cap is none: a jump lies near the solution, not out there)
+        if not held and key < best_key:
             best_key = key
             best = cur
             x[:] = xt
@@ -354,6 +377,9 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rt
         nrm = math.sqrt(dx[0] ** 2 + dx[1] ** 2 + dx[2] ** 2)
         if nrm > trust:  # trust region: a correction never exceeds a few predictor increments
             dx *= trust / nrm
+        x_new = xt + dx
+        held = _bound(x_new, cap)
+        dx = x_new - xt
         trials[0] += 1
         if not _slope_trial(values, eps, xt + dx, geo, p, mode, volume0, buf[nxt], bufflags[nxt],
                             sig_n, resp, exact, u, K):
@@ -370,12 +396,12 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rt
         sig_t[:] = sig_n
         cur = nxt
         _residual(xt, sig_t, S, M, v, R)
-    return False, best
+    return False, best if best_key < 1e300 else -1
 
 
 @njit(cache=True, error_model="numpy")
 def _solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rtol,
-                 max_iter, max_events, h, buf, bufflags, resp, guess, trials):
+                 max_iter, max_events, h, buf, bufflags, resp, guess, trials, limits):
     """One mixed-control increment of one material point, its state updated in place.
 
     Mirrors ``control.solve_increment``: when Newton stalls inside the jump of a cell event,
@@ -408,7 +434,7 @@ def _solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volum
     for event in range(max_events + 1):
         done, slot = _newton_point(values, eps, sig, K, has_K, S, M, target, geo, p, mode,
                                    volume0, rtol, max_iter, h, buf, bufflags, x, sig_new, resp,
-                                   guess if event == 0 else guess[:0], trials)
+                                   guess if event == 0 else guess[:0], trials, limits)
         if slot < 0 or (not done and event == max_events):
             break
         if event == 0 and not done:  # keep the start state, to restore it on failure
@@ -436,7 +462,8 @@ def _solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volum
 
 @njit(cache=True, error_model="numpy")
 def _run_steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin, k_end,
-               geo, p, mode, volume0, rtol, max_iter, max_events, h, rec, status, resp, guess, trials):
+               geo, p, mode, volume0, rtol, max_iter, max_events, h, rec, status, resp, guess, trials,
+               limits):
     """Increments k_begin..k_end-1 (1-based k of n_steps) of a segment for B material points.
 
     Stops after the first increment where a point fails (``status[b] != OK``) and returns its
@@ -457,7 +484,7 @@ def _run_steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_b
                     v[r] = end[b, r] / n_steps
             status[b] = _solve_point(values[b], flags[b], eps[b], sig[b], K[b], has_K[b:b + 1],
                                      S, M, v, geo, p, mode, volume0, rtol, max_iter, max_events,
-                                     h, buf, bufflags, resp[b], guess[b], trials[b:b + 1])
+                                     h, buf, bufflags, resp[b], guess[b], trials[b:b + 1], limits)
             failed |= status[b] != OK
             row = rec[k - k_begin, b]
             row[:3] = eps[b]
@@ -537,7 +564,7 @@ class CompiledSegment:
                            self.S, self.M, self.start, self.end, self.n_steps, k, end, self.geo,
                            self.p, self.rev._mode, self.rev.volume0, self.rtol, self.max_iter,
                            self.max_events, self.tangent.fd_step, rec[k - k_begin:], status, resp,
-                           self.guess, self.trials)
+                           self.guess, self.trials, TRIAL_LIMITS)
             if k < end:  # increment k failed for some points
                 self._hand_back(k, status != OK, rec[k - k_begin])
                 status[:] = OK

@@ -25,6 +25,20 @@ from ..rev import Rev, RevState
 
 COMPONENTS = ("11", "22", "12")
 
+#: Newton's trials are bounded: no trial strain increment (Euclidean norm over 11, 22, 12) is
+#: larger than MAX_TRIAL_STRAIN, or than STEP_MULTIPLE times the increment's strain rows where
+#: those ask for more. A singular or sign-flipped tangent (a sample that has lost its stiffness
+#: along a stress-controlled direction) otherwise proposes increments many orders of magnitude
+#: beyond the path, which a cell solver would have to take.
+MAX_TRIAL_STRAIN = 0.05
+STEP_MULTIPLE = 100.0
+
+
+def trial_cap(control: "Control") -> np.ndarray:
+    """Largest trial strain increment (B,) of each point's increment under ``control``."""
+    strain = np.linalg.norm(control.values[:, ~control.stress_rows], axis=1)
+    return np.maximum(MAX_TRIAL_STRAIN, STEP_MULTIPLE * strain)
+
 
 @dataclass(frozen=True)
 class Control:
@@ -106,8 +120,14 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
     pending = np.arange(B)
     for _ in range(max_events + 1):
         sub = Tangent(None if tangent.K is None else tangent.K[pending], tangent.fd_step)
-        done, reached = _newton(rev, state.select(pending), Control(
-            control.stress_rows, control.matrix, control.values[pending]), sub, rtol, max_iter)
+        part = Control(control.stress_rows, control.matrix, control.values[pending])
+        done, reached, diverged = _newton(rev, state.select(pending), part, sub, rtol, max_iter)
+        if diverged.any():
+            b = pending[np.flatnonzero(diverged)[0]]
+            raise SolverError(
+                f"mixed-control Newton diverged at strain {np.round(state.eps[b], 8).tolist()}: every "
+                f"trial beyond the strain-increment limit {trial_cap(part)[diverged][0]:.3g} missed "
+                f"the stress targets (singular or sign-flipped tangent)")
         if tangent.K is None:
             tangent.K = np.zeros((B, 3, 3))
         if sub.K is not None:
@@ -127,11 +147,13 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
 
 
 def _newton(rev: Rev, state: RevState, control: Control, tangent: Tangent, rtol: float,
-            max_iter: int) -> tuple[bool, RevState]:
+            max_iter: int) -> tuple[np.ndarray, RevState, np.ndarray]:
     """Newton-Broyden on the stress rows.
 
-    Returns a mask of the converged points (B,) and a state holding, for each point, its
-    solution or, where Newton stalled, the trial with the most broken cells (an event state).
+    Returns a mask of the converged points (B,), a state holding, for each point, its
+    solution or, where Newton stalled, the trial with the most broken cells (an event state),
+    and a mask of the diverged points: not converged, and every trial held at the strain cap
+    (:func:`trial_cap`), so that no event state is worth committing.
     """
     M, S, v = control.matrix, control.stress_rows, control.values
     if not S.any():
@@ -139,7 +161,7 @@ def _newton(rev: Rev, state: RevState, control: Control, tangent: Tangent, rtol:
             deps = np.linalg.solve(M, v.T).T
         except np.linalg.LinAlgError:
             raise SolverError("strain control rows are linearly dependent") from None
-        return np.ones(state.n_points, bool), rev.step(state, deps)
+        return np.ones(state.n_points, bool), rev.step(state, deps), np.zeros(state.n_points, bool)
 
     B = state.n_points
     scale = np.maximum(np.abs(v[:, S]), np.abs(state.sig).max(axis=1, keepdims=True))
@@ -166,35 +188,44 @@ def _newton(rev: Rev, state: RevState, control: Control, tangent: Tangent, rtol:
         R[:, S] = sig @ M[S].T - v[:, S]
         return R
 
+    cap = trial_cap(control)
+
+    def bounded(x):
+        """x held inside the ball of radius cap, and the mask of the points it was cut back."""
+        nrm = np.linalg.norm(x, axis=1)
+        over = nrm > cap
+        return np.where(over[:, None], x * (cap / np.maximum(nrm, 1e-300))[:, None], x), over
+
     # Tangent predictor from the current state, then Newton with Broyden updates.
-    x = newton(np.zeros((B, 3)), residual(np.zeros((B, 3)), state.sig))
+    x, held = bounded(newton(np.zeros((B, 3)), residual(np.zeros((B, 3)), state.sig)))
     trust = 4.0 * np.maximum(np.linalg.norm(x, axis=1), 1e-8)[:, None][:, 0]
     trial = rev.step(state, x)
     R = residual(x, trial.sig)
-    best, best_key = trial, _event_key(trial, R, S)
+    # a trial held at the cap is no event state (a jump lies near the solution, not out there)
+    best, best_key = trial, np.where(held, np.inf, _event_key(trial, R, S))
     for it in range(max_iter):
         done = np.all(np.abs(R[:, S]) <= rtol * scale, axis=1)
         if done.all():
-            return done, trial
+            return done, trial, np.zeros(B, bool)
         if it == max_iter // 3:  # stalled: fresh finite-difference tangent at the current trial
             # (converged points keep theirs, so that a point's path never depends on its batch)
             todo = np.flatnonzero(~done)
             tangent.K[todo] = _fd_tangent(rev, state.select(todo), x[todo], tangent.fd_step)
         dx = newton(x, R) - x
         # Trust region: a Newton correction never exceeds a few predictor increments.
-        cap = trust / np.maximum(np.linalg.norm(dx, axis=1), 1e-300)
-        x_new = np.where(done[:, None], x, x + dx * np.minimum(cap, 1.0)[:, None])
+        step = trust / np.maximum(np.linalg.norm(dx, axis=1), 1e-300)
+        x_new, held = bounded(np.where(done[:, None], x, x + dx * np.minimum(step, 1.0)[:, None]))
         new = rev.step(state, x_new)
         # A secant across a cell event (a jump) would wreck the tangent: skip those points.
         smooth = np.all(new.flags.broken == trial.flags.broken, axis=1)
         _broyden(tangent, (x_new - x) * smooth[:, None], new.sig - trial.sig)
         x, trial = x_new, new
         R = residual(x, trial.sig)
-        key = _event_key(trial, R, S)
+        key = np.where(held, np.inf, _event_key(trial, R, S))
         better = key < best_key
         best, best_key = trial.where(better, best), np.where(better, key, best_key)
     done = np.all(np.abs(R[:, S]) <= rtol * scale, axis=1)
-    return done, trial.where(done, best)
+    return done, trial.where(done, best), ~done & np.isinf(best_key)
 
 
 def _event_key(trial: RevState, R: np.ndarray, S: np.ndarray) -> np.ndarray:

@@ -50,6 +50,9 @@ class SurrogateSolver:
     #: ~1e-9 of the stress where a cell switches between sticking and sliding (the closed form
     #: is continuous there), which a 1e-10 tolerance can fall into.
     stress_rtol = 1e-7
+    #: Most sub-steps of the largest trained increment one cell increment may be cut into
+    #: (strain-input formulations); a larger request is refused with a SolverError.
+    max_substeps = 100
 
     def __init__(self, model: Surrogate | Sequence[Surrogate], on_outside: str = "fallback",
                  margin: float = 0.0, opening: str = "rule"):
@@ -115,8 +118,7 @@ class SurrogateSolver:
         else:
             one = self._one_meso if self.model.formulation.name == "meso" else self._one
             e1, e2 = -dl[:, 0] / params.l10, -dl[:, 1] / params.l20
-            n_sub = max(1, math.ceil(max(np.abs(e1).max(initial=0.0), np.abs(e2).max(initial=0.0))
-                                     / self.max_increment - 1e-12))
+            n_sub = self._substeps(max(np.abs(e1).max(initial=0.0), np.abs(e2).max(initial=0.0)))
             values, flags = v, None
             for _ in range(n_sub):
                 values, flags = one(params, values, e1 / n_sub, e2 / n_sub, dl / n_sub)
@@ -124,6 +126,19 @@ class SurrogateSolver:
         if not np.all(np.isfinite(values)):
             raise SolverError("the surrogate returned a non-finite cell state")
         return CellState(values.reshape(*shape, n_state)), CellFlags(flags.reshape(*shape, 5))
+
+    def _substeps(self, largest: float) -> int:
+        """Sub-steps for a cell strain increment of size ``largest``: a request beyond
+        ``max_substeps`` trained increments is no cell increment the network knows (a run-away
+        Newton trial, typically) and fails at once instead of being cut into unbounded work."""
+        if not math.isfinite(largest):
+            raise SolverError(f"the surrogate was asked for a non-finite cell strain increment ({largest})")
+        if largest > self.max_substeps * self.max_increment:
+            raise SolverError(
+                f"cell strain increment {largest:.3g} is {largest / self.max_increment:.3g} times the "
+                f"surrogate's largest trained increment {self.max_increment:.3g} (at most "
+                f"{self.max_substeps} sub-steps)")
+        return max(1, math.ceil(largest / self.max_increment - 1e-12))
 
     def _one_meso(self, params, v, e1, e2, dl):
         """``meso`` formulation: one learned increment of the summary state, in the compiled
