@@ -12,10 +12,10 @@ A ``meso`` surrogate (``SurrogateSolver`` with a meso model) runs through the sa
 network sees the state only, so each increment starts with one network evaluation of every cell
 of every point (:func:`cell_responses`, which also checks the training domain), and every trial
 of the increment applies that learned response in :func:`hmodel.surrogate.meso_kernel.meso_increment`.
-Newton's first trial is then the point's previous increment (15 % fewer trials on drained
-paths, measured), and where one stress row is controlled each trial also gives the exact stress
-slope along the free strain direction, in place of Broyden's secant; the closed form keeps its
-tangent predictor and secant.
+Newton's first trial is then the point's previous increment (along a smooth path it is close
+to the answer, so fewer trials are needed), and where one stress row is controlled each trial
+also gives the exact stress slope along the free strain direction, in place of Broyden's secant;
+the closed form keeps its tangent predictor and secant.
 
 The kernel also has the generic driver's event fallback (a stress target inside the jump of a
 cell event, see ``solve_increment``). An increment it still cannot converge is handed back to
@@ -169,8 +169,8 @@ def _fd_tangent(values, eps, x, geo, p, mode, volume0, h, out, flags, K, resp):
 
 @njit(cache=True, error_model="numpy")
 def _solve3(J, R):
-    """J^-1 R by cofactors (a 3x3 LAPACK solve from Numba costs 290 against 42 ns, measured);
-    None when J is singular."""
+    """J^-1 R by cofactors (a LAPACK call from Numba costs several times the few products of a
+    3x3 system); None when J is singular."""
     c00 = J[1, 1] * J[2, 2] - J[1, 2] * J[2, 1]
     c01 = J[1, 2] * J[2, 0] - J[1, 0] * J[2, 2]
     c02 = J[1, 0] * J[2, 1] - J[1, 1] * J[2, 0]
@@ -305,8 +305,8 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, rt
     x[:] = 0.0
     # A meso surrogate with one stress row: each trial also gives the stress derivative along
     # the strain direction u left free by the strain rows, which replaces Broyden's secant along
-    # u (Newton with the exact slope of the current regimes: 4.2 against 3.1 trials per drained
-    # increment, measured)
+    # u (the exact slope of the current regimes needs no secant updates to learn it: fewer trials
+    # per drained increment, and the first tangent costs one trial)
     u = _free_direction(S, M) if resp.shape[1] > 0 else np.zeros(0)
     exact = u.shape[0] > 0
     if not has_K[0]:
@@ -533,7 +533,7 @@ class CompiledSegment:
         self.geo, self.p = kernel_inputs(rev)
         self.meso = _meso(rev)
         # per point: the last increment's strain, Newton's first trial of the next one (meso
-        # surrogates: 15 % fewer trials on drained paths, measured; the closed form keeps its
+        # surrogates: close to the answer along a smooth path; the closed form keeps its
         # tangent predictor, whose results the generic driver reproduces to 1e-7 where cell
         # events jump), and the trials made (calls of the cell solver on its n_theta cells)
         self.guess = np.full((B, 3 if self.meso else 0), np.nan)
