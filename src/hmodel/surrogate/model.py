@@ -1,15 +1,16 @@
 """A trained surrogate of the H-cell increment: formulation, scalers and an MLP, used from NumPy.
 
 Prediction runs the network as plain NumPy matrix products on the saved weights: for the small
-MLPs of report §2.4 this is faster than calling a framework per batch and keeps inference free
-of PyTorch. Training (``hmodel.surrogate.training``) uses PyTorch. (PyTorch's float32 linear
-layers run a 2,304-row batch 7-15 % faster alone, but a 64-point ANN-REV run on one thread
-took 46 against 28 ms with them, measured; the cause, perhaps its thread pool between calls,
-was not pinned down.) The rows run in blocks whose activations stay in cache.
-``forward(X, single=True)`` runs the layers in float32, the precision the network was trained in (outputs within ~4e-7 of float64, measured; 2-5x faster);
-the solver uses it for ``meso`` models only (see ``SurrogateSolver._network``). Networks with
-the strain increment among their inputs need float64: the Newton iterations' finite-difference
-probes differentiate their output, and float32 round-off made those tangents noise.
+MLPs of report §2.4 this avoids a framework's per-call overhead, which dominates at these sizes,
+and keeps inference free of PyTorch. Training (``hmodel.surrogate.training``) uses PyTorch.
+(PyTorch's float32 linear layers were tried for inference and made whole ANN-REV runs slower,
+though a single large batch ran faster; see the benchmarks page of the documentation.) The rows
+run in blocks whose activations stay in cache. ``forward(X, single=True)`` runs the layers in
+float32, the precision the network was trained in (outputs within ~4e-7 of float64, at half the
+memory traffic); the solver uses it for ``meso`` models only (see ``SurrogateSolver._network``).
+Networks with the strain increment among their inputs need float64: the Newton iterations'
+finite-difference probes differentiate their output, and float32 round-off made those tangents
+noise.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from .scalers import Affine
 
 ACTIVATIONS = ("tanh", "relu", "silu", "gelu", "elu")
 #: Rows per block of the forward pass: 512 x 128 float32 activations stay in a core's L2 cache
-#: (one block of 2304 rows ran 2x slower per row, measured).
+#: (larger blocks spill out of it and cost more per row).
 BLOCK_ROWS = 512
 
 
@@ -48,8 +49,8 @@ def _act_inplace(name: str, x: np.ndarray) -> None:
 
 @njit(cache=True)
 def _outside(X, lo, hi):
-    """Rows of X with an input below lo or above hi (one pass: the NumPy form took 0.6 ms of a
-    64-point ANN-REV run, measured)."""
+    """Rows of X with an input below lo or above hi (one compiled pass over X, where the NumPy
+    form makes several passes and temporaries)."""
     out = np.zeros(X.shape[0], dtype=np.bool_)
     for i in range(X.shape[0]):
         for j in range(X.shape[1]):
@@ -128,7 +129,7 @@ class Surrogate:
         layers in float32 with ``single`` (see the module docstring); with ``spare``, that many
         more columns (uninitialized) after the outputs, for the caller. Every product is written
         into one of two block buffers and the output scaled in place: fresh arrays of this size
-        are new pages from the OS each time (at 9,216 rows 0.62 against 0.95 us per row, measured)."""
+        are new pages from the OS each time, which costs more than the products at large batches."""
         *hidden, (W_out, b_out) = self._layers32 if single else self._layers64
         z = self.x_scaler.transform(np.asarray(X, float)).astype(W_out.dtype, copy=False)
         out = np.empty((len(z), len(b_out)), z.dtype)
@@ -141,15 +142,15 @@ class Surrogate:
                 h = np.matmul(h, W, out=buffers[k % 2, :len(h), :W.shape[1]])
                 h += b
                 if silu:  # h = x/2 (halved layers): silu(x) = h (1 + tanh h); no overflow,
-                    # 3x faster than expit
+                    # and one vectorized tanh is cheaper than expit
                     t = np.tanh(h, out=buffers[2, :len(h), :W.shape[1]])
                     t += 1.0
                     h *= t
                 else:
                     _act_inplace(self.architecture.activation, h)
             np.matmul(h, W_out, out=out[i:i + BLOCK_ROWS])
-        if single:  # bias and scaling in float64, one pass (four NumPy passes took 1.4 of
-            # the 10 ms of the forward passes of a 64-point ANN-REV run, measured)
+        if single:  # bias and scaling in float64, one compiled pass instead of four NumPy
+            # passes over the outputs
             wide = np.empty((len(z), len(b_out) + spare))
             _scaled_back(out, self.weights[-1][1], self.y_scaler.scale, self.y_scaler.offset, wide)
             return wide
