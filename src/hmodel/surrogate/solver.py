@@ -20,7 +20,7 @@ solver (``on_outside="fallback"``) or stop the run (``"error"``); ``counts`` rep
 An ensemble (``SurrogateSolver([m1, m2, ...])``, ``--solver surrogate:A+B+C``) of ``meso``
 models of one formulation (networks trained alike, e.g. with other seeds) averages the members'
 increments dz before the way back: independent training errors of the members partly cancel
-(measured on the hexagon-center cell: README), at the cost of one network per member. A cell is
+(see the DEM cells page of the documentation), at the cost of one network per member. A cell is
 outside the training domain when it is outside any member's.
 """
 
@@ -187,13 +187,13 @@ class SurrogateSolver:
             if seen.shape == v.shape and np.array_equal(seen, v):
                 return outs, mask
         # A state equal to the one before it is evaluated once: the cells of an isotropic REV
-        # are all alike until shear starts (18 % of the network rows of a drained test, see
-        # README), and finding them costs two comparisons per field.
+        # are all alike until shear starts (a sizeable share of a drained test's network rows),
+        # and finding them costs two comparisons per field.
         first = np.ones(len(v), bool)
         first[1:] = np.any(v[1:] != v[:-1], axis=1)
         Xu = X if first.all() else X[first]
         self.counts["network_cells"] += len(Xu)
-        # float32 for meso models (checked against float64 on every DEM-REV path of the README);
+        # float32 for meso models (checked against float64 on every compared DEM-REV path);
         # compliance models stay float64: in float32 the shipped one stalled on unload-reload
         single = self.model.formulation.name == "meso"
         # one meso network: two spare columns, where meso_response(packed=True) puts cos and sin
