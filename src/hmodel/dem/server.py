@@ -1,6 +1,6 @@
 """A persistent YADE process answering one-increment requests (:mod:`hmodel.dem.yade_server`).
 
-Starting YADE costs about 1 s, a request of a few dozen cells a few tens of ms, so each DEM cell
+Starting YADE costs far more than answering a request of a few dozen cells, so each DEM cell
 solver keeps one process, started on first use and ended with the solver or at exit. A
 process that dies, answers nothing within the timeout or reports a failure gives a
 :class:`~hmodel.dem.yade.DEMError` with a one-line message (the process is then restarted on

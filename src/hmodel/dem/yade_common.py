@@ -61,6 +61,7 @@ def unbalanced(O, cell, rows, f_abs=0.0):
 
 
 def steps(O, n):
-    """n time steps (O.step() in a loop: O.run(n, True) waits ~40 ms per call)."""
+    """n time steps (O.step() in a loop: O.run(n, True) adds a fixed wait to every call,
+    longer than the few steps a balanced cell needs)."""
     for _ in range(n):
         O.step()
