@@ -102,14 +102,15 @@ HEX_REV = replace(HEX_DATASET, kind=3, n_directions=16, theta_min=0.0, theta_max
                             "drained:300e3,undrained:100e3,undrained:150e3,undrained:300e3")
 #: Errors weighed as errors of the secant dz/|de| down to increments of 2.5e-4 (``secant_floor``):
 #: on dz/m0 the first shear increments from a consolidated cell were left to the large increments,
-#: and every network was too soft there at 100 kPa (README).
+#: and every network was too soft there at 100 kPa (docs/dem.md).
 #: Width 96: as accurate as 128 on the compared paths (one network each, seeds 0 and 1: 1.17 and
 #: 1.88 % of peak q at most, against 1.83 % for 128) at 0.6 of its products; 64 was 2.8 % off.
 HEX_TRAINING = TrainConfig(formulation="meso", width=96, depth=3, activation="silu",
                            epochs=3000, patience=60, seed=0, device="cpu", max_minutes=20.0,
                            mechanisms=4, rollout=4, rollout_weight=0.5, secant_floor=2.5e-4)
 #: Networks per ANN-REV: one. An ensemble (``--members``, seeds 0, 1, ..., averaged increments)
-#: of three 128-wide networks was within 0.29-1.38 % of peak q, at three times the cost (README).
+#: of three 128-wide networks was within 0.29-1.38 % of peak q, at three times the cost
+#: (docs/dem.md).
 MEMBERS = {"hexagon-center": 1, "standard": 1}
 #: The compared ANN-REV of the hexagon-center cell: the 96x3 network distilled into a 64x3 one
 #: (``hmodel.surrogate.distill``: increments, raw outputs and 4-step rollouts of the teacher),
