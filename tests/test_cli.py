@@ -129,6 +129,30 @@ def test_bad_biaxial_input_is_one_line_and_writes_nothing(tmp_path, capsys, extr
     assert list(tmp_path.iterdir()) == []
 
 
+#: Malformed command lines (README: exit status 2), each with a word the message must name.
+MALFORMED = [
+    (["run", "biaxial", "--bogus"], "--bogus"),  # unknown option
+    (["run", "spiral"], "spiral"),  # unknown command
+    (["run", "strain-path"], "path"),  # missing argument
+    (["run", "biaxial", "--axial-strain"], "--axial-strain"),  # option without its value
+    (["run", "biaxial", "--axial-strain", "abc"], "--axial-strain"),  # not a number
+    (["run", "biaxial", "--step", "1e-4x"], "--step"),
+    (["data", "generate", "2", "--workers", "two"], "--workers"),  # not an integer
+    (["run", "iso", "--p0", "100kPa", "extra"], "extra"),  # an argument too many
+    (["run", "biaxial", "--undrained=yes"], "--undrained"),  # a flag given a value
+]
+
+
+@pytest.mark.parametrize("args, word", MALFORMED)
+def test_malformed_command_line_exits_2_with_one_line(tmp_path, capsys, monkeypatch, args, word):
+    monkeypatch.chdir(tmp_path)  # where the default output folders would go
+    code, stdout, err = run_cli(args, capsys)
+    assert code == 2, (code, err)
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("hmodel: error:") and word in lines[0], err
+    assert stdout == ""
+    assert list(tmp_path.iterdir()) == []
+
 BAD_CSV = {
     "bad-header": ("e11,e22\n0.001,0.001\n", "header"),
     "non-finite": ("eps11,eps22\n0.001,nan\n", "non-finite"),
@@ -192,6 +216,12 @@ def test_console_script_as_installed(tmp_path):
     assert bad.returncode == 1
     assert bad.stderr.count("\n") == 1 and "phi_g" in bad.stderr
     assert not (tmp_path / "x").exists()
+    malformed = subprocess.run([exe, "run", "iso", "--p0", "0.1MPa", "--bogus", "--out", str(tmp_path / "y")],
+                               capture_output=True, text=True)
+    assert malformed.returncode == 2
+    assert malformed.stderr.count("\n") == 1 and malformed.stderr.startswith("hmodel: error:")
+    assert "--bogus" in malformed.stderr and "Traceback" not in malformed.stderr
+    assert not (tmp_path / "y").exists()
 
 
 def test_version_and_help(capsys):
