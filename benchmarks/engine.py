@@ -68,7 +68,7 @@ def fused_trials(repeat: int, n_calls: int = 2000) -> float:
     out, flags, sig = np.empty((360, 8)), np.empty((360, 5), bool), np.empty(3)
     x = np.array([1e-4, -5e-5, 0.0])
     resp = np.empty((360, 0))  # the closed form: no learned responses
-    args = (seg.values[0], seg.eps[0], x, seg.geo, seg.p, rev._mode, rev.volume0, out, flags, sig, resp)
+    args = (seg.values[0], seg.eps[0], x, seg.geo, seg.p, rev.mode, rev.volume0, out, flags, sig, resp)
 
     def run():
         for _ in range(n_calls):

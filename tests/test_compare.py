@@ -6,6 +6,7 @@ import pytest
 from hmodel import Params
 from hmodel.cli.app import main
 from hmodel.compare import deviations, run_path, standard_paths
+from hmodel.loading.result import COLUMNS, PathResult
 from hmodel.surrogate.shipped import load_shipped
 from hmodel.surrogate.solver import SurrogateSolver
 
@@ -18,6 +19,61 @@ def test_a_solver_against_itself_deviates_by_zero():
         b, _ = run_path(SMALL, spec, "closed-form", 1e-3, 1e-4)
         for d in deviations(a, b):
             assert d["q_max_dev_rel"] == 0 and d["eps_v_max_dev"] == 0 and d["rows"] == len(a.point(d["point"]))
+
+
+def _table(point, stage, q, p, eps_v) -> PathResult:
+    """A result table of hand-written rows: q, p, eps_v per row (stresses and strains follow)."""
+    q, p, ev = (np.asarray(x, float) for x in (q, p, eps_v))
+    cols = {c: np.zeros(len(q)) for c in COLUMNS}
+    cols.update(point=np.asarray(point), stage=np.asarray(stage, dtype=object), step=np.arange(1, len(q) + 1),
+                eps11=ev / 2, eps22=ev / 2, sig11=p + q / 2, sig22=p - q / 2, p=p, q=q, eps_v=ev)
+    return PathResult(cols)
+
+
+def test_deviations_report_known_differences():
+    """Hand-made results with known differences, rows matched stage by stage. Point 0: the other
+    solver reaches p0 one consolidation row later, then its shear q is 10 % higher and its eps_v
+    2e-4 larger; peak |q| = 40 kPa. Point 1: isotropic (q = 0), so Δq is relative to peak p."""
+    C, S = "consolidation", "shear"
+    ref = _table([0] * 7 + [1] * 2, [C] * 3 + [S] * 4 + [C] * 2,
+                 q=[0, 0, 0, 1e4, 2e4, 4e4, 3e4, 0, 0], p=[1e5, 2e5, 3e5] + [3e5] * 4 + [1e5, 2e5],
+                 eps_v=[1e-3, 2e-3, 3e-3, 3.1e-3, 3.2e-3, 3.3e-3, 3.4e-3, 1e-3, 2e-3])
+    other = _table([0] * 8 + [1] * 2, [C] * 4 + [S] * 4 + [C] * 2,
+                   q=[0, 0, 0, 0, 1.1e4, 2.2e4, 4.4e4, 3.3e4, 1e3, 3e3],
+                   p=[1e5, 2e5, 3e5, 3.2e5] + [3e5] * 4 + [1e5, 2e5],
+                   eps_v=[1e-3, 2e-3, 3e-3, 3.5e-3, 3.3e-3, 3.4e-3, 3.5e-3, 3.6e-3, 0.95e-3, 1.95e-3])
+    d0, d1 = deviations(ref, other)
+    assert d0["rows"] == 7 and d0["peak_q"] == pytest.approx(4e4)
+    assert d0["q_max_dev_rel"] == pytest.approx(4e3 / 4e4, rel=1e-12)  # 10 % of the peak row
+    assert d0["q_rms_dev_rel"] == pytest.approx(np.sqrt((1 + 4 + 16 + 9) * 1e6 / 7) / 4e4, rel=1e-12)
+    assert d0["eps_v_max_dev"] == pytest.approx(2e-4, rel=1e-9)
+    assert d0["eps_v_rms_dev"] == pytest.approx(2e-4 * np.sqrt(4 / 7), rel=1e-9)
+    assert d1["rows"] == 2 and d1["peak_q"] == pytest.approx(2e5)
+    assert d1["q_max_dev_rel"] == pytest.approx(3e3 / 2e5, rel=1e-12)
+    assert d1["eps_v_max_dev"] == pytest.approx(5e-5, rel=1e-9)
+
+
+def test_deviations_of_a_shifted_copy_of_a_run():
+    """A drained run against a copy whose shear rows have q raised by 3 % of each point's peak
+    |q| and eps_v by 1e-4: those are the maxima, and the RMS follows from the row counts."""
+    spec = {s.name: s for s in standard_paths(0.01)}["drained"]
+    ref, _ = run_path(SMALL, spec, "closed-form", 1e-3, 1e-4)
+    cols = {k: v.copy() for k, v in ref.columns.items()}
+    shear = cols["stage"] == "shear"
+    for b in range(ref.n_points):
+        m = shear & (cols["point"] == b)
+        cols["q"][m] += 0.03 * np.abs(ref.point(b)["q"]).max()
+    cols["eps_v"][shear] += 1e-4
+    devs = deviations(ref, PathResult(cols, ref.meta))
+    assert len(devs) == 3
+    for d in devs:
+        r = ref.point(d["point"])
+        frac = np.sqrt(np.count_nonzero(r["stage"] == "shear") / len(r))
+        assert d["rows"] == len(r)
+        assert d["q_max_dev_rel"] == pytest.approx(0.03, rel=1e-9)
+        assert d["q_rms_dev_rel"] == pytest.approx(0.03 * frac, rel=1e-9)
+        assert d["eps_v_max_dev"] == pytest.approx(1e-4, rel=1e-6)
+        assert d["eps_v_rms_dev"] == pytest.approx(1e-4 * frac, rel=1e-6)
 
 
 def test_paths_do_what_they_say():
@@ -38,14 +94,17 @@ def test_a_failed_run_keeps_its_rows_up_to_the_failure():
     from hmodel.cell.closed_form import ClosedFormSolver
     from hmodel.errors import SolverError
 
-    class FailsLater:  # the closed form through the generic driver, failing after `limit` calls
+    class FailsLater(ClosedFormSolver):  # through the generic driver, failing after `limit` calls
         name, calls, limit = "fails-later", 0, float("inf")
+
+        def kernel(self, params):
+            return None
 
         def step(self, params, state, dl1, dl2):
             self.calls += 1
             if self.calls > self.limit:
                 raise SolverError("stopped on purpose")
-            return ClosedFormSolver().step(params, state, dl1, dl2)
+            return super().step(params, state, dl1, dl2)
 
     spec = {s.name: s for s in standard_paths(0.02)}["undrained"]
     counted = FailsLater()
@@ -74,14 +133,24 @@ def test_shipped_surrogate_in_the_rev_reproduces_the_closed_form(paths):
 
 @pytest.mark.parametrize("opening", ["rule", "classifier"])
 def test_surrogate_runs_are_finished_or_reported_as_failed(opening):
+    """The report-scale 'increment' model is poor under shear, so only the isotropic path (every
+    cell closed, no sliding) must finish and stay close to the closed form; every other path
+    either finishes or fails with a one-line reason."""
     from hmodel.compare import compare_path
     solver = SurrogateSolver(load_shipped("increment"), opening=opening)
+    status = {}
     for spec in standard_paths(0.005):
         ref, res, devs, st = compare_path(SMALL, spec, solver, 1e-3, 1e-4)
+        status[spec.name] = st["status"]
         if res is None:
-            assert st["status"].startswith("failed: ") and len(st["status"]) > 10
+            reason = st["status"].removeprefix("failed: ")
+            assert st["status"].startswith("failed: ") and reason.strip() and "\n" not in reason, st
         else:
             assert st["status"] == "ok" and np.all(np.isfinite(res["sig11"])) and len(devs) == len(spec.p0)
+        if spec.name == "isotropic":
+            iso = devs
+    assert status["isotropic"] == "ok", status
+    assert all(d["q_max_dev_rel"] <= 0.01 and d["eps_v_max_dev"] <= 1e-3 for d in iso), iso
     assert solver.counts["cell_updates"] > 0
 
 

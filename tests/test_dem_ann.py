@@ -13,6 +13,7 @@ from hmodel.params import Params
 from hmodel.surrogate.distill import DistillConfig, _TeacherRollouts, distill
 from hmodel.surrogate.modelfile import load, save
 from hmodel.surrogate.rows import read_sample
+from hmodel.solvers import get_solver
 from hmodel.surrogate.solver import SurrogateSolver
 from hmodel.surrogate.training import TrainConfig, torch_network, train_on_sample
 
@@ -26,7 +27,7 @@ def _side_by_side(ann: SurrogateSolver, dem: str, rtol: float = 0.1) -> None:
     stress, and their consolidation strains agree within ``rtol``."""
     kw = dict(axial_strain=0.002, step=1e-3, iso_step=2e-4)
     res_ann = run_biaxial(PARAMS, [2e5], solver=ann, **kw)
-    res_dem = run_biaxial(PARAMS, [2e5], solver=dem, **kw)
+    res_dem = run_biaxial(PARAMS, [2e5], solver=get_solver(dem), **kw)
     assert len(res_ann.stage("shear")) == len(res_dem.stage("shear"))
     for res in (res_ann, res_dem):
         assert np.all(np.isfinite(np.asarray(res["q"])))

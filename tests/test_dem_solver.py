@@ -8,7 +8,7 @@ import stat
 import numpy as np
 import pytest
 
-from hmodel.cell import get_solver
+from hmodel.solvers import get_solver
 from hmodel.cli.app import main
 from hmodel.dem.yade import DEMError, available
 from hmodel.loading import run_biaxial
@@ -26,7 +26,7 @@ def test_drained_biaxial_through_the_rev_matches_closed_form():
     """Consolidation to 200 kPa then 0.4 % drained axial strain: the DEM-REV stress-strain
     curve lies within 0.5 % of the closed form's range (per-step difference of the two)."""
     kw = dict(axial_strain=0.004, step=1e-3, iso_step=2e-4)
-    dem = run_biaxial(PARAMS, [2e5], solver="dem:standard", **kw)
+    dem = run_biaxial(PARAMS, [2e5], solver=get_solver("dem:standard"), **kw)
     cf = run_biaxial(PARAMS, [2e5], **kw)
     assert dem.meta["solver"] == "dem:standard"
     assert len(dem) == len(cf)
@@ -68,8 +68,8 @@ def test_richer_cell_through_the_rev_gives_symmetric_stress():
     """A hexagon with a centre grain: 21 extra fields, the REV takes its Love-Weber stress
     from the solver. Under equal strains the stress is isotropic, under axial strain sig12 = 0
     (mirror symmetry); the centre grain stiffens the material against the standard cell."""
-    rev = Rev(PARAMS, "dem:hexagon-center")
-    std = Rev(PARAMS, "dem:standard")
+    rev = Rev(PARAMS, get_solver("dem:hexagon-center"))
+    std = Rev(PARAMS, get_solver("dem:standard"))
     assert rev.solver.n_fields == 8 + 14 + 21
     s, t = rev.initial(2), std.initial(2)
     deps = np.array([[5e-4, 5e-4, 0.0], [1e-3, 0.0, 0.0]])

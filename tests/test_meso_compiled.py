@@ -15,7 +15,7 @@ from hmodel.loading import Recorder, Segment, consolidate, run_segment
 from hmodel.loading.compiled import supports
 from hmodel.rev import Rev
 from hmodel.surrogate.meso import MesoFormulation
-from hmodel.surrogate.meso_kernel import kernel_params, meso_increment, pack_outputs, pack_responses
+from hmodel.cell.meso_kernel import kernel_params, meso_increment, pack_outputs, pack_responses
 from hmodel.surrogate.solver import SurrogateSolver
 from test_meso import PARAMS, _cells, tiny_model  # noqa: F401  (the module-scoped fixture)
 
@@ -162,12 +162,12 @@ def test_trial_slope_is_the_derivative_of_the_trial_stress(tiny_model):  # noqa:
     for _ in range(30):
         x, u = rng.normal(0.0, 3e-4, 3), rng.normal(size=3)
         sig, slope = np.empty(3), np.empty(3)
-        assert _trial_tangent(values, eps, x, geo, p, rev._mode, rev.volume0, out, flags, sig, resp, u, slope)
+        assert _trial_tangent(values, eps, x, geo, p, rev.mode, rev.volume0, out, flags, sig, resp, u, slope)
         fd = []
         for h in (1e-7, 1e-8):
             plus, minus = np.empty(3), np.empty(3)
-            _trial(values, eps, x + h * u, geo, p, rev._mode, rev.volume0, out, flags, plus, resp)
-            _trial(values, eps, x - h * u, geo, p, rev._mode, rev.volume0, out, flags, minus, resp)
+            _trial(values, eps, x + h * u, geo, p, rev.mode, rev.volume0, out, flags, plus, resp)
+            _trial(values, eps, x - h * u, geo, p, rev.mode, rev.volume0, out, flags, minus, resp)
             fd.append((plus - minus) / (2 * h))
         size = np.abs(fd[0]).max()
         if np.abs(fd[0] - fd[1]).max() <= 1e-5 * size:

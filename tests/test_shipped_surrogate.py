@@ -112,7 +112,7 @@ def test_solver_refuses_another_material(shipped):
     p, state = _cells(3)
     with pytest.raises(InputError, match="kn"):
         SurrogateSolver(shipped).step(p.with_(kn=1e8), state, 0.0, 0.0)
-    from hmodel.cell import get_solver
+    from hmodel.solvers import get_solver
     from hmodel.surrogate import ModelFileError
     with pytest.raises(InputError, match="solver"):
         get_solver("neural")

@@ -19,18 +19,16 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .cell import CellSolver  # noqa: E402
-from .loading import Recorder, Segment, consolidate, run_segment, strain_path  # noqa: E402
-from .loading.paths import biaxial_segment  # noqa: E402
-from .loading.result import PathResult  # noqa: E402
-from .params import Params  # noqa: E402
-from .rev import Rev  # noqa: E402
+from .cell import CellSolver
+from .loading import Recorder, Segment, consolidate, run_segment, strain_path
+from .loading.paths import biaxial_segment
+from .loading.result import PathResult
+from .params import Params
+from .rev import Rev
+from .solvers import get_solver
 
 
 @dataclass(frozen=True)
@@ -102,7 +100,7 @@ def run_path(params: Params, spec: PathSpec, solver: "str | CellSolver", step: f
     SolverError with the rows recorded up to the failure as ``partial``."""
     from .errors import SolverError
 
-    rev = Rev(params, solver)
+    rev = Rev(params, get_solver(solver))
     rec = Recorder({"path": spec.name, "solver": rev.solver.name})
     t = time.perf_counter()
     try:
@@ -184,7 +182,8 @@ def plot_overlay(name: str, ref: PathResult, other: PathResult, labels: tuple[st
     """q and volumetric strain against axial strain (or the path parameter), the stress path, and
     the errors: the second solver's Δq relative to the first's peak q and its Δεv, row by row
     within each stage."""
-    fig, axes = plt.subplots(1, 4, figsize=(19, 4.3), constrained_layout=True)
+    fig = Figure(figsize=(19, 4.3), layout="constrained")
+    axes = fig.subplots(1, 4)
     err_v = axes[3].twinx()
     for b in range(ref.n_points):
         for res, ls, lab in ((ref, "-", labels[0]), (other, "--", labels[1])):
@@ -209,4 +208,3 @@ def plot_overlay(name: str, ref: PathResult, other: PathResult, labels: tuple[st
     axes[0].legend(fontsize=7)
     axes[3].legend(fontsize=7)
     fig.savefig(path, dpi=130)
-    plt.close(fig)

@@ -57,7 +57,7 @@ def _table(rows: list[dict], digits: int = 4) -> str:
 def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
               progress: Callable[[float], None] | None = None) -> Path:
     """Run the study into ``out`` (a fresh folder is written atomically); returns report.html."""
-    from .cell import get_solver
+    from .solvers import get_solver
     from .compare import compare_path, plot_overlay, standard_paths
     from .data import DatasetSpec, generate
     from .io import write_outputs, write_rows
@@ -68,9 +68,12 @@ def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
     from .surrogate.evaluation import evaluate, parity_plot
     from .surrogate.rows import read_rows
     from .surrogate.shipped import DEFAULT_TRAINING, REV_DATASET
+    from .surrogate.torch_support import require_torch
     from .surrogate.training import train_on_sample
 
     plan = QUICK if quick else FULL
+    if plan.train_rows:
+        require_torch("reproduce without --quick (it trains a surrogate)")  # before any work
     params = Params(n_theta=plan.n_theta)
     work = out.with_name(out.name + ".work")
     work.mkdir(parents=True, exist_ok=True)

@@ -113,7 +113,7 @@ def strain_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1
         geo, p = kernel_inputs(rev)
         sig = np.empty((n, 3))
         values = np.ascontiguousarray(one.cells.values[0])
-        _strain_probe_kernel(values, one.eps[0], np.ascontiguousarray(probes), geo, p, rev._mode,
+        _strain_probe_kernel(values, one.eps[0], np.ascontiguousarray(probes), geo, p, rev.mode,
                              rev.volume0, sig, cell_responses(rev, values))
     else:
         sig = rev.step(one.select(np.zeros(n, dtype=np.int64)), probes).sig
@@ -156,11 +156,11 @@ def stress_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1
     flags = np.ascontiguousarray(one.flags.flags[0])
     K = np.empty((3, 3))
     resp = cell_responses(rev, values)
-    _fd_tangent(values, one.eps[0], np.zeros(3), geo, p, rev._mode, rev.volume0, FD_STEP,
+    _fd_tangent(values, one.eps[0], np.zeros(3), geo, p, rev.mode, rev.volume0, FD_STEP,
                 np.empty_like(values), np.empty_like(flags), K, resp)
     deps = np.empty((n, 3))
     _stress_probe_kernel(values, flags, one.eps[0].copy(), one.sig[0].copy(), K,
-                         np.ascontiguousarray(one.sig[0] + dsig), geo, p, rev._mode,
+                         np.ascontiguousarray(one.sig[0] + dsig), geo, p, rev.mode,
                          rev.volume0, 1e-10, 24, FD_STEP, deps, resp)
     return Envelope("stress", deps, dsig)
 
@@ -263,11 +263,9 @@ def along_biaxial(params, p0: float, axial_strain: float, undrained: bool = Fals
 def plot_envelopes(envelopes: dict, path, title: str) -> None:
     """Strain-probe response envelopes in the (dσ11, dσ22) plane, stress-probe strain responses
     in the (dε11, dε22) plane, and polar plots of the normalized d²W with the instability cone."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
-    fig = plt.figure(figsize=(15, 4.8), constrained_layout=True)
+    fig = Figure(figsize=(15, 4.8), layout="constrained")
     a = fig.add_subplot(1, 3, 1)
     b = fig.add_subplot(1, 3, 2)
     c = fig.add_subplot(1, 3, 3, projection="polar")
@@ -292,18 +290,16 @@ def plot_envelopes(envelopes: dict, path, title: str) -> None:
         ax.axvline(0, color="k", lw=0.5)
     fig.suptitle(title)
     fig.savefig(path, dpi=130)
-    plt.close(fig)
 
 
 def plot_path(ps: PathStability, path, title: str) -> None:
     """Normalized d²W of the loading increments and its minimum over probes along the path,
     with the entry into the bifurcation domain and the loss of controllability marked."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     sh = ps.result.stage("shear")
-    fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4.5), constrained_layout=True)
+    fig = Figure(figsize=(12, 4.5), layout="constrained")
+    a, b = fig.subplots(1, 2)
     x = 100 * ps.shear_strain
     a.plot(x, sh["q"] / 1e3, label="q")
     a.plot(x, sh["sig11"] / 1e3, label="σ11")
@@ -322,4 +318,3 @@ def plot_path(ps: PathStability, path, title: str) -> None:
     b.legend(fontsize=8)
     fig.suptitle(title)
     fig.savefig(path, dpi=130)
-    plt.close(fig)

@@ -1,49 +1,85 @@
 """The cell-solver interface that the REV and the loading drivers use.
 
 Any implementation (closed form, neural surrogate, DEM) advances a batch of cells by given
-increments of their lengths and returns the new state with its diagnostics. The REV never
-knows which one runs.
+increments of their lengths and returns the new state with its diagnostics. The REV and the
+loading drivers see only this interface: solver specs (``closed-form``, ``surrogate:…``,
+``dem:…``) are resolved above them, by :func:`hmodel.solvers.get_solver`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from ..errors import InputError
 from ..params import Params
 from .state import CellFlags, CellState
 
 
+@dataclass(frozen=True)
+class CellKernel:
+    """A cell solver's increment in compiled form, for the compiled loading path.
+
+    Attributes
+    ----------
+    params : ndarray
+        Packed parameters of the trial kernel: the closed form's
+        (:func:`hmodel.cell.closed_form.kernel_params`) or, for a learned response, those
+        followed by its constants (:func:`hmodel.cell.meso_kernel.kernel_params`).
+    responses : callable or None
+        None: every trial is the closed form's cell increment (eq. 1.7). Otherwise
+        ``responses(values)`` maps cell states (n, n_fields) to the packed learned responses
+        (n, R) that every trial increment from those states applies
+        (:func:`hmodel.cell.meso_kernel.meso_increment`): evaluated once per increment, it may
+        raise :class:`~hmodel.errors.SolverError` (cells outside a training domain).
+    """
+
+    params: np.ndarray
+    responses: Callable[[np.ndarray], np.ndarray] | None = None
+
+    @property
+    def learned(self) -> bool:
+        """Whether trials apply a learned response (with an exact stress slope) or eq. 1.7."""
+        return self.responses is not None
+
+
 @runtime_checkable
 class CellSolver(Protocol):
-    """``step(params, state, dl1, dl2) -> (state, flags)`` over arrays of any leading shape."""
+    """Everything the engine asks of a cell solver, over arrays of any leading shape S.
+
+    Attributes
+    ----------
+    name : str
+        The solver's spec, as results record it.
+    stress_rtol : float
+        Newton's relative stress tolerance floor for REVs of these cells (0 for a solver whose
+        response is exact to round-off; larger where cells are converged iteratively or jump).
+    """
 
     name: str
+    stress_rtol: float
+
+    def initial(self, params: Params, shape: tuple[int, ...] = ()) -> CellState:
+        """Unloaded cells of shape S = ``shape``, in this solver's state layout."""
+        ...
+
+    def initial_cells(self, params: Params, alpha0: np.ndarray) -> CellState:
+        """Unloaded cells with their own opening angles ``alpha0`` [rad] (shape S)."""
+        ...
+
+    def meso(self, params: Params, state: CellState) -> tuple[np.ndarray, np.ndarray] | None:
+        """(V σ_nn, V σ_tt, V σ_nt) (S, 3) in the cell frame and meso-volumes (S,) of cells
+        whose stress is not eq. 1.12 of their eight H-cell fields; None for H-cells."""
+        ...
 
     def step(self, params: Params, state: CellState, dl1: np.ndarray,
              dl2: np.ndarray) -> tuple[CellState, CellFlags]:
+        """One increment of every cell by length increments dl1, dl2 [m] (broadcast to S)."""
         ...
 
-
-def get_solver(spec: "str | CellSolver") -> CellSolver:
-    """Resolve a solver from its CLI spelling or pass an instance through.
-
-    ``closed-form`` (eq. 1.7), ``surrogate`` (the shipped neural surrogate),
-    ``surrogate:NAME`` (another shipped one) or ``surrogate:MODEL_FILE``.
-    """
-    if not isinstance(spec, str):
-        return spec
-    name = spec.split(":", 1)[0]
-    if name == "closed-form":
-        from .closed_form import ClosedFormSolver
-        return ClosedFormSolver()
-    if name == "surrogate":
-        from ..surrogate.solver import load_solver
-        return load_solver(spec)
-    if name == "dem":
-        from ..dem.solver import DEMSolver
-        return DEMSolver(spec)
-    raise InputError(f"unknown cell solver {spec!r} (available: closed-form, surrogate[:MODEL_FILE], "
-                     f"dem:MESOSTRUCTURE)")
+    def kernel(self, params: Params) -> CellKernel | None:
+        """The compiled form of :meth:`step` for the compiled loading path, or None (the
+        generic driver then calls :meth:`step`)."""
+        ...

@@ -16,9 +16,10 @@ import math
 import numpy as np
 from numba import njit
 
-from ..errors import SolverError
+from ..errors import InputError, SolverError
 from ..params import Params
-from .state import FIELDS, FLAGS, CellFlags, CellState
+from .base import CellKernel
+from .state import FIELDS, FLAGS, CellFlags, CellState, initial_cells
 
 # Positions in the packed parameter vector handed to the kernel.
 P_KN, P_KT, P_TAN, P_G2, P_R, P_CONSISTENT, P_EQ_RHS = range(7)
@@ -159,6 +160,29 @@ class ClosedFormSolver:
     """The H-cell solved in closed form (eq. 1.7). Implements :class:`hmodel.cell.CellSolver`."""
 
     name = "closed-form"
+    #: exact to round-off: Newton's own tolerance holds
+    stress_rtol = 0.0
+
+    @classmethod
+    def from_spec(cls, spec: str = "closed-form") -> "ClosedFormSolver":
+        """The solver of the spec ``closed-form`` (it takes no options)."""
+        if spec != "closed-form":
+            raise InputError(f"the closed-form solver takes no options, got {spec!r}")
+        return cls()
+
+    def initial(self, params: Params, shape: tuple[int, ...] = ()) -> CellState:
+        return CellState.initial(params, shape)
+
+    def initial_cells(self, params: Params, alpha0: np.ndarray) -> CellState:
+        return initial_cells(params, np.asarray(alpha0, float))
+
+    def meso(self, params: Params, state: CellState) -> None:
+        """None: an H-cell's stress is eq. 1.12 of its fields (the REV computes it)."""
+        return None
+
+    def kernel(self, params: Params) -> CellKernel:
+        """Eq. 1.7 in the compiled loading path."""
+        return CellKernel(kernel_params(params))
 
     def step(self, params: Params, state: CellState, dl1, dl2) -> tuple[CellState, CellFlags]:
         """One increment of every cell.

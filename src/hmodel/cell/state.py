@@ -105,3 +105,10 @@ class CellFlags:
     @classmethod
     def none(cls, shape: tuple[int, ...] = ()) -> "CellFlags":
         return cls(np.zeros((*shape, len(FLAGS)), dtype=bool))
+
+
+def initial_cells(params: Params, alpha0: np.ndarray) -> CellState:
+    """Unloaded H-cells with their own opening angles α0 (eq. 1.2 with d1 = d2 = 2r)."""
+    l10, l20 = initial_lengths(params.radius, alpha0)
+    return CellState.from_fields(d1=2.0 * params.radius, d2=2.0 * params.radius, alpha=alpha0,
+                                 N1=0.0, N2=0.0, T1=0.0, l1=l10, l2=l20)

@@ -26,7 +26,7 @@ def compare(
     param: ParamOpt = None,
 ) -> None:
     """Run every comparison path with both solvers: overlaid curves, deviations and timings."""
-    from ..cell import get_solver
+    from ..solvers import get_solver
     from ..compare import compare_path, plot_overlay, standard_paths
 
     params = Params.parse_assignments(param)

@@ -13,6 +13,7 @@ from ..loading import AXIAL_STEP, ISO_STEP, MAX_STRAIN_STEP, run_biaxial, run_is
 from ..loading.result import PathResult
 from ..params import UNITS, Params
 from ..plotting import plot_result
+from ..solvers import get_solver
 from ..units import parse_pressures
 from .progress import LazyProgress
 
@@ -48,7 +49,7 @@ def iso(p0: P0Opt = "200kPa", param: ParamOpt = None, out: OutOpt = Path("result
     """Isotropic compression (equal strain increments) until p reaches p0."""
     params = Params.parse_assignments(param)
     with LazyProgress("isotropic compression") as progress:
-        result = run_isotropic(params, parse_pressures(p0), solver=solver,
+        result = run_isotropic(params, parse_pressures(p0), solver=get_solver(solver),
                                step=_positive(iso_step, "--iso-step"), progress=progress)
     _finish(result, out)
 
@@ -68,7 +69,7 @@ def biaxial(p0: P0Opt = "200kPa",
     if axial_strain >= 1:
         raise InputError(f"--axial-strain must be below 1, got {axial_strain}")
     with LazyProgress("biaxial test") as progress:
-        result = run_biaxial(params, pressures, axial_strain, undrained=undrained, solver=solver,
+        result = run_biaxial(params, pressures, axial_strain, undrained=undrained, solver=get_solver(solver),
                              iso_step=_positive(iso_step, "--iso-step"),
                              step=_positive(step, "--step"), progress=progress)
     _finish(result, out)
@@ -87,5 +88,5 @@ def strain_path(path: Annotated[Path, typer.Argument(help="CSV with header eps11
     if max_step is not None:
         _positive(max_step, "--max-step")
     with LazyProgress("strain path") as progress:
-        result = run_strain_path(params, eps, solver=solver, max_step=max_step, progress=progress)
+        result = run_strain_path(params, eps, solver=get_solver(solver), max_step=max_step, progress=progress)
     _finish(result, out)

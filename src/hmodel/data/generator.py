@@ -39,7 +39,8 @@ from dataclasses import asdict, dataclass, fields, replace
 import numpy as np
 import pyarrow as pa
 
-from ..cell import CellState, get_solver
+from ..cell import CellState
+from ..solvers import get_solver
 from ..cell.state import initial_lengths
 from ..errors import InputError
 from ..params import Params
@@ -235,13 +236,6 @@ def _ratio(total: float, step: float, a: str, b: str) -> int:
     return n
 
 
-def initial_cells(params: Params, alpha0: np.ndarray) -> CellState:
-    """Unloaded cells with their own opening angles α0 (eq. 1.2 with d1 = d2 = 2r)."""
-    l10, l20 = initial_lengths(params.radius, alpha0)
-    return CellState.from_fields(d1=2.0 * params.radius, d2=2.0 * params.radius, alpha=alpha0,
-                                 N1=0.0, N2=0.0, T1=0.0, l1=l10, l2=l20)
-
-
 def compute_shard(spec: DatasetSpec, params: Params, shard: int) -> pa.Table:
     """The rows of one shard, in path order (a pure function of its arguments)."""
     paths = spec.shard_paths(shard)
@@ -250,9 +244,8 @@ def compute_shard(spec: DatasetSpec, params: Params, shard: int) -> pa.Table:
     alpha0 = np.radians(spec.alpha0_deg)[paths // spec.n_directions]
     theta = spec.theta[paths % spec.n_directions]
     solver = get_solver(spec.solver)
-    # A solver with its own cell states (richer DEM cells: more than the 8 fields) makes them.
-    make = getattr(solver, "initial_cells", None)
-    cells = make(params, alpha0) if make is not None else initial_cells(params, alpha0)
+    # each solver makes its own cell states (richer DEM cells: more than the 8 fields)
+    cells = solver.initial_cells(params, alpha0)
     l10, l20 = cells.l1.copy(), cells.l2.copy()
     for _ in range(spec.prestrain_steps):
         cells, _ = solver.step(params, cells, -l10 * spec.step, -l20 * spec.step)

@@ -64,7 +64,7 @@ def _header(spec: DatasetSpec, params: Params) -> dict:
               "options": spec.to_dict(), "params": params.to_dict(), "seed": None,
               "columns": list(COLUMNS), "units": UNITS}
     if spec.solver.startswith("dem"):  # richer DEM cells: names of the extra state fields
-        from ..cell import get_solver
+        from ..solvers import get_solver
         extra = list(get_solver(spec.solver).field_names()[8:])
         if extra:
             header["columns"] += list(EXTRA_COLUMNS)

@@ -303,6 +303,10 @@ class DEMSolver:
         vsig, vol = self.love_weber(params, values.reshape(-1, self.n_fields))
         return vsig.reshape(*shape, 3), vol.reshape(shape)
 
+    def kernel(self, params: Params) -> None:
+        """None: every cell increment is a YADE run (the generic loading driver)."""
+        return None
+
     def love_weber(self, params: Params, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(V sigma_nn, V sigma_tt, V sigma_nt) (n, 3) and meso-volume (n,) of state rows (n,
         n_fields), every layout (for the standard cell it equals eq. 1.12 of its fields)."""

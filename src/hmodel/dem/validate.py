@@ -23,7 +23,7 @@ import numpy as np
 
 from ..cell.closed_form import ClosedFormSolver
 from ..cell.state import IDX, CellState
-from ..data.generator import initial_cells
+from ..cell.state import initial_cells
 from ..errors import InputError
 from ..params import Params
 from .mesostructure import standard
@@ -168,11 +168,10 @@ def validate(params: Params, strain: float = 0.03, steps: int = 30,
 
 def plot_validation(v: Validation, path: "str | Path") -> None:
     """N1, N2, T1, alpha along every path: DEM (markers) over the closed form (lines)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
-    fig, axes = plt.subplots(2, 2, figsize=(10, 7.5), constrained_layout=True)
+    fig = Figure(figsize=(10, 7.5), layout="constrained")
+    axes = fig.subplots(2, 2)
     units = {"N1": "N", "N2": "N", "T1": "N", "alpha": "deg"}
     for ax, q in zip(axes.flat, QUANTITIES):
         i = IDX[q]
@@ -187,33 +186,34 @@ def plot_validation(v: Validation, path: "str | Path") -> None:
     axes[0, 0].legend(fontsize=7, title="lines: closed form (dotted: refined); o: DEM", title_fontsize=7)
     fig.suptitle(f"DEM (YADE) vs closed form, standard cell, α0 = {v.params.alpha0_deg:g}°")
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def draw_cell(run: CellRun, path: "str | Path", step: int = -1, title: str | None = None) -> None:
     """Grains as circles at a recorded step, contacts as lines whose width and colour follow
     the normal force."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib import colormaps
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+    from matplotlib.figure import Figure
     from matplotlib.patches import Circle
 
     pos = run.positions[step]
     rows = run.contacts[step]
     m = run.mesostructure
-    fig, ax = plt.subplots(figsize=(6, 5), constrained_layout=True)
+    fig = Figure(figsize=(6, 5), layout="constrained")
+    ax = fig.subplots()
     colors = {"n": "#9ecae1", "t": "#fdd0a2", "free": "#c7e9c0"}
     for k, (x, r) in enumerate(zip(pos, m.radii)):
         ax.add_patch(Circle(x, r, fc=colors[m.drive[k]], ec="k", lw=0.8))
         ax.text(x[0], x[1], str(k + 1), ha="center", va="center", fontsize=9)
     fmax = float(np.max(np.abs(rows[:, 2]))) if len(rows) else 0.0
-    cmap = plt.get_cmap("viridis")
+    cmap = colormaps["viridis"]
     for c in rows:
         i, j, fn = int(c[0]), int(c[1]), c[2]
         w = 0.5 + 5 * abs(fn) / fmax if fmax > 0 else 0.5
         ax.plot(*zip(pos[i], pos[j]), "-", lw=w, color=cmap(abs(fn) / fmax if fmax > 0 else 0))
     if fmax > 0:
-        sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0, fmax))
+        sm = ScalarMappable(cmap=cmap, norm=Normalize(0, fmax))
         fig.colorbar(sm, ax=ax, label="normal force [N]")
     ext = m.half_width * 1.1
     ax.set_xlim(-ext, ext)
@@ -223,4 +223,3 @@ def draw_cell(run: CellRun, path: "str | Path", step: int = -1, title: str | Non
     ax.set_ylabel("t [m]")
     ax.set_title(title or f"{m.name} cell, step {step % (run.n_steps + 1)}")
     fig.savefig(path, dpi=110)
-    plt.close(fig)

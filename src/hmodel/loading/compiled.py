@@ -11,7 +11,7 @@ increment (eq. 1.7) and averaging (eq. 1.15) fused in one loop over directions.
 A ``meso`` surrogate (``SurrogateSolver`` with a meso model) runs through the same kernel: its
 network sees the state only, so each increment starts with one network evaluation of every cell
 of every point (:func:`cell_responses`, which also checks the training domain), and every trial
-of the increment applies that learned response in :func:`hmodel.surrogate.meso_kernel.meso_increment`.
+of the increment applies that learned response in :func:`hmodel.cell.meso_kernel.meso_increment`.
 Newton's first trial is then the point's previous increment (along a smooth path it is close
 to the answer, so fewer trials are needed), and where one stress row is controlled each trial
 also gives the exact stress slope along the free strain direction, in place of Broyden's secant;
@@ -31,13 +31,12 @@ import math
 import numpy as np
 from numba import njit
 
-from ..cell.closed_form import P_KN, P_R, ClosedFormSolver, cell_increment, kernel_params
+from ..cell.closed_form import P_KN, P_R, cell_increment
 from ..cell.mesostress import vsigma_local
+from ..cell.meso_kernel import meso_increment
 from ..cell.state import CellFlags, CellState
 from ..rev import Rev, RevState
 from ..rev.kernels import cell_dl, weighted_global
-from ..surrogate.meso_kernel import kernel_params as meso_kernel_params, meso_increment
-from ..surrogate.solver import SurrogateSolver
 from .control import MAX_TRIAL_STRAIN, STEP_MULTIPLE, Control, Tangent, solve_increment
 from .result import FRACTIONS
 
@@ -48,36 +47,29 @@ TRIAL_LIMITS = np.array([MAX_TRIAL_STRAIN, STEP_MULTIPLE])
 
 
 def supports(rev: Rev) -> bool:
-    """Whether ``rev`` can run compiled segments: its cells are the closed form's, or a ``meso``
-    surrogate's (whose trials apply a response learned once per state)."""
-    return type(rev.solver) is ClosedFormSolver or _meso(rev)
-
-
-def _meso(rev: Rev) -> bool:
-    return type(rev.solver) is SurrogateSolver and rev.solver.model.formulation.name == "meso"
+    """Whether ``rev`` can run compiled segments: its cell solver has a compiled increment
+    (:meth:`hmodel.cell.CellSolver.kernel`)."""
+    return rev.kernel is not None
 
 
 def kernel_inputs(rev: Rev) -> tuple[np.ndarray, np.ndarray]:
     """(geo, p) for :func:`_trial`: the direction factors cos², sin², sin·cos and their weighted
-    versions (6, n_theta), and the packed cell parameters (for a meso surrogate, followed by its
-    formulation's constants)."""
+    versions (6, n_theta), and the solver kernel's packed parameters."""
     d = rev.directions
     w = d.weights
     geo = np.ascontiguousarray(np.stack([d.cos2, d.sin2, d.sincos, w * d.cos2, w * d.sin2,
                                          w * d.sincos]))
-    if _meso(rev):
-        return geo, meso_kernel_params(rev.solver.model.formulation, rev.params)
-    return geo, kernel_params(rev.params)
+    return geo, rev.kernel.params
 
 
 def cell_responses(rev: Rev, values: np.ndarray) -> np.ndarray:
-    """Per-cell inputs of :func:`_trial` that depend on the cells' states (..., n_fields): a meso
-    surrogate's packed learned responses (..., R), one network evaluation for all (which also
-    checks the training domain); nothing (..., 0) for the closed form."""
-    if not _meso(rev):
+    """Per-cell inputs of :func:`_trial` that depend on the cells' states (..., n_fields): a
+    learned response's packed rows (..., R), one evaluation for all cells (which may refuse
+    cells outside a training domain); nothing (..., 0) for the closed form."""
+    if not rev.kernel.learned:
         return np.empty((*values.shape[:-1], 0))
     flat = np.ascontiguousarray(values.reshape(-1, values.shape[-1]))
-    packed = rev.solver.meso_response(rev.params, flat, packed=True)
+    packed = rev.kernel.responses(flat)
     return packed.reshape(*values.shape[:-1], packed.shape[-1])
 
 
@@ -531,7 +523,7 @@ class CompiledSegment:
         self.has_K = np.full(B, tangent.K is not None and tangent.K.shape[0] == B)
         self.K = tangent.K.copy() if self.has_K.all() else np.zeros((B, 3, 3))
         self.geo, self.p = kernel_inputs(rev)
-        self.meso = _meso(rev)
+        self.meso = rev.kernel.learned
         # per point: the last increment's strain, Newton's first trial of the next one (meso
         # surrogates: close to the answer along a smooth path; the closed form keeps its
         # tangent predictor, whose results the generic driver reproduces to 1e-7 where cell
@@ -541,7 +533,7 @@ class CompiledSegment:
         # the solver's own floor, as the generic driver takes it (``solve_increment``): a meso
         # surrogate converged to 1e-10 here, not 1e-7, with 4.84 against ~4.0 trials per
         # drained increment
-        rtol = max(rtol, float(getattr(rev.solver, "stress_rtol", 0.0)))
+        rtol = max(rtol, float(rev.solver.stress_rtol))
         self.rtol, self.max_iter, self.max_events = rtol, max_iter, max_events
 
     def state(self) -> RevState:
@@ -562,7 +554,7 @@ class CompiledSegment:
             end = min(k + stride, k_end)
             k = _run_steps(self.values, self.flags, self.eps, self.sig, self.K, self.has_K,
                            self.S, self.M, self.start, self.end, self.n_steps, k, end, self.geo,
-                           self.p, self.rev._mode, self.rev.volume0, self.rtol, self.max_iter,
+                           self.p, self.rev.mode, self.rev.volume0, self.rtol, self.max_iter,
                            self.max_events, self.tangent.fd_step, rec[k - k_begin:], status, resp,
                            self.guess, self.trials, TRIAL_LIMITS)
             if k < end:  # increment k failed for some points

@@ -113,7 +113,7 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
     """
     B = state.n_points
     # A solver whose cells are converged to less than round-off (DEM) sets its own floor.
-    rtol = max(rtol, float(getattr(rev.solver, "stress_rtol", 0.0)))
+    rtol = max(rtol, float(rev.solver.stress_rtol))
     if tangent.K is None or tangent.K.shape[0] != B:
         tangent.K = None
     out = state

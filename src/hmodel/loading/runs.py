@@ -12,11 +12,12 @@ from .paths import AXIAL_STEP, ISO_STEP, Progress
 from .result import PathResult, Recorder
 
 
+# ``solver``: a cell solver (None: the closed form); resolve a spec with hmodel.solvers.get_solver.
 def _meta(params: Params, rev: Rev, test: str, **extra) -> dict:
     return {"test": test, "params": params.to_dict(), "solver": rev.solver.name, **extra}
 
 
-def run_isotropic(params: Params, p0, *, solver: "str | CellSolver" = "closed-form",
+def run_isotropic(params: Params, p0, *, solver: CellSolver | None = None,
                   step: float = ISO_STEP, progress: Progress = None) -> PathResult:
     """Isotropic compression of one material point per value of ``p0`` [Pa]."""
     rev = Rev(params, solver)
@@ -27,7 +28,7 @@ def run_isotropic(params: Params, p0, *, solver: "str | CellSolver" = "closed-fo
 
 
 def run_biaxial(params: Params, p0, axial_strain: float, *, undrained: bool = False,
-                solver: "str | CellSolver" = "closed-form", iso_step: float = ISO_STEP,
+                solver: CellSolver | None = None, iso_step: float = ISO_STEP,
                 step: float = AXIAL_STEP, progress: Progress = None) -> PathResult:
     """Isotropic consolidation to each ``p0`` [Pa], then drained or undrained biaxial
     compression to ``axial_strain`` more axial strain (report §1.1.2, Fig. 1.7)."""
@@ -43,7 +44,7 @@ def run_biaxial(params: Params, p0, axial_strain: float, *, undrained: bool = Fa
     return rec.result()
 
 
-def run_strain_path(params: Params, eps, *, solver: "str | CellSolver" = "closed-form",
+def run_strain_path(params: Params, eps, *, solver: CellSolver | None = None,
                     max_step: float | None = None, progress: Progress = None) -> PathResult:
     """Follow a table of cumulative strains (n, 2 or 3) from the unloaded state."""
     eps = np.asarray(eps, float)

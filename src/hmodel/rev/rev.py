@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..cell import CellFlags, CellSolver, CellState, get_solver, meso_volume
-from ..errors import SolverError
+from ..cell import CellFlags, CellKernel, CellSolver, CellState, ClosedFormSolver, meso_volume
+from ..errors import InputError, SolverError
 from ..params import Params
 from .directions import Directions
 from .kernels import LOC_BOX, LOC_CELL, LOC_VIRTUAL, average, localize
@@ -96,8 +96,9 @@ class Rev:
     Parameters
     ----------
     params : Params
-    solver : str or CellSolver
-        The cell solver (default the closed form of eq. 1.7).
+    solver : CellSolver, optional
+        The cell solver (default the closed form of eq. 1.7); resolve a spec such as
+        ``"dem:standard"`` with :func:`hmodel.solvers.get_solver`.
 
     Examples
     --------
@@ -107,22 +108,27 @@ class Rev:
     (True, True)
     """
 
-    def __init__(self, params: Params, solver: "str | CellSolver" = "closed-form"):
+    def __init__(self, params: Params, solver: CellSolver | None = None):
+        if solver is None:
+            solver = ClosedFormSolver()
+        elif not isinstance(solver, CellSolver):
+            raise InputError(f"Rev takes a cell solver, got {solver!r} (resolve a spec with "
+                             "hmodel.solvers.get_solver)")
         self.params = params
-        self.solver = get_solver(solver)
+        self.solver = solver
         self.directions = d = Directions.from_params(params)
         self._trig = (d.cos2, d.sin2, d.sincos)
         self._wtrig = (d.weights * d.cos2, d.weights * d.sin2, d.weights * d.sincos)
-        self._mode = _LOC_MODE[params.volume]
-        # Optional solver hooks: its own unloaded cells (states with extra fields) and its own
-        # meso-stress (V sigma_nn, V sigma_tt, V sigma_nt) and meso-volume (richer DEM cells).
-        self._initial = getattr(self.solver, "initial", None)
-        cell0 = self._initial(params, ()) if self._initial else CellState.initial(params)
-        meso = getattr(self.solver, "meso", None)
-        self._meso = meso if meso is not None and meso(params, cell0) is not None else None
+        #: localization mode of the meso-volume option (eq. 1.1 on l or l*), for the kernels
+        self.mode = _LOC_MODE[params.volume]
+        cell0 = solver.initial(params, ())
+        # cells with their own meso-stress (richer DEM cells, meso surrogates), or eq. 1.12
+        self._own_meso = solver.meso(params, cell0) is not None
         # Initial macro volume V0 = sum_i w_i V_meso,i (eq. 1.14); all cells start alike.
-        vol0 = self._meso(params, cell0)[1] if self._meso else meso_volume(params, cell0)
+        vol0 = solver.meso(params, cell0)[1] if self._own_meso else meso_volume(params, cell0)
         self.volume0 = float(vol0 * d.weights.sum())
+        #: the solver's compiled increment (None: the loading drivers call ``solver.step``)
+        self.kernel: CellKernel | None = solver.kernel(params)
 
     @property
     def n_theta(self) -> int:
@@ -131,7 +137,7 @@ class Rev:
     def initial(self, n_points: int = 1) -> RevState:
         """B unloaded material points."""
         shape = (n_points, self.n_theta)
-        cells = self._initial(self.params, shape) if self._initial else CellState.initial(self.params, shape)
+        cells = self.solver.initial(self.params, shape)
         return RevState(cells, CellFlags.none(shape),
                         np.zeros((n_points, 3)), np.zeros((n_points, 3)))
 
@@ -139,7 +145,7 @@ class Rev:
         """Length increments (B, n_theta, 2) of every cell for macro strain increments (B, 3)."""
         values = np.ascontiguousarray(cells.values[..., :8]).reshape(-1, 8)
         dl = np.empty((values.shape[0], 2))
-        localize(values, np.ascontiguousarray(deps, dtype=float), *self._trig, self._mode,
+        localize(values, np.ascontiguousarray(deps, dtype=float), *self._trig, self.mode,
                  self.params.radius, dl)
         return dl.reshape(*cells.shape, 2)
 
@@ -149,7 +155,7 @@ class Rev:
 
     def stress(self, cells: CellState, eps: np.ndarray) -> np.ndarray:
         """Macro stress (B, 3) of cells (B, n_theta) at macro strain eps (B, 3) (eq. 1.15)."""
-        if self._meso is not None:
+        if self._own_meso:
             return self._meso_stress(cells) / self.macro_volume(eps)[:, None]
         vsig = np.empty((cells.shape[0], 3))
         average(np.ascontiguousarray(cells.values[..., :8]).reshape(-1, 8), *self._wtrig,
@@ -158,7 +164,7 @@ class Rev:
 
     def _meso_stress(self, cells: CellState) -> np.ndarray:
         """sum_i w_i V_i sigma_i (B, 3) from the solver's cell-frame (nn, tt, nt) meso-stress."""
-        vs, _ = self._meso(self.params, cells)
+        vs, _ = self.solver.meso(self.params, cells)
         nn, tt, nt = vs[..., 0], vs[..., 1], vs[..., 2]
         wc2, ws2, wsc = self._wtrig
         w = self.directions.weights

@@ -12,7 +12,7 @@ network sees the state only: it is evaluated once per state, and every trial inc
 Newton iteration is an exact, compiled application of the learned compliances. A ``meso``
 network also sees the state only; the REV's loading paths then run in the compiled driver
 (:mod:`hmodel.loading.compiled`), which takes :meth:`SurrogateSolver.meso_response` once per
-increment and applies it in :func:`hmodel.surrogate.meso_kernel.meso_increment`.
+increment and applies it in :func:`hmodel.cell.meso_kernel.meso_increment`.
 
 Cells whose inputs lie outside the training domain are either handed to the closed-form
 solver (``on_outside="fallback"``) or stop the run (``"error"``); ``counts`` reports how many.
@@ -31,11 +31,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..cell import FIELDS, CellFlags, CellState
+from ..cell import FIELDS, CellFlags, CellKernel, CellState, initial_cells
 from ..cell.closed_form import ClosedFormSolver
 from ..errors import InputError, SolverError
 from ..params import Params
-from .meso_kernel import advance_cells, kernel_params, pack_outputs, pack_responses
+from ..cell.meso_kernel import advance_cells, kernel_params, pack_outputs, pack_responses
 from .model import Surrogate
 
 #: Parameters a surrogate is specific to (it was trained on cells with these values).
@@ -105,6 +105,28 @@ class SurrogateSolver:
         f = self.model.formulation
         return f.meso(np.asarray(state.values, float)) if f.name == "meso" else None
 
+    def initial_cells(self, params: Params, alpha0: np.ndarray) -> CellState:
+        """Unloaded cells with their own opening angles; a ``meso`` summary state knows one
+        opening angle only, the one the model was trained for (``params.alpha0``)."""
+        alpha0 = np.asarray(alpha0, float)
+        if self.model.formulation.name != "meso":
+            return initial_cells(params, alpha0)
+        if not np.allclose(alpha0, params.alpha0, rtol=0.0, atol=1e-12):
+            raise InputError("a meso surrogate's cells start at the opening angle it was trained "
+                             f"for (alpha0 = {np.degrees(params.alpha0):.6g} deg)")
+        return self.initial(params, alpha0.shape)
+
+    def kernel(self, params: Params) -> CellKernel | None:
+        """A ``meso`` network sees the state only: one evaluation per increment gives the
+        response that every Newton trial then applies in the compiled kernel
+        (:func:`hmodel.cell.meso_kernel.meso_increment`). Strain-input and compliance
+        networks run through the generic driver (None)."""
+        if self.model.formulation.name != "meso":
+            return None
+        self.check(params)
+        return CellKernel(kernel_params(self.model.formulation, params),
+                          lambda values: self.meso_response(params, values, packed=True))
+
     def step(self, params: Params, state: CellState, dl1, dl2) -> tuple[CellState, CellFlags]:
         self.check(params)
         shape, n_state = state.shape, self.n_state
@@ -151,7 +173,7 @@ class SurrogateSolver:
     def meso_response(self, params: Params, v: np.ndarray, packed: bool = False):
         """The learned response (``MesoFormulation.response``; an ensemble's mean) of summary
         states v (n, 11), which every trial increment from these states applies; with ``packed``,
-        its rows for the compiled trial (:func:`~hmodel.surrogate.meso_kernel.pack_responses`;
+        its rows for the compiled trial (:func:`~hmodel.cell.meso_kernel.pack_responses`;
         one network's outputs are those rows already, followed by cos and sin of alpha in two
         spare columns). There is no closed form to fall back to: cells outside the training
         domain stop the run (``on_outside="error"``) or are extrapolated and counted."""

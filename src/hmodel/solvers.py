@@ -1,0 +1,41 @@
+"""The one registry of cell solvers: a spec such as ``closed-form``, ``surrogate:FILE`` or
+``dem:hexagon-center:tol=1e-7`` names a solver by its first word.
+
+Each solver registers a factory ``spec -> CellSolver`` under the ``hmodel.cell_solvers``
+entry-point group (hmodel's own three in its ``pyproject.toml``; another package can add its
+own the same way). The registry imports a solver's package only when a spec names it, so the
+engine below (``cell``, ``rev``, ``loading``) never depends on a concrete solver, and importing
+hmodel does not load PyTorch, YADE's client or a model file.
+"""
+
+from __future__ import annotations
+
+from importlib.metadata import entry_points
+
+from .cell import CellSolver
+from .errors import InputError
+
+GROUP = "hmodel.cell_solvers"
+
+
+def available() -> list[str]:
+    """Names of the registered solvers (the first word of their specs)."""
+    return sorted(ep.name for ep in entry_points(group=GROUP))
+
+
+def get_solver(spec: "str | CellSolver") -> CellSolver:
+    """The solver a spec names, or a solver instance passed through.
+
+    >>> get_solver("closed-form").name
+    'closed-form'
+    """
+    if not isinstance(spec, str):
+        if not isinstance(spec, CellSolver):
+            raise InputError(f"not a cell solver: {spec!r}")
+        return spec
+    name = spec.split(":", 1)[0]
+    found = [ep for ep in entry_points(group=GROUP) if ep.name == name]
+    if not found:
+        raise InputError(f"unknown cell solver {spec!r} (available: closed-form, "
+                         f"surrogate[:MODEL_FILE], dem:MESOSTRUCTURE)")
+    return found[0].load()(spec)
