@@ -44,11 +44,11 @@ def pack_responses(response: tuple, values: np.ndarray) -> np.ndarray:
     B_k (n, K, L)) of summary states ``values`` (n, 11): A row-major, then per mechanism n_k,
     c_k = sqrt(c_k^2) (the network's own output: the trial squares it) and B_k, then cos and sin
     of the states' alpha (a trial turns alpha by little: its cos and sin follow by the angle-sum
-    formulas, 72 against 80 ns per cell-trial with two libm calls, measured)."""
+    formulas, cheaper than two libm calls per cell-trial)."""
     A, nk, c2, B = response
     n, L, K = A.shape[0], A.shape[1], c2.shape[1]
     out = np.empty((n, 2 * L + K * (3 + L) + 2))
-    _pack(A, nk, c2, B, values, out)  # one pass: 0.075 against 0.14 ms at 2,304 rows (measured)
+    _pack(A, nk, c2, B, values, out)  # one compiled pass over the rows, no temporaries
     return out
 
 
@@ -57,8 +57,8 @@ def pack_outputs(out: np.ndarray, n_learned: int, values: np.ndarray,
     """:func:`pack_responses` of one network's outputs (n, 2L + K (L + 3)) (``response(out)``),
     whose layout the packed rows are (with c_k, not c_k^2), then cos and sin of alpha. With
     ``wide``, an array (n, width + 2) whose first columns ``out`` is (``Surrogate.forward``'s
-    ``spare``), only the last two are written: no copy (a copy cost 0.1 ms per 2,304 rows
-    inside a REV run, measured)."""
+    ``spare``), only the last two are written: no copy of the outputs, which sit on the REV's
+    path once per increment."""
     n, width = out.shape
     if wide is None:
         wide = np.empty((n, width + 2))
@@ -122,8 +122,9 @@ def meso_increment(values, i, dl1, dl2, p, resp, out, flags, tangent, ddl1, ddl2
     with its packed response ``resp[i]``; write the new state into ``out[i]`` and its flags into
     ``flags[i]``; returns False when the new state is not finite. The steps of
     ``SurrogateSolver._one_meso``: e = de/m0 with de = -dl/l0, the response, then
-    ``MesoFormulation._advanced`` and ``advance``'s flags. (Rows are indexed, never sliced:
-    with four slices per cell a trial took 127 against 78 ns per cell, measured.)
+    ``MesoFormulation._advanced`` and ``advance``'s flags. (Rows are indexed, never sliced: a
+    slice is an array view Numba builds at every call, which costs more than the trial's own
+    arithmetic.)
 
     With ``tangent`` (a literal at each call site, so that the plain trial compiles without it),
     also the derivative of the new (V sigma_nn, V sigma_tt) along the length increments
