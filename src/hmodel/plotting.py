@@ -4,13 +4,10 @@ from __future__ import annotations
 
 import os
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .loading.result import PathResult  # noqa: E402
+from .loading.result import PathResult
 
 
 def _label(result: PathResult, b: int) -> str:
@@ -30,7 +27,8 @@ def _subtitle(result: PathResult) -> str:
 
 def plot_biaxial(result: PathResult, path: "str | os.PathLike") -> None:
     """Stress ratio and volumetric strain against axial strain (Fig. 1.7) and q (Fig. 1.8)."""
-    fig, axes = plt.subplots(1, 3, figsize=(14, 4.4), constrained_layout=True)
+    fig = Figure(figsize=(14, 4.4), layout="constrained")
+    axes = fig.subplots(1, 3)
     undrained = "undrained" in result.meta.get("test", "")
     for b in range(result.n_points):
         r, c = result.point(b).stage("shear"), result.point(b).stage("consolidation")
@@ -62,12 +60,12 @@ def plot_biaxial(result: PathResult, path: "str | os.PathLike") -> None:
     axes[0].legend(frameon=False)
     fig.suptitle(f"H-model, {result.meta.get('test', 'biaxial')} test\n{_subtitle(result)}", fontsize=10)
     fig.savefig(path, dpi=150)
-    plt.close(fig)
 
 
 def plot_isotropic(result: PathResult, path: "str | os.PathLike") -> None:
     """Mean stress against volumetric strain."""
-    fig, ax = plt.subplots(figsize=(6, 4.4), constrained_layout=True)
+    fig = Figure(figsize=(6, 4.4), layout="constrained")
+    ax = fig.subplots()
     for b in range(result.n_points):
         r = result.point(b)
         ax.plot(np.concatenate([[0.0], r["eps_v"]]) * 100, np.concatenate([[0.0], r["p"]]) / 1e3,
@@ -78,12 +76,12 @@ def plot_isotropic(result: PathResult, path: "str | os.PathLike") -> None:
     ax.legend(frameon=False)
     fig.suptitle(f"H-model, isotropic compression\n{_subtitle(result)}", fontsize=10)
     fig.savefig(path, dpi=150)
-    plt.close(fig)
 
 
 def plot_strain_path(result: PathResult, path: "str | os.PathLike") -> None:
     """Stresses along the path (by row) and the stress path in the (p, q) plane."""
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.4), constrained_layout=True)
+    fig = Figure(figsize=(11, 4.4), layout="constrained")
+    axes = fig.subplots(1, 2)
     r = result.point(0)
     row = np.arange(1, len(r) + 1)
     for name, lab in (("sig11", r"$\sigma_{11}$"), ("sig22", r"$\sigma_{22}$"), ("sig12", r"$\sigma_{12}$")):
@@ -98,7 +96,6 @@ def plot_strain_path(result: PathResult, path: "str | os.PathLike") -> None:
         ax.grid(alpha=0.3)
     fig.suptitle(f"H-model, prescribed strain path\n{_subtitle(result)}", fontsize=10)
     fig.savefig(path, dpi=150)
-    plt.close(fig)
 
 
 def plot_result(result: PathResult, path: "str | os.PathLike") -> None:

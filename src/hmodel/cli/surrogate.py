@@ -61,8 +61,10 @@ def train_cmd(
     """Train a surrogate on a sample's training rows (20 % held out for early stopping),
     evaluate it on the sample's test rows, and save it with its metrics."""
     from ..surrogate import modelfile
+    from ..surrogate.torch_support import require_torch
     from ..surrogate.training import train_on_sample
 
+    require_torch()
     if out.suffix != ".safetensors":
         raise InputError(f"--out must end in .safetensors, got {str(out)!r}")
     cfg = _config(formulation=formulation, normalization=normalization, width=width, depth=depth,
@@ -102,7 +104,9 @@ def distill_cmd(
     increments on the teacher's training states (a cheaper ANN-based H-model)."""
     from ..surrogate import modelfile
     from ..surrogate.distill import DistillConfig, distill_on_sample
+    from ..surrogate.torch_support import require_torch
 
+    require_torch("distillation")
     if out.suffix != ".safetensors":
         raise InputError(f"--out must end in .safetensors, got {str(out)!r}")
     cfg = DistillConfig(width=width, depth=depth, activation=activation, strains=strains,
@@ -166,6 +170,9 @@ def sweep_cmd(
     """Report Table 2.1: every depth × loss × training-set size, one results table and plot."""
     from ..data import Dataset
     from ..surrogate.sweep import plot_sweep, run_sweep
+    from ..surrogate.torch_support import require_torch
+
+    require_torch()
 
     def ints(text: str, name: str) -> list[int]:
         try:

@@ -9,14 +9,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .filters import rule_columns, rule_masks  # noqa: E402
-from .store import Dataset  # noqa: E402
+from .filters import rule_columns, rule_masks
+from .store import Dataset
 
 _COLS = ["deps1", "deps2", "theta", "start_strain", "l1_next", "l2_next"]
 
@@ -44,7 +41,8 @@ def plot_strain_distribution(ds: Dataset, path: Path, max_points: int = 200_000)
     Dataset 2: the increments, and the total strain they lead to)."""
     cols, _ = _subset(ds, (), max_points)
     kind = ds.manifest["kind"]
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.6), constrained_layout=True)
+    fig = Figure(figsize=(10, 4.6), layout="constrained")
+    axes = fig.subplots(1, 2)
     a = axes[0]
     hb = a.hexbin(100 * cols["deps1"], 100 * cols["deps2"], gridsize=60, mincnt=1, bins="log", cmap="viridis")
     fig.colorbar(hb, ax=a, label="rows (sampled)")
@@ -62,7 +60,6 @@ def plot_strain_distribution(ds: Dataset, path: Path, max_points: int = 200_000)
     b.set_aspect("equal")
     fig.suptitle(f"Dataset {kind}: {ds.n_rows:,} rows (compression positive)")
     fig.savefig(path, dpi=150)
-    plt.close(fig)
 
 
 def plot_removed(ds: Dataset, rules: Sequence[str], counts: dict[str, int], path: Path,
@@ -71,7 +68,8 @@ def plot_removed(ds: Dataset, rules: Sequence[str], counts: dict[str, int], path
     cols, removed = _subset(ds, rules, max_points)
     r2 = 2 * float(ds.manifest["params"]["radius"])
     e1, e2 = cumulative_strain(cols)
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.6), constrained_layout=True)
+    fig = Figure(figsize=(10, 4.6), layout="constrained")
+    axes = fig.subplots(1, 2)
     panels = ((axes[0], 100 * e1, 100 * e2, r"$\varepsilon_1$ after the row [%]",
                r"$\varepsilon_2$ after the row [%]"),
               (axes[1], cols["l1_next"] / r2, cols["l2_next"] / r2, r"$l_1'/2r$", r"$l_2'/2r$"))
@@ -87,5 +85,4 @@ def plot_removed(ds: Dataset, rules: Sequence[str], counts: dict[str, int], path
     fig.suptitle(f"Dataset {ds.manifest['kind']}: {counts.get('total', 0):,} of {ds.n_rows:,} rows "
                  f"removed ({text})")
     fig.savefig(path, dpi=150)
-    plt.close(fig)
 

@@ -47,7 +47,7 @@ def _dask(fn, args, keys, scheduler, in_flight) -> Iterator[tuple]:
     try:
         from distributed import Client, as_completed
     except ImportError:
-        raise InputError("--scheduler needs Dask: pip install 'dask[distributed]'") from None
+        raise InputError("--scheduler needs Dask: pip install 'hmodel[dask]'") from None
     try:
         client = Client(scheduler, timeout="10s", set_as_default=False)
     except (OSError, TimeoutError) as e:

@@ -29,6 +29,7 @@ import numpy as np
 from ..errors import InputError
 from .model import Architecture, Surrogate
 from .training import _device, _Rollout, best_weights, build_network, secant_weights, torch_network
+from .torch_support import require_torch
 
 
 @dataclass(frozen=True)
@@ -75,7 +76,7 @@ def distill(teacher: Surrogate, columns: dict[str, np.ndarray], config: DistillC
             progress: Callable[[float], None] | None = None) -> tuple[Surrogate, list[dict]]:
     """A ``config.width`` x ``config.depth`` student of the meso surrogate ``teacher``, on the
     states of database rows ``columns`` (the teacher's training rows); and its history."""
-    import torch
+    torch = require_torch("distillation")
 
     form = teacher.formulation
     if form.name != "meso":
@@ -178,6 +179,7 @@ def distill_on_sample(teacher: Surrogate, folder, config: DistillConfig = Distil
     from .rows import read_sample
     from .training import union
 
+    require_torch("distillation")  # before reading the data
     folders = list(folder) if isinstance(folder, (list, tuple)) else [folder]
     train = union([read_sample(f, "train")[0] for f in folders])
     test = union([read_sample(f, "test")[0] for f in folders])
@@ -191,7 +193,7 @@ class _TeacherRollouts(_Rollout):
     same start states as their targets: the student learns the teacher's paths, not the data's."""
 
     def __init__(self, teacher: Surrogate, columns, config: DistillConfig, rng, net):
-        import torch
+        torch = require_torch("distillation")
         super().__init__(teacher.formulation, columns, config, rng, teacher.x_scaler, net)
         t_net = torch_network(teacher)
         with torch.no_grad():

@@ -8,15 +8,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .formulations import OUTPUTS  # noqa: E402
-from .metrics import metrics_table  # noqa: E402
-from .model import Surrogate  # noqa: E402
+from .formulations import OUTPUTS
+from .metrics import metrics_table
+from .model import Surrogate
 
 UNITS = {"alpha_next": "rad", "N1_next": "N", "N2_next": "N", "T1_next": "N", "Vs_nn_next": "N m",
          "Vs_tt_next": "N m", "Vs_nt_next": "N m"}
@@ -55,7 +52,8 @@ def parity_plot(s: Surrogate, cols: dict[str, np.ndarray], path: Path, title: st
     out = outputs_of(s)
     n = len(y)
     idx = np.arange(n) if n <= max_points else np.random.default_rng(seed).choice(n, max_points, replace=False)
-    fig, axes = plt.subplots(2, len(out), figsize=(3.75 * len(out), 7.5), constrained_layout=True)
+    fig = Figure(figsize=(3.75 * len(out), 7.5), layout="constrained")
+    axes = fig.subplots(2, len(out), squeeze=False)
     for row, (yt, yp, what) in enumerate(((y, p, "after"), (y - before, p - before, "increment"))):
         m = metrics_table(yt, yp, out)
         for j, name in enumerate(out):
@@ -70,4 +68,3 @@ def parity_plot(s: Surrogate, cols: dict[str, np.ndarray], path: Path, title: st
             ax.set_title(f"R² = {m[j]['r2']:.6f}, max |err| = {m[j]['max_abs']:.3g}", fontsize=9)
     fig.suptitle(title)
     fig.savefig(path, dpi=130)
-    plt.close(fig)

@@ -88,6 +88,7 @@ from ..cell.state import FIELDS, CellState, initial_lengths
 from ..errors import InputError
 from ..params import Params
 from .formulations import OUTPUTS, MaterialScales
+from .torch_support import require_torch
 
 MESO_FIELDS = ("Vs_nn", "Vs_tt", "Vs_nt")
 STATE_FIELDS = FIELDS + MESO_FIELDS
@@ -417,13 +418,11 @@ def _ops(a):
     """where, minimum, maximum, sin, cos of NumPy or torch, after the type of ``a``."""
     if isinstance(a, np.ndarray):
         return np.where, np.minimum, np.maximum, np.sin, np.cos
-    import torch
+    torch = require_torch()
     return torch.where, torch.minimum, torch.maximum, torch.sin, torch.cos
 
 
-def _torch():
-    import torch
-    return torch
+_torch = require_torch
 
 
 def _positive(x):
@@ -434,12 +433,12 @@ def _like(const: np.ndarray, a):
     """``const`` as an array of ``a``'s kind (a torch tensor of its dtype and device)."""
     if isinstance(a, np.ndarray):
         return const
-    import torch
+    torch = require_torch()
     return torch.as_tensor(const, dtype=a.dtype, device=a.device)
 
 
 def _stack(cols: list):
     if isinstance(cols[0], np.ndarray):
         return np.column_stack(cols)
-    import torch
+    torch = require_torch()
     return torch.stack(cols, dim=1)

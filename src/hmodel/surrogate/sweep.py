@@ -10,18 +10,16 @@ from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ..data import Dataset  # noqa: E402
-from ..data.sampling import sample_split  # noqa: E402
-from ..errors import InputError  # noqa: E402
-from ..params import Params  # noqa: E402
-from .evaluation import evaluate  # noqa: E402
-from .training import TrainConfig, train  # noqa: E402
+from ..data import Dataset
+from ..data.sampling import sample_split
+from ..errors import InputError
+from ..params import Params
+from .evaluation import evaluate
+from .torch_support import require_torch
+from .training import TrainConfig, train
 
 DEPTHS = (3, 5, 7, 9, 11, 13, 15, 17)
 SIZES = (6_000, 60_000, 600_000)
@@ -34,6 +32,7 @@ def run_sweep(ds: Dataset, base: TrainConfig, depths: Sequence[int] = DEPTHS,
     """One row per (size, depth, loss) with the test metrics of every output."""
     if not depths or not losses or not sizes:
         raise InputError("the sweep needs at least one depth, loss and size")
+    require_torch()  # before reading the data
     sizes = sorted(sizes)
     train_rows, test_rows = sample_split(ds, sizes[-1], n_test, "random", seed)
     test = ds.read(rows=test_rows)
@@ -63,7 +62,8 @@ def run_sweep(ds: Dataset, base: TrainConfig, depths: Sequence[int] = DEPTHS,
 def plot_sweep(rows: list[dict], path: Path) -> None:
     """R² of the angle and the forces against the number of hidden layers (Table 2.1)."""
     outputs = ("alpha_next", "N1_next", "N2_next", "T1_next")
-    fig, axes = plt.subplots(1, 4, figsize=(16, 4.2), constrained_layout=True, sharex=True)
+    fig = Figure(figsize=(16, 4.2), layout="constrained")
+    axes = fig.subplots(1, 4, sharex=True)
     for ax, o in zip(axes, outputs):
         for size in sorted({r["train_rows"] for r in rows}):
             for loss, ls in (("mse", "-"), ("mae", "--")):
@@ -78,4 +78,3 @@ def plot_sweep(rows: list[dict], path: Path) -> None:
     axes[0].legend(fontsize=8)
     fig.suptitle("Network depth, loss and training-set size (report Table 2.1)")
     fig.savefig(path, dpi=130)
-    plt.close(fig)

@@ -15,6 +15,7 @@ from ..params import Params
 from .formulations import make_formulation
 from .model import Architecture, Surrogate
 from .scalers import Affine, fit_scaler
+from .torch_support import require_torch
 
 LOSSES = ("mse", "mae")
 
@@ -73,7 +74,7 @@ class TrainConfig:
 
 
 def _device(name: str):
-    import torch
+    torch = require_torch()
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
     try:
@@ -91,7 +92,7 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
     20 % (``val_fraction``) of the rows are held out for early stopping; scalers are fitted on
     the remaining training rows only. The best weights on the validation loss are kept.
     """
-    import torch
+    torch = require_torch()
 
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
@@ -179,6 +180,7 @@ def train_on_sample(folder, config: TrainConfig, progress: Callable[[float], Non
     from .evaluation import evaluate
     from .rows import params_of, read_sample
 
+    require_torch()  # before reading the data
     folders = list(folder) if isinstance(folder, (list, tuple)) else [folder]
     parts = [(read_sample(f, "train"), read_sample(f, "test")[0]) for f in folders]
     (cols, info), test = parts[0]
@@ -213,7 +215,7 @@ class _Rollout:
     and their rollout errors for the training loop."""
 
     def __init__(self, form, columns, config: TrainConfig, rng, xs, net):
-        import torch
+        torch = require_torch()
         if not getattr(form, "richer", False):
             raise InputError("rollout training needs the meso formulation of a richer cell (DEM data "
                              "whose V sigma is learned)")
@@ -240,14 +242,14 @@ class _Rollout:
 
     def train_batch(self, b: int, n_batches: int):
         """Rollout error of the b-th of ``n_batches`` slices of the training windows."""
-        import torch
+        torch = require_torch()
         if b == 0:  # a new epoch: new slices
             self.order = torch.randperm(len(self.order), generator=self.gen)
         size = math.ceil(len(self.order) / n_batches)
         return self._error(self.train, self.order[b * size:(b + 1) * size])
 
     def validation(self) -> float:
-        import torch
+        torch = require_torch()
         with torch.no_grad():
             return float(self._error(self.val))
 
@@ -264,7 +266,7 @@ def secant_weights(e, floor: float):
 def _loss(kind: str, logit: int | None):
     """Weighted mean regression loss (MSE or MAE) over the regression outputs, plus binary
     cross-entropy on the logit output when the formulation has one."""
-    import torch
+    torch = require_torch()
 
     def loss(pred, y, w):
         reg = slice(None, logit)
@@ -292,7 +294,7 @@ def fit_target_scaler(method: str, Y: np.ndarray, W: np.ndarray, logit: int | No
 
 def best_weights(net, state: dict) -> list[tuple[np.ndarray, np.ndarray]]:
     """(W, b) per linear layer in float64 of ``net`` with the kept (best) ``state`` loaded."""
-    import torch
+    torch = require_torch()
     net.load_state_dict(state)
     return [(m.weight.detach().cpu().double().numpy(), m.bias.detach().cpu().double().numpy())
             for m in net if isinstance(m, torch.nn.Linear)]
@@ -300,7 +302,7 @@ def best_weights(net, state: dict) -> list[tuple[np.ndarray, np.ndarray]]:
 
 def torch_network(model: Surrogate):
     """The torch MLP of a trained surrogate, its weights loaded (float32, as trained)."""
-    import torch
+    torch = require_torch()
     net = build_network(model.architecture, len(model.x_scaler.offset), len(model.weights[-1][1]))
     with torch.no_grad():
         for layer, (W, b) in zip([m for m in net if isinstance(m, torch.nn.Linear)], model.weights):
@@ -311,7 +313,7 @@ def torch_network(model: Surrogate):
 
 def build_network(arch: Architecture, n_in: int, n_out: int):
     """The torch MLP of an architecture (Linear layers with activations in between)."""
-    import torch
+    torch = require_torch()
 
     act = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU, "silu": torch.nn.SiLU,
            "gelu": torch.nn.GELU, "elu": torch.nn.ELU}[arch.activation]
