@@ -31,8 +31,9 @@ finite-difference probes reuse one evaluation per state. Loss: on dz/m0, an incr
 counting in proportion to its size; or, with ``TrainConfig.secant_floor``, on the secant dz/|de|
 down to increments of that size, which gives the first, elastic increments from a state their
 weight (on the hexagon-center cell the loss on dz/m0 left them to the large increments' sliding,
-and every network's ANN-REV was 2-4 % of peak q off at 100 kPa; README). Rows where a closed cell
-opens (forces cut to zero within the increment: not of this form) are left out.
+and every network's ANN-REV was 2-4 % of peak q off at 100 kPa; see the documentation's DEM
+cells page). Rows where a closed cell opens (forces cut to zero within the increment: not of
+this form) are left out.
 
 The way back enforces what holds for every such cell: lengths from the strain, d1 and d2 from
 alpha and the lengths (eq. 1.2), N1, N2 >= 0 and zero where the geometry has the grains clearly
@@ -54,7 +55,7 @@ REV feeds each cell its own previous output. :meth:`windows` cuts the data's pat
 start states of a Dataset 2) into windows of a few steps, and :meth:`rollout_error` steps the
 network along them through the same way back as the REV (:meth:`_advanced`, NumPy and torch
 alike), adding that error to the loss. Measured on the hexagon-center cell (benchmarks/dem_ann.py,
-README): single-cell rollouts along the data's paths and cells driven along a DEM-REV's own
+docs/dem.md): single-cell rollouts along the data's paths and cells driven along a DEM-REV's own
 drained histories drift far less; it costs some accuracy of the first increments from rest.
 
 Tried first and measured worse on closed-form REV paths (12 directions, 3 % axial strain, % of
@@ -175,7 +176,7 @@ class MesoFormulation(MaterialScales):
 
     @cached_property
     def _unloaded(self) -> np.ndarray:
-        """The summary (11,) of an unloaded cell (a DEM cell's takes ~1 ms: once)."""
+        """The summary (11,) of an unloaded cell (a DEM cell's needs a YADE request: once)."""
         full = (CellState.initial(self.params, (1,)) if self.cell == "closed-form"
                 else self._dem.initial(self.params, (1,))).values
         return self.summary(full)[0]
@@ -265,7 +266,7 @@ class MesoFormulation(MaterialScales):
         A, n, c2, B = response
         e1, e2 = e[:, 0:1], e[:, 1:2]
         load = n[:, :, 0] * e1 + n[:, :, 1] * e2 - c2
-        einsum = np.einsum if isinstance(load, np.ndarray) else _torch().einsum  # 3.5x a broadcast sum
+        einsum = np.einsum if isinstance(load, np.ndarray) else _torch().einsum  # no broadcast temporary
         return A[:, :, 0] * e1 + A[:, :, 1] * e2 + einsum("nk,nkl->nl", _positive(load), B)
 
     @staticmethod
