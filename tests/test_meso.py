@@ -15,7 +15,7 @@ from hmodel.compare import deviations, run_path, standard_paths
 from hmodel.data import DatasetSpec, generate
 from hmodel.data.sampling import write_split
 from hmodel.errors import InputError
-from hmodel.surrogate.formulations import make_formulation
+from hmodel.surrogate.kinds import make_formulation
 from hmodel.surrogate.meso import STATE_FIELDS, MesoFormulation
 from hmodel.surrogate.modelfile import load, save
 from hmodel.surrogate.rows import read_sample

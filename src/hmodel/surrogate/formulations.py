@@ -117,33 +117,3 @@ class Formulation:
         n2 = np.maximum(c["N2"] + F * Y[:, 2], 0.0) * closed
         return {"alpha_next": c["alpha"] + Y[:, 0], "N1_next": n1, "N2_next": n2,
                 "T1_next": np.clip(Y[:, 3], -1.0, 1.0) * self.tan_phi * n1}
-
-
-FORMULATIONS = ("report", "increment", "compliance", "meso")
-
-
-def make_formulation(name: str, params: Params, cell: str = "closed-form", mechanisms: int = 4):
-    """The formulation ``name`` for the material of ``params`` and data of the cell solver
-    ``cell`` (``mechanisms``: kinks of the ``meso`` formulation's incremental response)."""
-    if name not in FORMULATIONS:
-        raise InputError(f"unknown formulation {name!r} (known: {', '.join(FORMULATIONS)})")
-    if name == "meso":
-        from .meso import MesoFormulation
-        return MesoFormulation(params, cell, mechanisms)
-    if cell != "closed-form" and cell.split(":")[:2] != ["dem", "standard"]:
-        raise InputError(f"the {name} formulation learns H-cells; cells of {cell!r} need --formulation meso")
-    if name == "compliance":
-        from .compliance import ComplianceFormulation
-        return ComplianceFormulation(params)
-    return Formulation(name, params.kn * 2 * params.radius, params.tan_phi, params.radius)
-
-
-def formulation_from_dict(d: dict):
-    """Inverse of ``to_dict`` (model files)."""
-    if d["name"] == "meso":
-        from .meso import MesoFormulation
-        return MesoFormulation(Params.from_dict(d["params"]), d["cell"], d["mechanisms"])
-    if d["name"] == "compliance":
-        from .compliance import ComplianceFormulation
-        return ComplianceFormulation(Params.from_dict(d["params"]))
-    return Formulation(d["name"], d["force_scale"], d["tan_phi"], d["radius"])

@@ -6,6 +6,8 @@ architecture, normalization, material parameters, the training dataset's checksu
 configuration and history summary, metrics and the package version. A SHA-256 over the tensors
 and that JSON (stored as ``checksum``) detects any alteration; a truncated file fails to parse.
 Either way, and for a file of another format version, loading is refused with a clear message.
+The checksum is no signature: anyone can recompute it, so a file whose metadata disagree with its
+tensors (another number of layers, other sizes) or name an unknown formulation is refused too.
 """
 
 from __future__ import annotations
@@ -18,17 +20,17 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..errors import HModelError
-from .formulations import formulation_from_dict
+from ..errors import InputError
+from .kinds import FORMULATIONS, formulation_from_dict
 from .model import Architecture, Surrogate
-from .scalers import Affine
+from .scalers import METHODS, Affine
 
 FORMAT = "hmodel-surrogate"
 FORMAT_VERSION = 1
 
 
-class ModelFileError(HModelError):
-    """A model file that is missing, truncated, altered or of another format version."""
+class ModelFileError(InputError):
+    """A model file that is missing, truncated, altered, inconsistent or of another format version."""
 
 
 def _digest(tensors: dict[str, np.ndarray], meta_json: str) -> str:
@@ -78,7 +80,8 @@ def save(s: Surrogate, path: "str | os.PathLike") -> Path:
 
 
 def load(path: "str | os.PathLike") -> Surrogate:
-    """Read a model file; refuse anything truncated, altered or of another format version."""
+    """Read a model file; refuse anything truncated, altered, inconsistent or of another format
+    version (:class:`ModelFileError`, an :class:`~hmodel.errors.InputError`)."""
     from safetensors import SafetensorError
     from safetensors.numpy import load_file
     from safetensors import safe_open
@@ -102,11 +105,50 @@ def load(path: "str | os.PathLike") -> Surrogate:
     if meta.get("format") != FORMAT or meta.get("format_version") != FORMAT_VERSION:
         raise ModelFileError(f"{str(path)!r} has format version {meta.get('format_version')}; "
                              f"this hmodel ({__version__}) reads version {FORMAT_VERSION}")
+    try:
+        return _surrogate(meta, tensors)
+    except InputError as e:
+        raise ModelFileError(f"{str(path)!r} is inconsistent: {e}") from None
+    except (KeyError, TypeError, ValueError) as e:
+        raise ModelFileError(f"{str(path)!r} has incomplete metadata ({type(e).__name__}: "
+                             f"{' '.join(str(e).split())[:120]})") from None
+
+
+def _surrogate(meta: dict, tensors: dict[str, np.ndarray]) -> Surrogate:
+    """The model a file's metadata and tensors describe; InputError naming the first thing in
+    which they disagree (the formulation, the layers, a tensor's shape)."""
     f, a = meta["formulation"], meta["architecture"]
-    form = formulation_from_dict(f)
-    arch = Architecture(a["width"], a["depth"], a["activation"])
-    weights = [(tensors[f"layer{i}.weight"], tensors[f"layer{i}.bias"]) for i in range(a["n_layers"])]
+    name = f.get("name") if isinstance(f, dict) else f
+    if name not in FORMULATIONS:
+        raise InputError(f"unknown formulation {name!r} (known: {', '.join(FORMULATIONS)})")
+    if meta["normalization"] not in METHODS:
+        raise InputError(f"unknown normalization {meta['normalization']!r} (known: {', '.join(METHODS)})")
+    n = a["n_layers"]
+    held = {k.split(".")[0] for k in tensors if k.startswith("layer")}
+    want = ({f"layer{i}.{part}" for i in range(n) for part in ("weight", "bias")}
+            if isinstance(n, int) and not isinstance(n, bool) else set())
+    if not want or want != {k for k in tensors if k.startswith("layer")}:
+        raise InputError(f"the metadata name {n!r} layers, the tensors hold {len(held)}")
+    extra = set(tensors) - want - {"x_offset", "x_scale", "y_offset", "y_scale", "input_range"}
+    if extra:
+        raise InputError(f"unexpected tensors {', '.join(sorted(extra))}")
+    if a["depth"] != n - 1:
+        raise InputError(f"the metadata give depth {a['depth']!r} for {n} layers (depth + 1 expected)")
+    x, y = tensors["x_offset"], tensors["y_offset"]
+    if x.ndim != 1 or y.ndim != 1 or (tensors["x_scale"].shape, tensors["y_scale"].shape) != (x.shape, y.shape):
+        raise InputError("the scalers' offsets and scales differ in shape")
+    weights = [(tensors[f"layer{i}.weight"], tensors[f"layer{i}.bias"]) for i in range(n)]
+    size = len(x)
+    for i, (W, b) in enumerate(weights):
+        out = a["width"] if i < n - 1 else len(y)
+        if W.shape != (out, size) or b.shape != (out,):
+            raise InputError(f"layer {i} has weights {W.shape} and bias {b.shape}; the metadata and "
+                             f"scalers give ({out}, {size}) and ({out},)")
+        size = out
+    rng = tensors.get("input_range")
+    if rng is not None and rng.shape != (2, len(x)):
+        raise InputError(f"the input range has shape {rng.shape} for {len(x)} inputs")
     method = meta["normalization"]
-    return Surrogate(form, arch, Affine(method, tensors["x_offset"], tensors["x_scale"]),
-                     Affine(method, tensors["y_offset"], tensors["y_scale"]), weights, meta,
-                     tensors.get("input_range"))
+    return Surrogate(formulation_from_dict(f), Architecture(a["width"], a["depth"], a["activation"]),
+                     Affine(method, tensors["x_offset"], tensors["x_scale"]),
+                     Affine(method, tensors["y_offset"], tensors["y_scale"]), weights, meta, rng)

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..params import Params
-from .formulations import make_formulation
+from .kinds import make_formulation
 from .model import Architecture, Surrogate
 from .scalers import Affine, fit_scaler
 from .torch_support import require_torch

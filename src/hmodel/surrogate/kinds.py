@@ -1,0 +1,38 @@
+"""The surrogate formulations by name: ``report`` and ``increment`` (:mod:`.formulations`),
+``compliance`` (:mod:`.compliance`) and ``meso`` (:mod:`.meso`), made for a material or
+rebuilt from a model file's metadata. (Apart from the formulations themselves, which build on
+:mod:`.formulations`: no module imports back.)
+"""
+
+from __future__ import annotations
+
+from ..errors import InputError
+from ..params import Params
+from .compliance import ComplianceFormulation
+from .formulations import Formulation
+from .meso import MesoFormulation
+
+FORMULATIONS = ("report", "increment", "compliance", "meso")
+
+
+def make_formulation(name: str, params: Params, cell: str = "closed-form", mechanisms: int = 4):
+    """The formulation ``name`` for the material of ``params`` and data of the cell solver
+    ``cell`` (``mechanisms``: kinks of the ``meso`` formulation's incremental response)."""
+    if name not in FORMULATIONS:
+        raise InputError(f"unknown formulation {name!r} (known: {', '.join(FORMULATIONS)})")
+    if name == "meso":
+        return MesoFormulation(params, cell, mechanisms)
+    if cell != "closed-form" and cell.split(":")[:2] != ["dem", "standard"]:
+        raise InputError(f"the {name} formulation learns H-cells; cells of {cell!r} need --formulation meso")
+    if name == "compliance":
+        return ComplianceFormulation(params)
+    return Formulation(name, params.kn * 2 * params.radius, params.tan_phi, params.radius)
+
+
+def formulation_from_dict(d: dict):
+    """Inverse of ``to_dict`` (model files)."""
+    if d["name"] == "meso":
+        return MesoFormulation(Params.from_dict(d["params"]), d["cell"], d["mechanisms"])
+    if d["name"] == "compliance":
+        return ComplianceFormulation(Params.from_dict(d["params"]))
+    return Formulation(d["name"], d["force_scale"], d["tan_phi"], d["radius"])
