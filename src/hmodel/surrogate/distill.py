@@ -3,19 +3,19 @@
 A REV evaluates its network once per increment for every cell of every material point, so the
 network's width sets most of an ANN-REV's cost. A narrower network trained on the data alone
 reached a lower validation loss than the recipe's wider one and was still less accurate along
-REV paths (see the documentation's DEM cells page). Here the narrower network (the student) learns the trained one (the
-teacher) instead: on the teacher's training states, and for each of them its own strain and
-``strains`` random ones (directions uniform, magnitudes drawn from the data's), the student's
-increment dz/m0 = A e + sum_k <n_k . e - c_k^2> B_k is fitted to the teacher's, each error
-weighed as one of the secant dz/|de| (the teacher's ``secant_floor``). ``raw_weight`` adds the
-squared difference of the raw outputs (each scaled by the teacher's spread over the states),
-which holds the student to the teacher's mechanisms, not just to their sum (a richer target
-than the increment alone, so the validation loss falls faster). For a richer cell ``rollout_weight`` adds the difference of the two
-networks' rollouts of ``rollout`` steps from the data's path states: without it, a 64x3 student
-as good on single increments was 2.58 % of peak q off a DEM-REV path, with it 1.55 % (see the
-documentation's DEM cells page).
-The student keeps the teacher's formulation, scalers and
-training domain; its metadata names the teacher and the distillation's settings.
+REV paths (see the documentation's DEM cells page). Here the narrower network (the student)
+learns the trained one (the teacher) instead: on the teacher's training states, and for each of
+them its own strain and ``strains`` random ones (directions uniform, magnitudes drawn from the
+data's), the student's increment dz/m0 = A e + sum_k <n_k . e - c_k^2> B_k is fitted to the
+teacher's, each error weighed as one of the secant dz/|de| (the teacher's ``secant_floor``).
+``raw_weight`` adds the squared difference of the raw outputs (each scaled by the teacher's
+spread over the states), which holds the student to the teacher's mechanisms, not just to their
+sum (a richer target than the increment alone, so the validation loss falls faster). For a
+richer cell ``rollout_weight`` adds the difference of the two networks' rollouts of ``rollout``
+steps from the data's path states: without it, a 64x3 student as good on single increments was
+2.58 % of peak q off a DEM-REV path, with it 1.55 % (see the documentation's DEM cells page).
+The student keeps the teacher's formulation, scalers and training domain; its metadata names the
+teacher and the distillation's settings.
 """
 
 from __future__ import annotations
