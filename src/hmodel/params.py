@@ -1,7 +1,7 @@
 """Material and discretization parameters of the H-model, validated in one place.
 
 Defaults are Veylon (2017), report Table 1.1. Angles are stored in radians; the CLI and
-:meth:`Params.from_strings` take them in degrees, as the report and DESIGN.md do.
+:meth:`Params.from_strings` take them in degrees, as the report does.
 
 >>> p = Params.from_strings({"alpha0": "50", "n_theta": "72"})
 >>> round(p.alpha0_deg, 6), p.n_theta, p.kt
@@ -52,7 +52,7 @@ class Params:
     g2 : int
         Closure of eq. 1.5: 0 (Nicot & Darve 2011) or 1 (the later version).
     sliding_rhs : str
-        Right-hand side lambda of eq. 1.10 when sliding. ``report`` is DESIGN.md's
+        Right-hand side lambda of eq. 1.10 when sliding. ``report`` is the corrected eq. 1.10
         lambda = xi (g2 + sin a)(tan phi N1 - T1)/kn, as in the report's code;
         ``equilibrium`` is lambda = (g2 + sin a)(xi tan phi N1 - T1)/kn, which keeps grain 2
         in equilibrium (eq. 1.5) when the contact slides with T1 < 0. Both agree for xi = +1.

@@ -1,4 +1,4 @@
-"""Closed-form incremental response of the H-cell (report eqs. 1.3-1.10, DESIGN.md steps 2-3).
+"""Closed-form incremental response of the H-cell (report eqs. 1.3-1.10, docs/model.md steps 2-3).
 
 One increment of every cell of a batch is a compiled loop (Numba) over cells; each cell solves
 the 3x3 system of eq. 1.7 by Cramer's rule, first without sliding, then, if the trial
@@ -91,7 +91,7 @@ def sliding_lambda(v, xi, p):
     gs = p[P_G2] + math.sin(v[2])
     if p[P_EQ_RHS] != 0.0:
         return gs * (xi * p[P_TAN] * v[3] - v[5]) / p[P_KN]
-    return xi * gs * (p[P_TAN] * v[3] - v[5]) / p[P_KN]  # eq. 1.10 as corrected in DESIGN.md
+    return xi * gs * (p[P_TAN] * v[3] - v[5]) / p[P_KN]  # eq. 1.10 as corrected in docs/model.md
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -99,7 +99,7 @@ def finish_increment(v, dl1, dl2, dd1, dd2, da, sliding, xi, p, out, flags):
     """New state of a cell from the solution (δd1, δd2, δα) of eq. 1.7 in its regime.
 
     Forces by eqs. 1.8-1.9 (δN = −kn δd, δT1 = kt d1 δα, or T1 on the Coulomb cone when
-    sliding), lengths, openings and extra contacts (DESIGN.md step 3). Writes ``out`` and
+    sliding), lengths, openings and extra contacts (docs/model.md step 3). Writes ``out`` and
     ``flags``; returns False when the result is not finite.
     """
     kn = p[P_KN]
@@ -116,7 +116,7 @@ def finish_increment(v, dl1, dl2, dd1, dd2, da, sliding, xi, p, out, flags):
     else:
         l1_new = l1 + dl1
     l2_new = l2 + dl2
-    # A contact is open when its grains separate (d > 2r, DESIGN.md step 3) or when it would
+    # A contact is open when its grains separate (d > 2r, docs/model.md step 3) or when it would
     # carry tension: after a cell was emptied by the *other* contact opening, the incremental
     # force no longer equals kn (2r - d), and a cohesionless contact cannot pull.
     open1 = d1_new > two_r or n1_new < 0.0

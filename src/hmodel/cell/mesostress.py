@@ -28,7 +28,7 @@ def contact_vsigma(d1, d2, ca, sa, n1, n2, t1):
 def vsigma_local(v, kn, two_r):
     """(V sigma_nn, V sigma_tt) of one cell from its packed state ``v`` (eq. 1.12).
 
-    Over-compressed cells get the extra contacts of DESIGN.md step 3: kn (2r - l1) l1 on
+    Over-compressed cells get the extra contacts of docs/model.md, step 3: kn (2r - l1) l1 on
     V sigma_nn when l1 <= 2r (grains 1-4) and 2 kn (2r - l2) l2 on V sigma_tt when l2 <= 2r
     (grains 2-6 and 3-5).
     """

@@ -1,4 +1,4 @@
-"""``hmodel`` command line. Public contract: see DESIGN.md ("Public contract").
+"""``hmodel`` command line. Its contract: docs/cli.md ("Output and error contract").
 
 Every error is printed as one line ``hmodel: error: ...``: exit status 1 for a problem with
 the inputs or the computation, 2 for a malformed command line (unknown option, a value that is

@@ -5,7 +5,7 @@ and how each is moved when the cell lengths change: ``"n"`` grains are driven al
 n-coordinate scales with l1 about the cell centre), ``"t"`` grains along t (t-coordinate
 scales with l2), ``"free"`` grains are moved by their contacts only. A driven grain is free in
 the other in-plane direction. The standard H-cell (report Fig. 1.2, eq. 1.2 with the geometry
-of DESIGN.md "Known slips") is
+of docs/model.md, "Known slips") is
 
 - grains 1 and 4 (indices 0, 3) at (-/+ l1/2, 0), driven along n;
 - grains 2, 3 (indices 1, 2) at (-/+ d2/2, +l2/2), grains 6, 5 (indices 5, 4) at

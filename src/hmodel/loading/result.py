@@ -11,7 +11,7 @@ import numpy as np
 
 from ..rev import RevState
 
-#: Columns of every result table, in order (DESIGN.md public contract plus diagnostics).
+#: Columns of every result table, in order (the output contract of docs/cli.md plus diagnostics).
 COLUMNS = ("point", "stage", "step", "eps11", "eps22", "eps12", "sig11", "sig22", "sig12",
            "p", "q", "eps_v", "q_p", "frac_sliding", "frac_open", "frac_contact14",
            "frac_contact26")

@@ -11,7 +11,7 @@ from numba import njit
 
 from ..cell.mesostress import vsigma_local
 
-# Localization modes: on which lengths the strain acts (DESIGN.md step 5).
+# Localization modes: on which lengths the strain acts (docs/model.md, step 5).
 LOC_CELL, LOC_BOX, LOC_VIRTUAL = 0, 1, 2
 
 

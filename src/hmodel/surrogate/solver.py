@@ -253,7 +253,7 @@ class SurrogateSolver:
         new = np.column_stack([b1, b2, a, pred["N1_next"], pred["N2_next"], pred["T1_next"], l1, l2])
         two_r = 2.0 * params.radius
         opened = (pred["N1_next"] == 0) & (pred["N2_next"] == 0)
-        if self.opening == "rule":  # separated grains carry no force (DESIGN.md step 3)
+        if self.opening == "rule":  # separated grains carry no force (docs/model.md step 3)
             opened |= (b1 > two_r) | (b2 > two_r)
             for k in (3, 4, 5):
                 new[opened, k] = 0.0
