@@ -163,20 +163,15 @@ def test_damaged_model_files_are_refused(model, tmp_path, damage):
         path.write_bytes(bytes(data))
     elif damage == "truncate":
         path.write_bytes(bytes(data[: len(data) - 100]))
-    elif damage in ("edit-metadata", "version"):
+    elif damage == "edit-metadata":
         meta = json.loads(header["__metadata__"]["hmodel"])
-        if damage == "edit-metadata":
-            meta["metrics"] = "excellent"
-        else:
-            meta["format_version"] = 99
+        meta["metrics"] = "excellent"
         header["__metadata__"]["hmodel"] = json.dumps(meta, sort_keys=True)
-        if damage == "version":  # re-sign, so that only the version is wrong
-            from hmodel.surrogate.modelfile import _digest
-            from safetensors.numpy import load_file
-            header["__metadata__"]["checksum"] = _digest(load_file(str(path)), header["__metadata__"]["hmodel"])
         new = json.dumps(header).encode()
         new += b" " * (-len(new) % 8)
         path.write_bytes(len(new).to_bytes(8, "little") + new + bytes(data[8 + hlen:]))
+    elif damage == "version":  # re-signed, so that only the version is wrong
+        _resign(path, lambda meta: meta.update(format_version=99))
     elif damage == "empty":
         path.write_bytes(b"")
     else:
@@ -184,6 +179,48 @@ def test_damaged_model_files_are_refused(model, tmp_path, damage):
     with pytest.raises(ModelFileError):
         load(path)
 
+
+def _resign(path, edit) -> None:
+    """Edit a model file's metadata with ``edit(meta)`` and recompute its checksum, as anyone
+    can: the checksum detects accidents, not a careful forger."""
+    from safetensors.numpy import load_file
+
+    from hmodel.surrogate.modelfile import _digest
+    data = path.read_bytes()
+    hlen = int.from_bytes(data[:8], "little")
+    header = json.loads(data[8:8 + hlen])
+    meta = json.loads(header["__metadata__"]["hmodel"])
+    edit(meta)
+    header["__metadata__"]["hmodel"] = json.dumps(meta, sort_keys=True)
+    header["__metadata__"]["checksum"] = _digest(load_file(str(path)), header["__metadata__"]["hmodel"])
+    new = json.dumps(header).encode()
+    new += b" " * (-len(new) % 8)
+    path.write_bytes(len(new).to_bytes(8, "little") + new + data[8 + hlen:])
+
+
+def _one_more_layer(meta):  # depth and n_layers agree with each other, not with the tensors
+    meta["architecture"]["n_layers"] += 1
+    meta["architecture"]["depth"] += 1
+
+
+@pytest.mark.parametrize("edit, words", [
+    (_one_more_layer, ("inconsistent", "metadata name 4 layers", "tensors hold 3")),
+    (lambda meta: meta["formulation"].update(name="magic"), ("inconsistent", "unknown formulation 'magic'")),
+], ids=["one-more-layer", "unknown-formulation"])
+def test_resigned_model_file_with_inconsistent_metadata_is_refused(model, tmp_path, capsys, edit, words):
+    from hmodel.cli.app import main
+    s, _, _ = model
+    path = save(s, tmp_path / "m.safetensors")
+    _resign(path, edit)
+    with pytest.raises(InputError) as err:
+        load(path)
+    assert isinstance(err.value, ModelFileError) and "\n" not in str(err.value)
+    assert all(w in str(err.value) for w in words), str(err.value)
+    code = main(["run", "iso", "--p0", "100kPa", "--param", "n_theta=6", "--solver", f"surrogate:{path}",
+                 "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1 and err.startswith("hmodel: error:") and words[1] in err, err
+    assert not (tmp_path / "o").exists()
 
 def test_training_is_reproducible(sample):
     from hmodel.surrogate.rows import params_of, read_sample
