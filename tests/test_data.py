@@ -237,13 +237,19 @@ def test_killed_process_resumes(d2, tmp_path):
     proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 60
     while time.time() < deadline and proc.poll() is None:
-        if len(list(out.glob("part-*.parquet"))) >= 2:
+        if list(out.glob("part-*.parquet")):  # killed after its first shard
             break
         time.sleep(0.01)
     proc.send_signal(signal.SIGKILL)
-    proc.wait()
+    assert proc.wait() == -signal.SIGKILL  # it was still running: the kill cut it short
+    import json
+    left = json.loads((out / store.MANIFEST).read_text())
+    assert not left["complete"] and len(left["shards"]) < SMALL2.n_shards, left
+    assert len(list(out.glob("part-*.parquet"))) < SMALL2.n_shards
+    with pytest.raises(DatasetError, match="incomplete"):
+        Dataset.open(out)
     ds = generate(SMALL2, Params(), out)
-    assert checksums(ds) == checksums(d2)
+    assert checksums(ds) == checksums(d2) and ds.manifest["complete"]
 
 
 @pytest.mark.parametrize("damage", ["flip", "truncate", "delete"])
