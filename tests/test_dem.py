@@ -120,3 +120,33 @@ def test_no_equilibrium_is_a_one_line_error(tmp_path, monkeypatch, capsys):
     with pytest.raises(EquilibriumError) as e:
         real([(meso.standard(), np.full((2, 2), -1e-3))], PARAMS, capped)
     assert isinstance(e.value, DEMError) and "\n" not in str(e.value)
+
+
+@needs_yade
+@pytest.mark.parametrize("mesostructure", ["standard", "hexagon-center"])
+def test_draw_writes_the_loaded_cell_as_png(tmp_path, capsys, mesostructure):
+    import struct
+
+    from matplotlib.image import imread
+
+    out = tmp_path / "d"
+    code = main(["dem", "draw", "--mesostructure", mesostructure, "--steps", "2", "--strain", "0.002",
+                 "--out", str(out)])
+    stdout, err = capsys.readouterr()
+    assert code == 0, err
+    assert "cell.png" in stdout and sorted(p.name for p in out.iterdir()) == ["cell.png"]
+    png = (out / "cell.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and png[12:16] == b"IHDR"
+    width, height = struct.unpack(">II", png[16:24])
+    image = imread(out / "cell.png")  # decodes the whole file
+    assert image.shape[:2] == (height, width) and min(width, height) >= 200
+    assert np.ptp(image[..., :3]) > 0.5  # something drawn, not a blank canvas
+
+
+def test_draw_refuses_an_unknown_mesostructure_before_starting_yade(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("HMODEL_YADE", str(tmp_path / "no-such-yade"))  # never reached
+    code = main(["dem", "draw", "--mesostructure", "pentagon", "--out", str(tmp_path / "d")])
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1 and err.startswith("hmodel: error: "), err
+    assert "unknown mesostructure 'pentagon'" in err and "standard" in err
+    assert not (tmp_path / "d").exists()
