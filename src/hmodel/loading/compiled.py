@@ -2,7 +2,7 @@
 
 :func:`hmodel.loading.control.solve_increment` drives any cell solver from Python; each Newton
 trial is a batched REV call, and for one material point at nθ = 360 the Python overhead
-exceeds the cell computation about tenfold. When the REV runs the closed-form solver, a whole
+exceeds the cell computation many times over. When the REV runs the closed-form solver, a whole
 segment instead runs in one Numba kernel: per increment and per material point, the same
 Newton-Broyden iteration (tangent predictor, secant updates skipped across cell events,
 finite-difference refresh on stalls, trust region), with localization (eq. 1.1), the cell
