@@ -4,7 +4,7 @@ Prediction runs the network as plain NumPy matrix products on the saved weights:
 MLPs of report §2.4 this avoids a framework's per-call overhead, which dominates at these sizes,
 and keeps inference free of PyTorch. Training (``hmodel.surrogate.training``) uses PyTorch.
 (PyTorch's float32 linear layers were tried for inference and made whole ANN-REV runs slower,
-though a single large batch ran faster; see the benchmarks page of the documentation.) The rows
+though a single large batch ran faster; see the documentation's notes.) The rows
 run in blocks whose activations stay in cache. ``forward(X, single=True)`` runs the layers in
 float32, the precision the network was trained in (outputs within ~4e-7 of float64, at half the
 memory traffic); the solver uses it for ``meso`` models only (see ``SurrogateSolver._network``).
