@@ -167,6 +167,54 @@ class Params:
         return cls.from_strings(values, base)
 
 
+#: Parameters every material point of one batch shares (the REV's directions, lengths and
+#: localization); the others may differ from point to point (:func:`parse_point_assignments`).
+SHARED = ("n_theta", "radius", "volume")
+
+
+def check_batch(sets) -> tuple[Params, ...]:
+    """The parameter sets of a batch of material points, one per point (or one for all),
+    refused with a one-line error when they differ in a shared parameter (:data:`SHARED`)."""
+    sets = (sets,) if isinstance(sets, Params) else tuple(sets)
+    if not sets or not all(isinstance(s, Params) for s in sets):
+        raise InputError("a batch needs one or more Params, one per material point")
+    for name in SHARED:
+        values = {getattr(s, name) for s in sets}
+        if len(values) > 1:
+            raise InputError(f"parameter {name} is shared by the material points of one run, "
+                             f"got {', '.join(map(str, sorted(values, key=str)))}")
+    return sets
+
+
+def parse_point_assignments(items: list[str] | None, base: Params | None = None) -> list[Params]:
+    """``--param`` with comma lists: ``["phi_g=25,35", "alpha0=45,55", "kn=2e8"]`` gives one
+    Params per listed value (two here), single values shared by all; lists of unequal lengths
+    (other than 1) are a one-line error, as are lists of a shared parameter (:data:`SHARED`).
+
+    >>> [round(p.alpha0_deg) for p in parse_point_assignments(["phi_g=25,35", "alpha0=45,55"])]
+    [45, 55]
+    """
+    columns: dict[str, list[str]] = {}
+    for item in items or []:
+        name, sep, text = item.partition("=")
+        if not sep or not name.strip() or not text.strip():
+            raise InputError(f"--param expects NAME=VALUE or NAME=V1,V2,..., got {item!r}")
+        values = [v.strip() for v in text.split(",")]
+        if any(not v for v in values):
+            raise InputError(f"--param {name.strip()}: empty value in {text!r}")
+        if len(values) > 1 and name.strip() in SHARED:
+            raise InputError(f"parameter {name.strip()} is shared by the material points of one run: "
+                             f"give one value, got {text!r}")
+        columns[name.strip()] = values
+    lengths = sorted({len(v) for v in columns.values()} - {1})
+    if len(lengths) > 1:
+        raise InputError("--param lists must have equal lengths (or one value): got "
+                         + ", ".join(f"{k}: {len(v)}" for k, v in columns.items() if len(v) > 1))
+    n = lengths[0] if lengths else 1
+    return [Params.from_strings({k: v[i if len(v) > 1 else 0] for k, v in columns.items()}, base)
+            for i in range(n)]
+
+
 def _convert(name: str, text: str, typ) -> object:
     if typ in ("str", str):
         return str(text)

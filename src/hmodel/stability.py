@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 
 from .errors import InputError
-from .loading.compiled import (NOT_CONVERGED, TRIAL_LIMITS, _fd_tangent, _solve_point, _trial, cell_responses, kernel_inputs,
+from .loading.compiled import (NOT_CONVERGED, TRIAL_LIMITS, _fd_tangent, _solve_point, _trial, cell_responses_of, kernel_inputs,
                                supports)
 from .loading.control import Tangent
 from .rev import Rev, RevState
@@ -110,11 +110,12 @@ def strain_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1
     probes = magnitude * probe_directions(n, shear)
     one = state.select(slice(point, point + 1))
     if supports(rev):
-        geo, p = kernel_inputs(rev)
+        k = int(one.set_index[0])
+        geo, p = kernel_inputs(rev, k)
         sig = np.empty((n, 3))
         values = np.ascontiguousarray(one.cells.values[0])
         _strain_probe_kernel(values, one.eps[0], np.ascontiguousarray(probes), geo, p, rev.mode,
-                             rev.volume0, sig, cell_responses(rev, values))
+                             rev.volumes0[k], sig, cell_responses_of(rev.kernels[k], values))
     else:
         sig = rev.step(one.select(np.zeros(n, dtype=np.int64)), probes).sig
     return Envelope("strain", probes, sig - one.sig[0])
@@ -151,17 +152,18 @@ def stress_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1
         raise InputError("stress probes need a compiled cell solver (the closed form or a meso surrogate)")
     one = state.select(slice(point, point + 1))
     dsig = magnitude * float(one.p[0]) * probe_directions(n)
-    geo, p = kernel_inputs(rev)
+    k = int(one.set_index[0])
+    geo, p = kernel_inputs(rev, k)
     values = np.ascontiguousarray(one.cells.values[0])
     flags = np.ascontiguousarray(one.flags.flags[0])
     K = np.empty((3, 3))
-    resp = cell_responses(rev, values)
-    _fd_tangent(values, one.eps[0], np.zeros(3), geo, p, rev.mode, rev.volume0, FD_STEP,
+    resp = cell_responses_of(rev.kernels[k], values)
+    _fd_tangent(values, one.eps[0], np.zeros(3), geo, p, rev.mode, rev.volumes0[k], FD_STEP,
                 np.empty_like(values), np.empty_like(flags), K, resp)
     deps = np.empty((n, 3))
     _stress_probe_kernel(values, flags, one.eps[0].copy(), one.sig[0].copy(), K,
                          np.ascontiguousarray(one.sig[0] + dsig), geo, p, rev.mode,
-                         rev.volume0, 1e-10, 24, FD_STEP, deps, resp)
+                         rev.volumes0[k], 1e-10, 24, FD_STEP, deps, resp)
     return Envelope("stress", deps, dsig)
 
 

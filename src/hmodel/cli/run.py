@@ -11,7 +11,7 @@ from ..errors import InputError
 from ..io import read_strain_path, write_outputs
 from ..loading import AXIAL_STEP, ISO_STEP, MAX_STRAIN_STEP, run_biaxial, run_isotropic, run_strain_path
 from ..loading.result import PathResult
-from ..params import UNITS, Params
+from ..params import UNITS, Params, parse_point_assignments
 from ..plotting import plot_result
 from ..solvers import get_solver
 from ..units import parse_pressures
@@ -21,7 +21,9 @@ app = typer.Typer(no_args_is_help=True, help="Run a loading path at the material
 
 ParamOpt = Annotated[Optional[list[str]], typer.Option(
     "--param", "-p", metavar="NAME=VALUE",
-    help="Model parameter, repeatable; angles in degrees. Names: " + ", ".join(
+    help="Model parameter, repeatable; angles in degrees. A comma list (phi_g=25,35) gives one "
+         "material point per value, broadcast against --p0 (n_theta, radius, volume are shared). "
+         "Names: " + ", ".join(
         f"{k} [{u}]" for k, u in UNITS.items()))]
 OutOpt = Annotated[Path, typer.Option("--out", "-o", help="Output folder (result.csv, result.png).")]
 SolverOpt = Annotated[str, typer.Option("--solver", help="Cell solver: closed-form, surrogate (the shipped model), surrogate:MODEL_FILE or "
@@ -42,14 +44,25 @@ def _positive(value: float, name: str) -> float:
     return value
 
 
+def _material_points(param: list[str] | None, n_pressures: int) -> Params | list[Params]:
+    """``--param`` with comma lists: one parameter set per material point, broadcast against the
+    ``--p0`` list (equal lengths, or one of them 1)."""
+    sets = parse_point_assignments(param)
+    if len(sets) > 1 and n_pressures > 1 and len(sets) != n_pressures:
+        raise InputError(f"--param lists give {len(sets)} material points and --p0 gives "
+                         f"{n_pressures}: give equal lengths, or one value")
+    return sets[0] if len(sets) == 1 else sets
+
+
 @app.command("iso")
 def iso(p0: P0Opt = "200kPa", param: ParamOpt = None, out: OutOpt = Path("results/iso"),
         iso_step: Annotated[float, typer.Option(help="Strain increment of eps11 and eps22.")] = ISO_STEP,
         solver: SolverOpt = "closed-form") -> None:
     """Isotropic compression (equal strain increments) until p reaches p0."""
-    params = Params.parse_assignments(param)
+    pressures = parse_pressures(p0)
+    params = _material_points(param, len(pressures))
     with LazyProgress("isotropic compression") as progress:
-        result = run_isotropic(params, parse_pressures(p0), solver=get_solver(solver),
+        result = run_isotropic(params, pressures, solver=get_solver(solver),
                                step=_positive(iso_step, "--iso-step"), progress=progress)
     _finish(result, out)
 
@@ -63,8 +76,8 @@ def biaxial(p0: P0Opt = "200kPa",
             iso_step: Annotated[float, typer.Option(help="Strain increment of the consolidation.")] = ISO_STEP,
             solver: SolverOpt = "closed-form") -> None:
     """Isotropic consolidation to p0, then drained (sig22 = p0) or undrained biaxial compression."""
-    params = Params.parse_assignments(param)
     pressures = parse_pressures(p0)
+    params = _material_points(param, len(pressures))
     _positive(axial_strain, "--axial-strain")
     if axial_strain >= 1:
         raise InputError(f"--axial-strain must be below 1, got {axial_strain}")
@@ -83,7 +96,7 @@ def strain_path(path: Annotated[Path, typer.Argument(help="CSV with header eps11
                          f"(default: one increment per row; {MAX_STRAIN_STEP:g} is converged).")] = None,
                 solver: SolverOpt = "closed-form") -> None:
     """Follow a prescribed strain path; one result row per input row, in order."""
-    params = Params.parse_assignments(param)
+    params = _material_points(param, 1)
     eps = read_strain_path(path)
     if max_step is not None:
         _positive(max_step, "--max-step")

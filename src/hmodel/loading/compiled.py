@@ -52,24 +52,45 @@ def supports(rev: Rev) -> bool:
     return rev.kernel is not None
 
 
-def kernel_inputs(rev: Rev) -> tuple[np.ndarray, np.ndarray]:
-    """(geo, p) for :func:`_trial`: the direction factors cos², sin², sin·cos and their weighted
-    versions (6, n_theta), and the solver kernel's packed parameters."""
+def kernel_inputs(rev: Rev, k: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(geo, p) for :func:`_trial` of a point of parameter set k: the direction factors cos²,
+    sin², sin·cos and their weighted versions (6, n_theta), and the solver kernel's packed
+    parameters."""
     d = rev.directions
-    w = d.weights
+    w = rev.weights[k]
     geo = np.ascontiguousarray(np.stack([d.cos2, d.sin2, d.sincos, w * d.cos2, w * d.sin2,
                                          w * d.sincos]))
-    return geo, rev.kernel.params
+    return geo, rev.kernels[k].params
 
 
-def cell_responses(rev: Rev, values: np.ndarray) -> np.ndarray:
-    """Per-cell inputs of :func:`_trial` that depend on the cells' states (..., n_fields): a
-    learned response's packed rows (..., R), one evaluation for all cells (which may refuse
-    cells outside a training domain); nothing (..., 0) for the closed form."""
-    if not rev.kernel.learned:
+def batch_inputs(rev: Rev) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`kernel_inputs` of every parameter set, stacked: (K, 6, n_theta) and (K, P)."""
+    parts = [kernel_inputs(rev, k) for k in range(rev.n_sets)]
+    return (np.ascontiguousarray(np.stack([g for g, _ in parts])),
+            np.ascontiguousarray(np.stack([p for _, p in parts])))
+
+
+def cell_responses(rev: Rev, values: np.ndarray, sets: np.ndarray | None = None) -> np.ndarray:
+    """Per-cell inputs of :func:`_trial` that depend on the cells' states (B, n_theta, n_fields)
+    of points with parameter sets ``sets`` (B,) (None: the first for all): a learned response's
+    packed rows (..., R), one evaluation per set present (which may refuse cells outside a
+    training domain); nothing (..., 0) for the closed form."""
+    if sets is None or rev.n_sets == 1:
+        return cell_responses_of(rev.kernel, values)
+    parts = {k: cell_responses_of(rev.kernels[k], values[sets == k]) for k in np.unique(sets)}
+    first = next(iter(parts.values()))
+    out = np.empty((*values.shape[:-1], first.shape[-1]))
+    for k, part in parts.items():
+        out[sets == k] = part
+    return out
+
+
+def cell_responses_of(kernel, values: np.ndarray) -> np.ndarray:
+    """:func:`cell_responses` of cells (..., n_fields) that share one kernel."""
+    if not kernel.learned:
         return np.empty((*values.shape[:-1], 0))
     flat = np.ascontiguousarray(values.reshape(-1, values.shape[-1]))
-    packed = rev.kernel.responses(flat)
+    packed = kernel.responses(flat)
     return packed.reshape(*values.shape[:-1], packed.shape[-1])
 
 
@@ -455,12 +476,13 @@ def _solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volum
 @njit(cache=True, error_model="numpy")
 def _run_steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin, k_end,
                geo, p, mode, volume0, rtol, max_iter, max_events, h, rec, status, resp, guess, trials,
-               limits):
+               limits, sets):
     """Increments k_begin..k_end-1 (1-based k of n_steps) of a segment for B material points.
 
     Stops after the first increment where a point fails (``status[b] != OK``) and returns its
     k; returns k_end when all went through. ``rec[k - k_begin, b]`` receives eps (3), sig (3)
-    and the cell fractions sliding, broken, contact14, contact26.
+    and the cell fractions sliding, broken, contact14, contact26. Point b runs with parameter
+    set ``sets[b]``: its rows of ``geo`` (K, 6, n_theta), ``p`` (K, P) and ``volume0`` (K,).
     """
     B, n = values.shape[0], values.shape[1]
     buf = np.empty((4, n, values.shape[2]))
@@ -475,7 +497,8 @@ def _run_steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_b
                 else:
                     v[r] = end[b, r] / n_steps
             status[b] = _solve_point(values[b], flags[b], eps[b], sig[b], K[b], has_K[b:b + 1],
-                                     S, M, v, geo, p, mode, volume0, rtol, max_iter, max_events,
+                                     S, M, v, geo[sets[b]], p[sets[b]], mode, volume0[sets[b]],
+                                     rtol, max_iter, max_events,
                                      h, buf, bufflags, resp[b], guess[b], trials[b:b + 1], limits)
             failed |= status[b] != OK
             row = rec[k - k_begin, b]
@@ -522,7 +545,9 @@ class CompiledSegment:
         B = state.n_points
         self.has_K = np.full(B, tangent.K is not None and tangent.K.shape[0] == B)
         self.K = tangent.K.copy() if self.has_K.all() else np.zeros((B, 3, 3))
-        self.geo, self.p = kernel_inputs(rev)
+        self.geo, self.p = batch_inputs(rev)
+        self.sets = state.set_index.astype(np.int64)
+        self._sets = state.sets  # as the state had them (None: all the first set)
         self.meso = rev.kernel.learned
         # per point: the last increment's strain, Newton's first trial of the next one (meso
         # surrogates: close to the answer along a smooth path; the closed form keeps its
@@ -538,7 +563,7 @@ class CompiledSegment:
 
     def state(self) -> RevState:
         return RevState(CellState(self.values.copy()), CellFlags(self.flags.copy()),
-                        self.eps.copy(), self.sig.copy())
+                        self.eps.copy(), self.sig.copy(), self._sets)
 
     def run(self, k_begin: int, k_end: int) -> np.ndarray:
         """Increments k_begin..k_end-1; returns their records (k_end - k_begin, B, 10)."""
@@ -550,13 +575,13 @@ class CompiledSegment:
         stride = 1 if self.meso else k_end - k_begin
         k = k_begin
         while k < k_end:
-            resp = cell_responses(self.rev, self.values)
+            resp = cell_responses(self.rev, self.values, self._sets)
             end = min(k + stride, k_end)
             k = _run_steps(self.values, self.flags, self.eps, self.sig, self.K, self.has_K,
                            self.S, self.M, self.start, self.end, self.n_steps, k, end, self.geo,
-                           self.p, self.rev.mode, self.rev.volume0, self.rtol, self.max_iter,
+                           self.p, self.rev.mode, self.rev.volumes0, self.rtol, self.max_iter,
                            self.max_events, self.tangent.fd_step, rec[k - k_begin:], status, resp,
-                           self.guess, self.trials, TRIAL_LIMITS)
+                           self.guess, self.trials, TRIAL_LIMITS, self.sets)
             if k < end:  # increment k failed for some points
                 self._hand_back(k, status != OK, rec[k - k_begin])
                 status[:] = OK
@@ -568,7 +593,7 @@ class CompiledSegment:
         """Solve increment k of the failed points with the generic driver (event fallback)."""
         idx = np.flatnonzero(failed)
         sub = RevState(CellState(self.values[idx]), CellFlags(self.flags[idx]), self.eps[idx],
-                       self.sig[idx])
+                       self.sig[idx], None if self._sets is None else self._sets[idx])
         values = np.where(self.S, self.start[idx] + (self.end[idx] - self.start[idx])
                           * (k / self.n_steps), self.end[idx] / self.n_steps)
         tangent = Tangent(self.K[idx].copy() if self.has_K[idx].all() else None, self.tangent.fd_step)

@@ -125,6 +125,9 @@ def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_S
     if not step > 0:
         raise InputError(f"isotropic strain step must be positive, got {step}")
     state = state if state is not None else rev.initial(len(p0))
+    if len(p0) not in (1, state.n_points):
+        raise InputError(f"{len(p0)} pressures for {state.n_points} material points")
+    p0 = np.broadcast_to(p0, state.n_points).copy()  # one pressure for every parameter set
     active = state.p < p0
     inc = np.array([[step, step, 0.0]] * state.n_points)
     n = 0

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from ..cell import CellSolver
@@ -13,11 +15,16 @@ from .result import PathResult, Recorder
 
 
 # ``solver``: a cell solver (None: the closed form); resolve a spec with hmodel.solvers.get_solver.
-def _meta(params: Params, rev: Rev, test: str, **extra) -> dict:
-    return {"test": test, "params": params.to_dict(), "solver": rev.solver.name, **extra}
+# ``params``: one Params for every material point, or one per point (hmodel.params.check_batch),
+# broadcast against the list of pressures.
+def _meta(params, rev: Rev, test: str, **extra) -> dict:
+    meta = {"test": test, "params": rev.params.to_dict(), "solver": rev.solver.name, **extra}
+    if rev.n_sets > 1:  # the parameters of each point, in point order
+        meta["point_params"] = [s.to_dict() for s in rev.sets]
+    return meta
 
 
-def run_isotropic(params: Params, p0, *, solver: CellSolver | None = None,
+def run_isotropic(params: Params | Sequence[Params], p0, *, solver: CellSolver | None = None,
                   step: float = ISO_STEP, progress: Progress = None) -> PathResult:
     """Isotropic compression of one material point per value of ``p0`` [Pa]."""
     rev = Rev(params, solver)
@@ -27,7 +34,7 @@ def run_isotropic(params: Params, p0, *, solver: CellSolver | None = None,
     return rec.result()
 
 
-def run_biaxial(params: Params, p0, axial_strain: float, *, undrained: bool = False,
+def run_biaxial(params: Params | Sequence[Params], p0, axial_strain: float, *, undrained: bool = False,
                 solver: CellSolver | None = None, iso_step: float = ISO_STEP,
                 step: float = AXIAL_STEP, progress: Progress = None) -> PathResult:
     """Isotropic consolidation to each ``p0`` [Pa], then drained or undrained biaxial
@@ -39,12 +46,13 @@ def run_biaxial(params: Params, p0, axial_strain: float, *, undrained: bool = Fa
     consolidation = None if progress is None else (lambda f: progress(0.1 * f))
     shear = None if progress is None else (lambda f: progress(0.1 + 0.9 * f))
     state = paths.consolidate(rev, p0, step=iso_step, recorder=rec, progress=consolidation)
+    p0 = np.broadcast_to(p0, state.n_points)
     paths.biaxial(rev, state, axial_strain, undrained=undrained, lateral_stress=p0, step=step,
                   recorder=rec, progress=shear)
     return rec.result()
 
 
-def run_strain_path(params: Params, eps, *, solver: CellSolver | None = None,
+def run_strain_path(params: Params | Sequence[Params], eps, *, solver: CellSolver | None = None,
                     max_step: float | None = None, progress: Progress = None) -> PathResult:
     """Follow a table of cumulative strains (n, 2 or 3) from the unloaded state."""
     eps = np.asarray(eps, float)

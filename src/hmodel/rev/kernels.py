@@ -51,20 +51,22 @@ def weighted_global(vnn, vtt, wc2, ws2, wsc):
 
 
 @njit(cache=True)
-def average(values, wcos2, wsin2, wsincos, kn, radius, vsig):
+def average(values, wcos2, wsin2, wsincos, kn, sets, radius, vsig):
     """vsig[b] = sum_i w_i V_i sigma_i in the global frame (eqs. 1.12, 1.15, 1.16).
 
-    Weighted trigonometric factors are precomputed: w*cos^2, w*sin^2, w*sin*cos.
+    Weighted trigonometric factors are precomputed per parameter set (K, n_theta): w*cos^2,
+    w*sin^2, w*sin*cos; kn (K,); point b has set ``sets[b]``.
     """
-    n_theta = wcos2.shape[0]
+    n_theta = wcos2.shape[1]
     two_r = 2.0 * radius
     for b in range(vsig.shape[0]):
+        k = sets[b]
         s11 = 0.0
         s22 = 0.0
         s12 = 0.0
         for i in range(n_theta):
-            vnn, vtt = vsigma_local(values[b * n_theta + i], kn, two_r)
-            a11, a22, a12 = weighted_global(vnn, vtt, wcos2[i], wsin2[i], wsincos[i])
+            vnn, vtt = vsigma_local(values[b * n_theta + i], kn[k], two_r)
+            a11, a22, a12 = weighted_global(vnn, vtt, wcos2[k, i], wsin2[k, i], wsincos[k, i])
             s11 += a11
             s22 += a22
             s12 += a12

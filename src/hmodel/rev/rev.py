@@ -10,13 +10,14 @@ signs (compression positive); stresses in Pa.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..cell import CellFlags, CellKernel, CellSolver, CellState, ClosedFormSolver, meso_volume
 from ..errors import InputError, SolverError
-from ..params import Params
+from ..params import Params, check_batch
 from .directions import Directions
 from .kernels import LOC_BOX, LOC_CELL, LOC_VIRTUAL, average, localize
 
@@ -34,16 +35,24 @@ class RevState:
     flags : CellFlags, shape (B, n_theta)
     eps : ndarray (B, 3)   cumulative macro strain (eps11, eps22, eps12)
     sig : ndarray (B, 3)   macro stress (sig11, sig22, sig12) [Pa]
+    sets : ndarray (B,) int or None
+        Each point's parameter set, an index into :attr:`Rev.sets` (None: the first for all).
     """
 
     cells: CellState
     flags: CellFlags
     eps: np.ndarray
     sig: np.ndarray
+    sets: np.ndarray | None = None
 
     @property
     def n_points(self) -> int:
         return self.eps.shape[0]
+
+    @property
+    def set_index(self) -> np.ndarray:
+        """Each point's parameter set (B,), zeros where all share the first."""
+        return np.zeros(self.n_points, np.int64) if self.sets is None else self.sets
 
     @property
     def p(self) -> np.ndarray:
@@ -66,12 +75,13 @@ class RevState:
         return RevState(self.cells.where(m[:, None], other.cells),
                         CellFlags(np.where(m[:, None, None], self.flags.flags, other.flags.flags)),
                         np.where(m[:, None], self.eps, other.eps),
-                        np.where(m[:, None], self.sig, other.sig))
+                        np.where(m[:, None], self.sig, other.sig), self.sets)
 
     def select(self, index) -> "RevState":
         """Sub-batch of material points (index array or slice)."""
         return RevState(CellState(self.cells.values[index]), CellFlags(self.flags.flags[index]),
-                        self.eps[index], self.sig[index])
+                        self.eps[index], self.sig[index],
+                        None if self.sets is None else self.sets[index])
 
     def scatter(self, index: np.ndarray, sub: "RevState") -> "RevState":
         """A copy with the material points at ``index`` replaced by those of ``sub``."""
@@ -81,7 +91,7 @@ class RevState:
             arr = mine.copy()
             arr[index] = theirs
             parts.append(arr)
-        return RevState(CellState(parts[0]), CellFlags(parts[1]), parts[2], parts[3])
+        return RevState(CellState(parts[0]), CellFlags(parts[1]), parts[2], parts[3], self.sets)
 
     def fractions(self) -> dict[str, np.ndarray]:
         """Weighted-free fraction of cells per diagnostic, each (B,)."""
@@ -95,7 +105,10 @@ class Rev:
 
     Parameters
     ----------
-    params : Params
+    params : Params or sequence of Params
+        One parameter set for every material point, or one per point (material parameters may
+        differ; n_theta, radius and volume are shared: :func:`hmodel.params.check_batch`).
+        With K > 1 sets, a state has K points, point b with set b.
     solver : CellSolver, optional
         The cell solver (default the closed form of eq. 1.7); resolve a spec such as
         ``"dem:standard"`` with :func:`hmodel.solvers.get_solver`.
@@ -108,38 +121,61 @@ class Rev:
     (True, True)
     """
 
-    def __init__(self, params: Params, solver: CellSolver | None = None):
+    def __init__(self, params: Params | Sequence[Params], solver: CellSolver | None = None):
         if solver is None:
             solver = ClosedFormSolver()
         elif not isinstance(solver, CellSolver):
             raise InputError(f"Rev takes a cell solver, got {solver!r} (resolve a spec with "
                              "hmodel.solvers.get_solver)")
-        self.params = params
+        #: the parameter sets (K,), and the first, whose shared fields all sets have
+        self.sets = check_batch(params)
+        self.params = params = self.sets[0]
         self.solver = solver
         self.directions = d = Directions.from_params(params)
         self._trig = (d.cos2, d.sin2, d.sincos)
-        self._wtrig = (d.weights * d.cos2, d.weights * d.sin2, d.weights * d.sincos)
+        #: direction weights of eq. 1.17 per set (K, n_theta): the fabric is a material property
+        self.weights = np.stack([Directions.from_params(s).weights for s in self.sets])
+        self._wtrig = tuple(np.ascontiguousarray(self.weights * t) for t in self._trig)
+        self._kn = np.array([s.kn for s in self.sets])
         #: localization mode of the meso-volume option (eq. 1.1 on l or l*), for the kernels
         self.mode = _LOC_MODE[params.volume]
-        cell0 = solver.initial(params, ())
+        cell0 = [solver.initial(s, ()) for s in self.sets]
         # cells with their own meso-stress (richer DEM cells, meso surrogates), or eq. 1.12
-        self._own_meso = solver.meso(params, cell0) is not None
-        # Initial macro volume V0 = sum_i w_i V_meso,i (eq. 1.14); all cells start alike.
-        vol0 = solver.meso(params, cell0)[1] if self._own_meso else meso_volume(params, cell0)
-        self.volume0 = float(vol0 * d.weights.sum())
-        #: the solver's compiled increment (None: the loading drivers call ``solver.step``)
-        self.kernel: CellKernel | None = solver.kernel(params)
+        self._own_meso = solver.meso(params, cell0[0]) is not None
+        # Initial macro volume V0 = sum_i w_i V_meso,i (eq. 1.14) per set; all cells start alike.
+        vol0 = np.array([float(solver.meso(s, c)[1]) if self._own_meso else float(meso_volume(s, c))
+                         for s, c in zip(self.sets, cell0)])
+        #: initial macro volume of each set's points (K,)
+        self.volumes0 = vol0 * self.weights.sum(axis=1)
+        self.volume0 = float(self.volumes0[0])
+        kernels = [solver.kernel(s) for s in self.sets]
+        #: the solver's compiled increment of each set (None: the loading drivers call
+        #: ``solver.step``); ``kernel`` is the first set's
+        self.kernels: tuple[CellKernel, ...] | None = None if kernels[0] is None else tuple(kernels)
+        self.kernel: CellKernel | None = kernels[0]
+
+    @property
+    def n_sets(self) -> int:
+        return len(self.sets)
 
     @property
     def n_theta(self) -> int:
         return self.params.n_theta
 
     def initial(self, n_points: int = 1) -> RevState:
-        """B unloaded material points."""
-        shape = (n_points, self.n_theta)
-        cells = self.solver.initial(self.params, shape)
-        return RevState(cells, CellFlags.none(shape),
-                        np.zeros((n_points, 3)), np.zeros((n_points, 3)))
+        """B unloaded material points; with K > 1 parameter sets, the K points (B = K or 1)."""
+        K = self.n_sets
+        if K == 1:
+            shape = (n_points, self.n_theta)
+            return RevState(self.solver.initial(self.params, shape), CellFlags.none(shape),
+                            np.zeros((n_points, 3)), np.zeros((n_points, 3)))
+        if n_points not in (1, K):
+            raise InputError(f"{K} parameter sets and {n_points} material points: give one "
+                             "value or as many as the sets")
+        shape = (K, self.n_theta)
+        cells = np.stack([self.solver.initial(s, (self.n_theta,)).values for s in self.sets])
+        return RevState(CellState(cells), CellFlags.none(shape), np.zeros((K, 3)),
+                        np.zeros((K, 3)), np.arange(K))
 
     def localize(self, cells: CellState, deps: np.ndarray) -> np.ndarray:
         """Length increments (B, n_theta, 2) of every cell for macro strain increments (B, 3)."""
@@ -149,29 +185,52 @@ class Rev:
                  self.params.radius, dl)
         return dl.reshape(*cells.shape, 2)
 
-    def macro_volume(self, eps: np.ndarray) -> np.ndarray:
+    def macro_volume(self, eps: np.ndarray, sets: np.ndarray | None = None) -> np.ndarray:
         """V = V0 det(I - eps): the macro volume follows the macro strain (B,)."""
-        return self.volume0 * ((1 - eps[:, 0]) * (1 - eps[:, 1]) - eps[:, 2] ** 2)
+        v0 = self.volume0 if sets is None else self.volumes0[sets]
+        return v0 * ((1 - eps[:, 0]) * (1 - eps[:, 1]) - eps[:, 2] ** 2)
 
-    def stress(self, cells: CellState, eps: np.ndarray) -> np.ndarray:
-        """Macro stress (B, 3) of cells (B, n_theta) at macro strain eps (B, 3) (eq. 1.15)."""
+    def stress(self, cells: CellState, eps: np.ndarray, sets: np.ndarray | None = None) -> np.ndarray:
+        """Macro stress (B, 3) of cells (B, n_theta) at macro strain eps (B, 3) (eq. 1.15),
+        the points' parameter sets ``sets`` (B,) (None: the first for all)."""
+        idx = np.zeros(cells.shape[0], np.int64) if sets is None else np.asarray(sets, np.int64)
         if self._own_meso:
-            return self._meso_stress(cells) / self.macro_volume(eps)[:, None]
-        vsig = np.empty((cells.shape[0], 3))
-        average(np.ascontiguousarray(cells.values[..., :8]).reshape(-1, 8), *self._wtrig,
-                self.params.kn, self.params.radius, vsig)
-        return vsig / self.macro_volume(eps)[:, None]
+            vsig = self._meso_stress(cells, idx)
+        else:
+            vsig = np.empty((cells.shape[0], 3))
+            average(np.ascontiguousarray(cells.values[..., :8]).reshape(-1, 8), *self._wtrig,
+                    self._kn, idx, self.params.radius, vsig)
+        return vsig / self.macro_volume(eps, None if sets is None else idx)[:, None]
 
-    def _meso_stress(self, cells: CellState) -> np.ndarray:
+    def _meso_stress(self, cells: CellState, idx: np.ndarray) -> np.ndarray:
         """sum_i w_i V_i sigma_i (B, 3) from the solver's cell-frame (nn, tt, nt) meso-stress."""
-        vs, _ = self.solver.meso(self.params, cells)
+        vs, _ = self._by_set(idx, lambda s, rows: self.solver.meso(s, CellState(cells.values[rows])))
         nn, tt, nt = vs[..., 0], vs[..., 1], vs[..., 2]
-        wc2, ws2, wsc = self._wtrig
-        w = self.directions.weights
-        c2s2 = w * (self.directions.cos2 - self.directions.sin2)
-        return np.stack([nn @ wc2 + tt @ ws2 - 2.0 * (nt @ wsc),
-                         nn @ ws2 + tt @ wc2 + 2.0 * (nt @ wsc),
-                         (nn - tt) @ wsc + nt @ c2s2], axis=-1)
+        wc2, ws2, wsc = (w[idx] for w in self._wtrig)
+        c2s2 = self.weights[idx] * (self.directions.cos2 - self.directions.sin2)
+        dot = lambda a, b: np.einsum("bi,bi->b", a, b)  # noqa: E731 (per-point weights)
+        return np.stack([dot(nn, wc2) + dot(tt, ws2) - 2.0 * dot(nt, wsc),
+                         dot(nn, ws2) + dot(tt, wc2) + 2.0 * dot(nt, wsc),
+                         dot(nn - tt, wsc) + dot(nt, c2s2)], axis=-1)
+
+    def _by_set(self, idx: np.ndarray, call):
+        """``call(set, rows)`` for each parameter set present in idx (B,), its outputs (arrays
+        or tuples of arrays over the rows' points) put back in point order."""
+        if self.n_sets == 1:
+            return call(self.params, slice(None))
+        present = np.unique(idx)
+        if len(present) == 1:
+            return call(self.sets[present[0]], slice(None))
+        parts = [(np.flatnonzero(idx == k), call(self.sets[k], idx == k)) for k in present]
+
+        def merge(pieces):
+            out = np.empty((len(idx), *pieces[0][1].shape[1:]), pieces[0][1].dtype)
+            for rows, piece in pieces:
+                out[rows] = piece
+            return out
+        if isinstance(parts[0][1], tuple):
+            return tuple(merge([(r, p[j]) for r, p in parts]) for j in range(len(parts[0][1])))
+        return merge(parts)
 
     def step(self, state: RevState, deps: np.ndarray) -> RevState:
         """Apply macro strain increments ``deps`` (B, 3) in one cell increment."""
@@ -179,6 +238,13 @@ class Rev:
         if not np.all(np.isfinite(deps)):
             raise SolverError(f"non-finite strain increment at strain {state.eps.tolist()}")
         dl = self.localize(state.cells, deps)
-        cells, flags = self.solver.step(self.params, state.cells, dl[..., 0], dl[..., 1])
+        idx = state.set_index
+
+        def cell_step(s, rows):
+            new, flags = self.solver.step(s, CellState(state.cells.values[rows]), dl[rows, :, 0],
+                                          dl[rows, :, 1])
+            return new.values, flags.flags
+        values, flags = self._by_set(idx, cell_step)
+        cells = CellState(values)
         eps = state.eps + deps
-        return RevState(cells, flags, eps, self.stress(cells, eps))
+        return RevState(cells, CellFlags(flags), eps, self.stress(cells, eps, state.sets), state.sets)
