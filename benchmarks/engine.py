@@ -13,9 +13,11 @@ compiles it (or loads Numba's cache); it is excluded, and the best of N runs is 
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import os
 import platform
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -68,7 +70,7 @@ def fused_trials(repeat: int, n_calls: int = 2000) -> float:
     out, flags, sig = np.empty((360, 8)), np.empty((360, 5), bool), np.empty(3)
     x = np.array([1e-4, -5e-5, 0.0])
     resp = np.empty((360, 0))  # the closed form: no learned responses
-    args = (seg.values[0], seg.eps[0], x, seg.geo, seg.p, rev.mode, rev.volume0, out, flags, sig, resp)
+    args = (seg.values[0], seg.eps[0], x, seg.geo[0], seg.p[0], rev.mode, rev.volume0, out, flags, sig, resp)
 
     def run():
         for _ in range(n_calls):
@@ -95,6 +97,8 @@ def main() -> None:
     for name, value, target in rows:
         print(f"{name:<{width}}  {value:>12.4g}  {target}")
     record = {
+        "date": datetime.date.today().isoformat(),
+        "command": "python benchmarks/engine.py " + " ".join(sys.argv[1:]),
         "hmodel": __version__, "python": platform.python_version(), "machine": platform.machine(),
         "processor": platform.processor(), "cpus": os.cpu_count(), "repeat": args.repeat,
         "results": [{"measure": n, "value": v, "target": t} for n, v, t in rows],
