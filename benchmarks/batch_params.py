@@ -14,20 +14,15 @@ Usage: ``python benchmarks/batch_params.py [--points 64] [--axial-strain 0.02] [
 from __future__ import annotations
 
 import argparse
-import datetime
-import json
 import math
-import os
-import platform
-import sys
 from pathlib import Path
 
 import numpy as np
 from scipy.stats import qmc
 
-from timing import best_of
+from timing import best_of, record, write_table
 
-from hmodel import Params, __version__
+from hmodel import Params
 from hmodel.loading import paths
 from hmodel.loading.compiled import CompiledSegment
 from hmodel.rev import Rev
@@ -85,19 +80,8 @@ def main() -> None:
         ("shear trials per point, shared", t_shared, "-"),
         ("shear trials per point, mixed", t_mixed, "-"),
     ]
-    width = max(len(r[0]) for r in rows)
-    print(f"{'measure':<{width}}  {'value':>10}  target")
-    for name, value, target in rows:
-        print(f"{name:<{width}}  {value:>10.4g}  {target}")
-    record = {
-        "date": datetime.date.today().isoformat(),
-        "command": "python benchmarks/batch_params.py " + " ".join(sys.argv[1:]),
-        "hmodel": __version__, "python": platform.python_version(), "machine": platform.machine(),
-        "cpus": os.cpu_count(), "repeat": args.repeat, "points": B, "axial_strain": axial,
-        "ranges": RANGES, "results": [{"measure": n, "value": v, "target": t} for n, v, t in rows],
-    }
-    args.out.write_text(json.dumps(record, indent=2) + "\n")
-    print(f"written {args.out}")
+    write_table(rows, args.out, record(__file__, args.repeat, rows, points=B, axial_strain=axial,
+                                       ranges=RANGES))
 
 
 if __name__ == "__main__":

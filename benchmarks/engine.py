@@ -13,18 +13,13 @@ compiles it (or loads Numba's cache); it is excluded, and the best of N runs is 
 from __future__ import annotations
 
 import argparse
-import datetime
-import json
-import os
-import platform
-import sys
 from pathlib import Path
 
 import numpy as np
 
-from timing import best_of
+from timing import best_of, record, write_table
 
-from hmodel import Params, __version__
+from hmodel import Params
 from hmodel.cell import CellState
 from hmodel.cell.closed_form import ClosedFormSolver
 from hmodel.loading import paths, run_biaxial
@@ -92,19 +87,7 @@ def main() -> None:
          cell_updates(args.repeat), ">= 1e7"),
         ("cell updates per second, fused REV trial (one core)", fused_trials(args.repeat), ">= 1e7"),
     ]
-    width = max(len(r[0]) for r in rows)
-    print(f"{'measure':<{width}}  {'value':>12}  target")
-    for name, value, target in rows:
-        print(f"{name:<{width}}  {value:>12.4g}  {target}")
-    record = {
-        "date": datetime.date.today().isoformat(),
-        "command": "python benchmarks/engine.py " + " ".join(sys.argv[1:]),
-        "hmodel": __version__, "python": platform.python_version(), "machine": platform.machine(),
-        "processor": platform.processor(), "cpus": os.cpu_count(), "repeat": args.repeat,
-        "results": [{"measure": n, "value": v, "target": t} for n, v, t in rows],
-    }
-    args.out.write_text(json.dumps(record, indent=2) + "\n")
-    print(f"written {args.out}")
+    write_table(rows, args.out, record(__file__, args.repeat, rows), value_width=12)
 
 
 if __name__ == "__main__":

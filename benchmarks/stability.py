@@ -11,12 +11,9 @@ Usage: ``python benchmarks/stability.py [--repeat N]``; prints a table, writes `
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import platform
 from pathlib import Path
 
-from timing import best_of
+from timing import best_of, record, write_table
 
 from hmodel import Params
 from hmodel.loading import consolidate
@@ -38,14 +35,7 @@ def main() -> None:
              best_of(lambda: strain_envelope(rev, state, 360, 1e-5), args.repeat), "<= 0.01"),
             ("d2W map, drained 200 kPa to 10 %, 100 states x 72 probes, ntheta=360 [s]",
              best_of(lambda: along_biaxial(params, 2e5, 0.1, every=10, n_probes=72), args.repeat), "<= 1")]
-    w = max(len(r[0]) for r in rows)
-    print(f"{'measure':<{w}}  {'value':>10}  target")
-    for name, v, target in rows:
-        print(f"{name:<{w}}  {v:>10.4g}  {target}")
-    args.out.write_text(json.dumps({"python": platform.python_version(), "cpus": os.cpu_count(),
-                                    "results": [{"measure": n, "value": v, "target": t} for n, v, t in rows]},
-                                   indent=2) + "\n")
-    print(f"written {args.out}")
+    write_table(rows, args.out, record(__file__, args.repeat, rows))
 
 
 if __name__ == "__main__":

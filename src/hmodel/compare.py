@@ -1,97 +1,31 @@
 """Closed form against another cell solver at the macro scale (report §3.1), measured honestly.
 
-Every comparison path runs twice from the same parameters and increments, once per solver, and
-records the stress-strain curves and the wall time of each run. Deviations are measured row by
-row on the shear part of the path (rows correspond: same increments): the deviation of q
-relative to the peak |q| of the closed form (maximum and RMS), and of the volumetric strain in
-strain units (maximum and RMS).
+Every comparison path (a loading recipe of ``hmodel.loading.recipes``) runs twice from the same
+parameters and increments, once per solver, and records the stress-strain curves and the wall
+time of each run. Deviations are measured row by row on the shear part of the path (rows
+correspond: same increments): the deviation of q relative to the peak |q| of the closed form
+(maximum and RMS), and of the volumetric strain in strain units (maximum and RMS).
 
-Paths: isotropic compression; drained biaxial at 100, 200 and 400 kPa; undrained biaxial; and
-three the report never tried: an unloading-reloading cycle, oedometric compression and a path
-with rotating principal strain axes (ε12 ≠ 0).
+Paths (``standard_paths``, re-exported here): isotropic compression; drained biaxial at 100,
+200 and 400 kPa; undrained biaxial; and three the report never tried: an unloading-reloading
+cycle, oedometric compression and a path with rotating principal strain axes (ε12 ≠ 0).
 """
 
 from __future__ import annotations
 
-import math
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from .cell import CellSolver
-from .loading import Recorder, Segment, consolidate, run_segment, strain_path
-from .loading.paths import biaxial_segment
+from .loading import PathSpec, Recorder, run_recipe
+from .loading import standard_paths  # noqa: F401  (re-exported: the CLI, reproduce and tests)
 from .loading.result import PathResult
 from .params import Params
 from .rev import Rev
 from .solvers import get_solver
-
-
-@dataclass(frozen=True)
-class PathSpec:
-    """A named comparison path: consolidation to ``p0`` then ``shear`` segments."""
-
-    name: str
-    p0: tuple[float, ...]
-    build: Callable  # (rev, consolidated state, step, recorder) -> final state
-    in_report: bool
-
-
-def _biaxial(axial: float, undrained: bool):
-    def build(rev, state, step, rec):
-        n = max(1, math.ceil(axial / step - 1e-9))
-        return run_segment(rev, state, biaxial_segment(state, axial, n, undrained), rec)
-    return build
-
-
-def _unload_reload(peak: float, unload: float, final: float):
-    def build(rev, state, step, rec):
-        p = state.sig[:, 1]
-        for target in (peak, peak - unload, final):
-            d = target - (state.eps[0, 0] - rec.meta["eps11_start"])
-            n = max(1, math.ceil(abs(d) / step - 1e-9))
-            state = run_segment(rev, state, biaxial_segment(state, d, n, lateral_stress=p), rec)
-        return state
-    return build
-
-
-def _oedometric(axial: float):
-    def build(rev, state, step, rec):
-        n = max(1, math.ceil(axial / step - 1e-9))
-        return run_segment(rev, state, Segment.components("EEE", [axial, 0.0, 0.0], n, "shear"), rec)
-    return build
-
-
-def _rotation(amplitude: float, turns: float):
-    """Isochoric deviatoric strain of constant rate whose principal axes rotate."""
-    def build(rev, state, step, rec):
-        n = max(8, math.ceil(amplitude * 2 * math.pi * turns / step))
-        t = np.linspace(0, 1, n + 1)[1:]
-        ang = 2 * math.pi * turns * t
-        e0 = state.eps[0]
-        ramp = np.minimum(1.0, 4 * t)  # reach the amplitude in the first quarter
-        eps = np.column_stack([e0[0] + amplitude * ramp * np.cos(ang), e0[1] - amplitude * ramp * np.cos(ang),
-                               e0[2] + amplitude * ramp * np.sin(ang)])
-        for row in eps:
-            state = strain_path(rev, row[None, :], state=state)
-            rec.record(state, "shear")
-        return state
-    return build
-
-
-def standard_paths(axial: float = 0.1) -> list[PathSpec]:
-    return [
-        PathSpec("isotropic", (4e5,), lambda rev, s, step, rec: s, True),
-        PathSpec("drained", (1e5, 2e5, 4e5), _biaxial(axial, False), True),
-        PathSpec("undrained", (2e5,), _biaxial(axial, True), True),
-        PathSpec("unload-reload", (2e5,), _unload_reload(0.4 * axial, 0.05 * axial, 0.8 * axial), False),
-        PathSpec("oedometric", (1e5,), _oedometric(0.2 * axial), False),
-        PathSpec("rotation", (2e5,), _rotation(0.01, 1.0), False),
-    ]
 
 
 def run_path(params: Params, spec: PathSpec, solver: "str | CellSolver", step: float,
@@ -104,9 +38,7 @@ def run_path(params: Params, spec: PathSpec, solver: "str | CellSolver", step: f
     rec = Recorder({"path": spec.name, "solver": rev.solver.name})
     t = time.perf_counter()
     try:
-        state = consolidate(rev, list(spec.p0), step=iso_step, recorder=rec)
-        rec.meta["eps11_start"] = float(state.eps[0, 0])
-        spec.build(rev, state, step, rec)
+        run_recipe(rev, spec, step, iso_step, rec)
     except SolverError as e:
         e.partial = rec.result()
         raise

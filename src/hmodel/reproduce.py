@@ -58,10 +58,10 @@ def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
               progress: Callable[[float], None] | None = None) -> Path:
     """Run the study into ``out`` (a fresh folder is written atomically); returns report.html."""
     from .solvers import get_solver
-    from .compare import compare_path, plot_overlay, standard_paths
+    from .compare import compare_path, plot_overlay
     from .data import DatasetSpec, generate
     from .io import write_outputs, write_rows
-    from .loading import run_biaxial
+    from .loading import run_biaxial, standard_paths
     from .plotting import plot_result
     from .data.sampling import write_split
     from .surrogate import save

@@ -27,7 +27,8 @@ def compare(
 ) -> None:
     """Run every comparison path with both solvers: overlaid curves, deviations and timings."""
     from ..solvers import get_solver
-    from ..compare import compare_path, plot_overlay, standard_paths
+    from ..compare import compare_path, plot_overlay
+    from ..loading import standard_paths
 
     params = Params.parse_assignments(param)
     specs = standard_paths(axial_strain)
