@@ -10,10 +10,10 @@ import tempfile
 import numpy as np
 import pytest
 
+from hmodel.cell import mesostructure as meso
 from hmodel.cell.mesostress import meso_volume, meso_vsigma
 from hmodel.cell.state import CellState
 from hmodel.cli.app import main
-from hmodel.dem import mesostructure as meso
 from hmodel.dem.scene import DEMOptions, hcell_state, simulate
 from hmodel.dem.stress import boundary_form, skew_ratio, vsigma
 from hmodel.dem.yade import DEMError, EquilibriumError, YadeNotFound, available

@@ -21,6 +21,19 @@ needs_yade = pytest.mark.skipif(not available(), reason="YADE is not installed (
 PARAMS = Params(sliding_rhs="equilibrium", n_theta=6)
 
 
+def test_spec_options_are_the_mesostructures_or_numerics():
+    """``dem:NAME:K=V,...``: the mesostructure's options go to its geometry
+    (:class:`hmodel.cell.geometry.CellGeometry`), DEM numerics to the options; any other is
+    refused with one line (no YADE is started)."""
+    from hmodel.errors import InputError
+    s = get_solver("dem:hexagon-unequal:ratio=0.6,tol=1e-7")
+    assert s.name == "dem:hexagon-unequal:ratio=0.6,tol=1e-07"
+    assert s.geometry.options == {"ratio": 0.6} and s.options.tol == 1e-7 and s.n_fields == 8 + 12 + 15
+    assert get_solver("dem:standard").field_names() == ("d1", "d2", "alpha", "N1", "N2", "T1", "l1", "l2")
+    with pytest.raises(InputError, match="unknown option 'foo'.*ratio"):
+        get_solver("dem:hexagon-center:foo=1")
+
+
 @needs_yade
 def test_drained_biaxial_through_the_rev_matches_closed_form():
     """Consolidation to 200 kPa then 0.4 % drained axial strain: the DEM-REV stress-strain

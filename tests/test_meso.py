@@ -324,6 +324,20 @@ def test_rollout_training_is_refused_where_it_does_not_apply(tiny_model):
         train_on_sample(tmp / "sample", TrainConfig(formulation="meso", rollout=4, epochs=1, device="cpu"))
 
 
+def test_a_richer_cells_geometry_comes_from_the_cell_layer_not_the_dem_package():
+    """The summary of an unloaded hexagon-center cell, its Love-Weber stress and its layout come
+    from :mod:`hmodel.cell.geometry`: nothing of hmodel.dem (YADE's client) is imported."""
+    import subprocess
+    import sys
+    code = ("import sys; from hmodel import Params; from hmodel.surrogate.meso import MesoFormulation; "
+            "f = MesoFormulation(Params(), 'dem:hexagon-center'); "
+            "z = f.summary(f.geometry.initial(Params(), (2,)).values); "
+            "assert f.richer and z.shape == (2, 11) and f.geometry.n_fields == 8 + 14 + 21; "
+            "assert not [m for m in sys.modules if m.startswith('hmodel.dem')], 'hmodel.dem imported'")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+
+
 def test_a_loose_cage_holds_its_free_grain_without_force():
     """Hexagon-center: where the hexagon's clearance at its centre exceeds the centre grain's
     radius, V sigma is the hexagon's own (eq. 1.12 of the advanced fields), whatever the network

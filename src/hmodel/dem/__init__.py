@@ -1,6 +1,7 @@
 """DEM cells solved by YADE (optional: needs the ``yade`` executable, never imported by hmodel's core).
 
-- :mod:`~hmodel.dem.mesostructure`: cell descriptions (standard H-cell and richer ones);
+- :mod:`~hmodel.dem.solver`: the DEM cell solver, on the cell descriptions and state layout of
+  :mod:`hmodel.cell.mesostructure` and :mod:`hmodel.cell.geometry`;
 - :mod:`~hmodel.dem.scene`: many cells in one YADE scene, driven by (dl1, dl2) increments;
 - :mod:`~hmodel.dem.yade`: running YADE as a subprocess, its errors;
 - :mod:`~hmodel.dem.stress`: Love-Weber meso-stress (eq. 1.11);

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..params import Params
-from .mesostructure import TYPE1, TYPE1_SIGN, TYPE2, Mesostructure
+from ..cell.mesostructure import TYPE1, TYPE1_SIGN, TYPE2, Mesostructure
 from .yade import run_script
 
 SCRIPT = Path(__file__).with_name("yade_script.py")

@@ -22,11 +22,11 @@ from pathlib import Path
 import numpy as np
 
 from ..cell.closed_form import ClosedFormSolver
+from ..cell.mesostructure import standard
 from ..cell.state import IDX, CellState
 from ..cell.state import initial_cells
 from ..errors import InputError
 from ..params import Params
-from .mesostructure import standard
 from .scene import CellRun, DEMOptions, hcell_state, simulate
 
 QUANTITIES = ("N1", "N2", "T1", "alpha")

@@ -1,7 +1,7 @@
 """The ``meso`` formulation: surrogates of richer cells (DEM mesostructures) through a summary state.
 
 A richer DEM cell (the hexagon with a centre grain, ...) has no closed form and a state of
-8 + 2g + g(g-1)/2 fields (grain centres, contact shear forces; :mod:`hmodel.dem.solver`). Its
+8 + 2g + g(g-1)/2 fields (grain centres, contact shear forces; :mod:`hmodel.cell.geometry`). Its
 surrogate carries a summary of that state instead, 11 fields (:data:`STATE_FIELDS`): the 8
 H-cell fields measured on the six hexagon grains (:data:`hmodel.cell.FIELDS`), which describe
 the cell's shape and its outer contacts, and the cell's meso-stress times its meso-volume,
@@ -84,6 +84,7 @@ from functools import cached_property
 
 import numpy as np
 
+from ..cell.geometry import CellGeometry
 from ..cell.mesostress import contact_vsigma, meso_vsigma
 from ..cell.state import FIELDS, CellState, initial_lengths
 from ..errors import InputError
@@ -110,7 +111,7 @@ class MesoFormulation(MaterialScales):
     @property
     def richer(self) -> bool:
         """A richer cell (more than the H-cell's 8 fields): V sigma is learned, not eq. 1.12."""
-        return self._dem.n_fields > len(FIELDS)
+        return self.geometry.n_fields > len(FIELDS)
 
     @property
     def learned(self) -> tuple[str, ...]:
@@ -148,10 +149,9 @@ class MesoFormulation(MaterialScales):
                 "mechanisms": self.mechanisms}
 
     @cached_property
-    def _dem(self):
-        """The DEM description of the cells (geometry and Love-Weber sum; never starts YADE)."""
-        from ..dem.solver import DEMSolver
-        return DEMSolver(self.cell if self.cell.startswith("dem:") else "dem:standard")
+    def geometry(self) -> CellGeometry:
+        """The cells' geometry: state layout and Love-Weber sum (H-cells: the standard cell's)."""
+        return CellGeometry.from_spec(self.cell if self.cell.startswith("dem:") else "dem:standard")[0]
 
     # -- summary state ------------------------------------------------------------------
     def vsigma(self, full: np.ndarray) -> np.ndarray:
@@ -164,7 +164,7 @@ class MesoFormulation(MaterialScales):
         if full.shape[1] == len(FIELDS):
             vs = meso_vsigma(self.params, CellState(np.ascontiguousarray(full)))
             return np.column_stack([vs, np.zeros(len(full))])
-        return self._dem.love_weber(self.params, full)[0]
+        return self.geometry.love_weber(self.params, full)[0]
 
     def summary(self, full: np.ndarray) -> np.ndarray:
         """Summary rows (n, 11) of full cell states (n, n_fields) of the data's solver."""
@@ -176,9 +176,9 @@ class MesoFormulation(MaterialScales):
 
     @cached_property
     def _unloaded(self) -> np.ndarray:
-        """The summary (11,) of an unloaded cell (a DEM cell's needs a YADE request: once)."""
+        """The summary (11,) of an unloaded cell."""
         full = (CellState.initial(self.params, (1,)) if self.cell == "closed-form"
-                else self._dem.initial(self.params, (1,))).values
+                else self.geometry.initial(self.params, (1,))).values
         return self.summary(full)[0]
 
     def meso(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -190,7 +190,7 @@ class MesoFormulation(MaterialScales):
         """Database columns plus the meso-stress before and after (``Vs_nn``, ``Vs_nn_next``, ...)."""
         if "Vs_nn" in c:
             return c
-        n_extra = self._dem.n_fields - 8
+        n_extra = self.geometry.n_fields - 8
         if n_extra and "state_extra" not in c:
             raise InputError(f"rows of {self.cell} cells need their state_extra columns (a DEM dataset "
                              f"or a sample made from one)")
@@ -344,7 +344,7 @@ class MesoFormulation(MaterialScales):
         """The reach of the cell's free grains, half the span of a chain of them all (the sum of
         their radii; 0 without free grains: a cage whose clearance at its centre exceeds it holds
         them without force), and the radii of the grains driven along n (1, 4) and t (2, 3, 5, 6)."""
-        m = self._dem.cell(self.params, self.params.alpha0)
+        m = self.geometry.cell(self.params, self.params.alpha0)
         reach = sum(r for r, d in zip(m.radii, m.drive) if d == "free")
         return float(reach), float(m.radii[0]), float(m.radii[1])
 
