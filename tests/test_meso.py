@@ -36,7 +36,7 @@ class SummaryOfClosedForm:
         self.form, self.cf = form, ClosedFormSolver()
 
     def initial(self, params, shape=()):
-        return self.form.initial(shape)
+        return self.form.initial(params, shape)
 
     def initial_cells(self, params, alpha0):
         return self.initial(params, np.shape(alpha0))

@@ -19,8 +19,12 @@ the exact λ times a learned coefficient.
 Training rows must be single increments (Dataset 2 with ``--substeps 1``): each row is fitted in
 the regime it was in (sliding flag, ξ = sign of T1 after), the error divided by the row's drive
 |δl|/2r + |λ|/2r so that small and large increments count alike. A cell that opened does not
-record its regime (the flags are reset); such a row is fitted in the regime that matches it best. A cell solver evaluates the network once per state and reuses it for
-every trial increment of a Newton iteration (:class:`hmodel.surrogate.solver.SurrogateSolver`).
+record its regime (the flags are reset); such a row is fitted in the regime that matches it best.
+
+In the cell solver (:meth:`ComplianceFormulation.step_cells`) the network sees the state only:
+it is evaluated once per state and reused for every trial increment of a Newton iteration
+(:class:`hmodel.surrogate.solver.SurrogateSolver` caches it), and every increment is an exact,
+compiled application of the learned compliances, of any size within its regime (no sub-steps).
 """
 
 from __future__ import annotations
@@ -33,14 +37,14 @@ from numba import njit
 from ..cell.closed_form import finish_increment, kernel_params, sliding_lambda, P_KN, P_KT, P_R, P_TAN
 from ..cell.state import FIELDS, initial_lengths
 from ..params import Params
-from .formulations import MaterialScales
+from .formulations import HCellStates, MaterialScales
 
 N_OUT = 24
 STICK, PLUS, MINUS = 0, 6, 15  # offsets of B_stick, [B_slide+, b_slide+], [B_slide-, b_slide-]
 
 
 @dataclass(frozen=True)
-class ComplianceFormulation(MaterialScales):
+class ComplianceFormulation(MaterialScales, HCellStates):
     """Inputs, targets and the exact decoding of the compliance formulation for one material."""
 
     params: Params  #: the material (only its material parameters matter)
@@ -123,6 +127,14 @@ class ComplianceFormulation(MaterialScales):
         flags = np.empty((len(values), 5), dtype=np.bool_)
         advance_kernel(np.ascontiguousarray(values), np.ascontiguousarray(dl),
                        np.ascontiguousarray(out), kernel_params(self.params), new, flags)
+        return new, flags
+
+    def step_cells(self, net, params, v, e1, e2, dl):
+        """One exact increment of cells ``v`` with the learned compliances of their states."""
+        outs, mask = net.outputs(v, self.features(v))
+        new, flags = self.advance(v, dl, outs[0])  # one network, no spare columns
+        self.closed_form_outside(net, params, v, dl, mask, new, flags,
+                                 lambda i: ", ".join(f"{k}={v[i, j]:.4g}" for j, k in enumerate(FIELDS)))
         return new, flags
 
     def decode(self, c: dict[str, np.ndarray], out: np.ndarray) -> dict[str, np.ndarray]:

@@ -18,19 +18,141 @@ inputs X and targets Y, and maps predictions back to the state after the increme
   outputs the compliance of eq. 1.7 in each contact regime; the contact law is applied exactly.
 - ``meso`` (ours, :mod:`hmodel.surrogate.meso`): richer DEM cells through a summary state (the
   H-cell fields and the Love-Weber meso-stress), learned as increments.
+
+Every formulation is a class that implements :class:`Formulation`: the inputs, targets and way
+back of training, and its side of the cell solver (the cells' state layout and meso-stress, the
+largest increment its network knows, the precision of its inference, and how one increment of
+a batch of cells follows from the network's outputs). The cell solver,
+:class:`~hmodel.surrogate.solver.SurrogateSolver`, runs the networks for it (:class:`Networks`)
+and holds what is common to all.
 """
 
 from __future__ import annotations
 
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import ClassVar, Protocol
 
 import numpy as np
 
-from ..errors import InputError
+from ..cell.base import CellKernel
+from ..cell.state import FIELDS, CellState, initial_cells
 from ..params import Params
 
 OUTPUTS = ("alpha_next", "N1_next", "N2_next", "T1_next")
 REPORT_INPUTS = ("deps1", "deps2", "alpha", "l1", "l2", "N1", "N2", "T1")
+
+
+class Networks(Protocol):
+    """What a formulation's increment asks of the solver that runs its networks
+    (:class:`~hmodel.surrogate.solver.SurrogateSolver`)."""
+
+    #: Counters of the solver (``network_cells``: rows a network evaluated, ...).
+    counts: dict[str, int]
+    #: How a strain-input network's cells open: ``rule`` or (experimental) ``classifier``.
+    opening: str
+
+    def forward(self, X: np.ndarray) -> np.ndarray:
+        """The network's outputs for inputs X (n, n_inputs), in float64, not cached (one
+        network: strain-input formulations have no ensembles)."""
+        ...
+
+    def outside(self, X: np.ndarray) -> np.ndarray:
+        """Rows of X outside the training domain (the solver's margin)."""
+        ...
+
+    def outputs(self, v: np.ndarray, X: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+        """Every member's outputs for states v whose inputs X depend on the state only, and the
+        out-of-domain mask; cached while the states do not change."""
+        ...
+
+    def count_outside(self, mask: np.ndarray, describe: Callable[[int], str]) -> int:
+        """Count the cells outside the training domain (``mask``); stop the run when the solver
+        says so (``describe(i)`` names cell i's inputs). Returns their number."""
+        ...
+
+    def fall_back(self, params: Params, v: np.ndarray, dl: np.ndarray, mask: np.ndarray,
+                  new: np.ndarray, flags: np.ndarray) -> None:
+        """Write the closed form's increment of the cells ``mask`` into ``new`` and ``flags``."""
+        ...
+
+
+class Formulation(Protocol):
+    """What a formulation offers to training (inputs, targets, way back) and to the cell solver.
+
+    Attributes
+    ----------
+    name : str
+        ``report``, ``increment``, ``compliance`` or ``meso`` (:mod:`hmodel.surrogate.kinds`).
+    n_state : int
+        Fields of a cell state (the H-cell's 8, or the ``meso`` summary's 11).
+    single_precision : bool
+        Whether the network runs in float32 (:meth:`hmodel.surrogate.model.Surrogate.forward`).
+    logit_column : int or None
+        Index of the output trained by classification (None: all regression).
+    spare_columns : int
+        Columns the solver leaves after one network's outputs, for the formulation to fill.
+    ensembles : bool
+        Whether several networks may average their increments (an ensemble).
+    """
+
+    name: str
+    n_state: int
+    logit_column: int | None
+    single_precision: bool
+    spare_columns: int
+    ensembles: bool
+
+    def to_dict(self) -> dict: ...
+
+    def inputs(self, c: dict[str, np.ndarray]) -> np.ndarray:
+        """Network inputs X from database columns."""
+        ...
+
+    def targets(self, c: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """Targets Y and their weights in the loss from database columns."""
+        ...
+
+    def aux(self, c: dict[str, np.ndarray]) -> np.ndarray | None:
+        """Per-row inputs of :meth:`head` (None: the network's outputs are the targets)."""
+        ...
+
+    def head(self, out, aux, target=None):
+        """The targets' prediction from network outputs (NumPy or torch)."""
+        ...
+
+    def decode(self, c: dict[str, np.ndarray], out: np.ndarray) -> dict[str, np.ndarray]:
+        """The state after the increment (``*_next`` columns) from network outputs."""
+        ...
+
+    def max_increment(self, input_range: np.ndarray | None) -> float:
+        """The largest cell strain increment one network step may take (inf: any); a larger
+        one is cut into sub-steps by the solver."""
+        ...
+
+    def initial(self, params: Params, shape: tuple[int, ...] = ()) -> CellState:
+        """Unloaded cells in this formulation's state layout."""
+        ...
+
+    def initial_cells(self, params: Params, alpha0: np.ndarray) -> CellState:
+        """Unloaded cells with their own opening angles."""
+        ...
+
+    def meso(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """V sigma and meso-volume of states, for the REV; None where the stress is eq. 1.12."""
+        ...
+
+    def kernel(self, net: Networks, params: Params) -> CellKernel | None:
+        """The compiled increment for the compiled loading path, or None."""
+        ...
+
+    def step_cells(self, net: Networks, params: Params, v: np.ndarray, e1: np.ndarray, e2: np.ndarray,
+                   dl: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """New states (n, n_state) and flags (n, 5) of cells ``v`` after one network step:
+        cell strains e1, e2 (n,), length increments dl (n, 2)."""
+        ...
 
 
 class MaterialScales:
@@ -52,14 +174,61 @@ class MaterialScales:
         return self.params.kn * 2 * self.params.radius
 
 
-@dataclass(frozen=True)
-class Formulation:
-    """Inputs/targets of one formulation for a material (force scale kn·2r, tan φg)."""
+class HCellStates:
+    """The cell-solver side that the formulations of H-cells share (``report``, ``increment``,
+    ``compliance``): the H-cell's 8 fields, whose stress is eq. 1.12, one network in float64
+    (the strain-input networks' Newton tangents are finite differences of their outputs, which
+    float32 round-off turns into noise; the shipped compliance network stalled on unload-reload
+    in float32), no compiled kernel, and the closed form for cells outside the training domain."""
 
-    name: str
+    n_state = len(FIELDS)
+    single_precision = False
+    spare_columns = 0
+    ensembles = False
+
+    def max_increment(self, input_range: np.ndarray | None) -> float:
+        return math.inf
+
+    def initial(self, params: Params, shape: tuple[int, ...] = ()) -> CellState:
+        return CellState.initial(params, shape)
+
+    def initial_cells(self, params: Params, alpha0: np.ndarray) -> CellState:
+        return initial_cells(params, np.asarray(alpha0, float))
+
+    def meso(self, values: np.ndarray) -> None:
+        return None
+
+    def kernel(self, net: Networks, params: Params) -> None:
+        return None
+
+    @staticmethod
+    def closed_form_outside(net: Networks, params: Params, v, dl, mask, new, flags,
+                            describe: Callable[[int], str]) -> None:
+        """Cells outside the training domain: counted, and stop the run or take the closed form's
+        increment (an H-cell has one to fall back to)."""
+        if net.count_outside(mask, describe):
+            net.fall_back(params, v, dl, mask, new, flags)
+
+
+@dataclass(frozen=True)
+class StrainFormulation(HCellStates, ABC):
+    """A network of the increment that sees the strain increment with the state (report §2.3),
+    for a material (force scale kn·2r, tan φg, grain radius): ``report`` and ``increment``.
+
+    The solver cuts an increment larger than the trained ones (the range of the δε inputs)
+    into equal sub-steps. The network's answer for a zero increment is subtracted from its
+    answer, so that a cell without strain keeps its state and the network's bias does not
+    accumulate over the thousands of increments of a path. The network predicts α′, N1′, N2′,
+    T1′; the lengths follow the strain, and d1, d2 follow from α′ and the lengths by eq. 1.2
+    (d1 = l2 / (2 sin α), d2 = l1 − 2 d1 cos α), so that the state stays geometrically consistent.
+    """
+
     force_scale: float
     tan_phi: float
     radius: float
+    name: ClassVar[str]
+    #: Index of the output trained by classification (None: all regression).
+    logit_column: ClassVar[int | None]
 
     def to_dict(self) -> dict:
         return {"name": self.name, "force_scale": self.force_scale, "tan_phi": self.tan_phi,
@@ -72,25 +241,109 @@ class Formulation:
     def head(self, out, aux, target=None):
         return out
 
-    @property
-    def logit_column(self) -> int | None:
-        """Index of the output trained by classification (None: all regression)."""
-        return None if self.name == "report" else 4
+    def mobilized_friction(self, n1: np.ndarray, t1: np.ndarray) -> np.ndarray:
+        """s = T1 / (tan φg N1), 0 where the contact carries no normal force."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(n1 > 0, t1 / (self.tan_phi * np.where(n1 > 0, n1, 1.0)), 0.0)
+
+    def max_increment(self, input_range: np.ndarray | None) -> float:
+        """The bound of the δε1, δε2 inputs over the training rows (inf when unknown)."""
+        return math.inf if input_range is None else float(np.abs(input_range[:, :2]).max())
+
+    def step_cells(self, net, params, v, e1, e2, dl):
+        cols = {"deps1": e1, "deps2": e2, "d1": v[:, 0], "d2": v[:, 1], "alpha": v[:, 2],
+                "N1": v[:, 3], "N2": v[:, 4], "T1": v[:, 5], "l1": v[:, 6], "l2": v[:, 7]}
+        X = self.inputs(cols)
+        net.counts["network_cells"] += len(v)
+        pred = self._predict(net, cols, X)
+        a = pred["alpha_next"]
+        l1, l2 = v[:, 6] + dl[:, 0], v[:, 7] + dl[:, 1]
+        b1 = l2 / (2.0 * np.sin(a))  # eq. 1.2
+        b2 = l1 - 2.0 * b1 * np.cos(a)
+        new = np.column_stack([b1, b2, a, pred["N1_next"], pred["N2_next"], pred["T1_next"], l1, l2])
+        two_r = 2.0 * params.radius
+        opened = (pred["N1_next"] == 0) & (pred["N2_next"] == 0)
+        if net.opening == "rule":  # separated grains carry no force (docs/model.md step 3)
+            opened |= (b1 > two_r) | (b2 > two_r)
+            for k in (3, 4, 5):
+                new[opened, k] = 0.0
+        flags = np.column_stack([
+            (np.abs(pred["T1_next"]) >= params.tan_phi * pred["N1_next"] * (1 - 1e-9)) & ~opened,
+            opened, opened, l1 <= two_r, l2 <= two_r])
+        self.closed_form_outside(net, params, v, dl, net.outside(X), new, flags, lambda i: ", ".join(
+            f"{k}={cols[k][i]:.4g}" for k in ("deps1", "deps2", "alpha", "l1", "l2", "N1", "N2", "T1")))
+        return new, flags
+
+    def _predict(self, net: Networks, cols: dict[str, np.ndarray], X: np.ndarray) -> dict[str, np.ndarray]:
+        """The state after the increment, with the zero-increment correction."""
+        X0 = X.copy()
+        X0[:, :2] = 0.0
+        Y, Y0 = net.forward(X), net.forward(X0)
+        return self.decode(cols, self._corrected(cols, Y, Y0, net.opening))
+
+    @abstractmethod
+    def inputs(self, c: dict[str, np.ndarray]) -> np.ndarray:
+        """X (n, 8) from database columns (the state before and the strain)."""
+
+    @abstractmethod
+    def targets(self, c: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """Targets Y from database columns (the state after), and the weight of every target in
+        the loss."""
+
+    @abstractmethod
+    def decode(self, c: dict[str, np.ndarray], Y: np.ndarray) -> dict[str, np.ndarray]:
+        """Predicted state after the increment from predictions Y and the state before."""
+
+    @abstractmethod
+    def _corrected(self, cols, Y, Y0, opening: str) -> np.ndarray:
+        """Predictions Y less the answer Y0 to a zero increment, as :meth:`decode` reads them
+        (``opening``: the solver's rule for strain-input cells that open)."""
+
+
+@dataclass(frozen=True)
+class ReportFormulation(StrainFormulation):
+    """``report`` (report §2.3): X = (δε1, δε2, α, l1, l2, N1, N2, T1) and Y = (α′, N1′, N2′,
+    T1′)."""
+
+    name = "report"
+    logit_column = None
 
     def inputs(self, c: dict[str, np.ndarray]) -> np.ndarray:
         """X (n, 8) from database columns (the state before and the strain)."""
-        if self.name == "report":
-            return np.column_stack([c[k] for k in REPORT_INPUTS]).astype(float)
+        return np.column_stack([c[k] for k in REPORT_INPUTS]).astype(float)
+
+    def targets(self, c: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """Targets Y (n, 4) from database columns (the state after), and the weight (all 1) of
+        every target in the loss."""
+        Y = np.column_stack([c[k] for k in OUTPUTS]).astype(float)
+        return Y, np.ones_like(Y)
+
+    def decode(self, c: dict[str, np.ndarray], Y: np.ndarray) -> dict[str, np.ndarray]:
+        """Predicted state after the increment: the predictions themselves."""
+        return {k: Y[:, j] for j, k in enumerate(OUTPUTS)}
+
+    def _corrected(self, cols, Y, Y0, opening):
+        before = np.column_stack([cols[k] for k in ("alpha", "N1", "N2", "T1")])
+        return before + Y - Y0
+
+
+@dataclass(frozen=True)
+class IncrementFormulation(StrainFormulation):
+    """``increment``: dimensionless inputs, increments as targets and the opening logit (see the
+    module docstring)."""
+
+    name = "increment"
+    logit_column = 4
+
+    def inputs(self, c: dict[str, np.ndarray]) -> np.ndarray:
+        """X (n, 8) from database columns (the state before and the strain)."""
         F, d = self.force_scale, 2 * self.radius
         return np.column_stack([c["deps1"], c["deps2"], c["alpha"], c["l1"] / d, c["l2"] / d,
                                 c["N1"] / F, c["N2"] / F, c["T1"] / F]).astype(float)
 
     def targets(self, c: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """Targets Y (n, 4; 5 with the opening logit) from database columns (the state after), and the weight
-        (0 or 1) of every target in the loss."""
-        if self.name == "report":
-            Y = np.column_stack([c[k] for k in OUTPUTS]).astype(float)
-            return Y, np.ones_like(Y)
+        """Targets Y (n, 5, the last the opening logit) from database columns (the state after),
+        and the weight (0 or 1) of every target in the loss."""
         F = self.force_scale
         n1 = c["N1_next"]
         opened = np.asarray(c["open1"], bool) | np.asarray(c["open2"], bool)
@@ -102,18 +355,23 @@ class Formulation:
         W[opened, 1:4] = 0.0  # forces of an opened cell are zero whatever the trial: not regressed
         return Y, W
 
-    def mobilized_friction(self, n1: np.ndarray, t1: np.ndarray) -> np.ndarray:
-        """s = T1 / (tan φg N1), 0 where the contact carries no normal force."""
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(n1 > 0, t1 / (self.tan_phi * np.where(n1 > 0, n1, 1.0)), 0.0)
-
     def decode(self, c: dict[str, np.ndarray], Y: np.ndarray) -> dict[str, np.ndarray]:
         """Predicted state after the increment from predictions Y and the state before."""
-        if self.name == "report":
-            return {k: Y[:, j] for j, k in enumerate(OUTPUTS)}
         F = self.force_scale
         closed = Y[:, 4] <= 0.0
         n1 = np.maximum(c["N1"] + F * Y[:, 1], 0.0) * closed
         n2 = np.maximum(c["N2"] + F * Y[:, 2], 0.0) * closed
         return {"alpha_next": c["alpha"] + Y[:, 0], "N1_next": n1, "N2_next": n2,
                 "T1_next": np.clip(Y[:, 3], -1.0, 1.0) * self.tan_phi * n1}
+
+    def _corrected(self, cols, Y, Y0, opening):
+        s_in = self.mobilized_friction(cols["N1"], cols["T1"])
+        Y = Y.copy()
+        Y[:, :3] -= Y0[:, :3]
+        Y[:, 3] = s_in + Y[:, 3] - Y0[:, 3]
+        if opening == "rule":
+            # Opening decided as eq. 1.7's closed form does, on the continued force increments
+            # (regressed on closed cells only): a force that would turn negative opens the cell.
+            trial1, trial2 = cols["N1"] + self.force_scale * Y[:, 1], cols["N2"] + self.force_scale * Y[:, 2]
+            Y[:, 4] = np.where((trial1 < 0) | (trial2 < 0), 1.0, -1.0)
+        return Y

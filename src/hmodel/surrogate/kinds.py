@@ -9,10 +9,12 @@ from __future__ import annotations
 from ..errors import InputError
 from ..params import Params
 from .compliance import ComplianceFormulation
-from .formulations import Formulation
+from .formulations import IncrementFormulation, ReportFormulation
 from .meso import MesoFormulation
 
 FORMULATIONS = ("report", "increment", "compliance", "meso")
+#: The strain-input formulations, made from the material's scales.
+STRAIN_INPUT = {"report": ReportFormulation, "increment": IncrementFormulation}
 
 
 def make_formulation(name: str, params: Params, cell: str = "closed-form", mechanisms: int = 4):
@@ -26,7 +28,7 @@ def make_formulation(name: str, params: Params, cell: str = "closed-form", mecha
         raise InputError(f"the {name} formulation learns H-cells; cells of {cell!r} need --formulation meso")
     if name == "compliance":
         return ComplianceFormulation(params)
-    return Formulation(name, params.kn * 2 * params.radius, params.tan_phi, params.radius)
+    return STRAIN_INPUT[name](params.kn * 2 * params.radius, params.tan_phi, params.radius)
 
 
 def formulation_from_dict(d: dict):
@@ -35,4 +37,4 @@ def formulation_from_dict(d: dict):
         return MesoFormulation(Params.from_dict(d["params"]), d["cell"], d["mechanisms"])
     if d["name"] == "compliance":
         return ComplianceFormulation(Params.from_dict(d["params"]))
-    return Formulation(d["name"], d["force_scale"], d["tan_phi"], d["radius"])
+    return STRAIN_INPUT[d["name"]](d["force_scale"], d["tan_phi"], d["radius"])

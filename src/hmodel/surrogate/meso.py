@@ -75,21 +75,30 @@ training domain at 2-3 %), validation loss 0.0034 instead of 0.0019.
 Training rows come from any cell solver: a richer DEM cell's extra state columns give its
 Love-Weber stress; for H-cells (``closed-form``, ``dem:standard``) it is eq. 1.12 of the fields
 (with the extra contacts of over-compressed cells), as in the REV.
+
+In the cell solver, a meso network sees the state only: one evaluation per increment gives the
+learned response (:meth:`MesoFormulation.responses`; an ensemble's mean) that every trial
+increment from that state applies in the compiled way back
+(:func:`hmodel.cell.meso_kernel.meso_increment`), in the REV's compiled loading path
+(:meth:`MesoFormulation.kernel`) and in :meth:`MesoFormulation.step_cells` alike.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 
+from ..cell.base import CellKernel
 from ..cell.geometry import CellGeometry
+from ..cell.meso_kernel import advance_cells, kernel_params, pack_outputs, pack_responses
 from ..cell.mesostress import contact_vsigma, meso_vsigma
 from ..cell.state import FIELDS, CellState, initial_lengths
 from ..errors import InputError
 from ..params import Params
-from .formulations import OUTPUTS, MaterialScales
+from .formulations import OUTPUTS, MaterialScales, Networks
 from .torch_support import require_torch
 
 MESO_FIELDS = ("Vs_nn", "Vs_tt", "Vs_nt")
@@ -107,6 +116,12 @@ class MesoFormulation(MaterialScales):
     name: str = "meso"
     logit_column = None
     n_state = len(STATE_FIELDS)
+    #: float32 inference: checked against float64 on every compared DEM-REV path.
+    single_precision = True
+    #: Two columns after one network's outputs, where :meth:`responses` puts cos and sin of alpha.
+    spare_columns = 2
+    #: Members' increments average (see :mod:`hmodel.surrogate.solver`).
+    ensembles = True
 
     @property
     def richer(self) -> bool:
@@ -170,9 +185,18 @@ class MesoFormulation(MaterialScales):
         """Summary rows (n, 11) of full cell states (n, n_fields) of the data's solver."""
         return np.hstack([full[:, :8], self.vsigma(full)])
 
-    def initial(self, shape: tuple[int, ...] = ()) -> CellState:
-        """Summary of unloaded cells of opening angle params.alpha0."""
+    def initial(self, params: Params, shape: tuple[int, ...] = ()) -> CellState:
+        """Summary of unloaded cells of opening angle ``self.params.alpha0``, the one the model
+        was trained for (``params``, the run's material, adds nothing to it)."""
         return CellState(np.broadcast_to(self._unloaded, (*shape, self.n_state)).copy())
+
+    def initial_cells(self, params: Params, alpha0: np.ndarray) -> CellState:
+        """Unloaded cells: a summary state knows one opening angle only, the trained one."""
+        alpha0 = np.asarray(alpha0, float)
+        if not np.allclose(alpha0, params.alpha0, rtol=0.0, atol=1e-12):
+            raise InputError("a meso surrogate's cells start at the opening angle it was trained "
+                             f"for (alpha0 = {np.degrees(params.alpha0):.6g} deg)")
+        return self.initial(params, alpha0.shape)
 
     @cached_property
     def _unloaded(self) -> np.ndarray:
@@ -347,6 +371,40 @@ class MesoFormulation(MaterialScales):
         m = self.geometry.cell(self.params, self.params.alpha0)
         reach = sum(r for r, d in zip(m.radii, m.drive) if d == "free")
         return float(reach), float(m.radii[0]), float(m.radii[1])
+
+    # -- the cell solver's side ----------------------------------------------------------
+    def max_increment(self, input_range: np.ndarray | None) -> float:
+        """Any: the response is homogeneous in the increment (no sub-steps)."""
+        return math.inf
+
+    def kernel(self, net: Networks, params: Params) -> CellKernel:
+        """The compiled increment: the learned responses of the states (one network evaluation
+        per increment), which every Newton trial applies in
+        :func:`hmodel.cell.meso_kernel.meso_increment`."""
+        return CellKernel(kernel_params(self, params), lambda values: self.responses(net, values))
+
+    def step_cells(self, net, params, v, e1, e2, dl):
+        """One learned increment of summary states v (n, 11), in the compiled way back (the
+        NumPy one, :meth:`advance`, in one pass; tested against it)."""
+        new, flags, _ = advance_cells(v, np.ascontiguousarray(dl, float), kernel_params(self, params),
+                                      self.responses(net, v))
+        return new, flags
+
+    def responses(self, net: Networks, v: np.ndarray) -> np.ndarray:
+        """The learned responses (an ensemble's mean, :meth:`mean_response`) of summary states
+        v (n, 11), which every trial increment from these states applies, as the compiled
+        trial's rows (:func:`~hmodel.cell.meso_kernel.pack_responses`; one network's outputs are
+        those rows already, followed by cos and sin of alpha in its two spare columns). There is
+        no closed form to fall back to: cells outside the training domain stop the run or are
+        extrapolated, counted either way."""
+        X = self.features(v)
+        outs, out = net.outputs(v, X)
+        net.count_outside(out, lambda i: ", ".join(f"{k}={x:.4g}" for k, x in zip(self.input_names, X[i])))
+        width = self.n_outputs
+        if len(outs) == 1:
+            wide = outs[0] if outs[0].shape[1] == width + self.spare_columns else None
+            return pack_outputs(outs[0][:, :width], len(self.learned), v, wide)
+        return pack_responses(self.mean_response([self.response(o[:, :width]) for o in outs]), v)
 
     # -- rollout training -------------------------------------------------------------------
     def windows(self, c: dict[str, np.ndarray], length: int) -> dict[str, np.ndarray]:

@@ -7,7 +7,8 @@ and keeps inference free of PyTorch. Training (``hmodel.surrogate.training``) us
 though a single large batch ran faster; see the documentation's notes.) The rows
 run in blocks whose activations stay in cache. ``forward(X, single=True)`` runs the layers in
 float32, the precision the network was trained in (outputs within ~4e-7 of float64, at half the
-memory traffic); the solver uses it for ``meso`` models only (see ``SurrogateSolver._network``).
+memory traffic); the solver uses it for the formulations that ask for it, ``meso`` only
+(``single_precision`` in :mod:`hmodel.surrogate.formulations`).
 Networks with the strain increment among their inputs need float64: the Newton iterations'
 finite-difference probes differentiate their output, and float32 round-off made those tangents
 noise.
