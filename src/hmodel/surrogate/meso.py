@@ -453,7 +453,7 @@ class MesoFormulation(MaterialScales):
         """The learned fields (W, T, len(learned)) after each step of windows rolled out with the
         network ``net`` (torch, float64 states): each step's state is the previous step's
         output, as in a REV; each data step taken in ``substeps`` equal network steps (a REV at
-        a finer increment than the data's)."""
+        a finer increment than the data's; experimental, ``TrainConfig.rollout_substeps``)."""
         z = z0
         fields = []
         for k in range(e.shape[1]):

@@ -44,7 +44,8 @@ class TrainConfig:
     #: single-increment errors pile up; this charges the network for the pile-up.
     rollout: int = 0
     rollout_weight: float = 1.0
-    #: Network steps per data step of a rollout window (a REV at a finer increment than the
+    #: Experimental, tried and not kept (see the documentation's notes, "Tried and not kept"):
+    #: network steps per data step of a rollout window (a REV at a finer increment than the
     #: data's; 1: the data's steps).
     rollout_substeps: int = 1
     #: ``meso``: weigh each row's error as an error of the secant dz/|de| instead of dz/m0, for
