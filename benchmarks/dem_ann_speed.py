@@ -49,8 +49,11 @@ PARAMS = Params(sliding_rhs="equilibrium")
 
 
 class GenericDriver(SurrogateSolver):
-    """The same solver run by the generic Python driver: the compiled loading path takes the
-    surrogate solver itself only (``hmodel.loading.compiled.supports``)."""
+    """The same solver run by the generic Python driver: a solver without a compiled increment
+    (``kernel``) is stepped by the loading drivers (``hmodel.loading.compiled.supports``)."""
+
+    def kernel(self, params):
+        return None
 
 
 def _variants(models, teacher=()) -> list[tuple[str, list, type]]:
