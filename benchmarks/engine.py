@@ -56,7 +56,7 @@ def cell_updates(repeat: int, n_cells: int = 2_000_000) -> float:
 
 def fused_trials(repeat: int, n_calls: int = 2000) -> float:
     """Cell updates per second inside the compiled REV trial (nθ = 360, one material point)."""
-    from hmodel.loading.compiled import _trial
+    from hmodel.loading.compiled import trial
 
     rev = Rev(Params(n_theta=360))
     s0 = paths.consolidate(rev, [2e5])
@@ -69,7 +69,7 @@ def fused_trials(repeat: int, n_calls: int = 2000) -> float:
 
     def run():
         for _ in range(n_calls):
-            _trial(*args)
+            trial(*args)
     return n_calls * 360 / best_of(run, repeat)
 
 

@@ -149,7 +149,7 @@ def test_trial_slope_is_the_derivative_of_the_trial_stress(tiny_model):  # noqa:
     """The stress derivative a meso trial gives along a strain direction equals the central
     finite difference of the trial stress (where both step sizes agree: no regime changes in
     between), on a sheared REV's cells in every direction."""
-    from hmodel.loading.compiled import _trial, _trial_tangent, cell_responses, kernel_inputs
+    from hmodel.loading.compiled import trial, trial_tangent, cell_responses, kernel_inputs
     model, _ = tiny_model
     rev = Rev(PARAMS, SurrogateSolver(model, on_outside="fallback"))
     s = run_segment(rev, consolidate(rev, [1e5]), SEGMENTS["drained"])
@@ -162,12 +162,12 @@ def test_trial_slope_is_the_derivative_of_the_trial_stress(tiny_model):  # noqa:
     for _ in range(30):
         x, u = rng.normal(0.0, 3e-4, 3), rng.normal(size=3)
         sig, slope = np.empty(3), np.empty(3)
-        assert _trial_tangent(values, eps, x, geo, p, rev.mode, rev.volume0, out, flags, sig, resp, u, slope)
+        assert trial_tangent(values, eps, x, geo, p, rev.mode, rev.volume0, out, flags, sig, resp, u, slope)
         fd = []
         for h in (1e-7, 1e-8):
             plus, minus = np.empty(3), np.empty(3)
-            _trial(values, eps, x + h * u, geo, p, rev.mode, rev.volume0, out, flags, plus, resp)
-            _trial(values, eps, x - h * u, geo, p, rev.mode, rev.volume0, out, flags, minus, resp)
+            trial(values, eps, x + h * u, geo, p, rev.mode, rev.volume0, out, flags, plus, resp)
+            trial(values, eps, x - h * u, geo, p, rev.mode, rev.volume0, out, flags, minus, resp)
             fd.append((plus - minus) / (2 * h))
         size = np.abs(fd[0]).max()
         if np.abs(fd[0] - fd[1]).max() <= 1e-5 * size:
@@ -177,7 +177,7 @@ def test_trial_slope_is_the_derivative_of_the_trial_stress(tiny_model):  # noqa:
 
 
 def test_free_direction_is_normal_to_the_strain_rows():
-    from hmodel.loading.compiled import _free_direction
+    from hmodel.loading.newton import free_direction as _free_direction
     for name in ("drained", "undrained"):
         seg = SEGMENTS[name]
         M = np.asarray(seg.matrix, float)

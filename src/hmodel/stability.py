@@ -26,14 +26,15 @@ import numpy as np
 from numba import njit
 
 from .errors import InputError
-from .loading.compiled import (NOT_CONVERGED, TRIAL_LIMITS, _fd_tangent, _solve_point, _trial, cell_responses_of, kernel_inputs,
-                               supports)
+from .loading.compiled import (NOT_CONVERGED, cell_responses_of, fd_tangent, kernel_inputs, solve_point,
+                               supports, trial)
 from .loading.control import Tangent
+from .loading.newton import NewtonSettings
 from .rev import Rev, RevState
 
 
-#: Finite-difference strain step of the stress probes' starting tangent (as ``Tangent.fd_step``).
-FD_STEP = Tangent().fd_step
+#: Newton's settings for the stress probes (those of the loading paths).
+SETTINGS = NewtonSettings()
 
 
 def _check(n: int, magnitude: float) -> None:
@@ -72,7 +73,7 @@ def _strain_probe_kernel(values, eps, probes, geo, p, mode, volume0, sig, resp):
     out = np.empty_like(values)
     flags = np.empty((values.shape[0], 5), dtype=np.bool_)
     for k in range(probes.shape[0]):
-        _trial(values, eps, probes[k], geo, p, mode, volume0, out, flags, sig[k], resp)
+        trial(values, eps, probes[k], geo, p, mode, volume0, out, flags, sig[k], resp)
 
 
 @dataclass(frozen=True)
@@ -122,8 +123,8 @@ def strain_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1
 
 
 @njit(cache=True, error_model="numpy")
-def _stress_probe_kernel(values, flags, eps, sig, K, targets, geo, p, mode, volume0, rtol,
-                         max_iter, h, deps_out, resp):
+def _stress_probe_kernel(values, flags, eps, sig, K, targets, geo, p, mode, volume0, c, deps_out,
+                         resp):
     n, m = values.shape
     buf = np.empty((4, n, m))
     bufflags = np.empty((4, n, 5), dtype=np.bool_)
@@ -136,9 +137,8 @@ def _stress_probe_kernel(values, flags, eps, sig, K, targets, geo, p, mode, volu
         s = sig.copy()
         Kk = K.copy()
         has = np.ones(1, dtype=np.bool_)
-        status = _solve_point(v, f, e, s, Kk, has, S, M, targets[k], geo, p, mode, volume0, rtol,
-                              max_iter, 0, h, buf, bufflags, resp, np.empty(0),
-                              np.zeros(1, dtype=np.int64), TRIAL_LIMITS)
+        status = solve_point(v, f, e, s, Kk, has, S, M, targets[k], geo, p, mode, volume0, c, 0,
+                             buf, bufflags, resp, np.empty(0), np.zeros(1, dtype=np.int64))
         for j in range(3):
             deps_out[k, j] = np.nan if status == NOT_CONVERGED else e[j] - eps[j]
 
@@ -158,12 +158,12 @@ def stress_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1
     flags = np.ascontiguousarray(one.flags.flags[0])
     K = np.empty((3, 3))
     resp = cell_responses_of(rev.kernels[k], values)
-    _fd_tangent(values, one.eps[0], np.zeros(3), geo, p, rev.mode, rev.volumes0[k], FD_STEP,
-                np.empty_like(values), np.empty_like(flags), K, resp)
+    fd_tangent(values, one.eps[0], np.zeros(3), geo, p, rev.mode, rev.volumes0[k], SETTINGS.fd_step,
+               np.empty_like(values), np.empty_like(flags), K, resp)
     deps = np.empty((n, 3))
     _stress_probe_kernel(values, flags, one.eps[0].copy(), one.sig[0].copy(), K,
                          np.ascontiguousarray(one.sig[0] + dsig), geo, p, rev.mode,
-                         rev.volumes0[k], 1e-10, 24, FD_STEP, deps, resp)
+                         rev.volumes0[k], SETTINGS.packed(), deps, resp)
     return Envelope("stress", deps, dsig)
 
 

@@ -6,12 +6,12 @@ row r is either a *strain row*, ``M[r] . deps = v[r]``, or a *stress row*,
 uses unit rows; combinations give the isochoric (``deps11 + deps22 = 0``), isotropic
 (``deps11 - deps22 = 0``) and constant-p (``(sig11 + sig22)/2 = p0``) paths.
 
-:func:`solve_increment` finds ``deps`` by Newton's method on the stress rows. The tangent
-``K = dsig/ddeps`` (B, 3, 3) is carried from one increment to the next and refreshed by Broyden's
-rank-one update at every trial; it is recomputed by finite differences (one batched REV call on
-3 perturbed copies of every material point) at the start and whenever Newton stalls. This is
-the documented fallback; if it still does not converge, the increment is refused with an error
-that gives the strain reached and the residual.
+:func:`solve_increment` finds ``deps`` by the one Newton of :mod:`hmodel.loading.newton`
+(settings: :class:`~hmodel.loading.newton.NewtonSettings`), every point asking for its own
+trials; each round evaluates all the trials asked for in one batched REV call, and the
+finite-difference tangents in one call on 4 copies of every point that needs one. The tangent
+``K = dsig/ddeps`` (B, 3, 3) is carried from one increment to the next (:class:`Tangent`). An
+increment Newton cannot solve is refused with an error that gives the strain reached and why.
 """
 
 from __future__ import annotations
@@ -22,22 +22,10 @@ import numpy as np
 
 from ..errors import SolverError
 from ..rev import Rev, RevState
+from .newton import (ASK_TANGENT, ASK_TRIAL, CAP, CONVERGED, DIVERGED, NW, STALLED, XN, NewtonSettings,
+                     begin, told_tangent, told_trial)
 
 COMPONENTS = ("11", "22", "12")
-
-#: Newton's trials are bounded: no trial strain increment (Euclidean norm over 11, 22, 12) is
-#: larger than MAX_TRIAL_STRAIN, or than STEP_MULTIPLE times the increment's strain rows where
-#: those ask for more. A singular or sign-flipped tangent (a sample that has lost its stiffness
-#: along a stress-controlled direction) otherwise proposes increments many orders of magnitude
-#: beyond the path, which a cell solver would have to take.
-MAX_TRIAL_STRAIN = 0.05
-STEP_MULTIPLE = 100.0
-
-
-def trial_cap(control: "Control") -> np.ndarray:
-    """Largest trial strain increment (B,) of each point's increment under ``control``."""
-    strain = np.linalg.norm(control.values[:, ~control.stress_rows], axis=1)
-    return np.maximum(MAX_TRIAL_STRAIN, STEP_MULTIPLE * strain)
 
 
 @dataclass(frozen=True)
@@ -84,11 +72,10 @@ class Tangent:
     """Newton's memory between increments: K = dsig/ddeps (B, 3, 3), or None before the first."""
 
     K: np.ndarray | None = None
-    fd_step: float = 1e-7
 
 
 def _fd_tangent(rev: Rev, state: RevState, x: np.ndarray, h: float) -> np.ndarray:
-    """Finite-difference tangent at trial increment x, one batched call on 4B copies."""
+    """Finite-difference tangent at trial increments x (B, 3), one batched call on 4B copies."""
     B = state.n_points
     reps = np.repeat(np.arange(B), 4)
     probe = np.repeat(x, 4, axis=0).reshape(B, 4, 3)
@@ -99,146 +86,106 @@ def _fd_tangent(rev: Rev, state: RevState, x: np.ndarray, h: float) -> np.ndarra
 
 
 def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangent,
-                    rtol: float = 1e-10, max_iter: int = 24, max_events: int = 6) -> RevState:
+                    settings: NewtonSettings = NewtonSettings()) -> RevState:
     """Advance ``state`` by one increment satisfying ``control``; updates ``tangent`` in place.
 
-    Stress rows are met to ``rtol`` times the larger of the target and the current stress level.
+    Stress rows are met to ``settings.rtol`` (or the cell solver's ``stress_rtol`` where larger)
+    times the larger of the target and the current stress level, by the one Newton of
+    :mod:`hmodel.loading.newton`, its trials evaluated as batched REV calls.
 
     The stress response is continuous in the strain increment except where a cell event makes
     it jump: with ``sliding_rhs="report"`` a cell that starts sliding with T1 < 0 loses its
     contact at once (see :class:`hmodel.params.Params`). When the target lies inside such a
     jump, no increment meets it; Newton then stalls, and the fallback commits the trial where
     the most cells broke (the event happens), and solves the rest of the increment from there
-    (strain rows already met, stress rows unchanged), at most ``max_events`` times.
+    (strain rows already met, stress rows unchanged), at most ``settings.max_events`` times.
     """
     B = state.n_points
-    # A solver whose cells are converged to less than round-off (DEM) sets its own floor.
-    rtol = max(rtol, float(rev.solver.stress_rtol))
+    c = settings.packed(float(rev.solver.stress_rtol))
     if tangent.K is None or tangent.K.shape[0] != B:
         tangent.K = None
+    K = np.zeros((B, 3, 3)) if tangent.K is None else np.array(tangent.K, float)
+    has_K = np.full(B, tangent.K is not None)
     out = state
     pending = np.arange(B)
-    for _ in range(max_events + 1):
-        sub = Tangent(None if tangent.K is None else tangent.K[pending], tangent.fd_step)
+    for _ in range(settings.max_events + 1):
         part = Control(control.stress_rows, control.matrix, control.values[pending])
-        done, reached, diverged = _newton(rev, state.select(pending), part, sub, rtol, max_iter)
-        if diverged.any():
-            b = pending[np.flatnonzero(diverged)[0]]
-            raise SolverError(
-                f"mixed-control Newton diverged at strain {np.round(state.eps[b], 8).tolist()}: every "
-                f"trial beyond the strain-increment limit {trial_cap(part)[diverged][0]:.3g} missed "
-                f"the stress targets (singular or sign-flipped tangent)")
-        if tangent.K is None:
-            tangent.K = np.zeros((B, 3, 3))
-        if sub.K is not None:
-            tangent.K[pending] = sub.K
+        Kp, hp = K[pending], has_K[pending]
+        done, reached = _newton(rev, state.select(pending), part, Kp, hp, c, settings)
+        K[pending], has_K[pending] = Kp, hp
         out = out.scatter(pending, reached)
         if done.all():
+            tangent.K = K
             return out
         # Points past a cell event go on from the event state: strain rows are met already.
         pending, state = pending[~done], out
         control = Control(control.stress_rows, control.matrix,
                           np.where(control.stress_rows, control.values, 0.0))
+    tangent.K = K
     res = np.abs(out.sig @ control.matrix[control.stress_rows].T
                  - control.values[:, control.stress_rows])
     raise SolverError(
         f"mixed-control Newton did not converge at strain {np.round(out.eps[pending], 8).tolist()}: "
-        f"stress residual {float(res.max()):.3g} Pa after {max_events} cell events")
+        f"stress residual {float(res.max()):.3g} Pa after {settings.max_events} cell events")
 
 
-def _newton(rev: Rev, state: RevState, control: Control, tangent: Tangent, rtol: float,
-            max_iter: int) -> tuple[np.ndarray, RevState, np.ndarray]:
-    """Newton-Broyden on the stress rows.
+def _newton(rev: Rev, state: RevState, control: Control, K: np.ndarray, has_K: np.ndarray,
+            c: np.ndarray, settings: NewtonSettings) -> tuple[np.ndarray, RevState]:
+    """The one Newton for B points, each asking for its trials; every round evaluates the
+    trials asked for in one batched REV call (and the tangents in one call on 4 copies each).
 
-    Returns a mask of the converged points (B,), a state holding, for each point, its
-    solution or, where Newton stalled, the trial with the most broken cells (an event state),
-    and a mask of the diverged points: not converged, and every trial held at the strain cap
-    (:func:`trial_cap`), so that no event state is worth committing.
+    Returns a mask of the converged points (B,) and a state holding, for each point, its
+    solution or, where Newton stalled, the trial with the most broken cells (an event state).
+    Raises SolverError where Newton diverged or the Jacobian stayed singular.
     """
     M, S, v = control.matrix, control.stress_rows, control.values
+    B = state.n_points
     if not S.any():
         try:
             deps = np.linalg.solve(M, v.T).T
         except np.linalg.LinAlgError:
             raise SolverError("strain control rows are linearly dependent") from None
-        return np.ones(state.n_points, bool), rev.step(state, deps), np.zeros(state.n_points, bool)
-
-    B = state.n_points
-    scale = np.maximum(np.abs(v[:, S]), np.abs(state.sig).max(axis=1, keepdims=True))
-    scale = np.maximum(scale, 1.0)
-    if tangent.K is None:
-        tangent.K = _fd_tangent(rev, state, np.zeros((B, 3)), tangent.fd_step)
-
-    def newton(x, R):
-        # A degenerate secant update: start afresh at the trial; a trial so far out that the
-        # sample carries nothing (every cell open, K = 0): start afresh at the state itself.
-        for fresh in (x, np.zeros_like(x), None):
-            J = np.broadcast_to(M, (B, 3, 3)).copy()
-            J[:, S, :] = np.einsum("rk,bkj->brj", M[S], tangent.K)
-            try:
-                return x - np.linalg.solve(J, R[..., None])[..., 0]
-            except np.linalg.LinAlgError:
-                if fresh is not None:
-                    tangent.K = _fd_tangent(rev, state, fresh, tangent.fd_step)
-        raise SolverError(f"singular tangent under mixed control at strain "
-                          f"{np.round(state.eps, 8).tolist()}")
-
-    def residual(x, sig):
-        R = np.einsum("rk,bk->br", M, x) - v
-        R[:, S] = sig @ M[S].T - v[:, S]
-        return R
-
-    cap = trial_cap(control)
-
-    def bounded(x):
-        """x held inside the ball of radius cap, and the mask of the points it was cut back."""
-        nrm = np.linalg.norm(x, axis=1)
-        over = nrm > cap
-        return np.where(over[:, None], x * (cap / np.maximum(nrm, 1e-300))[:, None], x), over
-
-    # Tangent predictor from the current state, then Newton with Broyden updates.
-    x, held = bounded(newton(np.zeros((B, 3)), residual(np.zeros((B, 3)), state.sig)))
-    trust = 4.0 * np.maximum(np.linalg.norm(x, axis=1), 1e-8)[:, None][:, 0]
-    trial = rev.step(state, x)
-    R = residual(x, trial.sig)
-    # a trial held at the cap is no event state (a jump lies near the solution, not out there)
-    best, best_key = trial, np.where(held, np.inf, _event_key(trial, R, S))
-    for it in range(max_iter):
-        done = np.all(np.abs(R[:, S]) <= rtol * scale, axis=1)
-        if done.all():
-            return done, trial, np.zeros(B, bool)
-        if it == max_iter // 3:  # stalled: fresh finite-difference tangent at the current trial
-            # (converged points keep theirs, so that a point's path never depends on its batch)
-            todo = np.flatnonzero(~done)
-            tangent.K[todo] = _fd_tangent(rev, state.select(todo), x[todo], tangent.fd_step)
-        dx = newton(x, R) - x
-        # Trust region: a Newton correction never exceeds a few predictor increments.
-        step = trust / np.maximum(np.linalg.norm(dx, axis=1), 1e-300)
-        x_new, held = bounded(np.where(done[:, None], x, x + dx * np.minimum(step, 1.0)[:, None]))
-        new = rev.step(state, x_new)
-        # A secant across a cell event (a jump) would wreck the tangent: skip those points.
-        smooth = np.all(new.flags.broken == trial.flags.broken, axis=1)
-        _broyden(tangent, (x_new - x) * smooth[:, None], new.sig - trial.sig)
-        x, trial = x_new, new
-        R = residual(x, trial.sig)
-        key = np.where(held, np.inf, _event_key(trial, R, S))
-        better = key < best_key
-        best, best_key = trial.where(better, best), np.where(better, key, best_key)
-    done = np.all(np.abs(R[:, S]) <= rtol * scale, axis=1)
-    return done, trial.where(done, best), ~done & np.isinf(best_key)
-
-
-def _event_key(trial: RevState, R: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """Ordering of trials for the event fallback: most broken cells first, then residual."""
-    broken = trial.flags.broken.sum(axis=1)
-    res = np.abs(R[:, S]).max(axis=1)
-    return -broken + res / (1.0 + res)  # res/(1+res) < 1 breaks ties only
-
-
-def _broyden(tangent: Tangent, dx: np.ndarray, dsig: np.ndarray) -> None:
-    """Rank-one secant update K += (dsig - K dx) dx^T / |dx|^2, point by point."""
-    nrm = np.einsum("bi,bi->b", dx, dx)
-    ok = nrm > 0
-    upd = dsig - np.einsum("bij,bj->bi", tangent.K, dx)
-    tangent.K = tangent.K + (upd[:, :, None] * dx[:, None, :]
-                             / np.where(ok, nrm, 1.0)[:, None, None]) * ok[:, None, None]
+        return np.ones(B, bool), rev.step(state, deps)
+    W = np.zeros((B, NW))
+    acts = np.empty(B, np.int64)
+    no_guess = np.empty(0)
+    for b in range(B):
+        acts[b] = begin(W[b], K[b], has_K[b:b + 1], S, M, v[b], state.sig[b], c, no_guess, False)
+    current, best = state, state  # each point's current and best trials (the state: none yet)
+    tried = np.zeros(B, bool)
+    flag = np.zeros(1, bool)
+    while True:
+        ask = np.flatnonzero(acts == ASK_TANGENT)
+        if len(ask):
+            K[ask] = _fd_tangent(rev, state.select(ask), W[ask, XN:XN + 3], settings.fd_step)
+            for b in ask:
+                acts[b] = told_tangent(W[b], K[b], has_K[b:b + 1], S, M, c)
+        ask = np.flatnonzero(acts == ASK_TRIAL)
+        if not len(ask):
+            if np.any(acts == ASK_TANGENT):
+                continue
+            break
+        new = rev.step(state.select(ask), W[ask, XN:XN + 3])
+        broken = new.flags.broken
+        same = tried[ask] & np.all(broken == current.flags.broken[ask], axis=1)
+        n_broken = broken.sum(axis=1)
+        better = np.zeros(len(ask), bool)
+        for j, b in enumerate(ask):
+            acts[b] = told_trial(W[b], K[b], S, M, c, new.sig[j], True, n_broken[j], same[j],
+                                 False, flag)
+            better[j] = flag[0]
+        current, tried[ask] = current.scatter(ask, new), True
+        if better.any():
+            best = best.scatter(ask[better], new.select(better))
+    failed = np.flatnonzero(~np.isin(acts, (CONVERGED, STALLED)))
+    if len(failed):
+        b = failed[0]
+        at = np.round(state.eps[b], 8).tolist()
+        if acts[b] == DIVERGED:
+            raise SolverError(
+                f"mixed-control Newton diverged at strain {at}: every trial beyond the "
+                f"strain-increment limit {W[b, CAP]:.3g} missed the stress targets (singular or "
+                f"sign-flipped tangent)")
+        raise SolverError(f"singular tangent under mixed control at strain {at}")
+    done = acts == CONVERGED
+    return done, current.where(done, best)

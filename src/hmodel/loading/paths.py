@@ -20,6 +20,7 @@ from ..errors import InputError, SolverError
 from ..rev import Rev, RevState
 from .compiled import CompiledSegment, supports
 from .control import Control, Tangent, solve_increment
+from .newton import NewtonSettings
 from .result import Recorder
 
 #: Default strain increment of the isotropic compression (each of eps11, eps22).
@@ -56,8 +57,11 @@ class Segment:
 
 def run_segment(rev: Rev, state: RevState, seg: Segment, recorder: Recorder | None = None,
                 progress: Progress = None, tangent: Tangent | None = None,
-                record_every: int = 1, compiled: bool | None = None) -> RevState:
+                record_every: int = 1, compiled: bool | None = None,
+                settings: NewtonSettings = NewtonSettings()) -> RevState:
     """Apply a :class:`Segment` to every material point; returns the final state.
+
+    ``settings`` are the mixed-control Newton's (:class:`~hmodel.loading.newton.NewtonSettings`).
 
     ``compiled`` (default: whenever the REV's solver allows it) runs the segment in the
     compiled kernel of :mod:`hmodel.loading.compiled`; ``False`` forces the generic driver.
@@ -74,10 +78,10 @@ def run_segment(rev: Rev, state: RevState, seg: Segment, recorder: Recorder | No
         compiled = supports(rev)
     if compiled:
         return _run_compiled(rev, state, seg, S, M, start, end, recorder, progress, tangent,
-                             record_every)
+                             record_every, settings)
     for k in range(1, seg.n_steps + 1):
         values = np.where(S, start + (end - start) * (k / seg.n_steps), end / seg.n_steps)
-        state = solve_increment(rev, state, Control(S, M, values), tangent)
+        state = solve_increment(rev, state, Control(S, M, values), tangent, settings)
         if recorder is not None and (k % record_every == 0 or k == seg.n_steps):
             recorder.record(state, seg.stage)
         if progress is not None:
@@ -90,8 +94,8 @@ _CHUNK = 200
 
 
 def _run_compiled(rev, state, seg, S, M, start, end, recorder, progress, tangent,
-                  record_every) -> RevState:
-    runner = CompiledSegment(rev, state, S, M, start, end, seg.n_steps, tangent)
+                  record_every, settings) -> RevState:
+    runner = CompiledSegment(rev, state, S, M, start, end, seg.n_steps, tangent, settings)
     for k0 in range(1, seg.n_steps + 1, _CHUNK):
         k1 = min(k0 + _CHUNK, seg.n_steps + 1)
         rec = runner.run(k0, k1)
