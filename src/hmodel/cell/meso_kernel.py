@@ -121,7 +121,7 @@ def meso_increment(values, i, dl1, dl2, p, resp, out, flags, tangent, ddl1, ddl2
     """Advance the summary state ``values[i]`` (11,) of cell i by length increments (dl1, dl2)
     with its packed response ``resp[i]``; write the new state into ``out[i]`` and its flags into
     ``flags[i]``; returns False when the new state is not finite. The steps of
-    ``SurrogateSolver._one_meso``: e = de/m0 with de = -dl/l0, the response, then
+    ``MesoFormulation.step_cells``: e = de/m0 with de = -dl/l0, the response, then
     ``MesoFormulation._advanced`` and ``advance``'s flags. (Rows are indexed, never sliced: a
     slice is an array view Numba builds at every call, which costs more than the trial's own
     arithmetic.)

@@ -93,7 +93,7 @@ def draw_cmd(
     """Load a cell with the DEM and draw it: grains, and contacts by their normal force."""
     import numpy as np
 
-    from ..dem.mesostructure import build
+    from ..cell.mesostructure import build
     from ..dem.scene import simulate
     from ..dem.validate import draw_cell
 
