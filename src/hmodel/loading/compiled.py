@@ -392,11 +392,12 @@ class CompiledSegment:
         self.sets = state.set_index.astype(np.int64)
         self._sets = state.sets  # as the state had them (None: all the first set)
         self.meso = rev.kernel.learned
-        # per point: the last increment's strain, Newton's first trial of the next one (meso
-        # surrogates: close to the answer along a smooth path; the closed form keeps its
-        # tangent predictor, whose results the generic driver reproduces to 1e-7 where cell
-        # events jump), and the trials made (calls of the cell solver on its n_theta cells)
-        self.guess = np.full((B, 3 if self.meso else 0), np.nan)
+        # per point: the last increment's strain (Newton's first trial of the next one, where
+        # the settings ask for it; NaN: none yet), and the trials made (calls of the cell
+        # solver on its n_theta cells)
+        self.guess = np.full((B, 3 if settings.previous_first else 0), np.nan)
+        if settings.previous_first and tangent.previous is not None and tangent.previous.shape == (B, 3):
+            self.guess[:] = tangent.previous
         self.trials = np.zeros(B, dtype=np.int64)
         # the solver's own tolerance floor, as the generic driver takes it (``solve_increment``)
         self.c = settings.packed(float(rev.solver.stress_rtol))
@@ -427,6 +428,8 @@ class CompiledSegment:
                 status[:] = OK
                 k += 1
         self.tangent.K = self.K.copy()
+        if self.guess.shape[1]:
+            self.tangent.previous = self.guess.copy()
         return rec
 
     def _hand_back(self, k: int, failed: np.ndarray, rec_row: np.ndarray) -> None:
@@ -436,8 +439,11 @@ class CompiledSegment:
                        self.sig[idx], None if self._sets is None else self._sets[idx])
         values = np.where(self.S, self.start[idx] + (self.end[idx] - self.start[idx])
                           * (k / self.n_steps), self.end[idx] / self.n_steps)
-        tangent = Tangent(self.K[idx].copy() if self.has_K[idx].all() else None)
+        tangent = Tangent(self.K[idx].copy() if self.has_K[idx].all() else None,
+                          self.guess[idx].copy() if self.guess.shape[1] else None)
         out = solve_increment(self.rev, sub, Control(self.S, self.M, values), tangent, self.settings)
+        if self.guess.shape[1]:
+            self.guess[idx] = tangent.previous
         self.values[idx], self.flags[idx] = out.cells.values, out.flags.flags
         self.eps[idx], self.sig[idx] = out.eps, out.sig
         self.K[idx], self.has_K[idx] = tangent.K, True

@@ -69,9 +69,11 @@ class Control:
 
 @dataclass
 class Tangent:
-    """Newton's memory between increments: K = dsig/ddeps (B, 3, 3), or None before the first."""
+    """Newton's memory between increments: K = dsig/ddeps (B, 3, 3) and each point's previous
+    strain increment (B, 3) (NaN rows: none), or None before the first."""
 
     K: np.ndarray | None = None
+    previous: np.ndarray | None = None
 
 
 def _fd_tangent(rev: Rev, state: RevState, x: np.ndarray, h: float) -> np.ndarray:
@@ -106,16 +108,21 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
         tangent.K = None
     K = np.zeros((B, 3, 3)) if tangent.K is None else np.array(tangent.K, float)
     has_K = np.full(B, tangent.K is not None)
+    guess = np.full((B, 3), np.nan)
+    if settings.previous_first and tangent.previous is not None and tangent.previous.shape == (B, 3):
+        guess[:] = tangent.previous
+    start = state
     out = state
     pending = np.arange(B)
-    for _ in range(settings.max_events + 1):
+    for event in range(settings.max_events + 1):
         part = Control(control.stress_rows, control.matrix, control.values[pending])
         Kp, hp = K[pending], has_K[pending]
-        done, reached = _newton(rev, state.select(pending), part, Kp, hp, c, settings)
+        done, reached = _newton(rev, state.select(pending), part, Kp, hp, c, settings,
+                                guess[pending] if event == 0 else None)
         K[pending], has_K[pending] = Kp, hp
         out = out.scatter(pending, reached)
         if done.all():
-            tangent.K = K
+            tangent.K, tangent.previous = K, out.eps - start.eps
             return out
         # Points past a cell event go on from the event state: strain rows are met already.
         pending, state = pending[~done], out
@@ -130,7 +137,8 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
 
 
 def _newton(rev: Rev, state: RevState, control: Control, K: np.ndarray, has_K: np.ndarray,
-            c: np.ndarray, settings: NewtonSettings) -> tuple[np.ndarray, RevState]:
+            c: np.ndarray, settings: NewtonSettings,
+            guess: np.ndarray | None = None) -> tuple[np.ndarray, RevState]:
     """The one Newton for B points, each asking for its trials; every round evaluates the
     trials asked for in one batched REV call (and the tangents in one call on 4 copies each).
 
@@ -150,7 +158,8 @@ def _newton(rev: Rev, state: RevState, control: Control, K: np.ndarray, has_K: n
     acts = np.empty(B, np.int64)
     no_guess = np.empty(0)
     for b in range(B):
-        acts[b] = begin(W[b], K[b], has_K[b:b + 1], S, M, v[b], state.sig[b], c, no_guess, False)
+        acts[b] = begin(W[b], K[b], has_K[b:b + 1], S, M, v[b], state.sig[b], c,
+                        no_guess if guess is None else guess[b], False)
     current, best = state, state  # each point's current and best trials (the state: none yet)
     tried = np.zeros(B, bool)
     flag = np.zeros(1, bool)

@@ -8,7 +8,7 @@ carried from one increment to the next:
 - the first tangent is a finite-difference one (4 trials), or, where the trial gives the exact
   stress slope along the one strain direction u the strain rows leave free (a learned cell
   response, see :class:`hmodel.cell.CellKernel`), one trial at no strain with that slope;
-- the first trial is the tangent predictor, or (``first_trial_previous``) the point's previous
+- the first trial is the tangent predictor, or (``previous_first``) the point's previous
   increment with its strain rows moved to this increment's;
 - each correction is a Newton step, shortened to ``trust`` times the predictor (trust region)
   and held inside the strain cap (``max_trial_strain``, or ``step_multiple`` times the strain
@@ -58,6 +58,9 @@ class NewtonSettings:
     max_trial_strain, step_multiple : float
         The strain cap: no trial strain increment (norm over 11, 22, 12) beyond
         max(max_trial_strain, step_multiple x the norm of the increment's strain rows).
+    previous_first : bool
+        Newton's first trial is the point's previous increment (its strain rows moved to this
+        increment's) rather than the tangent predictor: along a smooth path it is closer.
     """
 
     rtol: float = 1e-10
@@ -67,6 +70,7 @@ class NewtonSettings:
     fd_step: float = 1e-7
     max_trial_strain: float = 0.05
     step_multiple: float = 100.0
+    previous_first: bool = True
 
     @property
     def refresh_at(self) -> int:
