@@ -51,7 +51,7 @@ class SurrogateSolver:
     ``opening`` (strain-input formulations only): ``rule`` (the default), a cell opens where
     eq. 1.7's closed form would, on the continued force increments, and separated grains carry
     no force; ``classifier`` is experimental (tried and not kept): the network alone decides
-    (the ``increment`` network's opening logit).
+    (the ``increment`` network's opening logit); see the notes of 2026-12-01 in the docs.
     """
 
     name = "surrogate"
