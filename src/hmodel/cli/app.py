@@ -14,6 +14,7 @@ import typer
 
 from .. import __version__
 from ..errors import HModelError
+from . import calibrate as calibrate_cmd
 from . import compare as compare_cmd
 from . import data as data_cmds
 from . import dem as dem_cmds
@@ -30,6 +31,7 @@ app.add_typer(data_cmds.app, name="data")
 app.add_typer(surrogate_cmds.app, name="surrogate")
 app.add_typer(dem_cmds.app, name="dem")
 app.command("compare")(compare_cmd.compare)
+app.command("calibrate")(calibrate_cmd.calibrate)
 app.command("reproduce")(reproduce_cmd.reproduce)
 app.command("stability")(stability_cmd.stability)
 

@@ -1,0 +1,190 @@
+"""Least-squares calibration: multi-start trust-region reflective fits with batched Jacobians."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.stats import qmc
+
+from ..cell import CellSolver
+from ..errors import InputError
+from ..loading import ISO_STEP
+from ..params import Params
+from .data import Test
+from .model import Model, Prediction, residuals
+from .space import Space
+
+#: Scaled residual given to a parameter set whose run failed (least_squares needs finite ones):
+#: far above any fit, so the optimizer steps back.
+FAILED_RESIDUAL = 1e3
+#: Forward-difference step of the Jacobian in the unit box (above the Newton tolerance's noise,
+#: below the scale of the curves' features).
+JAC_STEP = 1e-3
+#: A singular value of the unit-box Jacobian below this fraction of the largest marks a
+#: direction the data do not constrain; the parameters that make up that direction are flagged.
+IDENTIFIABLE = 1e-3
+
+METHODS = ("least-squares",)
+
+
+@dataclass
+class Calibration:
+    """The result of :func:`fit` (values in the CLI's units: angles in degrees)."""
+
+    method: str
+    space: Space
+    tests: tuple[Test, ...]
+    z: np.ndarray
+    cost: float
+    stderr: dict[str, float]
+    correlation: np.ndarray
+    condition: float
+    unidentified: list[str]
+    starts: list[dict]
+    evaluations: int
+    failures: list[dict]
+    wall_s: float
+    prediction: Prediction = field(repr=False)
+
+    @property
+    def fitted(self) -> dict[str, float]:
+        return self.space.as_dict(self.space.values(self.z))
+
+    @property
+    def params(self) -> Params:
+        return self.space.params(self.z[None])[0]
+
+    def to_dict(self) -> dict:
+        """The ``calibration.json`` record."""
+        fitted = self.fitted
+        return {
+            "method": self.method,
+            "params": self.params.to_dict(),
+            "fit": list(self.space.names),
+            "fitted": fitted,
+            "bounds": {n: list(b) for n, b in zip(self.space.names, self.space.bounds)},
+            "stderr": self.stderr,
+            "correlation": {a: {b: float(self.correlation[i, j]) for j, b in enumerate(self.space.names)}
+                            for i, a in enumerate(self.space.names)},
+            "condition_number": self.condition,
+            "unidentified": self.unidentified,
+            "objective": self.cost,
+            "starts": self.starts,
+            "evaluations": self.evaluations,
+            "failures": self.failures,
+            "wall_s": self.wall_s,
+            "tests": [{"name": t.name, "kind": t.kind, "p0": t.p0, "rows": len(t.eps11)}
+                      for t in self.tests],
+        }
+
+
+class _Objective:
+    """Residuals of unit-box points, evaluated in batches; counts evaluations and failures and
+    remembers the last point (least_squares asks for the Jacobian where it just evaluated)."""
+
+    def __init__(self, model: Model, space: Space):
+        self.model, self.space = model, space
+        self.evaluations, self.failures = 0, []
+        self._last: tuple[np.ndarray, np.ndarray] | None = None
+
+    def batch(self, z: np.ndarray) -> tuple[np.ndarray, Prediction]:
+        z = np.clip(np.atleast_2d(z), 0.0, 1.0)
+        pred = self.model.predict(self.space.params(z))
+        r = residuals(self.model.tests, pred)
+        self.evaluations += len(z)
+        for row, why in zip(z, pred.failed):
+            if why:
+                self.failures.append({"params": self.space.as_dict(self.space.values(row)), "error": why})
+        r[~pred.ok] = FAILED_RESIDUAL
+        return r, pred
+
+    def fun(self, z: np.ndarray) -> np.ndarray:
+        r, _ = self.batch(z)
+        self._last = (np.array(z, float), r[0])
+        return r[0]
+
+    def jac(self, z: np.ndarray) -> np.ndarray:
+        """Forward differences, every column in one batched call (backward at the upper bound)."""
+        z = np.array(z, float)
+        h = np.where(z + JAC_STEP <= 1.0, JAC_STEP, -JAC_STEP)
+        probes = z + np.diag(h)
+        if self._last is not None and np.array_equal(self._last[0], z):
+            r0, r = self._last[1], self.batch(probes)[0]
+        else:
+            both = self.batch(np.vstack([z, probes]))[0]
+            r0, r = both[0], both[1:]
+        return ((r - r0) / h[:, None]).T
+
+
+def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "alpha0"),
+        bounds: dict | None = None, base: Params | None = None, method: str = "least-squares",
+        solver: CellSolver | None = None, starts: int = 8, seed: int = 0, step: float = 1e-3,
+        iso_step: float = ISO_STEP, max_nfev: int = 60,
+        progress: Callable[[float], None] | None = None) -> Calibration:
+    """Fit the parameters ``fit`` to ``tests``; the others are those of ``base``.
+
+    ``least-squares``: :func:`scipy.optimize.least_squares` (trust-region reflective, within the
+    bounds) on the scaled residuals of :func:`hmodel.calibrate.model.residuals`, from ``starts``
+    points of a Latin hypercube design over the bounds (``seed``), keeping the best; kn on a log
+    scale. Standard errors and correlations come from the Jacobian at the optimum
+    (cov = s² (JᵀJ)⁻¹, s² the residual variance); a direction of the unit box whose singular
+    value is below ``IDENTIFIABLE`` times the largest flags the parameters that make it up.
+    """
+    if method not in METHODS:
+        raise InputError(f"unknown calibration method {method!r} (available: {', '.join(METHODS)})")
+    tests = tuple(tests)
+    if not tests:
+        raise InputError("give at least one test to calibrate on (--data)")
+    if not (isinstance(starts, int) and starts >= 1):
+        raise InputError(f"the number of starts must be a positive integer, got {starts!r}")
+    space = Space.make(fit, bounds, base)
+    model = Model(tests, solver, step, iso_step)
+    obj = _Objective(model, space)
+    t0 = time.perf_counter()
+    design = qmc.LatinHypercube(space.n, seed=seed).random(starts)
+    runs = []
+    for i, z0 in enumerate(design):
+        runs.append(least_squares(obj.fun, z0, jac=obj.jac, bounds=(0.0, 1.0), method="trf",
+                                  x_scale=1.0, max_nfev=max_nfev))
+        if progress is not None:
+            progress((i + 1) / starts)
+    best = min(runs, key=lambda r: r.cost)
+    m = len(best.fun)
+    J = obj.jac(best.x)
+    pred = obj.batch(best.x)[1]
+    stderr, corr, cond, weak = _uncertainty(space, best.x, best.fun, J, m)
+    return Calibration(
+        method=method, space=space, tests=tests, z=best.x, cost=float(best.cost), stderr=stderr,
+        correlation=corr, condition=cond, unidentified=weak,
+        starts=[{"start": space.as_dict(space.values(z0)), "end": space.as_dict(space.values(r.x)),
+                 "objective": float(r.cost), "evaluations": int(r.nfev), "status": int(r.status)}
+                for z0, r in zip(design, runs)],
+        evaluations=obj.evaluations, failures=obj.failures, wall_s=time.perf_counter() - t0,
+        prediction=pred)
+
+
+def _uncertainty(space: Space, z: np.ndarray, r: np.ndarray, J: np.ndarray, m: int):
+    """Standard errors (CLI units), correlations, condition number of the unit-box Jacobian and
+    the parameters the data cannot identify."""
+    n = space.n
+    s2 = float(r @ r) / max(m - n, 1)
+    dv = space.dvalues_dz(z)
+    Jp = J / dv[None, :]  # d residual / d value
+    cov = s2 * np.linalg.pinv(Jp.T @ Jp)
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(se, se)
+    corr = np.where(np.isfinite(corr), corr, 0.0)
+    sv, V = np.linalg.svd(J, full_matrices=False)[1:]
+    cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+    weak = set()
+    for k, s in enumerate(sv):
+        if s < IDENTIFIABLE * sv[0]:
+            weak |= {space.names[j] for j in np.flatnonzero(np.abs(V[k]) > 0.3)}
+    return ({nm: float(v) for nm, v in zip(space.names, se)}, corr, cond,
+            [nm for nm in space.names if nm in weak])

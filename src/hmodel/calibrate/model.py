@@ -1,0 +1,106 @@
+"""The H-model's predictions of a set of tests, for many parameter sets in one batched call."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..cell import CellSolver
+from ..errors import SolverError
+from ..loading import ISO_STEP, run_biaxial
+from ..params import Params
+from .data import Test
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """Model curves of every test for K parameter sets, at the tests' own axial strains.
+
+    ``q[t]`` and ``eps_v[t]`` are (K, n_t) for test t (NaN rows where the set failed);
+    ``failed`` (K,) holds the reason of each failed set, or "".
+    """
+
+    q: list[np.ndarray]
+    eps_v: list[np.ndarray]
+    failed: list[str]
+
+    @property
+    def ok(self) -> np.ndarray:
+        return np.array([not f for f in self.failed])
+
+
+@dataclass(frozen=True)
+class Model:
+    """Runs the tests' loadings with the H-model: each test's kind and p0, sheared to its
+    largest axial strain in increments of ``step`` after consolidation in isotropic increments
+    of ``iso_step``, with cell solver ``solver`` (None: the closed form).
+
+    One call of :meth:`predict` makes one engine run per kind of test (drained, undrained) for
+    all K parameter sets and all tests of that kind: K × (number of tests) material points,
+    each with its own parameter set. A set whose run fails (a singular tangent, a surrogate
+    outside its training domain, ...) is isolated by bisecting the batch and reported, never
+    fatal.
+    """
+
+    tests: tuple[Test, ...]
+    solver: CellSolver | None = None
+    step: float = 1e-3
+    iso_step: float = ISO_STEP
+
+    def predict(self, sets: Sequence[Params]) -> Prediction:
+        K = len(sets)
+        q = [np.full((K, len(t.eps11)), np.nan) for t in self.tests]
+        ev = [np.full((K, len(t.eps11)), np.nan) for t in self.tests]
+        failed = [""] * K
+        for kind in ("drained", "undrained"):
+            idx = [i for i, t in enumerate(self.tests) if t.kind == kind]
+            if idx:
+                self._run(kind, idx, list(range(K)), sets, q, ev, failed)
+        return Prediction(q, ev, failed)
+
+    def _run(self, kind, idx, which, sets, q, ev, failed) -> None:
+        """The tests ``idx`` of one kind for the parameter sets ``which``; on a failure, each
+        half of the sets again, down to single sets."""
+        tests = [self.tests[i] for i in idx]
+        batch = [sets[k] for k in which for _ in tests]
+        p0 = [t.p0 for _ in which for t in tests]
+        strain = max(float(t.eps11[-1]) for t in tests)
+        try:
+            res = run_biaxial(batch, p0, strain, undrained=kind == "undrained", solver=self.solver,
+                              iso_step=self.iso_step, step=self.step)
+        except SolverError as e:
+            if len(which) == 1:
+                failed[which[0]] = " ".join(str(e).split())[:300]
+                return
+            half = len(which) // 2
+            self._run(kind, idx, which[:half], sets, q, ev, failed)
+            self._run(kind, idx, which[half:], sets, q, ev, failed)
+            return
+        point, stage = res["point"], res["stage"]
+        for b in range(len(batch)):
+            k, j = which[b // len(tests)], b % len(tests)
+            mine = point == b
+            cons = np.flatnonzero(mine & (stage == "consolidation"))[-1]
+            shear = mine & (stage == "shear")
+            e = np.concatenate([[0.0], res["eps11"][shear] - res["eps11"][cons]])
+            t = tests[j]
+            q[idx[j]][k] = np.interp(t.eps11, e, np.concatenate([[res["q"][cons]], res["q"][shear]]))
+            ev[idx[j]][k] = np.interp(t.eps11, e, np.concatenate([[0.0], res["eps_v"][shear]
+                                                                  - res["eps_v"][cons]]))
+
+
+def residuals(tests: Sequence[Test], pred: Prediction) -> np.ndarray:
+    """Scaled residuals (K, m) of every parameter set: per test, (q_model − q) / peak |q| and, for
+    drained tests with εv, (εv_model − εv) / range of εv; each test's residuals divided by the
+    square root of its rows, so that every test weighs alike whatever its sampling. NaN rows
+    where the set failed."""
+    parts = []
+    for t, q, ev in zip(tests, pred.q, pred.eps_v):
+        w = 1.0 / math.sqrt(len(t.eps11))
+        parts.append(w * (q - t.q) / t.q_scale)
+        if t.eps_v is not None and t.kind == "drained":
+            parts.append(w * (ev - t.eps_v) / t.eps_v_scale)
+    return np.concatenate(parts, axis=1)

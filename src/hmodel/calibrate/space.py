@@ -1,0 +1,109 @@
+"""The parameters a calibration searches, their bounds and the unit box the optimizers see."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..params import ANGLE_PARAMS, Params
+
+#: Default search range of each fittable parameter, in the CLI's units (angles in degrees),
+#: wide enough for real materials; kn is searched on a log scale.
+DEFAULT_BOUNDS = {
+    "kn": (1e6, 1e11), "kt_kn": (0.05, 2.0), "phi_g": (5.0, 60.0), "alpha0": (31.0, 89.0),
+    "alpha_omega": (0.0, 0.9), "beta_omega": (0.0, 180.0),
+}
+FITTABLE = tuple(DEFAULT_BOUNDS)
+#: Searched on a log scale (a stiffness spans orders of magnitude).
+LOG = ("kn",)
+#: Where each parameter is valid (``Params.validate``), in the CLI's units: (low, high, open?).
+_VALID = {"kn": (0.0, math.inf, True), "kt_kn": (0.0, math.inf, True), "phi_g": (0.0, 90.0, True),
+          "alpha0": (30.0, 90.0, True), "alpha_omega": (0.0, 1.0, False),
+          "beta_omega": (-math.inf, math.inf, False)}
+
+
+@dataclass(frozen=True)
+class Space:
+    """Fitted parameters ``names`` within ``bounds`` (CLI units), the others fixed in ``base``.
+
+    The optimizers work in the unit box z ∈ [0, 1]^n: z_j maps linearly onto the bounds of
+    parameter j, or onto their logarithms for kn.
+    """
+
+    names: tuple[str, ...]
+    bounds: tuple[tuple[float, float], ...]
+    base: Params
+
+    @classmethod
+    def make(cls, names, bounds: dict | None = None, base: Params | None = None) -> "Space":
+        names = tuple(names)
+        if not names:
+            raise InputError("give at least one parameter to fit (--fit)")
+        if len(set(names)) != len(names):
+            raise InputError(f"a parameter is named twice in --fit: {', '.join(names)}")
+        for n in names:
+            if n not in FITTABLE:
+                raise InputError(f"cannot fit {n!r} (fittable: {', '.join(FITTABLE)})")
+        bounds = dict(bounds or {})
+        for n in bounds:
+            if n not in names:
+                raise InputError(f"--bounds names {n!r}, which is not fitted (--fit)")
+        out = []
+        for n in names:
+            lo, hi = (float(b) for b in bounds.get(n, DEFAULT_BOUNDS[n]))
+            vlo, vhi, open_ = _VALID[n]
+            if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
+                raise InputError(f"bounds of {n} must be finite with low < high, got {lo:g}:{hi:g}")
+            if (lo <= vlo or hi >= vhi) if open_ else (lo < vlo or hi > vhi):
+                raise InputError(f"bounds of {n} ({lo:g}:{hi:g}) leave its valid range "
+                                 f"{'(' if open_ else '['}{vlo:g}, {vhi:g}{')' if open_ else ']'}")
+            if n in LOG and lo <= 0:
+                raise InputError(f"bounds of {n} must be positive (log scale), got {lo:g}:{hi:g}")
+            out.append((lo, hi))
+        return cls(names, tuple(out), base or Params())
+
+    @property
+    def n(self) -> int:
+        return len(self.names)
+
+    def values(self, z: np.ndarray) -> np.ndarray:
+        """Parameter values (..., n) in CLI units of unit-box points z (..., n)."""
+        z = np.asarray(z, float)
+        out = np.empty_like(z)
+        for j, (name, (lo, hi)) in enumerate(zip(self.names, self.bounds)):
+            if name in LOG:
+                out[..., j] = lo * (hi / lo) ** z[..., j]
+            else:
+                out[..., j] = lo + (hi - lo) * z[..., j]
+        return out
+
+    def unit(self, values: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`values`."""
+        v = np.asarray(values, float)
+        out = np.empty_like(v)
+        for j, (name, (lo, hi)) in enumerate(zip(self.names, self.bounds)):
+            out[..., j] = (np.log(v[..., j] / lo) / np.log(hi / lo) if name in LOG
+                           else (v[..., j] - lo) / (hi - lo))
+        return out
+
+    def dvalues_dz(self, z: np.ndarray) -> np.ndarray:
+        """d value / d z of each parameter at z (n,): the chain rule for standard errors."""
+        v = self.values(z)
+        return np.array([v[j] * math.log(hi / lo) if name in LOG else hi - lo
+                         for j, (name, (lo, hi)) in enumerate(zip(self.names, self.bounds))])
+
+    def params(self, z: np.ndarray) -> list[Params]:
+        """One Params per row of z (k, n): the base with the fitted values (angles converted)."""
+        sets = []
+        for row in np.atleast_2d(self.values(z)):
+            changes = {n: math.radians(v) if n in ANGLE_PARAMS else float(v)
+                       for n, v in zip(self.names, row)}
+            sets.append(self.base.with_(**changes))
+        return sets
+
+    def as_dict(self, values: np.ndarray) -> dict[str, float]:
+        """The fitted values by name, CLI units."""
+        return {n: float(v) for n, v in zip(self.names, values)}

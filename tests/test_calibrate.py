@@ -1,0 +1,164 @@
+"""Calibration on curves made by hmodel itself at known parameters (identifiability), failures
+counted instead of fatal, the batched model against single runs, and bad input."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from hmodel import InputError, Params, SolverError
+from hmodel.calibrate import Space, Test, fit, parse_data_spec
+from hmodel.calibrate.model import Model, residuals
+from hmodel.cell import ClosedFormSolver
+from hmodel.cli.app import main
+from hmodel.loading import run_biaxial
+
+BASE = Params(n_theta=36, sliding_rhs="equilibrium")
+TRUE = BASE.with_(phi_g=math.radians(28.0), alpha0=math.radians(50.0), kt_kn=0.5)
+KW = dict(step=1e-3, iso_step=1e-4)
+
+
+def _test(params, kind, p0, strain=0.02, noise=0.0, seed=0):
+    """A test made by hmodel: every second shear row, q with relative Gaussian noise."""
+    r = run_biaxial(params, [p0], strain, undrained=kind == "undrained", **KW)
+    c, s = r.stage("consolidation"), r.stage("shear")
+    e = np.asarray(s["eps11"]) - c["eps11"][-1]
+    q = np.asarray(s["q"])
+    ev = np.asarray(s["eps_v"]) - c["eps_v"][-1]
+    q = q * (1 + noise * np.random.default_rng(seed).normal(size=len(q)))
+    sel = slice(1, None, 2)
+    return Test(kind, p0, e[sel], q[sel], ev[sel] if kind == "drained" else None)
+
+
+@pytest.fixture(scope="module")
+def tests():
+    return [_test(TRUE, "drained", 1e5), _test(TRUE, "drained", 3e5)]
+
+
+def test_noise_free_curves_give_back_their_parameters(tests):
+    cal = fit(tests, ("phi_g", "alpha0"), base=BASE, starts=3, **KW)
+    assert cal.fitted["phi_g"] == pytest.approx(28.0, rel=1e-4)
+    assert cal.fitted["alpha0"] == pytest.approx(50.0, rel=1e-4)
+    assert cal.cost < 1e-8 and not cal.failures and cal.unidentified == []
+    assert cal.params.phi_g == pytest.approx(math.radians(28.0), rel=1e-4)  # radians inside
+    assert cal.evaluations >= 3
+
+
+def test_one_percent_noise_on_q_still_gives_phi_and_alpha0_within_two_percent():
+    noisy = [_test(TRUE, "drained", p0, noise=0.01, seed=k) for k, p0 in enumerate((1e5, 2e5, 4e5))]
+    cal = fit(noisy, ("phi_g", "alpha0", "kt_kn"), base=BASE, starts=4, **KW)
+    assert cal.fitted["phi_g"] == pytest.approx(28.0, rel=0.02)
+    assert cal.fitted["alpha0"] == pytest.approx(50.0, rel=0.02)
+    assert cal.fitted["kt_kn"] == pytest.approx(0.5, rel=0.10)
+    # the standard errors reflect the noise: positive, and the truth within 4 of them
+    for name, true in (("phi_g", 28.0), ("alpha0", 50.0)):
+        assert 0 < cal.stderr[name] and abs(cal.fitted[name] - true) < 4 * cal.stderr[name] + 1e-9
+
+
+def test_a_parameter_without_effect_is_flagged_unidentified(tests):
+    # with an isotropic fabric (alpha_omega = 0) its major direction beta_omega changes nothing
+    cal = fit(tests, ("phi_g", "beta_omega"), base=TRUE.with_(phi_g=math.radians(30)), starts=1, **KW)
+    assert cal.unidentified == ["beta_omega"] and cal.condition > 1e3
+    assert cal.fitted["phi_g"] == pytest.approx(28.0, rel=1e-3)
+
+
+def test_batched_predictions_equal_single_ones(tests):
+    model = Model(tuple(tests), **KW)
+    sets = [TRUE, TRUE.with_(phi_g=math.radians(33)), TRUE.with_(kn=3e8)]
+    both = model.predict(sets)
+    for k, s in enumerate(sets):
+        one = model.predict([s])
+        for t in range(len(tests)):
+            np.testing.assert_allclose(both.q[t][k], one.q[t][0], rtol=1e-9)
+            np.testing.assert_allclose(both.eps_v[t][k], one.eps_v[t][0], rtol=1e-9, atol=1e-15)
+    # the truth's own curves: zero residual; q 10 % high everywhere: 0.1 q / peak q / sqrt(n)
+    r = residuals(tests, model.predict([TRUE]))
+    assert np.abs(r).max() < 1e-8
+    t = tests[0]
+    high = Test(t.kind, t.p0, t.eps11, t.q / 1.1, t.eps_v)
+    r = residuals([high], model.__class__((high,), **KW).predict([TRUE]))[0, :len(t.q)]
+    np.testing.assert_allclose(r, 0.1 * high.q / high.q_scale / math.sqrt(len(t.q)), rtol=1e-6,
+                               atol=1e-9)
+
+
+class FailsAboveThirtyFive(ClosedFormSolver):
+    """The closed form, failing for friction angles above 35 deg (a stand-in for a run that
+    leaves a surrogate's training domain)."""
+
+    name = "fails-above-35"
+
+    def kernel(self, params):
+        return None if params.phi_g > math.radians(35) else super().kernel(params)
+
+    def step(self, params, state, dl1, dl2):
+        if params.phi_g > math.radians(35):
+            raise SolverError("outside the stand-in's domain")
+        return super().step(params, state, dl1, dl2)
+
+
+def test_failed_parameter_sets_are_counted_not_fatal(tests):
+    model = Model(tuple(tests), FailsAboveThirtyFive(), **KW)
+    pred = model.predict([TRUE, TRUE.with_(phi_g=math.radians(40)), TRUE])
+    assert pred.ok.tolist() == [True, False, True] and "domain" in pred.failed[1]
+    assert np.isnan(pred.q[0][1]).all() and np.isfinite(pred.q[0][[0, 2]]).all()
+    cal = fit(tests, ("phi_g",), bounds={"phi_g": (20.0, 45.0)}, base=TRUE.with_(phi_g=0.5),
+              solver=FailsAboveThirtyFive(), starts=3, **KW)
+    assert cal.fitted["phi_g"] == pytest.approx(28.0, rel=1e-3)
+    assert cal.failures and all(f["params"]["phi_g"] > 35 for f in cal.failures)
+
+
+def test_bad_input_is_refused_in_one_line(tmp_path):
+    e = np.linspace(0.001, 0.01, 5)
+    with pytest.raises(InputError, match="increasing"):
+        Test("drained", 1e5, e[::-1], np.ones(5))
+    with pytest.raises(InputError, match="non-finite"):
+        Test("drained", 1e5, e, np.array([1.0, np.nan, 1, 1, 1]))
+    with pytest.raises(InputError, match="drained or undrained"):
+        Test("cyclic", 1e5, e, np.ones(5))
+    with pytest.raises(InputError, match="cannot fit 'n_theta'"):
+        Space.make(["n_theta"])
+    with pytest.raises(InputError, match="low < high"):
+        Space.make(["phi_g"], {"phi_g": (40.0, 20.0)})
+    with pytest.raises(InputError, match="valid range"):
+        Space.make(["alpha0"], {"alpha0": (20.0, 60.0)})
+    with pytest.raises(InputError, match="not fitted"):
+        Space.make(["phi_g"], {"kn": (1e7, 1e9)})
+    with pytest.raises(InputError, match="KIND:P0:FILE"):
+        parse_data_spec("drained:d100.csv")
+    bad = tmp_path / "bad.csv"
+    bad.write_text("eps11,sig\n0.001,1\n0.002,2\n")
+    with pytest.raises(InputError, match="missing column"):
+        parse_data_spec(f"drained:100kPa:{bad}")
+
+
+def test_space_maps_the_unit_box_onto_the_bounds_and_back():
+    s = Space.make(["kn", "phi_g"], {"kn": (1e6, 1e10), "phi_g": (10.0, 50.0)})
+    v = s.values(np.array([[0.0, 0.0], [0.5, 0.25], [1.0, 1.0]]))
+    np.testing.assert_allclose(v, [[1e6, 10.0], [1e8, 20.0], [1e10, 50.0]])  # kn on a log scale
+    np.testing.assert_allclose(s.unit(v), [[0.0, 0.0], [0.5, 0.25], [1.0, 1.0]], atol=1e-12)
+
+
+def test_cli_writes_the_calibration_and_refuses_bad_input(tmp_path, tests, capsys):
+    files = []
+    for t in tests:
+        f = tmp_path / f"d{int(t.p0 / 1e3)}.csv"
+        f.write_text("eps11,q,eps_v\n" + "".join(f"{float(a)!r},{float(b)!r},{float(c)!r}\n"
+                                                  for a, b, c in zip(t.eps11, t.q, t.eps_v)))
+        files.append(f"drained:{t.p0 / 1e3:g}kPa:{f}")
+    out = tmp_path / "cal"
+    args = ["calibrate", *sum((["--data", f] for f in files), []), "--fit", "phi_g,alpha0",
+            "-p", "n_theta=36", "-p", "sliding_rhs=equilibrium", "--starts", "2", "--out", str(out)]
+    assert main(args) == 0
+    record = json.loads((out / "calibration.json").read_text())
+    assert record["fitted"]["phi_g"] == pytest.approx(28.0, rel=1e-3)
+    assert record["params"]["alpha0"] == pytest.approx(50.0, rel=1e-3)  # all parameters, degrees
+    assert record["params"]["n_theta"] == 36 and record["fit"] == ["phi_g", "alpha0"]
+    assert (out / "fit.png").stat().st_size > 1000 and (out / "fit.csv").read_text().count("\n") > 10
+    capsys.readouterr()
+    bad = tmp_path / "bad"
+    assert main([*args[:-2], "--fit", "phi_g,n_theta", "--out", str(bad)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("hmodel: error:") and "n_theta" in err and "\n" not in err and not bad.exists()
