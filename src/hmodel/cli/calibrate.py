@@ -31,7 +31,7 @@ def _bounds(items: list[str] | None) -> dict[str, tuple[float, float]]:
 
 
 def calibrate(
-    data: Annotated[list[str], typer.Option("--data", help="A test, KIND:P0:FILE (drained or undrained; a CSV with header eps11,q[,eps_v][,p], strains since the end of consolidation, Pa); repeatable.")],
+    data: Annotated[list[str], typer.Option("--data", help="A test, KIND:P0:FILE (drained or undrained; a CSV with columns eps11, q and optionally eps_v, p: strains since the end of consolidation, Pa); repeatable.")],
     fit_: Annotated[str, typer.Option("--fit", help="Comma list of the parameters to fit (kn, kt_kn, phi_g, alpha0, alpha_omega, beta_omega).")] = "kn,kt_kn,phi_g,alpha0",
     bounds: Annotated[Optional[list[str]], typer.Option("--bounds", help="Search range NAME=LOW:HIGH (angles in degrees); repeatable. Default: a range wide enough for real materials.")] = None,
     param: Annotated[Optional[list[str]], typer.Option("--param", "-p", metavar="NAME=VALUE", help="A fixed parameter (angles in degrees); repeatable.")] = None,
