@@ -21,14 +21,17 @@ TRUE = BASE.with_(phi_g=math.radians(28.0), alpha0=math.radians(50.0), kt_kn=0.5
 KW = dict(step=1e-3, iso_step=1e-4)
 
 
-def _test(params, kind, p0, strain=0.02, noise=0.0, seed=0):
-    """A test made by hmodel: every second shear row, q with relative Gaussian noise."""
+def _test(params, kind, p0, strain=0.02, noise=0.0, seed=0, noise_ev=0.0):
+    """A test made by hmodel: every second shear row, q with relative Gaussian noise, εv with
+    absolute Gaussian noise."""
     r = run_biaxial(params, [p0], strain, undrained=kind == "undrained", **KW)
     c, s = r.stage("consolidation"), r.stage("shear")
     e = np.asarray(s["eps11"]) - c["eps11"][-1]
     q = np.asarray(s["q"])
     ev = np.asarray(s["eps_v"]) - c["eps_v"][-1]
-    q = q * (1 + noise * np.random.default_rng(seed).normal(size=len(q)))
+    rng = np.random.default_rng(seed)
+    q = q * (1 + noise * rng.normal(size=len(q)))
+    ev = ev + noise_ev * rng.normal(size=len(ev))
     sel = slice(1, None, 2)
     return Test(kind, p0, e[sel], q[sel], ev[sel] if kind == "drained" else None)
 
@@ -162,3 +165,25 @@ def test_cli_writes_the_calibration_and_refuses_bad_input(tmp_path, tests, capsy
     assert main([*args[:-2], "--fit", "phi_g,n_theta", "--out", str(bad)]) == 1
     err = capsys.readouterr().err.strip()
     assert err.startswith("hmodel: error:") and "n_theta" in err and "\n" not in err and not bad.exists()
+
+
+def test_bayes_90_percent_intervals_contain_the_truth(tmp_path):
+    # 1 % noise on q, 2e-5 on εv: the likelihood's noise is the one the best fit leaves
+    noisy = [_test(TRUE, "drained", p0, noise=0.01, noise_ev=2e-5, seed=k) for k, p0 in enumerate((1e5, 3e5))]
+    cal = fit(noisy, ("phi_g", "alpha0"), base=BASE, method="bayes", starts=4, walkers=8, steps=300,
+              seed=1, **KW)
+    post = cal.posterior
+    assert 0.01 / 3 < post.noise.q < 0.03 and 2e-5 / 3 < post.noise.eps_v < 6e-5  # about the noise added
+    for name, true in (("phi_g", 28.0), ("alpha0", 50.0)):
+        s = post.summary[name]
+        assert s["q05"] < true < s["q95"] and s["sd"] > 0
+    assert 0.1 < post.acceptance < 0.9 and post.samples.shape[1] == 2
+    assert post.warning  # 300 steps are fewer than 50 autocorrelation times: said so
+    (q_lo, q_hi), _ = cal.band[0]
+    best = cal.prediction.q[0][0]  # the least-squares curve lies mostly inside the 90 % band
+    assert np.all(q_lo < q_hi) and np.mean((q_lo <= best) & (best <= q_hi)) >= 0.5
+    from hmodel.calibrate.report import write
+    written = {p.name for p in write(cal, tmp_path / "b")}
+    assert {"posterior.csv", "corner.png", "trace.png", "calibration.json"} <= written
+    record = json.loads((tmp_path / "b" / "calibration.json").read_text())
+    assert set(record["posterior"]) == {"phi_g", "alpha0"} and record["method"] == "bayes"

@@ -16,6 +16,7 @@ from ..errors import InputError
 from ..loading import ISO_STEP
 from ..params import Params
 from .data import Test
+from .bayes import Noise, Posterior, estimate_noise, sample
 from .model import Model, Prediction, residuals
 from .space import Space
 
@@ -29,7 +30,9 @@ JAC_STEP = 1e-3
 #: direction the data do not constrain; the parameters that make up that direction are flagged.
 IDENTIFIABLE = 1e-3
 
-METHODS = ("least-squares",)
+METHODS = ("least-squares", "bayes")
+#: Posterior samples whose curves make the 90 % posterior predictive band (one batched call).
+BAND_SAMPLES = 64
 
 
 @dataclass
@@ -50,6 +53,9 @@ class Calibration:
     failures: list[dict]
     wall_s: float
     prediction: Prediction = field(repr=False)
+    posterior: Posterior | None = field(default=None, repr=False)
+    #: per test, (5 %, 95 %) quantiles of the posterior's curves (q and εv), each (2, n_t)
+    band: list[tuple[np.ndarray, np.ndarray]] | None = field(default=None, repr=False)
 
     @property
     def fitted(self) -> dict[str, float]:
@@ -80,6 +86,8 @@ class Calibration:
             "wall_s": self.wall_s,
             "tests": [{"name": t.name, "kind": t.kind, "p0": t.p0, "rows": len(t.eps11)}
                       for t in self.tests],
+            **({"posterior": self.posterior.summary, "sampling": self.posterior.to_dict()}
+               if self.posterior is not None else {}),
         }
 
 
@@ -96,12 +104,16 @@ class _Objective:
         z = np.clip(np.atleast_2d(z), 0.0, 1.0)
         pred = self.model.predict(self.space.params(z))
         r = residuals(self.model.tests, pred)
-        self.evaluations += len(z)
-        for row, why in zip(z, pred.failed):
-            if why:
-                self.failures.append({"params": self.space.as_dict(self.space.values(row)), "error": why})
+        self.count(z, pred.failed)
         r[~pred.ok] = FAILED_RESIDUAL
         return r, pred
+
+    def count(self, z: np.ndarray, failed: list[str]) -> None:
+        """Counts the parameter sets evaluated and lists the failed ones."""
+        self.evaluations += len(z)
+        for row, why in zip(z, failed):
+            if why:
+                self.failures.append({"params": self.space.as_dict(self.space.values(row)), "error": why})
 
     def fun(self, z: np.ndarray) -> np.ndarray:
         r, _ = self.batch(z)
@@ -124,7 +136,8 @@ class _Objective:
 def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "alpha0"),
         bounds: dict | None = None, base: Params | None = None, method: str = "least-squares",
         solver: CellSolver | None = None, starts: int = 8, seed: int = 0, step: float = 1e-3,
-        iso_step: float = ISO_STEP, max_nfev: int = 60,
+        iso_step: float = ISO_STEP, max_nfev: int = 60, walkers: int = 32, steps: int = 2000,
+        noise: dict | None = None,
         progress: Callable[[float], None] | None = None) -> Calibration:
     """Fit the parameters ``fit`` to ``tests``; the others are those of ``base``.
 
@@ -134,6 +147,14 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
     scale. Standard errors and correlations come from the Jacobian at the optimum
     (cov = s² (JᵀJ)⁻¹, s² the residual variance); a direction of the unit box whose singular
     value is below ``IDENTIFIABLE`` times the largest flags the parameters that make it up.
+
+    ``bayes``: the least-squares fit, then emcee's ensemble sampler (``walkers`` × ``steps``,
+    all walkers in one batched engine call per step) from a small ball around its optimum,
+    uniform priors on the bounds (log-uniform for kn) and a Gaussian likelihood whose noise is
+    ``noise`` (``{"q": fraction of peak q, "eps_v": strain}``) or, where not given, the RMS the
+    best fit leaves; reports the posterior's mean, sd, 5 % and 95 % quantiles, the
+    autocorrelation time and acceptance fraction, a warning when the chain is shorter than 50
+    autocorrelation times, and the 90 % posterior predictive band of every test.
     """
     if method not in METHODS:
         raise InputError(f"unknown calibration method {method!r} (available: {', '.join(METHODS)})")
@@ -148,16 +169,25 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
     t0 = time.perf_counter()
     design = qmc.LatinHypercube(space.n, seed=seed).random(starts)
     runs = []
+    share = 1.0 if method == "least-squares" else 0.2  # of the progress bar
     for i, z0 in enumerate(design):
         runs.append(least_squares(obj.fun, z0, jac=obj.jac, bounds=(0.0, 1.0), method="trf",
                                   x_scale=1.0, max_nfev=max_nfev))
         if progress is not None:
-            progress((i + 1) / starts)
+            progress(share * (i + 1) / starts)
     best = min(runs, key=lambda r: r.cost)
     m = len(best.fun)
     J = obj.jac(best.x)
     pred = obj.batch(best.x)[1]
     stderr, corr, cond, weak = _uncertainty(space, best.x, best.fun, J, m)
+    posterior = band = None
+    if method == "bayes":
+        given = dict(noise or {})
+        est = estimate_noise(model, space, best.x)
+        posterior = sample(model, space, best.x, Noise(given.get("q", est.q), given.get("eps_v", est.eps_v)),
+                           walkers, steps, seed, obj.count,
+                           None if progress is None else (lambda f: progress(0.2 + 0.8 * f)))
+        band = _band(model, space, posterior, seed, obj)
     return Calibration(
         method=method, space=space, tests=tests, z=best.x, cost=float(best.cost), stderr=stderr,
         correlation=corr, condition=cond, unidentified=weak,
@@ -165,7 +195,22 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
                  "objective": float(r.cost), "evaluations": int(r.nfev), "status": int(r.status)}
                 for z0, r in zip(design, runs)],
         evaluations=obj.evaluations, failures=obj.failures, wall_s=time.perf_counter() - t0,
-        prediction=pred)
+        prediction=pred, posterior=posterior, band=band)
+
+
+def _band(model: Model, space: Space, posterior: Posterior, seed: int, obj: _Objective):
+    """5 % and 95 % quantiles of the curves of posterior samples (one batched call)."""
+    rng = np.random.default_rng(seed)
+    pick = posterior.samples[rng.choice(len(posterior.samples), min(BAND_SAMPLES, len(posterior.samples)),
+                                        replace=False)]
+    z = space.unit(pick)
+    pred = model.predict(space.params(z))
+    obj.count(z, pred.failed)
+    out = []
+    for q, ev in zip(pred.q, pred.eps_v):
+        q, ev = q[pred.ok], ev[pred.ok]
+        out.append((np.quantile(q, [0.05, 0.95], axis=0), np.quantile(ev, [0.05, 0.95], axis=0)))
+    return out
 
 
 def _uncertainty(space: Space, z: np.ndarray, r: np.ndarray, J: np.ndarray, m: int):

@@ -92,15 +92,31 @@ class Model:
                                                                   - res["eps_v"][cons]]))
 
 
-def residuals(tests: Sequence[Test], pred: Prediction) -> np.ndarray:
+def residuals(tests: Sequence[Test], pred: Prediction, weighted: bool = True) -> np.ndarray:
     """Scaled residuals (K, m) of every parameter set: per test, (q_model − q) / peak |q| and, for
-    drained tests with εv, (εv_model − εv) / range of εv; each test's residuals divided by the
-    square root of its rows, so that every test weighs alike whatever its sampling. NaN rows
-    where the set failed."""
+    drained tests with εv, (εv_model − εv) / range of εv; with ``weighted``, each test's
+    residuals divided by the square root of its rows, so that every test weighs alike whatever
+    its sampling. NaN rows where the set failed."""
     parts = []
     for t, q, ev in zip(tests, pred.q, pred.eps_v):
-        w = 1.0 / math.sqrt(len(t.eps11))
+        w = 1.0 / math.sqrt(len(t.eps11)) if weighted else 1.0
         parts.append(w * (q - t.q) / t.q_scale)
-        if t.eps_v is not None and t.kind == "drained":
+        if has_eps_v(t):
             parts.append(w * (ev - t.eps_v) / t.eps_v_scale)
     return np.concatenate(parts, axis=1)
+
+
+def has_eps_v(test: Test) -> bool:
+    """Whether a test's εv enters the fit (drained tests that measured it; an undrained test's
+    εv is zero by its definition)."""
+    return test.eps_v is not None and test.kind == "drained"
+
+
+def residual_kinds(tests: Sequence[Test]) -> np.ndarray:
+    """Which residual of :func:`residuals` is a q (True) or an εv (False) one, (m,)."""
+    parts = []
+    for t in tests:
+        parts.append(np.ones(len(t.eps11), bool))
+        if has_eps_v(t):
+            parts.append(np.zeros(len(t.eps11), bool))
+    return np.concatenate(parts)

@@ -14,10 +14,48 @@ from .fitting import Calibration
 
 
 def write(cal: Calibration, out_dir) -> list[Path]:
-    """Write the calibration's files into ``out_dir`` (all or nothing)."""
-    return write_outputs(out_dir, {"calibration.json": lambda p: _json(cal, p),
-                                   "fit.csv": lambda p: _csv(cal, p),
-                                   "fit.png": lambda p: _figure(cal, p)})
+    """Write the calibration's files into ``out_dir`` (all or nothing): ``calibration.json``,
+    ``fit.csv``, ``fit.png`` and, for ``bayes``, ``posterior.csv``, ``corner.png`` and
+    ``trace.png``."""
+    writers = {"calibration.json": lambda p: _json(cal, p), "fit.csv": lambda p: _csv(cal, p),
+               "fit.png": lambda p: _figure(cal, p)}
+    if cal.posterior is not None:
+        writers |= {"posterior.csv": lambda p: _posterior(cal, p), "corner.png": lambda p: _corner(cal, p),
+                    "trace.png": lambda p: _trace(cal, p)}
+    return write_outputs(out_dir, writers)
+
+
+def _posterior(cal: Calibration, path: Path) -> None:
+    """The posterior samples after burn-in, CLI units (angles in degrees)."""
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(cal.space.names)
+        for row in cal.posterior.samples:
+            w.writerow([repr(float(x)) for x in row])
+
+
+def _corner(cal: Calibration, path: Path) -> None:
+    import corner  # only when a posterior is drawn
+
+    n = cal.space.n
+    fig = Figure(figsize=(2.2 * n + 1, 2.2 * n + 1))
+    corner.corner(cal.posterior.samples, labels=list(cal.space.names), quantiles=[0.05, 0.5, 0.95],
+                  show_titles=True, title_fmt=".4g", fig=fig)
+    fig.savefig(path, dpi=100)
+
+
+def _trace(cal: Calibration, path: Path) -> None:
+    """Every walker against the step, per parameter; the burn-in shaded."""
+    chain, n = cal.posterior.chain, cal.space.n
+    fig = Figure(figsize=(8, 1.8 * n + 0.6))
+    axes = np.atleast_1d(fig.subplots(n, 1, sharex=True))
+    for j, ax in enumerate(axes):
+        ax.plot(chain[:, :, j], lw=0.5, alpha=0.5, color="k")
+        ax.axvspan(0, cal.posterior.burn, color="C1", alpha=0.15)
+        ax.set_ylabel(cal.space.names[j])
+    axes[-1].set_xlabel("step")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
 
 
 def _json(cal: Calibration, path: Path) -> None:
@@ -41,6 +79,10 @@ def _figure(cal: Calibration, path: Path) -> None:
     ax_q, ax_v = fig.subplots(1, 2)
     for k, (t, q, ev) in enumerate(zip(cal.tests, cal.prediction.q, cal.prediction.eps_v)):
         color = f"C{k % 10}"
+        if cal.band is not None:  # the 90 % posterior predictive band
+            (q_lo, q_hi), (v_lo, v_hi) = cal.band[k]
+            ax_q.fill_between(100 * t.eps11, q_lo / 1e3, q_hi / 1e3, color=color, alpha=0.25, lw=0)
+            ax_v.fill_between(100 * t.eps11, 100 * v_lo, 100 * v_hi, color=color, alpha=0.25, lw=0)
         ax_q.plot(100 * t.eps11, t.q / 1e3, "o", ms=3, color=color, label=f"{t.name} (test)")
         ax_q.plot(100 * t.eps11, q[0] / 1e3, "-", color=color, label="model")
         if t.eps_v is not None:

@@ -8,6 +8,7 @@ from typing import Annotated, Optional
 import typer
 
 from ..calibrate import fit, parse_data_spec
+from ..calibrate.bayes import Noise
 from ..calibrate.fitting import METHODS
 from ..calibrate.report import write
 from ..errors import InputError
@@ -37,13 +38,16 @@ def calibrate(
     param: Annotated[Optional[list[str]], typer.Option("--param", "-p", metavar="NAME=VALUE", help="A fixed parameter (angles in degrees); repeatable.")] = None,
     method: Annotated[str, typer.Option(help=f"Calibration method: {', '.join(METHODS)}.")] = "least-squares",
     starts: Annotated[int, typer.Option(help="Starting points of the least-squares fits (a Latin hypercube over the bounds).")] = 8,
+    walkers: Annotated[int, typer.Option(help="bayes: emcee walkers (all evaluated in one batched call per step).")] = 32,
+    steps: Annotated[int, typer.Option(help="bayes: steps of every walker.")] = 2000,
+    noise: Annotated[Optional[str], typer.Option(help="bayes: noise levels q=FRACTION_OF_PEAK_Q,eps_v=STRAIN; default: the RMS the best fit leaves.")] = None,
     seed: Annotated[int, typer.Option(help="Seed of the design of starting points.")] = 0,
     step: Annotated[float, typer.Option(help="Axial strain increment of the model's tests.")] = 1e-3,
     iso_step: Annotated[float, typer.Option(help="Strain increment of the model's consolidation.")] = 1e-4,
     solver: Annotated[str, typer.Option(help="Cell solver: closed-form, surrogate[:FILE], dem:...")] = "closed-form",
     out: Annotated[Path, typer.Option(help="Output folder.")] = Path("results/calibration"),
 ) -> None:
-    """Fit the H-model to measured biaxial tests (least squares from several starts)."""
+    """Fit the H-model to measured biaxial tests (least squares from several starts, or Bayesian)."""
     tests = [parse_data_spec(d) for d in data]
     base = Params.parse_assignments(param)
     names = [n.strip() for n in fit_.split(",") if n.strip()]
@@ -51,11 +55,18 @@ def calibrate(
         raise InputError("--step and --iso-step must be positive")
     with LazyProgress("calibration (parameter sets run)") as progress:
         cal = fit(tests, names, _bounds(bounds), base, method, get_solver(solver), starts, seed, step,
-                  iso_step, progress=progress)
+                  iso_step, walkers=walkers, steps=steps, noise=Noise.parse(noise) if noise else None,
+                  progress=progress)
     written = write(cal, out)
     fitted = ", ".join(f"{n} = {v:.5g} ± {cal.stderr[n]:.2g}" for n, v in cal.fitted.items())
     typer.echo(f"{fitted}; objective {cal.cost:.3g} after {cal.evaluations} parameter sets "
                f"({len(cal.failures)} failed)")
+    if cal.posterior is not None:
+        typer.echo("posterior: " + ", ".join(f"{n} = {v['mean']:.5g} (90 %: {v['q05']:.5g} to {v['q95']:.5g})"
+                                             for n, v in cal.posterior.summary.items())
+                   + f"; acceptance {cal.posterior.acceptance:.2f}")
+        if cal.posterior.warning:
+            typer.echo("warning: " + cal.posterior.warning)
     if cal.unidentified:
         typer.echo(f"not identified by these tests: {', '.join(cal.unidentified)}")
     typer.echo("wrote " + ", ".join(str(p) for p in written))
