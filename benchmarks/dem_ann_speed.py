@@ -31,6 +31,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+import numba
 import numpy as np
 from threadpoolctl import threadpool_limits
 from timing import best_of
@@ -162,7 +163,9 @@ def main() -> None:
     args = ap.parse_args()
     models = [load(p) for p in args.model.split("+")]
     teacher = [load(p) for p in args.teacher.split("+")] if args.teacher else []
-    # one core each: YADE runs single-threaded (-j1), so NumPy's BLAS does too
+    # one core each: YADE runs single-threaded (-j1), so do NumPy's BLAS and the compiled
+    # loading path (which runs the points of a batch on every core otherwise)
+    numba.set_num_threads(1)
     with threadpool_limits(limits=1):
         cells = cell_rows(models, [int(n) for n in args.cells.split(",")], args.repeat, teacher)
         revs = rev_rows(models, [int(b) for b in args.points.split(",")], args.n_theta, args.axial, args.repeat,

@@ -75,6 +75,7 @@ def test_newton_on_a_nearly_singular_sample_stops_with_one_line_and_bounded_tria
     with pytest.raises(SolverError, match="diverged") as err:
         solve_increment(rev, state, control, Tangent())
     assert "\n" not in str(err.value)
+    assert err.value.points.tolist() == [0, 1]  # the failed points, named for the caller
     # Every trial within the cap: a cell strain e11 c^2 + e22 s^2 + 2 e12 s c is at most
     # sqrt(1 + 2 s^2 c^2) <= sqrt(1.5) times the macro strain increment's norm.
     s = NewtonSettings()

@@ -66,6 +66,7 @@ def test_handed_back_increments_are_solved_by_the_generic_driver(monkeypatch):
     ref = run_segment(rev, s0, Segment((False, True, False), np.eye(3), end, 20, "shear"),
                       compiled=False)
     monkeypatch.setattr(compiled, "_run_steps", failing_kernel)
+    monkeypatch.setattr(compiled, "_run_steps_parallel", failing_kernel)
     runner = CompiledSegment(rev, s0, (False, True, False), np.eye(3), s0.sig, end, 20, Tangent())
     rec = runner.run(1, 21)
     np.testing.assert_allclose(rec[-1, :, 3:6], ref.sig, rtol=1e-9, atol=1e-3)

@@ -40,9 +40,10 @@ class Model:
 
     One call of :meth:`predict` makes one engine run per kind of test (drained, undrained) for
     all K parameter sets and all tests of that kind: K × (number of tests) material points,
-    each with its own parameter set. A set whose run fails (a singular tangent, a surrogate
-    outside its training domain, ...) is isolated by bisecting the batch and reported, never
-    fatal.
+    each with its own parameter set. A set whose run fails is reported, never fatal: where the
+    engine names the failed points (a Newton that diverged), their sets are dropped and the
+    others run again; where it cannot (a cell solver refusing the batch, e.g. a surrogate
+    outside its training domain), the batch is bisected down to the failing sets.
     """
 
     tests: tuple[Test, ...]
@@ -72,10 +73,20 @@ class Model:
             res = run_biaxial(batch, p0, strain, undrained=kind == "undrained", solver=self.solver,
                               iso_step=self.iso_step, step=self.step)
         except SolverError as e:
+            why = " ".join(str(e).split())[:300]
             if len(which) == 1:
-                failed[which[0]] = " ".join(str(e).split())[:300]
+                failed[which[0]] = why
                 return
-            half = len(which) // 2
+            points = getattr(e, "points", None)
+            if points is not None and len(points):  # the engine named them: drop, run the rest
+                bad = sorted({which[int(b) // len(tests)] for b in points})
+                for k in bad:
+                    failed[k] = why
+                rest = [k for k in which if k not in bad]
+                if rest:
+                    self._run(kind, idx, rest, sets, q, ev, failed)
+                return
+            half = len(which) // 2  # a failure of the whole batch (a cell solver's): bisect
             self._run(kind, idx, which[:half], sets, q, ev, failed)
             self._run(kind, idx, which[half:], sets, q, ev, failed)
             return

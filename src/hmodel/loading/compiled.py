@@ -26,12 +26,13 @@ kernel resumes after it. Results equal the generic path's to the Newton toleranc
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from ..cell.closed_form import P_KN, P_R, cell_increment
 from ..cell.mesostress import vsigma_local
 from ..cell.meso_kernel import meso_increment
 from ..cell.state import CellFlags, CellState
+from ..errors import SolverError
 from ..rev import Rev, RevState
 from ..rev.kernels import cell_dl, weighted_global
 from .control import Control, Tangent, solve_increment
@@ -318,33 +319,32 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
     return NOT_CONVERGED
 
 
-@njit(cache=True, error_model="numpy")
-def _run_steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin, k_end,
-               geo, p, mode, volume0, c, max_events, rec, status, resp, guess, trials, sets):
+def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin, k_end,
+           geo, p, mode, volume0, c, max_events, rec, status, resp, guess, trials, sets):
     """Increments k_begin..k_end-1 (1-based k of n_steps) of a segment for B material points.
 
     Stops after the first increment where a point fails (``status[b] != OK``) and returns its
     k; returns k_end when all went through. ``rec[k - k_begin, b]`` receives eps (3), sig (3)
     and the cell fractions sliding, broken, contact14, contact26. Point b runs with parameter
     set ``sets[b]``: its rows of ``geo`` (K, 6, n_theta), ``p`` (K, P) and ``volume0`` (K,).
+    The points of an increment are independent: compiled with ``parallel=True``
+    (:data:`_run_steps_parallel`) they run on all cores.
     """
     B, n = values.shape[0], values.shape[1]
-    buf = np.empty((4, n, values.shape[2]))
-    bufflags = np.empty((4, n, 5), dtype=np.bool_)
-    v = np.empty(3)
     for k in range(k_begin, k_end):
-        failed = False
-        for b in range(B):
+        for b in prange(B):
+            buf = np.empty((4, n, values.shape[2]))
+            bufflags = np.empty((4, n, 5), dtype=np.bool_)
+            v = np.empty(3)
             for r in range(3):
                 if S[r]:
                     v[r] = start[b, r] + (end[b, r] - start[b, r]) * (k / n_steps)
                 else:
                     v[r] = end[b, r] / n_steps
             status[b] = solve_point(values[b], flags[b], eps[b], sig[b], K[b], has_K[b:b + 1],
-                                     S, M, v, geo[sets[b]], p[sets[b]], mode, volume0[sets[b]],
-                                     c, max_events, buf, bufflags, resp[b], guess[b],
-                                     trials[b:b + 1])
-            failed |= status[b] != OK
+                                    S, M, v, geo[sets[b]], p[sets[b]], mode, volume0[sets[b]],
+                                    c, max_events, buf, bufflags, resp[b], guess[b],
+                                    trials[b:b + 1])
             row = rec[k - k_begin, b]
             row[:3] = eps[b]
             row[3:6] = sig[b]
@@ -362,9 +362,16 @@ def _run_steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_b
             row[7] = brk / n
             row[8] = c14 / n
             row[9] = c26 / n
-        if failed:
-            return k
+        for b in range(B):
+            if status[b] != OK:
+                return k
     return k_end
+
+
+#: :func:`_steps` on one core, and on all cores for batches of several points (a thread team
+#: per increment costs more than one point's increment saves when there is one point).
+_run_steps = njit(cache=True, error_model="numpy")(_steps)
+_run_steps_parallel = njit(cache=True, parallel=True, error_model="numpy")(_steps)
 
 
 class CompiledSegment:
@@ -418,7 +425,8 @@ class CompiledSegment:
         while k < k_end:
             resp = cell_responses(self.rev, self.values, self._sets)
             end = min(k + stride, k_end)
-            k = _run_steps(self.values, self.flags, self.eps, self.sig, self.K, self.has_K,
+            steps = _run_steps_parallel if B > 1 else _run_steps
+            k = steps(self.values, self.flags, self.eps, self.sig, self.K, self.has_K,
                            self.S, self.M, self.start, self.end, self.n_steps, k, end, self.geo,
                            self.p, self.rev.mode, self.rev.volumes0, self.c,
                            self.settings.max_events, rec[k - k_begin:], status, resp, self.guess,
@@ -441,7 +449,12 @@ class CompiledSegment:
                           * (k / self.n_steps), self.end[idx] / self.n_steps)
         tangent = Tangent(self.K[idx].copy() if self.has_K[idx].all() else None,
                           self.guess[idx].copy() if self.guess.shape[1] else None)
-        out = solve_increment(self.rev, sub, Control(self.S, self.M, values), tangent, self.settings)
+        try:
+            out = solve_increment(self.rev, sub, Control(self.S, self.M, values), tangent, self.settings)
+        except SolverError as e:  # name the failed points in this segment's batch
+            if getattr(e, "points", None) is not None:
+                e.points = idx[e.points]
+            raise
         if self.guess.shape[1]:
             self.guess[idx] = tangent.previous
         self.values[idx], self.flags[idx] = out.cells.values, out.flags.flags
