@@ -56,7 +56,7 @@ def test_handed_back_increments_are_solved_by_the_generic_driver(monkeypatch):
     import hmodel.loading.compiled as compiled
 
     def failing_kernel(*args):
-        status = args[-5]  # (..., rec, status, resp, guess, trials, sets)
+        status = args[-6]  # (..., rec, status, resp, guess, trials, sets, dropped)
         status[:] = compiled.NOT_CONVERGED
         return args[11]  # k_begin: the first increment failed
 

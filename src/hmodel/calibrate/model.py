@@ -40,10 +40,10 @@ class Model:
 
     One call of :meth:`predict` makes one engine run per kind of test (drained, undrained) for
     all K parameter sets and all tests of that kind: K × (number of tests) material points,
-    each with its own parameter set. A set whose run fails is reported, never fatal: where the
-    engine names the failed points (a Newton that diverged), their sets are dropped and the
-    others run again; where it cannot (a cell solver refusing the batch, e.g. a surrogate
-    outside its training domain), the batch is bisected down to the failing sets.
+    each with its own parameter set. A set whose run fails is reported, never fatal: a point
+    whose Newton fails is dropped by the engine while the others go on (``drop_failed``); a
+    cell solver that refuses the whole batch (e.g. a surrogate outside its training domain)
+    has the batch bisected down to the failing sets.
     """
 
     tests: tuple[Test, ...]
@@ -71,28 +71,24 @@ class Model:
         strain = max(float(t.eps11[-1]) for t in tests)
         try:
             res = run_biaxial(batch, p0, strain, undrained=kind == "undrained", solver=self.solver,
-                              iso_step=self.iso_step, step=self.step)
-        except SolverError as e:
+                              iso_step=self.iso_step, step=self.step, drop_failed=True)
+        except SolverError as e:  # the whole batch refused (a cell solver's error): bisect
             why = " ".join(str(e).split())[:300]
             if len(which) == 1:
                 failed[which[0]] = why
                 return
-            points = getattr(e, "points", None)
-            if points is not None and len(points):  # the engine named them: drop, run the rest
-                bad = sorted({which[int(b) // len(tests)] for b in points})
-                for k in bad:
-                    failed[k] = why
-                rest = [k for k in which if k not in bad]
-                if rest:
-                    self._run(kind, idx, rest, sets, q, ev, failed)
-                return
-            half = len(which) // 2  # a failure of the whole batch (a cell solver's): bisect
+            half = len(which) // 2
             self._run(kind, idx, which[:half], sets, q, ev, failed)
             self._run(kind, idx, which[half:], sets, q, ev, failed)
             return
+        dropped = res.meta["failed"]
+        for b, why in dropped.items():
+            failed[which[b // len(tests)]] = why[:300]
         point, stage = res["point"], res["stage"]
         for b in range(len(batch)):
             k, j = which[b // len(tests)], b % len(tests)
+            if failed[k]:
+                continue
             mine = point == b
             cons = np.flatnonzero(mine & (stage == "consolidation"))[-1]
             shear = mine & (stage == "shear")

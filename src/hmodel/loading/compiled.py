@@ -320,7 +320,7 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
 
 
 def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin, k_end,
-           geo, p, mode, volume0, c, max_events, rec, status, resp, guess, trials, sets):
+           geo, p, mode, volume0, c, max_events, rec, status, resp, guess, trials, sets, dropped):
     """Increments k_begin..k_end-1 (1-based k of n_steps) of a segment for B material points.
 
     Stops after the first increment where a point fails (``status[b] != OK``) and returns its
@@ -328,11 +328,16 @@ def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin
     and the cell fractions sliding, broken, contact14, contact26. Point b runs with parameter
     set ``sets[b]``: its rows of ``geo`` (K, 6, n_theta), ``p`` (K, P) and ``volume0`` (K,).
     The points of an increment are independent: compiled with ``parallel=True``
-    (:data:`_run_steps_parallel`) they run on all cores.
+    (:data:`_run_steps_parallel`) they run on all cores. A ``dropped`` point (a failed one the
+    caller chose to go on without) is left as it is, its records NaN.
     """
     B, n = values.shape[0], values.shape[1]
     for k in range(k_begin, k_end):
         for b in prange(B):
+            if dropped[b]:
+                status[b] = OK
+                rec[k - k_begin, b, :] = np.nan
+                continue
             buf = np.empty((4, n, values.shape[2]))
             bufflags = np.empty((4, n, 5), dtype=np.bool_)
             v = np.empty(3)
@@ -382,8 +387,12 @@ class CompiledSegment:
     """
 
     def __init__(self, rev: Rev, state: RevState, stress_rows, matrix, start, end, n_steps: int,
-                 tangent: Tangent, settings: NewtonSettings = NewtonSettings()):
+                 tangent: Tangent, settings: NewtonSettings = NewtonSettings(),
+                 failures: dict | None = None):
         self.rev, self.n_steps, self.tangent, self.settings = rev, n_steps, tangent, settings
+        #: with a dict, points that fail are dropped (point -> reason) instead of stopping all
+        self.failures = failures
+        self.dropped = np.array([b in (failures or {}) for b in range(state.n_points)], dtype=np.bool_)
         self.S = np.asarray(stress_rows, dtype=np.bool_)
         self.M = np.ascontiguousarray(matrix, dtype=float)
         self.start = np.ascontiguousarray(start, dtype=float)
@@ -430,7 +439,7 @@ class CompiledSegment:
                            self.S, self.M, self.start, self.end, self.n_steps, k, end, self.geo,
                            self.p, self.rev.mode, self.rev.volumes0, self.c,
                            self.settings.max_events, rec[k - k_begin:], status, resp, self.guess,
-                           self.trials, self.sets)
+                           self.trials, self.sets, self.dropped)
             if k < end:  # increment k failed for some points
                 self._hand_back(k, status != OK, rec[k - k_begin])
                 status[:] = OK
@@ -441,8 +450,26 @@ class CompiledSegment:
         return rec
 
     def _hand_back(self, k: int, failed: np.ndarray, rec_row: np.ndarray) -> None:
-        """Solve increment k of the failed points with the generic driver (event fallback)."""
+        """Solve increment k of the failed points with the generic driver (event fallback); with
+        a failure dict, the points it cannot solve either are dropped and the others solved."""
         idx = np.flatnonzero(failed)
+        while True:
+            try:
+                return self._hand_back_points(k, idx, rec_row)
+            except SolverError as e:
+                points = getattr(e, "points", None)
+                if self.failures is None or points is None:
+                    raise
+                for b in points:
+                    self.failures[int(b)] = " ".join(str(e).split())
+                    self.dropped[b] = True
+                    rec_row[b] = np.nan
+                idx = idx[~np.isin(idx, points)]
+                if not len(idx):
+                    return None
+
+    def _hand_back_points(self, k: int, idx: np.ndarray, rec_row: np.ndarray) -> None:
+        """Increment k of the points ``idx`` through ``solve_increment``."""
         sub = RevState(CellState(self.values[idx]), CellFlags(self.flags[idx]), self.eps[idx],
                        self.sig[idx], None if self._sets is None else self._sets[idx])
         values = np.where(self.S, self.start[idx] + (self.end[idx] - self.start[idx])

@@ -58,10 +58,16 @@ class Segment:
 def run_segment(rev: Rev, state: RevState, seg: Segment, recorder: Recorder | None = None,
                 progress: Progress = None, tangent: Tangent | None = None,
                 record_every: int = 1, compiled: bool | None = None,
-                settings: NewtonSettings = NewtonSettings()) -> RevState:
+                settings: NewtonSettings = NewtonSettings(),
+                failures: dict | None = None) -> RevState:
     """Apply a :class:`Segment` to every material point; returns the final state.
 
     ``settings`` are the mixed-control Newton's (:class:`~hmodel.loading.newton.NewtonSettings`).
+    ``failures``: None, and the first point whose increment cannot be solved stops the run
+    with its SolverError; or a dict, and such a point is dropped instead (``failures[point]``
+    says why; it is left in its last solved state and recorded no further, or as NaN) while
+    the others go on: a batch of independent material points, e.g. the parameter sets of a
+    calibration. Points already in the dict are dropped from the start.
 
     ``compiled`` (default: whenever the REV's solver allows it) runs the segment in the
     compiled kernel of :mod:`hmodel.loading.compiled`; ``False`` forces the generic driver.
@@ -78,12 +84,17 @@ def run_segment(rev: Rev, state: RevState, seg: Segment, recorder: Recorder | No
         compiled = supports(rev)
     if compiled:
         return _run_compiled(rev, state, seg, S, M, start, end, recorder, progress, tangent,
-                             record_every, settings)
+                             record_every, settings, failures)
     for k in range(1, seg.n_steps + 1):
         values = np.where(S, start + (end - start) * (k / seg.n_steps), end / seg.n_steps)
-        state = solve_increment(rev, state, Control(S, M, values), tangent, settings)
+        if failures is None:
+            state = solve_increment(rev, state, Control(S, M, values), tangent, settings)
+        else:
+            state = _increment_dropping(rev, state, Control(S, M, values), tangent, settings,
+                                        failures)
         if recorder is not None and (k % record_every == 0 or k == seg.n_steps):
-            recorder.record(state, seg.stage)
+            recorder.record(state, seg.stage, None if not failures else
+                            ~np.isin(np.arange(B), list(failures)))
         if progress is not None:
             progress(k / seg.n_steps)
     return state
@@ -93,9 +104,39 @@ def run_segment(rev: Rev, state: RevState, seg: Segment, recorder: Recorder | No
 _CHUNK = 200
 
 
+def _increment_dropping(rev: Rev, state: RevState, control: Control, tangent: Tangent,
+                        settings: NewtonSettings, failures: dict) -> RevState:
+    """``solve_increment`` of the points not in ``failures``; a point it names as failed is
+    added there and the increment solved again for the others."""
+    B = state.n_points
+    live = ~np.isin(np.arange(B), list(failures))
+    if tangent.K is None or tangent.K.shape[0] != B:
+        tangent.K = tangent.previous = None
+    while live.any():
+        idx = np.flatnonzero(live)
+        sub_t = Tangent(None if tangent.K is None else tangent.K[idx],
+                        None if tangent.previous is None else tangent.previous[idx])
+        try:
+            sub = solve_increment(rev, state.select(idx), Control(control.stress_rows, control.matrix,
+                                                                  control.values[idx]), sub_t, settings)
+        except SolverError as e:
+            points = getattr(e, "points", None)
+            if points is None:
+                raise
+            for b in idx[points]:
+                failures[int(b)] = " ".join(str(e).split())
+                live[b] = False
+            continue
+        if tangent.K is None:
+            tangent.K, tangent.previous = np.zeros((B, 3, 3)), np.full((B, 3), np.nan)
+        tangent.K[idx], tangent.previous[idx] = sub_t.K, sub_t.previous
+        return state.scatter(idx, sub)
+    return state
+
+
 def _run_compiled(rev, state, seg, S, M, start, end, recorder, progress, tangent,
-                  record_every, settings) -> RevState:
-    runner = CompiledSegment(rev, state, S, M, start, end, seg.n_steps, tangent, settings)
+                  record_every, settings, failures) -> RevState:
+    runner = CompiledSegment(rev, state, S, M, start, end, seg.n_steps, tangent, settings, failures)
     for k0 in range(1, seg.n_steps + 1, _CHUNK):
         k1 = min(k0 + _CHUNK, seg.n_steps + 1)
         rec = runner.run(k0, k1)
@@ -117,11 +158,12 @@ def _as_points(value, name: str) -> np.ndarray:
 
 def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_STEP,
                 recorder: Recorder | None = None, progress: Progress = None,
-                max_steps: int = 1_000_000) -> RevState:
+                max_steps: int = 1_000_000, failures: dict | None = None) -> RevState:
     """Isotropic compression: equal strain increments until the mean stress reaches ``p0``.
 
     Each material point b stops at its own ``p0[b]`` [Pa]; the last increment is solved
-    (mixed control on p, with deps11 = deps22) so that p = p0 exactly.
+    (mixed control on p, with deps11 = deps22) so that p = p0 exactly (``failures``: see
+    :func:`run_segment`).
     """
     p0 = _as_points(p0, "p0")
     if np.any(p0 <= 0):
@@ -150,9 +192,11 @@ def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_S
     M = np.array([[1.0, -1.0, 0.0], [0.5, 0.5, 0.0], [0.0, 0.0, 1.0]])
     values = np.stack([np.zeros_like(p0), p0, np.zeros_like(p0)], axis=1)
     # (a segment of one increment: compiled where the solver allows it)
-    state = run_segment(rev, state, Segment((False, True, False), M, values, 1, "consolidation"))
+    state = run_segment(rev, state, Segment((False, True, False), M, values, 1, "consolidation"),
+                        failures=failures)
     if recorder is not None:
-        recorder.record(state, "consolidation")
+        recorder.record(state, "consolidation", None if not failures else
+                        ~np.isin(np.arange(state.n_points), list(failures)))
     return state
 
 
@@ -166,17 +210,17 @@ def _n_steps(total: float, step: float, name: str) -> int:
 
 def biaxial(rev: Rev, state: RevState, axial_strain: float, undrained: bool = False,
             lateral_stress=None, step: float = AXIAL_STEP, recorder: Recorder | None = None,
-            progress: Progress = None) -> RevState:
+            progress: Progress = None, failures: dict | None = None) -> RevState:
     """Biaxial compression from ``state`` to ``axial_strain`` more axial strain.
 
     Drained: constant lateral stress sig22 = ``lateral_stress`` (default: the current sig22),
     solved by Newton on deps22 each increment. Undrained: isochoric, deps22 = -deps11.
-    eps12 is held (rigid platens).
+    eps12 is held (rigid platens). ``failures``: see :func:`run_segment`.
     """
     sig22 = None if lateral_stress is None else _as_points(lateral_stress, "lateral stress")
     seg = biaxial_segment(state, axial_strain, _n_steps(axial_strain, step, "axial strain"),
                           undrained, sig22)
-    return run_segment(rev, state, seg, recorder, progress)
+    return run_segment(rev, state, seg, recorder, progress, failures=failures)
 
 
 def biaxial_segment(state: RevState, axial_strain: float, n_steps: int, undrained: bool = False,

@@ -83,21 +83,24 @@ class Recorder:
     def record_block(self, eps: np.ndarray, sig: np.ndarray, frac: np.ndarray, stage: str,
                      mask: np.ndarray | None = None) -> None:
         """Append K consecutive states of B points: eps, sig (K, B, 3), frac (K, B, 4) in the
-        order of :data:`FRACTIONS`; only the points where ``mask`` (B,) is true."""
+        order of :data:`FRACTIONS`; only the points where ``mask`` (B,) is true, and only the
+        states that exist (a point dropped after a failure has NaN strains from then on)."""
         K, B = eps.shape[:2]
         if self._step is None:
             self._step = np.zeros(B, dtype=np.int64)
-        m = np.ones(B, bool) if mask is None else mask
-        if not m.any() or K == 0:
+        m = np.ones(B, bool) if mask is None else np.asarray(mask, bool)
+        valid = m[None, :] & np.isfinite(eps[..., 0])
+        if K == 0 or not valid.any():
             return
-        pts = np.flatnonzero(m)
-        eps, sig, frac = eps[:, m].reshape(-1, 3), sig[:, m].reshape(-1, 3), frac[:, m].reshape(-1, 4)
-        steps = (self._step[m] + np.arange(1, K + 1)[:, None]).reshape(-1)
-        self._step[m] += K
+        count = np.cumsum(valid, axis=0)
+        steps = (self._step[None, :] + count)[valid]
+        self._step += count[-1]
+        pts = np.broadcast_to(np.arange(B), (K, B))[valid]
+        eps, sig, frac = eps[valid], sig[valid], frac[valid]
         p, q = 0.5 * (sig[:, 0] + sig[:, 1]), sig[:, 0] - sig[:, 1]
         with np.errstate(divide="ignore", invalid="ignore"):
             q_p = np.where(p != 0, q / np.where(p != 0, p, 1.0), 0.0)
-        row = {"point": np.tile(pts, K), "stage": np.full(len(steps), stage, dtype=object),
+        row = {"point": pts, "stage": np.full(len(steps), stage, dtype=object),
                "step": steps, "eps11": eps[:, 0], "eps22": eps[:, 1], "eps12": eps[:, 2],
                "sig11": sig[:, 0], "sig22": sig[:, 1], "sig12": sig[:, 2],
                "p": p, "q": q, "eps_v": eps[:, 0] + eps[:, 1], "q_p": q_p}

@@ -36,19 +36,27 @@ def run_isotropic(params: Params | Sequence[Params], p0, *, solver: CellSolver |
 
 def run_biaxial(params: Params | Sequence[Params], p0, axial_strain: float, *, undrained: bool = False,
                 solver: CellSolver | None = None, iso_step: float = ISO_STEP,
-                step: float = AXIAL_STEP, progress: Progress = None) -> PathResult:
+                step: float = AXIAL_STEP, progress: Progress = None,
+                drop_failed: bool = False) -> PathResult:
     """Isotropic consolidation to each ``p0`` [Pa], then drained or undrained biaxial
-    compression to ``axial_strain`` more axial strain (report §1.1.2, Fig. 1.7)."""
+    compression to ``axial_strain`` more axial strain (report §1.1.2, Fig. 1.7).
+
+    With ``drop_failed``, a point whose Newton fails is dropped and the others go on; the
+    result's ``meta["failed"]`` maps each dropped point to the reason (its rows stop there)."""
     rev = Rev(params, solver)
     p0 = np.atleast_1d(np.asarray(p0, float))
     rec = Recorder(_meta(params, rev, "undrained biaxial" if undrained else "drained biaxial",
                          p0=p0.tolist(), axial_strain=axial_strain, iso_step=iso_step, step=step))
     consolidation = None if progress is None else (lambda f: progress(0.1 * f))
     shear = None if progress is None else (lambda f: progress(0.1 + 0.9 * f))
-    state = paths.consolidate(rev, p0, step=iso_step, recorder=rec, progress=consolidation)
+    failures = {} if drop_failed else None
+    state = paths.consolidate(rev, p0, step=iso_step, recorder=rec, progress=consolidation,
+                              failures=failures)
     p0 = np.broadcast_to(p0, state.n_points)
     paths.biaxial(rev, state, axial_strain, undrained=undrained, lateral_stress=p0, step=step,
-                  recorder=rec, progress=shear)
+                  recorder=rec, progress=shear, failures=failures)
+    if drop_failed:
+        rec.meta["failed"] = {int(b): why for b, why in sorted(failures.items())}
     return rec.result()
 
 
