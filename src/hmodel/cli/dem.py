@@ -1,4 +1,5 @@
-"""``hmodel dem``: cells solved by the DEM engine YADE (needs the ``yade`` executable)."""
+"""``hmodel dem``: cells, and a disk sample to calibrate on, solved by the DEM engine YADE (needs
+the ``yade`` executable)."""
 
 from __future__ import annotations
 
@@ -15,7 +16,8 @@ from .progress import LazyProgress
 from .run import ParamOpt
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
-                  help="Cells solved by the DEM engine YADE (apt-get install -y yade).")
+                  help="Cells, and a disk sample to calibrate on, solved by the DEM engine YADE "
+                       "(apt-get install -y yade).")
 
 
 def _params(param: list[str] | None, alpha0: float | None) -> Params:
@@ -109,3 +111,57 @@ def draw_cmd(
     write_outputs(out, {"cell.png": lambda p: draw_cell(run, p, title=f"{cell.name} cell, strain "
                                                         f"{100 * strain:g} % at θ = {theta:g}°")})
     typer.echo(f"wrote {out / 'cell.png'}")
+
+
+@app.command("sample")
+def sample_cmd(
+    p0: Annotated[str, typer.Option("--p0", help="Consolidation pressure(s) [N/m, i.e. Pa for unit "
+                                                 "thickness]: 100kPa, or a comma list "
+                                                 "100kPa,200kPa (one test and CSV each).")] = "100kPa",
+    undrained: Annotated[bool, typer.Option("--undrained", help="Constant-area (undrained) test "
+                                                                "instead of drained (σ22 held at p0).")] = False,
+    axial_strain: Annotated[float, typer.Option(help="Axial strain of the test (logarithmic).")] = 0.1,
+    disks: Annotated[int, typer.Option(help="Number of disks.")] = 2000,
+    radius: Annotated[float, typer.Option(help="Mean radius (r_min + r_max)/2 [m].")] = 1.0,
+    radius_ratio: Annotated[float, typer.Option(help="r_max / r_min.")] = 2.0,
+    distribution: Annotated[str, typer.Option(help="Radii: uniform (in [r_min, r_max]) or equal-area "
+                                                   "(every radius interval holds the same solid area).")] = "uniform",
+    kn: Annotated[float, typer.Option(help="Normal contact stiffness [N/m].")] = 2.0e8,
+    kt_kn: Annotated[float, typer.Option(help="kt / kn.")] = 0.5,
+    phi_g: Annotated[float, typer.Option(help="Contact friction angle φg during the test [deg].")] = 30.0,
+    compaction_friction: Annotated[Optional[float], typer.Option(
+        help="Contact friction angle during the consolidation [deg] (the lower, the denser); "
+             "default 0, or φg with --porosity.")] = None,
+    porosity: Annotated[Optional[float], typer.Option(
+        help="Target porosity: the consolidation lowers the friction from --compaction-friction "
+             "step by step until the porosity at p0 is at most this.")] = None,
+    density: Annotated[float, typer.Option(help="Grain density [kg/m³] (disks of unit thickness).")] = 2650.0,
+    inertial_number: Annotated[Optional[float], typer.Option(
+        help="Inertial number I = ε̇ d̄ √(ρ/p0) that sets the axial strain rate (default 1e-4).")] = None,
+    strain_rate: Annotated[Optional[float], typer.Option(help="Axial strain rate [1/s], instead of "
+                                                              "--inertial-number.")] = None,
+    rows: Annotated[int, typer.Option(help="CSV rows after the first (one every axial-strain/rows).")] = 100,
+    seed: Annotated[int, typer.Option(help="Seed of the radii and initial positions.")] = 0,
+    damping: Annotated[float, typer.Option(help="Cundall's non-viscous damping.")] = 0.2,
+    timeout: Annotated[float, typer.Option(help="Wall-clock limit of one test's YADE run [s].")] = 3600.0,
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for the CSVs, sample.json and sample.png.")] = Path("results/dem-sample"),
+) -> None:
+    """A DEM sample to calibrate on: a periodic 2D assembly of polydisperse disks in YADE,
+    consolidated to p0 and sheared (drained or undrained biaxial test); writes KIND_P0kPa.csv
+    (eps11,q,eps_v,p) and .npz per test, sample.json and sample.png. A test whose CSV exists in
+    the folder is not run again."""
+    from ..dem.sample import SampleSettings, run_sample
+    from ..units import parse_pressures
+
+    pressures = parse_pressures(p0)
+    if inertial_number is not None and strain_rate is not None:
+        raise InputError("give --inertial-number or --strain-rate, not both")
+    extra = {} if inertial_number is None else {"inertial_number": inertial_number}
+    settings = SampleSettings(
+        disks=disks, radius=radius, radius_ratio=radius_ratio, distribution=distribution, kn=kn,
+        kt_kn=kt_kn, phi_g=phi_g, compaction_friction=compaction_friction, porosity=porosity,
+        density=density, axial_strain=axial_strain, rows=rows, strain_rate=strain_rate, seed=seed,
+        damping=damping, timeout=timeout, **extra)
+    kind = "undrained" if undrained else "drained"
+    meta = run_sample(settings, pressures, kind, out, progress=typer.echo)
+    typer.echo(f"wrote {out} ({len(meta['tests'])} test(s) in sample.json)")

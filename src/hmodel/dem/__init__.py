@@ -5,5 +5,8 @@
 - :mod:`~hmodel.dem.scene`: many cells in one YADE scene, driven by (dl1, dl2) increments;
 - :mod:`~hmodel.dem.yade`: running YADE as a subprocess, its errors;
 - :mod:`~hmodel.dem.stress`: Love-Weber meso-stress (eq. 1.11);
-- :mod:`~hmodel.dem.validate`: the DEM standard cell against the closed form (eq. 1.7).
+- :mod:`~hmodel.dem.validate`: the DEM standard cell against the closed form (eq. 1.7);
+- :mod:`~hmodel.dem.sample`: a periodic 2D disk sample consolidated and sheared in biaxial
+  tests (``hmodel dem sample``: test data to calibrate on); its YADE side is
+  :mod:`~hmodel.dem.yade_sample`.
 """

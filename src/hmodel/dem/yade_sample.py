@@ -1,0 +1,260 @@
+"""The script YADE runs for one biaxial test of a DEM sample (``yade -n -j1 -x yade_sample.py
+INPUT.json OUTPUT.json``), driven by :mod:`hmodel.dem.sample`.
+
+Executed by YADE's own Python: standard library only, YADE imported inside :func:`main` (so
+importing this module from hmodel never needs YADE).
+
+Scene. A periodic cell (``O.periodic``) of size Lx x Ly x Lz holding disks: spheres in the
+plane z = Lz/2 whose z translation and x, y rotations are blocked (``blockedDOFs = "zXY"``),
+so they move in the plane and spin about z; Lz = 8 r_max, so a disk never meets its own image
+along z and the cell's z size never changes. Mass per unit thickness ``density`` pi r^2
+(a disk of unit thickness), rotational inertia m r^2 / 2. Contacts: linear springs kn,
+ks = kt_kn kn for every pair (MatchMakers), Coulomb friction
+(Law2_ScGeom_FrictPhys_CundallStrack), Cundall's non-viscous damping ``damping``.
+
+Stress. 2D Love-Weber stress per unit area of the cell, compression positive:
+sigma = (1/A) sum_c f (x) l, f the force on j by i and l the branch vector from i to j (across the
+periodic boundary where the contact is), A = Lx Ly; computed as -utils.getStressAndTangent(A)[0]
+(YADE's stress is tension positive). Strains: logarithmic, compression positive,
+eps11 = ln(Lx0 / Lx), eps22 = ln(Ly0 / Ly), eps_v = ln(A0 / A), since the end of the
+consolidation.
+
+Control. The cell deforms through ``O.cell.velGrad`` (diagonal, zz = 0), the disks follow the
+affine field (``Cell.homoDeform``). A stress-controlled direction i is servoed every ``period``
+steps: strain rate = gain (sigma_ii - goal) / (C_iiii period dt) (C: the affine tangent
+stiffness of ``utils.getStressAndTangent``, an upper bound of the sample's), clipped to
+``rate_max``.
+
+1. Consolidation: both directions servoed to p0 with friction ``phi_compact`` until
+   |sigma_ii - p0| <= ``tol_stress`` p0 and the unbalanced-force ratio <= ``tol_unbalanced``,
+   checked every ``check`` steps; more than ``max_steps`` steps: status ``no-equilibrium``.
+   With a target ``porosity``, each such equilibrium whose porosity is above the target is
+   followed by tan(friction) x 0.9 (0 below 0.01) in the material and every contact, until an
+   equilibrium at or below the target; status ``error`` when the first equilibrium is already
+   below the target (too loose a target for this friction) or the frictionless one above it.
+   The friction is then set to phi_g in the material and every contact.
+2. Shear: velGrad_xx = -rate (constant axial strain rate), and either sigma_22 servoed to p0
+   by a proportional-integral servo (the integral term adds ``gain_i`` u per update, u the
+   proportional term without gain; both clipped to ``lateral_rate_factor`` rate) (drained), or
+   velGrad_yy = rate / (1 - rate dt) (undrained: the cell update h += dt L h then keeps the area
+   constant to round-off). A row is recorded at every ``axial_strain / rows`` of axial strain
+   (a whole number of steps each).
+
+Output (JSON): rows ``[eps11, eps22, s11, s22, s12, unbalanced, contacts]``, the consolidated
+and final states (radii, positions wrapped into the cell, cell size, contacts
+``[i, j, fn, ft, lx, ly]`` with l the branch vector from i to j, fn compression positive),
+time step, step counts, wall times, YADE version.
+"""
+
+import json
+import math
+import os
+import sys
+import time
+
+
+def _state(O, utils, ids, radii):
+    """The sample's state: cell size, wrapped positions, radii, contacts."""
+    h = O.cell.hSize
+    lx, ly = h[0, 0], h[1, 1]
+    pos = []
+    for bid in ids:
+        p = O.cell.wrap(O.bodies[bid].state.pos)
+        pos.append([p[0], p[1]])
+    index = {bid: k for k, bid in enumerate(ids)}
+    rows = []
+    for I in O.interactions:
+        if not I.isReal or I.geom.penetrationDepth < 0:
+            continue
+        i, j = index[I.id1], index[I.id2]
+        shift = h * I.cellDist
+        b1, b2 = O.bodies[I.id1].state.pos, O.bodies[I.id2].state.pos
+        l = b2 + shift - b1
+        f = I.phys.normalForce + I.phys.shearForce  # force on id2 by id1
+        norm = math.hypot(l[0], l[1])
+        ex, ey = l[0] / norm, l[1] / norm
+        fn = f[0] * ex + f[1] * ey
+        ft = f[0] * ey - f[1] * ex
+        rows.append([i, j, fn, ft, l[0], l[1]])
+    return {"cell": [lx, ly], "pos": pos, "radii": list(radii), "contacts": rows}
+
+
+def main(argv):
+    from yade import O, utils  # noqa: F401  (YADE's own Python only)
+    from yade import Matrix3
+    from yade.wrapper import (FrictMat, ForceResetter, InsertionSortCollider, Bo1_Sphere_Aabb,
+                              InteractionLoop, Ig2_Sphere_Sphere_ScGeom,
+                              Ip2_FrictMat_FrictMat_FrictPhys, Law2_ScGeom_FrictPhys_CundallStrack,
+                              NewtonIntegrator, MatchMaker)
+    try:
+        from yade import config
+        version = str(config.version)
+    except Exception:  # pragma: no cover - YADE without config.version
+        version = "unknown"
+
+    t0 = time.time()
+    with open(argv[0]) as fh:
+        spec = json.load(fh)
+    radii = spec["radii"]
+    r_max, r_min = max(radii), min(radii)
+    kn, kt_kn = spec["kn"], spec["kt_kn"]
+    p0, rho = spec["p0"], spec["density"]
+    lx0, ly0 = spec["cell"]
+    lz = 8.0 * r_max
+    O.periodic = True
+    O.cell.hSize = Matrix3(lx0, 0, 0, 0, ly0, 0, 0, 0, lz)
+    mat = O.materials.append(FrictMat(young=kn / r_max, poisson=kt_kn, density=rho,
+                                      frictionAngle=spec["phi_compact"]))
+    ids = []
+    for (x, y), r in zip(spec["pos"], radii):
+        b = utils.sphere((x, y, 0.5 * lz), r, material=mat)
+        b.state.blockedDOFs = "zXY"
+        m = rho * math.pi * r * r
+        b.state.mass = m
+        b.state.inertia = (0.5 * m * r * r,) * 3
+        ids.append(O.bodies.append(b))
+    ip2 = Ip2_FrictMat_FrictMat_FrictPhys(kn=MatchMaker(algo="val", val=kn),
+                                          ks=MatchMaker(algo="val", val=kt_kn * kn))
+    O.engines = [ForceResetter(),
+                 InsertionSortCollider([Bo1_Sphere_Aabb()], verletDist=0.1 * r_min),
+                 InteractionLoop([Ig2_Sphere_Sphere_ScGeom()], [ip2],
+                                 [Law2_ScGeom_FrictPhys_CundallStrack()]),
+                 NewtonIntegrator(damping=spec["damping"], gravity=(0, 0, 0))]
+    m_min = rho * math.pi * r_min * r_min
+    O.dt = spec["dt_safety"] * math.sqrt(m_min / kn)
+    dt = O.dt
+    period = spec["period"]
+    gain = spec["gain"]
+
+    def area():
+        h = O.cell.hSize
+        return h[0, 0] * h[1, 1]
+
+    def stress():
+        """(s11, s22, s12, C1111, C2222): 2D stress (compression positive), affine stiffness."""
+        a = area()
+        s, c = utils.getStressAndTangent(a * 1.0, False)
+        return -s[0, 0], -s[1, 1], -0.5 * (s[0, 1] + s[1, 0]), c[0, 0], c[1, 1]
+
+    def servo_rate(sig, goal, stiff, rate_max):
+        """Compression-positive strain rate moving sig towards goal."""
+        if stiff <= 0:
+            rate = rate_max
+        else:
+            rate = gain * (goal - sig) / (stiff * period * dt)
+        return max(-rate_max, min(rate_max, rate))
+
+    def set_rates(r11, r22):
+        O.cell.velGrad = Matrix3(-r11, 0, 0, 0, -r22, 0, 0, 0, 0)
+
+    def run(n):
+        # O.step() in a loop: O.run(n, True) adds a fixed wait to every call (tens of ms)
+        for _ in range(n):
+            O.step()
+
+    solid = sum(math.pi * r * r for r in radii)
+
+    def porosity():
+        return 1.0 - solid / area()
+
+    # 1. consolidation (and, with a target porosity, friction lowered step by step)
+    status, message = "ok", ""
+    rate_c = spec["rate_compact"]
+    target = spec.get("porosity")
+    tan_phi = math.tan(spec["phi_compact"])
+    reductions = 0
+    steps = 0
+    next_check = 0
+    s11 = s22 = 0.0
+    t_c = time.time()
+    while True:
+        s11, s22, s12, c11, c22 = stress()
+        if steps >= next_check:
+            next_check += spec["check"]
+            err = max(abs(s11 - p0), abs(s22 - p0)) / p0
+            unb = utils.unbalancedForce()
+            if err <= spec["tol_stress"] and unb <= spec["tol_unbalanced"]:
+                n = porosity()
+                if target is None or n <= target:
+                    if target is not None and reductions == 0:
+                        status = "error"
+                        message = (f"target porosity {target:g} is above the porosity "
+                                   f"{n:.4g} of the sample compacted with friction "
+                                   f"{math.degrees(spec['phi_compact']):g} deg, the loosest "
+                                   f"this compaction gives: raise --compaction-friction")
+                    break
+                if tan_phi == 0.0:
+                    status = "error"
+                    message = (f"target porosity {target:g} not reached: the frictionless "
+                               f"sample's porosity is {n:.4g}")
+                    break
+                # target porosity: lower the friction and settle again
+                tan_phi = 0.9 * tan_phi if tan_phi > 0.01 else 0.0
+                utils.setContactFriction(math.atan(tan_phi))
+                reductions += 1
+            if steps >= spec["max_steps"]:
+                status = "no-equilibrium"
+                what = ("no contact yet" if O.interactions.countReal() == 0 else
+                        f"stress error {err:.3g}, unbalanced force ratio {unb:.3g}")
+                message = (f"consolidation to p0 = {p0:g} not reached within {steps} steps "
+                           f"({what})")
+                break
+        set_rates(servo_rate(s11, p0, c11, rate_c), servo_rate(s22, p0, c22, rate_c))
+        run(period)
+        steps += period
+    set_rates(0.0, 0.0)
+    consolidation = {"steps": steps, "wall_s": time.time() - t_c,
+                     "unbalanced": utils.unbalancedForce(), "stress": [s11, s22],
+                     "friction_deg": math.degrees(math.atan(tan_phi)),
+                     "friction_reductions": reductions}
+    consolidated = _state(O, utils, ids, radii)
+    result = {"status": status, "message": message, "dt": dt, "yade_version": version,
+              "consolidation": consolidation, "consolidated": consolidated, "rows": []}
+    if status == "ok":
+        utils.setContactFriction(spec["phi_g"])
+        # 2. shear
+        t_s = time.time()
+        rate = spec["strain_rate"]
+        lx_c, ly_c = O.cell.hSize[0, 0], O.cell.hSize[1, 1]
+        n_rows, eps_end = spec["rows"], spec["axial_strain"]
+        n_total = max(n_rows, int(round(eps_end / (rate * dt))))
+        rows = []
+
+        def record():
+            h = O.cell.hSize
+            s11, s22, s12, _, _ = stress()
+            rows.append([math.log(lx_c / h[0, 0]), math.log(ly_c / h[1, 1]), s11, s22, s12,
+                         utils.unbalancedForce(), O.interactions.countReal()])
+
+        record()
+        drained = spec["kind"] == "drained"
+        rate_lat = spec["lateral_rate_factor"] * rate
+        done = 0
+        integral = [0.0]
+        for k in range(1, n_rows + 1):
+            end = int(round(k * n_total / n_rows))
+            while done < end:
+                if drained:
+                    s11, s22, s12, c11, c22 = stress()
+                    u = (p0 - s22) / (c22 * period * dt) if c22 > 0 else 0.0
+                    integral[0] = max(-rate_lat, min(rate_lat, integral[0] + spec["gain_i"] * u))
+                    set_rates(rate, max(-rate_lat, min(rate_lat, gain * u + integral[0])))
+                else:
+                    set_rates(rate, -rate / (1.0 - rate * dt))  # (1 - r dt)(1 + r' dt) = 1
+                n = min(period, end - done)
+                run(n)
+                done += n
+            record()
+        shear_steps = done
+        set_rates(0.0, 0.0)
+        result.update(rows=rows, final=_state(O, utils, ids, radii),
+                      shear={"steps": shear_steps, "wall_s": time.time() - t_s,
+                             "strain_rate": rate})
+    result["wall_s"] = time.time() - t0
+    with open(argv[1] + ".part", "w") as fh:
+        json.dump(result, fh)
+    os.replace(argv[1] + ".part", argv[1])
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
