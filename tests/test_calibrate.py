@@ -57,7 +57,7 @@ def test_one_percent_noise_on_q_still_gives_phi_and_alpha0_within_two_percent():
     assert cal.fitted["alpha0"] == pytest.approx(50.0, rel=0.02)
     assert cal.fitted["kt_kn"] == pytest.approx(0.5, rel=0.10)
     # the standard errors reflect the noise: positive, and the truth within 4 of them
-    for name, true in (("phi_g", 28.0), ("alpha0", 50.0)):
+    for name, true in (("phi_g", 28.0), ("alpha0", 50.0), ("kt_kn", 0.5)):
         assert 0 < cal.stderr[name] and abs(cal.fitted[name] - true) < 4 * cal.stderr[name] + 1e-9
 
 
@@ -187,3 +187,12 @@ def test_bayes_90_percent_intervals_contain_the_truth(tmp_path):
     assert {"posterior.csv", "corner.png", "trace.png", "calibration.json"} <= written
     record = json.loads((tmp_path / "b" / "calibration.json").read_text())
     assert set(record["posterior"]) == {"phi_g", "alpha0"} and record["method"] == "bayes"
+
+
+def test_the_standard_error_of_kn_survives_its_scale():
+    # kn in N/m is 10^8 times the angles: its standard error must come out in its own units,
+    # about its relative sensitivity times kn, not lost to round-off
+    noisy = [_test(TRUE, "drained", p0, noise=0.01, seed=k) for k, p0 in enumerate((1e5, 3e5))]
+    cal = fit(noisy, ("kn", "phi_g"), base=TRUE, starts=2, **KW)
+    assert 1e-4 * TRUE.kn < cal.stderr["kn"] < 0.5 * TRUE.kn
+    assert abs(cal.fitted["kn"] - TRUE.kn) < 4 * cal.stderr["kn"]

@@ -13,11 +13,10 @@ from scipy.stats import qmc
 
 from ..cell import CellSolver
 from ..errors import InputError
-from ..loading import ISO_STEP
 from ..params import Params
 from .data import Test
 from .bayes import Noise, Posterior, estimate_noise, sample
-from .model import Model, Prediction, residuals
+from .model import ISO_STEP, Model, Prediction, residuals
 from .space import Space
 
 #: Scaled residual given to a parameter set whose run failed (least_squares needs finite ones):
@@ -218,9 +217,11 @@ def _uncertainty(space: Space, z: np.ndarray, r: np.ndarray, J: np.ndarray, m: i
     the parameters the data cannot identify."""
     n = space.n
     s2 = float(r @ r) / max(m - n, 1)
+    # the covariance in the unit box (columns of like scale), then by the chain rule in the
+    # parameters' units (kn spans ten orders of magnitude more than the angles: inverting in
+    # those units would drop its direction as round-off)
     dv = space.dvalues_dz(z)
-    Jp = J / dv[None, :]  # d residual / d value
-    cov = s2 * np.linalg.pinv(Jp.T @ Jp)
+    cov = s2 * np.linalg.pinv(J.T @ J) * np.outer(dv, dv)
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(se, se)

@@ -89,7 +89,8 @@ def _figure(cal: Calibration, path: Path) -> None:
             ax_v.plot(100 * t.eps11, 100 * t.eps_v, "o", ms=3, color=color)
         ax_v.plot(100 * t.eps11, 100 * ev[0], "-", color=color)
     fitted = ", ".join(f"{n} = {v:.4g}" for n, v in cal.fitted.items())
-    ax_q.set(xlabel="ε11 [%]", ylabel="q [kPa]", title=f"{cal.method}: {fitted}")
+    fig.suptitle(f"{cal.method}: {fitted}", fontsize=9)
+    ax_q.set(xlabel="ε11 [%]", ylabel="q [kPa]")
     ax_v.set(xlabel="ε11 [%]", ylabel="εv [%] (compression positive)")
     ax_q.legend(fontsize=7)
     for ax in (ax_q, ax_v):

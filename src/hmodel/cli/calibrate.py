@@ -10,6 +10,7 @@ import typer
 from ..calibrate import fit, parse_data_spec
 from ..calibrate.bayes import Noise
 from ..calibrate.fitting import METHODS
+from ..calibrate.model import ISO_STEP
 from ..calibrate.report import write
 from ..errors import InputError
 from ..params import Params
@@ -43,7 +44,7 @@ def calibrate(
     noise: Annotated[Optional[str], typer.Option(help="bayes: noise levels q=FRACTION_OF_PEAK_Q,eps_v=STRAIN; default: the RMS the best fit leaves.")] = None,
     seed: Annotated[int, typer.Option(help="Seed of the design of starting points.")] = 0,
     step: Annotated[float, typer.Option(help="Axial strain increment of the model's tests.")] = 1e-3,
-    iso_step: Annotated[float, typer.Option(help="Strain increment of the model's consolidation.")] = 1e-4,
+    iso_step: Annotated[float, typer.Option(help="Strain increment of the model's consolidation.")] = ISO_STEP,
     solver: Annotated[str, typer.Option(help="Cell solver: closed-form, surrogate[:FILE], dem:...")] = "closed-form",
     out: Annotated[Path, typer.Option(help="Output folder.")] = Path("results/calibration"),
 ) -> None:
