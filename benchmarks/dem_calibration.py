@@ -25,6 +25,7 @@ from timing import record, write_table
 
 from hmodel.calibrate import Test, fit
 from hmodel.calibrate.model import Model
+from hmodel.calibrate.report import finish_figure, fitted_text
 
 
 def main() -> None:
@@ -81,16 +82,9 @@ def _figure(cal, others, pred, path: Path) -> None:
         if t.eps_v is not None:
             ax_v.plot(100 * t.eps11, 100 * t.eps_v, ".", ms=3, color=c)
         ax_v.plot(100 * t.eps11, 100 * ev, "-" if how == "calibrated on" else "--", color=c)
-    fitted = ", ".join(f"{n} = {v:.4g}" for n, v in cal.fitted.items())
-    fig.suptitle(f"DEM sample against the calibrated H-model ({fitted})", fontsize=9)
-    ax_q.set(xlabel="ε11 [%]", ylabel="q [kPa]")
-    ax_v.set(xlabel="ε11 [%]", ylabel="εv [%] (compression positive)")
-    ax_q.legend(fontsize=6)
-    for ax in (ax_q, ax_v):
-        ax.grid(alpha=0.3)
-    fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    finish_figure(fig, ax_q, ax_v, f"DEM sample against the calibrated H-model ({fitted_text(cal)})",
+                  path, legend_size=6)
 
 
 if __name__ == "__main__":

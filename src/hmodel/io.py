@@ -14,20 +14,26 @@ import numpy as np
 from .errors import InputError
 
 
+def read_csv_rows(path: "str | os.PathLike", what: str) -> list[list[str]]:
+    """The non-blank rows of a text CSV file; a one-line InputError naming ``what`` (e.g.
+    "strain path") and the file when it cannot be read."""
+    try:
+        with open(path, newline="") as fh:
+            rows = list(csv.reader(fh))
+    except OSError as e:
+        raise InputError(f"cannot read {what} {str(path)!r}: {e.strerror}") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{what} {str(path)!r} is not a text CSV file") from None
+    return [r for r in rows if any(c.strip() for c in r)]
+
+
 def read_strain_path(path: "str | os.PathLike") -> np.ndarray:
     """Cumulative strains (n, 3) from a CSV with header ``eps11,eps22[,eps12]``.
 
     Raises :class:`InputError` naming the file, line and problem for anything malformed.
     """
     path = Path(path)
-    try:
-        with open(path, newline="") as fh:
-            rows = list(csv.reader(fh))
-    except OSError as e:
-        raise InputError(f"cannot read strain path {str(path)!r}: {e.strerror}") from None
-    except UnicodeDecodeError:
-        raise InputError(f"strain path {str(path)!r} is not a text CSV file") from None
-    rows = [r for r in rows if any(c.strip() for c in r)]
+    rows = read_csv_rows(path, "strain path")
     if not rows:
         raise InputError(f"strain path {str(path)!r} is empty")
     header = [c.strip() for c in rows[0]]

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+from ..io import read_csv_rows
 from ..units import parse_pressure
 
 KINDS = ("drained", "undrained")
@@ -83,11 +83,7 @@ class Test:
         """A test from a CSV with header ``eps11,q[,eps_v][,p]`` (the columns of ``result.csv``:
         strains since the end of consolidation, stresses in Pa, compression positive)."""
         path = Path(path)
-        try:
-            with open(path, newline="") as fh:
-                rows = list(csv.reader(fh))
-        except OSError as e:
-            raise InputError(f"cannot read test file {path}: {e.strerror}") from None
+        rows = read_csv_rows(path, "test file")
         if not rows:
             raise InputError(f"{path}: empty file")
         header = [h.strip() for h in rows[0]]

@@ -88,11 +88,20 @@ def _figure(cal: Calibration, path: Path) -> None:
         if t.eps_v is not None:
             ax_v.plot(100 * t.eps11, 100 * t.eps_v, "o", ms=3, color=color)
         ax_v.plot(100 * t.eps11, 100 * ev[0], "-", color=color)
-    fitted = ", ".join(f"{n} = {v:.4g}" for n, v in cal.fitted.items())
-    fig.suptitle(f"{cal.method}: {fitted}", fontsize=9)
+    finish_figure(fig, ax_q, ax_v, f"{cal.method}: {fitted_text(cal)}", path)
+
+
+def fitted_text(cal: Calibration) -> str:
+    """``name = value, ...`` of the fitted parameters, for figure titles."""
+    return ", ".join(f"{n} = {v:.4g}" for n, v in cal.fitted.items())
+
+
+def finish_figure(fig, ax_q, ax_v, title: str, path: Path, legend_size: float = 7) -> None:
+    """Title, axis labels, legend and grid of a q / εv against ε11 figure, then save it."""
+    fig.suptitle(title, fontsize=9)
     ax_q.set(xlabel="ε11 [%]", ylabel="q [kPa]")
     ax_v.set(xlabel="ε11 [%]", ylabel="εv [%] (compression positive)")
-    ax_q.legend(fontsize=7)
+    ax_q.legend(fontsize=legend_size)
     for ax in (ax_q, ax_v):
         ax.grid(alpha=0.3)
     fig.tight_layout()
