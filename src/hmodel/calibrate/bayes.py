@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .model import Model, residual_kinds, residuals
+from .model import Model, eps_v_scales, residual_kinds, residuals
 from .space import Space
 
 #: A chain shorter than this many integrated autocorrelation times gives unreliable statistics.
@@ -49,8 +49,7 @@ def estimate_noise(model: Model, space: Space, z: np.ndarray) -> Noise:
     r = residuals(model.tests, pred, weighted=False)[0]
     kinds = residual_kinds(model.tests)
     q = float(np.sqrt(np.mean(r[kinds] ** 2)))
-    ev_scale = np.concatenate([np.full(len(t.eps11), t.eps_v_scale) for t in model.tests
-                               if t.eps_v is not None and t.kind == "drained"] or [np.zeros(0)])
+    ev_scale = eps_v_scales(model.tests)
     ev = float(np.sqrt(np.mean((r[~kinds] * ev_scale) ** 2))) if (~kinds).any() else 1.0
     return Noise(max(q, 1e-6), max(ev, 1e-9))
 
@@ -88,10 +87,8 @@ def sample(model: Model, space: Space, start: np.ndarray, noise: Noise, walkers:
     if steps < 10:
         raise InputError(f"give at least 10 steps, got {steps}")
     kinds = residual_kinds(model.tests)
-    ev_scale = np.concatenate([np.full(len(t.eps11), t.eps_v_scale) for t in model.tests
-                               if t.eps_v is not None and t.kind == "drained"] or [np.zeros(0)])
     sigma = np.where(kinds, noise.q, 0.0)
-    sigma[~kinds] = noise.eps_v / ev_scale  # εv noise in the residuals' scale
+    sigma[~kinds] = noise.eps_v / eps_v_scales(model.tests)  # εv noise in the residuals' scale
 
     def log_prob(Z: np.ndarray) -> np.ndarray:
         Z = np.atleast_2d(Z)

@@ -125,6 +125,12 @@ def has_eps_v(test: Test) -> bool:
     return test.eps_v is not None and test.kind == "drained"
 
 
+def eps_v_scales(tests: Sequence[Test]) -> np.ndarray:
+    """The scale of each εv residual of :func:`residuals` (its test's range of εv), in order."""
+    return np.concatenate([np.full(len(t.eps11), t.eps_v_scale) for t in tests if has_eps_v(t)]
+                          or [np.zeros(0)])
+
+
 def residual_kinds(tests: Sequence[Test]) -> np.ndarray:
     """Which residual of :func:`residuals` is a q (True) or an εv (False) one, (m,)."""
     parts = []

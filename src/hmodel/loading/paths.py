@@ -93,8 +93,7 @@ def run_segment(rev: Rev, state: RevState, seg: Segment, recorder: Recorder | No
             state = _increment_dropping(rev, state, Control(S, M, values), tangent, settings,
                                         failures)
         if recorder is not None and (k % record_every == 0 or k == seg.n_steps):
-            recorder.record(state, seg.stage, None if not failures else
-                            ~np.isin(np.arange(B), list(failures)))
+            recorder.record(state, seg.stage, _alive(B, failures))
         if progress is not None:
             progress(k / seg.n_steps)
     return state
@@ -102,6 +101,11 @@ def run_segment(rev: Rev, state: RevState, seg: Segment, recorder: Recorder | No
 
 #: Increments per call of the compiled kernel between progress reports.
 _CHUNK = 200
+
+
+def _alive(n: int, failures: dict | None) -> np.ndarray | None:
+    """Recorder mask (n,) of the points not dropped after a failure (None: none dropped)."""
+    return None if not failures else ~np.isin(np.arange(n), list(failures))
 
 
 def _increment_dropping(rev: Rev, state: RevState, control: Control, tangent: Tangent,
@@ -195,8 +199,7 @@ def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_S
     state = run_segment(rev, state, Segment((False, True, False), M, values, 1, "consolidation"),
                         failures=failures)
     if recorder is not None:
-        recorder.record(state, "consolidation", None if not failures else
-                        ~np.isin(np.arange(state.n_points), list(failures)))
+        recorder.record(state, "consolidation", _alive(state.n_points, failures))
     return state
 
 

@@ -147,12 +147,20 @@ class Rev:
                          for s, c in zip(self.sets, cell0)])
         #: initial macro volume of each set's points (K,)
         self.volumes0 = vol0 * self.weights.sum(axis=1)
-        self.volume0 = float(self.volumes0[0])
         kernels = [solver.kernel(s) for s in self.sets]
         #: the solver's compiled increment of each set (None: the loading drivers call
-        #: ``solver.step``); ``kernel`` is the first set's
+        #: ``solver.step``)
         self.kernels: tuple[CellKernel, ...] | None = None if kernels[0] is None else tuple(kernels)
-        self.kernel: CellKernel | None = kernels[0]
+
+    @property
+    def volume0(self) -> float:
+        """Initial macro volume of the first set's points."""
+        return float(self.volumes0[0])
+
+    @property
+    def kernel(self) -> CellKernel | None:
+        """The first set's compiled increment (None: the solver has none)."""
+        return None if self.kernels is None else self.kernels[0]
 
     @property
     def n_sets(self) -> int:
