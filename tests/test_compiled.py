@@ -107,3 +107,22 @@ def test_only_the_closed_form_solver_is_compiled():
     a = run_segment(rev_w, s0, SEGMENTS["drained"])
     b = run_segment(rev, s0, SEGMENTS["drained"])
     np.testing.assert_allclose(a.sig, b.sig, rtol=1e-7, atol=1e-7 * np.abs(b.sig).max())  # sig12 is roundoff
+
+
+def test_compiled_consolidation_equals_the_generic_loop():
+    """Per-point parameters and pressures: each point stops at its own p0 after its own number
+    of increments, in the kernel (all points at once) as in the batched Python loop."""
+    sets = [SMALL, SMALL.with_(kn=5e7, alpha0=np.radians(55)), SMALL.with_(phi_g=np.radians(20))]
+    rev = Rev(sets * 2)
+    p0 = [1e5, 2e5, 4e5, 4e5, 1e5, 2e5]
+    out = []
+    for compiled in (True, False):
+        rec = Recorder()
+        out.append((consolidate(rev, p0, step=1e-4, recorder=rec, compiled=compiled), rec.result()))
+    (sc, rc), (sg, rg) = out
+    np.testing.assert_allclose(sc.sig, sg.sig, rtol=1e-12, atol=1e-6)
+    np.testing.assert_allclose(sc.p, p0, rtol=1e-9)
+    assert np.array_equal(rc["point"], rg["point"]) and np.array_equal(rc["step"], rg["step"])
+    np.testing.assert_allclose(rc["eps11"], rg["eps11"], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(rc["q"], rg["q"], rtol=1e-12, atol=1e-6)
+    assert len(set(np.bincount(rc["point"]))) > 2  # the points did take different numbers of steps

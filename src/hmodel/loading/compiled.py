@@ -319,6 +319,29 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
     return NOT_CONVERGED
 
 
+@njit(cache=True, error_model="numpy")
+def _record(row, eps, sig, flags):
+    """A record row: eps (3), sig (3) and the cell fractions sliding, broken, contact14,
+    contact26 of one point's ``flags`` (n, 5)."""
+    n = flags.shape[0]
+    row[:3] = eps
+    row[3:6] = sig
+    slid = 0.0
+    brk = 0.0
+    c14 = 0.0
+    c26 = 0.0
+    for i in range(n):
+        f = flags[i]
+        slid += f[0]
+        brk += f[1] or f[2]
+        c14 += f[3]
+        c26 += f[4]
+    row[6] = slid / n
+    row[7] = brk / n
+    row[8] = c14 / n
+    row[9] = c26 / n
+
+
 def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin, k_end,
            geo, p, mode, volume0, c, max_events, rec, status, resp, guess, trials, sets, dropped):
     """Increments k_begin..k_end-1 (1-based k of n_steps) of a segment for B material points.
@@ -346,37 +369,93 @@ def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin
                     v[r] = start[b, r] + (end[b, r] - start[b, r]) * (k / n_steps)
                 else:
                     v[r] = end[b, r] / n_steps
-            status[b] = solve_point(values[b], flags[b], eps[b], sig[b], K[b], has_K[b:b + 1],
-                                    S, M, v, geo[sets[b]], p[sets[b]], mode, volume0[sets[b]],
-                                    c, max_events, buf, bufflags, resp[b], guess[b],
-                                    trials[b:b + 1])
-            row = rec[k - k_begin, b]
-            row[:3] = eps[b]
-            row[3:6] = sig[b]
-            slid = 0.0
-            brk = 0.0
-            c14 = 0.0
-            c26 = 0.0
-            for i in range(n):
-                f = flags[b, i]
-                slid += f[0]
-                brk += f[1] or f[2]
-                c14 += f[3]
-                c26 += f[4]
-            row[6] = slid / n
-            row[7] = brk / n
-            row[8] = c14 / n
-            row[9] = c26 / n
+            # The point's cells and parameters copied to arrays of this thread: views into the
+            # shared arrays, made per cell in the trials, would all count references on the
+            # shared arrays' one counter, which the threads would then take turns to update.
+            vals = values[b].copy()
+            flg = flags[b].copy()
+            status[b] = solve_point(vals, flg, eps[b], sig[b], K[b], has_K[b:b + 1],
+                                    S, M, v, geo[sets[b]].copy(), p[sets[b]].copy(), mode,
+                                    volume0[sets[b]], c, max_events, buf, bufflags, resp[b].copy(),
+                                    guess[b], trials[b:b + 1])
+            values[b] = vals
+            flags[b] = flg
+            _record(rec[k - k_begin, b], eps[b], sig[b], flags[b])
         for b in range(B):
             if status[b] != OK:
                 return k
     return k_end
 
 
+def _iso_steps(values, flags, eps, sig, geo, p, mode, volume0, sets, step, p0, rec, done, failed):
+    """Up to ``rec.shape[0]`` isotropic strain increments (step, step, 0) of every point not
+    ``done``, each committed while the mean stress stays below the point's ``p0``; the first
+    that would reach it is not, and marks the point ``done``. ``rec[j, b]`` receives the state
+    after the point's j-th committed increment (:func:`_record`), NaN where there is none.
+    A point whose cell increment fails is marked ``failed`` (and done), its state unchanged.
+    Closed-form cells only (a learned response would need its network between increments)."""
+    B, n = values.shape[0], values.shape[1]
+    for b in prange(B):
+        rec[:, b, :] = np.nan
+        if done[b]:
+            continue
+        vals = values[b].copy()  # thread-local copies, as in _steps
+        flg = flags[b].copy()
+        out = np.empty_like(vals)
+        oflags = np.empty_like(flg)
+        gk = geo[sets[b]].copy()
+        pk = p[sets[b]].copy()
+        resp = np.empty((n, 0))
+        x = np.array([step, step, 0.0])
+        e = eps[b].copy()
+        sg = sig[b].copy()
+        s = np.empty(3)
+        for j in range(rec.shape[0]):
+            if not trial(vals, e, x, gk, pk, mode, volume0[sets[b]], out, oflags, s, resp):
+                failed[b] = True
+                done[b] = True
+                break
+            if 0.5 * (s[0] + s[1]) >= p0[b]:
+                done[b] = True
+                break
+            vals[:] = out
+            flg[:] = oflags
+            e += x
+            sg[:] = s
+            _record(rec[j, b], e, sg, flg)
+        values[b] = vals
+        flags[b] = flg
+        eps[b] = e
+        sig[b] = sg
+
+
 #: :func:`_steps` on one core, and on all cores for batches of several points (a thread team
 #: per increment costs more than one point's increment saves when there is one point).
 _run_steps = njit(cache=True, error_model="numpy")(_steps)
 _run_steps_parallel = njit(cache=True, parallel=True, error_model="numpy")(_steps)
+_run_iso_steps = njit(cache=True, parallel=True, error_model="numpy")(_iso_steps)
+
+
+def isotropic_steps(rev: Rev, state: RevState, step: float, p0: np.ndarray, n_max: int,
+                    failed: np.ndarray) -> tuple[RevState, np.ndarray, np.ndarray]:
+    """Up to ``n_max`` isotropic strain increments of ``step`` of every point whose mean
+    stress is below its ``p0`` (B,), each stopping before the increment that would reach it
+    (the compiled form of the loop in :func:`hmodel.loading.paths.consolidate`).
+
+    Returns the new state, whether each point is done (reached p0 or failed; ``failed`` (B,)
+    is updated in place) and the records (n_max, B, 10) of the committed increments (NaN
+    where a point made none)."""
+    values = np.array(state.cells.values, dtype=float, order="C")
+    flags = np.array(state.flags.flags, dtype=np.bool_, order="C")
+    eps = np.array(state.eps, dtype=float, order="C")
+    sig = np.array(state.sig, dtype=float, order="C")
+    geo, p = batch_inputs(rev)
+    done = np.ascontiguousarray(state.p >= p0) | failed
+    rec = np.empty((n_max, state.n_points, 10))
+    _run_iso_steps(values, flags, eps, sig, geo, p, rev.mode, rev.volumes0,
+                   state.set_index.astype(np.int64), float(step), np.ascontiguousarray(p0, float),
+                   rec, done, failed)
+    return RevState(CellState(values), CellFlags(flags), eps, sig, state.sets), done, rec
 
 
 class CompiledSegment:

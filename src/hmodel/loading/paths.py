@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import InputError, SolverError
 from ..rev import Rev, RevState
-from .compiled import CompiledSegment, supports
+from .compiled import CompiledSegment, isotropic_steps, supports
 from .control import Control, Tangent, solve_increment
 from .newton import NewtonSettings
 from .result import Recorder
@@ -162,12 +162,14 @@ def _as_points(value, name: str) -> np.ndarray:
 
 def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_STEP,
                 recorder: Recorder | None = None, progress: Progress = None,
-                max_steps: int = 1_000_000, failures: dict | None = None) -> RevState:
+                max_steps: int = 1_000_000, failures: dict | None = None,
+                compiled: bool | None = None) -> RevState:
     """Isotropic compression: equal strain increments until the mean stress reaches ``p0``.
 
     Each material point b stops at its own ``p0[b]`` [Pa]; the last increment is solved
-    (mixed control on p, with deps11 = deps22) so that p = p0 exactly (``failures``: see
-    :func:`run_segment`).
+    (mixed control on p, with deps11 = deps22) so that p = p0 exactly (``failures`` and
+    ``compiled``: see :func:`run_segment`; the compiled form runs every point's increments in
+    one kernel call, closed-form cells only).
     """
     p0 = _as_points(p0, "p0")
     if np.any(p0 <= 0):
@@ -178,6 +180,57 @@ def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_S
     if len(p0) not in (1, state.n_points):
         raise InputError(f"{len(p0)} pressures for {state.n_points} material points")
     p0 = np.broadcast_to(p0, state.n_points).copy()  # one pressure for every parameter set
+    if compiled is None:
+        compiled = supports(rev) and not rev.kernel.learned
+    if compiled:
+        state = _consolidate_compiled(rev, state, p0, step, recorder, progress, max_steps, failures)
+    else:
+        state = _consolidate_generic(rev, state, p0, step, recorder, progress, max_steps)
+    M = np.array([[1.0, -1.0, 0.0], [0.5, 0.5, 0.0], [0.0, 0.0, 1.0]])
+    values = np.stack([np.zeros_like(p0), p0, np.zeros_like(p0)], axis=1)
+    # (a segment of one increment: compiled where the solver allows it)
+    state = run_segment(rev, state, Segment((False, True, False), M, values, 1, "consolidation"),
+                        failures=failures, compiled=None if compiled else False)
+    if recorder is not None:
+        recorder.record(state, "consolidation", _alive(state.n_points, failures))
+    return state
+
+
+def _consolidate_compiled(rev, state, p0, step, recorder, progress, max_steps, failures):
+    """The strain-controlled part of :func:`consolidate` in the compiled kernel, _CHUNK
+    increments per call; a point whose cell increment fails is dropped into ``failures``
+    (or, without, stops the run)."""
+    failed = np.zeros(state.n_points, dtype=np.bool_)
+    if failures:
+        failed[list(failures)] = True
+    n = 0
+    while True:
+        start = state
+        state, done, rec = isotropic_steps(rev, state, step, p0, _CHUNK, failed)
+        if recorder is not None:
+            recorder.record_block(rec[:, :, :3], rec[:, :, 3:6], rec[:, :, 6:], "consolidation")
+        n += _CHUNK
+        if progress is not None:
+            progress(float(np.clip(np.min(np.where(failed, 1.0, state.p / p0)), 0, 1)))
+        for b in np.flatnonzero(failed):
+            if failures is None:
+                raise SolverError(f"isotropic compression failed: a cell increment of material "
+                                  f"point {b} could not be solved at strain {start.eps[b].tolist()}")
+            failures.setdefault(int(b), f"isotropic compression failed: a cell increment could "
+                                        f"not be solved at strain {state.eps[b].tolist()}")
+        if done.all():
+            return state
+        if n >= max_steps:
+            _not_reached(state, max_steps)
+
+
+def _not_reached(state, max_steps):
+    raise SolverError(f"isotropic compression did not reach p0 within {max_steps} steps "
+                      f"(p = {state.p.tolist()} Pa at strain {state.eps[:, 0].tolist()})")
+
+
+def _consolidate_generic(rev, state, p0, step, recorder, progress, max_steps):
+    """The strain-controlled part of :func:`consolidate`, one batched REV step at a time."""
     active = state.p < p0
     inc = np.array([[step, step, 0.0]] * state.n_points)
     n = 0
@@ -191,15 +244,7 @@ def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_S
         if progress is not None:
             progress(float(np.clip(np.min(state.p / p0), 0, 1)))
         if n >= max_steps:
-            raise SolverError(f"isotropic compression did not reach p0 within {max_steps} steps "
-                              f"(p = {state.p.tolist()} Pa at strain {state.eps[:, 0].tolist()})")
-    M = np.array([[1.0, -1.0, 0.0], [0.5, 0.5, 0.0], [0.0, 0.0, 1.0]])
-    values = np.stack([np.zeros_like(p0), p0, np.zeros_like(p0)], axis=1)
-    # (a segment of one increment: compiled where the solver allows it)
-    state = run_segment(rev, state, Segment((False, True, False), M, values, 1, "consolidation"),
-                        failures=failures)
-    if recorder is not None:
-        recorder.record(state, "consolidation", _alive(state.n_points, failures))
+            _not_reached(state, max_steps)
     return state
 
 

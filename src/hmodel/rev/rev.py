@@ -150,7 +150,8 @@ class Rev:
         kernels = [solver.kernel(s) for s in self.sets]
         #: the solver's compiled increment of each set (None: the loading drivers call
         #: ``solver.step``)
-        self.kernels: tuple[CellKernel, ...] | None = None if kernels[0] is None else tuple(kernels)
+        self.kernels: tuple[CellKernel, ...] | None = (None if any(k is None for k in kernels)
+                                                          else tuple(kernels))
 
     @property
     def volume0(self) -> float:
