@@ -98,10 +98,53 @@ def plot_strain_path(result: PathResult, path: "str | os.PathLike") -> None:
     fig.savefig(path, dpi=150)
 
 
+def plot_program(result: PathResult, path: "str | os.PathLike") -> None:
+    """A loading program: the stress path (p, q), q against eps11 (the loops of cycles), the
+    excess pore pressure p0 − p of undrained stages by increment, and per cycle the least
+    p/p0 and the double-amplitude strain (or, without cycles, eps_v against eps11)."""
+    from .loading.program import cycle_summary
+
+    fig = Figure(figsize=(12, 8.4), layout="constrained")
+    (a, b), (c, d) = fig.subplots(2, 2)
+    r = result.point(0)
+    r = PathResult({k: v[r["stage"] != "consolidation"] for k, v in r.columns.items()}, r.meta)
+    a.plot(r["p"] / 1e3, r["q"] / 1e3, lw=0.8)
+    a.set(xlabel=r"$p=(\sigma_{11}+\sigma_{22})/2$ [kPa]", ylabel=r"$q=\sigma_{11}-\sigma_{22}$ [kPa]",
+          title="stress path")
+    b.plot(100 * r["eps11"], r["q"] / 1e3, lw=0.8)
+    b.set(xlabel=r"$\varepsilon_{11}$ [%]", ylabel="q [kPa]", title="q against axial strain")
+    p0 = (result.meta.get("p0") or [None])[0]
+    und = np.isin(r["stage"], result.meta.get("undrained_stages", []))
+    if p0 is not None and und.any():
+        c.plot(r["step"][und], (p0 - r["p"][und]) / 1e3, ".", ms=1.5)
+        c.set(xlabel="increment (row of result.csv)", ylabel=r"excess pore pressure $p_0-p$ [kPa]",
+              title="undrained stages")
+    else:
+        c.plot(r["step"], r["p"] / 1e3, lw=0.8)
+        c.set(xlabel="increment (row of result.csv)", ylabel="p [kPa]", title="mean stress")
+    cycles = cycle_summary(result)
+    if cycles:
+        n = [row["cycle"] for row in cycles]
+        d.plot(n, [row["p_min_over_p0"] for row in cycles], "o-", ms=3, label=r"least $p/p_0$")
+        d.plot(n, [100 * row["double_amplitude_eps11"] for row in cycles], "s-", ms=3,
+               label=r"double amplitude $\varepsilon_{11}$ [%]")
+        d.set(xlabel="cycle", title=f"{len(cycles)} cycles")
+        d.legend(frameon=False)
+    else:
+        d.plot(100 * r["eps11"], 100 * r["eps_v"], lw=0.8)
+        d.set(xlabel=r"$\varepsilon_{11}$ [%]", ylabel=r"$\varepsilon_v$ [%]", title="volumetric strain")
+    for ax in (a, b, c, d):
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"H-model, program {result.meta.get('program', '')}\n{_subtitle(result)}", fontsize=10)
+    fig.savefig(path, dpi=130)
+
+
 def plot_result(result: PathResult, path: "str | os.PathLike") -> None:
     """The figure that fits the result's test."""
     test = result.meta.get("test", "")
-    if "biaxial" in test:
+    if test == "program":
+        plot_program(result, path)
+    elif "biaxial" in test:
         plot_biaxial(result, path)
     elif test == "iso":
         plot_isotropic(result, path)

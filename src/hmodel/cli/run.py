@@ -1,4 +1,4 @@
-"""``hmodel run iso | biaxial | strain-path``: material-point tests to result.csv + result.png."""
+"""``hmodel run iso | biaxial | strain-path | program``: material-point tests to result.csv + result.png."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ import typer
 
 from ..errors import InputError
 from ..io import read_strain_path, write_outputs
-from ..loading import AXIAL_STEP, ISO_STEP, MAX_STRAIN_STEP, run_biaxial, run_isotropic, run_strain_path
+from ..loading import (AXIAL_STEP, ISO_STEP, MAX_STRAIN_STEP, Program, ProgramFailed, run_biaxial,
+                       run_isotropic, run_strain_path)
 from ..loading.result import PathResult
 from ..params import UNITS, Params, parse_point_assignments
 from ..plotting import plot_result
@@ -17,7 +18,7 @@ from ..solvers import get_solver
 from ..units import parse_pressures
 from .progress import LazyProgress
 
-app = typer.Typer(no_args_is_help=True, help="Run a loading path at the material point.")
+app = typer.Typer(no_args_is_help=True, help="Run a loading path or a loading program at the material point.")
 
 ParamOpt = Annotated[Optional[list[str]], typer.Option(
     "--param", "-p", metavar="NAME=VALUE",
@@ -103,3 +104,28 @@ def strain_path(path: Annotated[Path, typer.Argument(help="CSV with header eps11
     with LazyProgress("strain path") as progress:
         result = run_strain_path(params, eps, solver=get_solver(solver), max_step=max_step, progress=progress)
     _finish(result, out)
+
+
+@app.command("program")
+def program(path: Annotated[Path, typer.Argument(help="TOML file of stages (see docs/programs.md and examples/).")],
+            param: ParamOpt = None, out: OutOpt = Path("results/program"),
+            solver: SolverOpt = "closed-form",
+            keep_partial: Annotated[bool, typer.Option(
+                "--keep-partial", help="When an increment cannot be solved, still write every state "
+                                       "computed before it (exit status 1 all the same).")] = False) -> None:
+    """A loading program: stages of mixed stress/strain control, cycles, stopping criteria."""
+    prog = Program.from_toml(path)
+    params = prog.with_params(param)
+    with LazyProgress(f"program {prog.name}") as progress:
+        try:
+            result = prog.run(params, solver=get_solver(solver), progress=progress)
+        except ProgramFailed as e:
+            if keep_partial and len(e.result):
+                _finish(e.result, out)
+            raise
+    _finish(result, out)
+    for s in result.meta["stopped"]:
+        where = f"stage {s['stage']!r}" + (f", cycle {s['cycle']}" if s["cycle"] else "")
+        typer.echo(f"stopped {where}: " + (f"until {s['until']} met" if "until" in s else s["failure"]))
+    for name, n in result.meta["cycles"].items():
+        typer.echo(f"{name}: {n} cycle{'s' if n != 1 else ''}")

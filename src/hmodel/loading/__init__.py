@@ -5,10 +5,12 @@ from .newton import NewtonSettings
 from .paths import (AXIAL_STEP, ISO_STEP, MAX_STRAIN_STEP, Segment, biaxial, consolidate,
                     constant_p, oedometric, proportional, run_segment, strain_path)
 from .recipes import PathSpec, run_recipe, standard_paths
+from .program import Program, ProgramFailed
 from .result import COLUMNS, PathResult, Recorder
 from .runs import run_biaxial, run_isotropic, run_strain_path
 
 __all__ = ["Control", "Tangent", "NewtonSettings", "solve_increment", "Segment", "run_segment", "consolidate",
            "biaxial", "oedometric", "constant_p", "proportional", "strain_path", "PathResult",
            "Recorder", "COLUMNS", "run_biaxial", "run_isotropic", "run_strain_path",
-           "ISO_STEP", "AXIAL_STEP", "MAX_STRAIN_STEP", "PathSpec", "standard_paths", "run_recipe"]
+           "ISO_STEP", "AXIAL_STEP", "MAX_STRAIN_STEP", "PathSpec", "standard_paths", "run_recipe",
+           "Program", "ProgramFailed"]

@@ -501,6 +501,20 @@ class CompiledSegment:
         return RevState(CellState(self.values.copy()), CellFlags(self.flags.copy()),
                         self.eps.copy(), self.sig.copy(), self._sets)
 
+    # Copies of everything :meth:`run` changes, so that a caller can go back to a state between
+    # chunks and run the same increments again (a loading program stopping on a criterion
+    # re-runs the chunk that crossed it up to the crossing: same increments, same results).
+    _MUTABLE = ("values", "flags", "eps", "sig", "K", "has_K", "guess", "trials")
+
+    def snapshot(self) -> dict:
+        """Copies of the arrays that :meth:`run` changes (see :meth:`restore`)."""
+        return {a: getattr(self, a).copy() for a in self._MUTABLE}
+
+    def restore(self, snap: dict) -> None:
+        """Go back to the state of a :meth:`snapshot` (the arrays are copied in place)."""
+        for a in self._MUTABLE:
+            getattr(self, a)[...] = snap[a]
+
     def run(self, k_begin: int, k_end: int) -> np.ndarray:
         """Increments k_begin..k_end-1; returns their records (k_end - k_begin, B, 10)."""
         B = self.eps.shape[0]

@@ -57,8 +57,9 @@ class PathResult:
         tmp = path.with_name(path.name + ".part")
         with open(tmp, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(COLUMNS)
-            cols = [self.columns[c] for c in COLUMNS]
+            names = COLUMNS + tuple(c for c in self.columns if c not in COLUMNS)  # then any tags
+            w.writerow(names)
+            cols = [self.columns[c] for c in names]
             for row in zip(*cols):
                 w.writerow([v if isinstance(v, str) else repr(v.item()) for v in row])
         os.replace(tmp, path)
@@ -71,6 +72,9 @@ class Recorder:
         self._rows: list[dict[str, np.ndarray]] = []
         self._step: np.ndarray | None = None
         self.meta = dict(meta or {})
+        #: extra columns after :data:`COLUMNS`, with the value they take in the rows recorded
+        #: from now on (a loading program's ``cycle``); set before the first row is recorded
+        self.tags: dict[str, object] = {}
 
     def record(self, state: RevState, stage: str, mask: np.ndarray | None = None) -> None:
         """Append one row per material point (only those where ``mask`` is true)."""
@@ -105,12 +109,14 @@ class Recorder:
                "sig11": sig[:, 0], "sig22": sig[:, 1], "sig12": sig[:, 2],
                "p": p, "q": q, "eps_v": eps[:, 0] + eps[:, 1], "q_p": q_p}
         row.update({c: frac[:, j] for j, c in enumerate(FRACTIONS)})
+        row.update({c: np.full(len(steps), v) for c, v in self.tags.items()})
         self._rows.append(row)
 
     def result(self) -> PathResult:
         if not self._rows:
             cols = {c: np.array([]) for c in COLUMNS}
         else:
-            cols = {c: np.concatenate([r[c] for r in self._rows]) for c in COLUMNS}
+            names = COLUMNS + tuple(dict.fromkeys(c for r in self._rows for c in r if c not in COLUMNS))
+            cols = {c: np.concatenate([r[c] for r in self._rows]) for c in names}
         order = np.lexsort((cols["step"], cols["point"])) if len(cols["step"]) else slice(None)
         return PathResult({c: v[order] for c, v in cols.items()}, self.meta)

@@ -1,0 +1,136 @@
+"""Arithmetic and stopping criteria of loading programs, read without ``eval``.
+
+A program's stress targets (``q = "0.25 * p0"``) and stopping criteria
+(``until = "p <= 0.05 * p0"``) are tiny expressions over known names. Python's own parser
+(:mod:`ast`) reads them into a tree; only numbers, pressures with units (``150kPa``), known
+names, ``+ - * /``, unary minus, ``abs(...)`` and, for a criterion, one comparison are
+accepted, and the tree is evaluated by walking it: nothing of the text is ever executed.
+"""
+
+from __future__ import annotations
+
+import ast
+import operator
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+
+_BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
+           ast.Div: operator.truediv}
+_COMPARE = {ast.Lt: ("<", np.less), ast.LtE: ("<=", np.less_equal), ast.Gt: (">", np.greater),
+            ast.GtE: (">=", np.greater_equal)}
+_UNITS = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6, "GPa": 1e9}
+# "150kPa" -> "(150*kPa)": units become names, bound to their factors when evaluated
+_WITH_UNIT = re.compile(r"(\d(?:[\d.]*(?:[eE][-+]?\d+)?)?)\s*(Pa|kPa|MPa|GPa)\b")
+
+
+def _parse(text: str, what: str) -> ast.AST:
+    if not isinstance(text, str) or not text.strip():
+        raise InputError(f"{what} must be a non-empty text, got {text!r}")
+    try:
+        return ast.parse(_WITH_UNIT.sub(r"(\1*\2)", text.strip()), mode="eval").body
+    except SyntaxError:
+        raise InputError(f"{what} {text!r} is not an expression of numbers and known names") from None
+
+
+def _names(node: ast.AST, known: set[str], what: str, text: str) -> set[str]:
+    """The names ``node`` uses; every node must be of the accepted kinds."""
+    used = set()
+    for n in ast.walk(node):
+        if isinstance(n, ast.Call):
+            if not (isinstance(n.func, ast.Name) and n.func.id == "abs" and len(n.args) == 1
+                    and not n.keywords):
+                raise InputError(f"{what} {text!r}: only abs(x) may be called")
+        elif isinstance(n, ast.Name):
+            if n.id == "abs":  # the function of a checked call
+                continue
+            if n.id not in known and n.id not in _UNITS:
+                raise InputError(f"{what} {text!r}: unknown name {n.id!r} (known: "
+                                 f"{', '.join(sorted(known))})")
+            used.add(n.id)
+        elif isinstance(n, ast.Constant):
+            if isinstance(n.value, bool) or not isinstance(n.value, (int, float)):
+                raise InputError(f"{what} {text!r}: {n.value!r} is not a number")
+        elif isinstance(n, ast.BinOp):
+            if type(n.op) not in _BINARY:
+                raise InputError(f"{what} {text!r}: only + - * / are allowed")
+        elif isinstance(n, ast.UnaryOp):
+            if not isinstance(n.op, (ast.USub, ast.UAdd)):
+                raise InputError(f"{what} {text!r}: only unary minus is allowed")
+        elif not isinstance(n, (ast.Load, ast.operator, ast.unaryop, ast.cmpop, ast.Compare)):
+            raise InputError(f"{what} {text!r}: {type(n).__name__} is not allowed")
+    return used - set(_UNITS)
+
+
+def _value(node: ast.AST, env: Mapping[str, object]):
+    if isinstance(node, ast.Constant):
+        return float(node.value)
+    if isinstance(node, ast.Name):
+        return _UNITS[node.id] if node.id in _UNITS else env[node.id]
+    if isinstance(node, ast.UnaryOp):
+        v = _value(node.operand, env)
+        return -v if isinstance(node.op, ast.USub) else v
+    if isinstance(node, ast.BinOp):
+        return _BINARY[type(node.op)](_value(node.left, env), _value(node.right, env))
+    if isinstance(node, ast.Call):  # abs, checked by _names
+        return np.abs(_value(node.args[0], env))
+    raise AssertionError(type(node).__name__)  # excluded by _names
+
+
+@dataclass(frozen=True)
+class Expression:
+    """An arithmetic expression of numbers, pressures (``150kPa``) and known names."""
+
+    text: str
+    tree: ast.AST
+    names: frozenset[str]
+
+    @classmethod
+    def parse(cls, text: str, known, what: str = "expression") -> "Expression":
+        tree = _parse(text, what)
+        if isinstance(tree, ast.Compare):
+            raise InputError(f"{what} {text!r} must be a value, not a comparison")
+        return cls(text, tree, frozenset(_names(tree, set(known), what, text)))
+
+    def __call__(self, env: Mapping[str, object]):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return _value(self.tree, env)
+
+
+@dataclass(frozen=True)
+class Criterion:
+    """A stopping criterion ``left OP right`` (OP one of < <= > >=), at least one side using a
+    column of the result table; evaluated on arrays of rows, true where it is met."""
+
+    text: str
+    left: Expression
+    op: str
+    right: Expression
+
+    @classmethod
+    def parse(cls, text: str, columns, constants=(), what: str = "until") -> "Criterion":
+        tree = _parse(text, what)
+        if not (isinstance(tree, ast.Compare) and len(tree.ops) == 1 and type(tree.ops[0]) in _COMPARE):
+            raise InputError(f"{what} {text!r} must be one comparison 'column OP expression' with "
+                             f"OP among < <= > >=")
+        known = set(columns) | set(constants)
+        sides = []
+        for node in (tree.left, tree.comparators[0]):
+            sides.append(Expression(ast.unparse(node), node, frozenset(_names(node, known, what, text))))
+        if not (sides[0].names | sides[1].names) & set(columns):
+            raise InputError(f"{what} {text!r} compares no column of the result (columns: "
+                             f"{', '.join(columns)})")
+        return cls(text, sides[0], _COMPARE[type(tree.ops[0])][0], sides[1])
+
+    @property
+    def names(self) -> frozenset[str]:
+        return self.left.names | self.right.names
+
+    def __call__(self, env: Mapping[str, object]) -> np.ndarray:
+        fn = next(f for s, f in _COMPARE.values() if s == self.op)
+        with np.errstate(invalid="ignore"):
+            return np.asarray(fn(self.left(env), self.right(env)), bool)

@@ -1,0 +1,478 @@
+"""Loading programs: sequences of stages read from TOML (``hmodel run program``).
+
+A stage is one mixed-control segment (report §1.1.2): three constraint rows, each a strain
+change over the stage or a stress target reached linearly over its increments. Rows are named
+by what they control::
+
+    eps11 eps22 eps12 eps_v (= eps11 + eps22)     strain changes over the stage
+    sig11 sig22 sig12 p (= (sig11 + sig22)/2) q (= sig11 - sig22)   stress targets [Pa]
+
+A stress target is a number in Pa, a text with units or the pressure ``p0`` (``"150kPa"``,
+``"0.25 * p0"``) or ``"hold"`` (its value at the start of the stage). ``p0`` is the mean stress
+after the latest ``iso`` stage. A stage names its rows in ``control = {...}`` or takes a preset
+(``iso``, ``drained``, ``undrained``, ``oedometric``, ``constant_p``, ``proportional``) that
+fixes all rows but the one driving it. Stages may be repeated as cycles (``repeat = N`` of a
+list of ``stages``) and end early on a criterion (``until = "p <= 0.05 * p0"``), see
+``docs/programs.md``.
+
+A program runs one material point; ``result.csv`` gets the columns of every path plus
+``cycle`` (0 outside cycles), and ``stage`` holds the stage's name.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..cell import CellSolver
+from ..errors import InputError, SolverError
+from ..params import Params
+from ..rev import Rev, RevState
+from .control import Tangent
+from .expressions import Criterion, Expression
+from .paths import AXIAL_STEP, ISO_STEP, Segment, consolidate
+from .result import COLUMNS, PathResult, Recorder
+from .stepping import StageFailed, run_stage
+
+#: Named rows: (a stress row?, coefficients on (11, 22, 12)).
+ROWS = {"eps11": (False, (1, 0, 0)), "eps22": (False, (0, 1, 0)), "eps12": (False, (0, 0, 1)),
+        "eps_v": (False, (1, 1, 0)), "sig11": (True, (1, 0, 0)), "sig22": (True, (0, 1, 0)),
+        "sig12": (True, (0, 0, 1)), "p": (True, (0.5, 0.5, 0)), "q": (True, (1, -1, 0))}
+#: Components named by the single-component rows (a component controlled twice is an error).
+_COMPONENT = {"eps11": "11", "sig11": "11", "eps22": "22", "sig22": "22", "eps12": "12", "sig12": "12"}
+#: Columns a criterion may compare (those of the result table that are numbers).
+CRITERION_COLUMNS = tuple(c for c in COLUMNS if c not in ("point", "stage", "step"))
+#: Presets: the rows they fix (value, or "hold") and the rows one of which drives them.
+PRESETS = {
+    "drained": ({"sig22": "hold", "eps12": 0.0}, ("eps11", "q", "sig11")),
+    "undrained": ({"eps_v": 0.0, "eps12": 0.0}, ("eps11", "q")),
+    "oedometric": ({"eps22": 0.0, "eps12": 0.0}, ("eps11", "sig11")),
+    "constant_p": ({"p": "hold", "eps12": 0.0}, ("eps11", "q")),
+}
+_STAGE_KEYS = {"name", "preset", "control", "steps", "max_increment", "until", "stop_on_failure"}
+_BLOCK_KEYS = {"name", "repeat", "stages", "until", "stop_on_failure"}
+#: Increments of a stage whose strain rows do not move (a stress-controlled stage) by default.
+DEFAULT_STEPS = 100
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One segment: ``rows`` maps each of three row names (:data:`ROWS`) to a strain change, a
+    stress target (:class:`Expression` of ``p0``) or ``"hold"``; or, with ``iso`` set, an
+    isotropic consolidation to that pressure [Pa] in strain increments ``max_increment``."""
+
+    name: str
+    rows: Mapping[str, object] = field(default_factory=dict)
+    steps: int | None = None
+    max_increment: float | None = None
+    until: Criterion | None = None
+    iso: float | None = None
+    #: an increment that cannot be solved ends the program (recorded in ``meta["stopped"]``)
+    #: instead of failing it: flow under stress control, e.g. cyclic liquefaction
+    stop_on_failure: bool = False
+
+    def segment(self, state: RevState, p0: float | None) -> Segment:
+        """The :class:`Segment` of this stage from ``state`` (``p0``: for targets using it)."""
+        names = list(self.rows)
+        S = tuple(ROWS[n][0] for n in names)
+        M = np.array([ROWS[n][1] for n in names], float)
+        values = []
+        for n, (stress, row) in zip(names, (ROWS[n] for n in names)):
+            v = self.rows[n]
+            if v == "hold":
+                v = float(np.asarray(row) @ state.sig[0])
+            elif isinstance(v, Expression):
+                if "p0" in v.names and p0 is None:
+                    raise InputError(f"stage {self.name!r}: {n} = {v.text!r} uses p0, but no iso stage "
+                                     f"comes before it")
+                v = float(v({"p0": p0}))
+            values.append(float(v))
+        return Segment(S, M, np.array(values), self.n_steps(), self.name)
+
+    def n_steps(self) -> int:
+        """``steps``, or the largest strain change over ``max_increment`` (default
+        :data:`~hmodel.loading.paths.AXIAL_STEP`); :data:`DEFAULT_STEPS` when no strain row moves."""
+        if self.steps is not None:
+            return self.steps
+        change = max([abs(v) for n, v in self.rows.items() if not ROWS[n][0]] + [0.0])
+        if change == 0:
+            return DEFAULT_STEPS
+        return max(1, math.ceil(change / (self.max_increment or AXIAL_STEP) - 1e-9))
+
+
+@dataclass(frozen=True)
+class Block:
+    """``repeat`` cycles of ``stages``, ending early when ``until`` is met."""
+
+    name: str
+    stages: tuple[Stage, ...]
+    repeat: int = 1
+    until: Criterion | None = None
+    stop_on_failure: bool = False
+
+
+@dataclass(frozen=True)
+class Program:
+    """A loading program: blocks of stages (a single stage is a block of one, not a cycle)."""
+
+    name: str
+    blocks: tuple[Block, ...]
+    params: Mapping[str, str] = field(default_factory=dict)
+
+    # ------------------------------------------------------------------ reading
+
+    @classmethod
+    def from_toml(cls, path: "str | Path") -> "Program":
+        """Read a program file (see ``docs/programs.md``)."""
+        path = Path(path)
+        try:
+            data = tomllib.loads(path.read_text())
+        except OSError as e:
+            raise InputError(f"cannot read program {str(path)!r}: {e.strerror}") from None
+        except tomllib.TOMLDecodeError as e:
+            raise InputError(f"program {str(path)!r} is not valid TOML: {e}") from None
+        return cls.from_dict(data, default_name=path.stem)
+
+    @classmethod
+    def from_dict(cls, data: Mapping, default_name: str = "program") -> "Program":
+        """A program from the tables of a TOML file: ``name``, ``params`` and ``stage`` (a list)."""
+        _keys(data, {"name", "description", "params", "stage"}, "program")
+        stages = data.get("stage")
+        if not isinstance(stages, list) or not stages:
+            raise InputError("a program needs at least one [[stage]]")
+        params = data.get("params", {})
+        if not isinstance(params, Mapping):
+            raise InputError("[params] must be a table of parameter values")
+        blocks = []
+        for i, item in enumerate(stages, 1):
+            if not isinstance(item, Mapping):
+                raise InputError(f"stage {i} must be a table")
+            blocks.append(_block(item, i) if "stages" in item or "repeat" in item
+                          else Block(_label(item, i), (_stage(item, _label(item, i)),)))
+        return cls(str(data.get("name", default_name)), tuple(blocks),
+                   {str(k): str(v) for k, v in params.items()})
+
+    def with_params(self, assignments: Sequence[str] | None) -> Params:
+        """The program's ``[params]`` overridden by ``NAME=VALUE`` assignments (``-p``)."""
+        return Params.parse_assignments([f"{k}={v}" for k, v in self.params.items()]
+                                        + list(assignments or []))
+
+    @property
+    def n_increments(self) -> int:
+        """Increments of the whole program if no criterion ends anything early (iso stages
+        counted as one)."""
+        return sum(b.repeat * sum(1 if s.iso else s.n_steps() for s in b.stages) for b in self.blocks)
+
+    # ------------------------------------------------------------------ running
+
+    def run(self, params: Params, solver: CellSolver | None = None, progress=None,
+            chunk: Callable[[RevState, int], int] | None = None) -> PathResult:
+        """Run the program on one material point of ``params``; returns the table of every state.
+
+        ``meta["stopped"]`` lists the criteria that ended stages or cycles early (stage, cycle,
+        criterion). An increment that cannot be solved raises :class:`ProgramFailed`, whose
+        ``result`` holds every state before it. ``chunk``: see
+        :func:`~hmodel.loading.stepping.run_stage` (stability probes between chunks).
+        """
+        if not isinstance(params, Params):
+            raise InputError("a program runs one material point: give one parameter set")
+        rev = Rev(params, solver)
+        rec = Recorder({"test": "program", "program": self.name, "params": params.to_dict(),
+                        "solver": rev.solver.name, "stopped": [], "cycles": {},
+                        "undrained_stages": self.undrained_stages})
+        rec.tags["cycle"] = 0
+        run = _Run(rev, rec, progress, self.n_increments, chunk)
+        try:
+            for block in self.blocks:
+                run.block(block)
+        except _Stopped:
+            pass
+        except StageFailed as e:
+            rec.meta["p0"] = [run.p0] if run.p0 is not None else None
+            raise ProgramFailed(str(e), rec.result()) from None
+        rec.meta["p0"] = [run.p0] if run.p0 is not None else None
+        return rec.result()
+
+    @property
+    def undrained_stages(self) -> list[str]:
+        """Names of the stages at constant volume (an ``eps_v = 0`` row): their excess pore
+        pressure is p0 − p (the total mean stress stays p0 when the water carries the rest)."""
+        return sorted({s.name for b in self.blocks for s in b.stages if s.rows.get("eps_v") == 0.0})
+
+
+class ProgramFailed(SolverError):
+    """A program stopped on an increment it could not solve; ``result`` holds every state
+    computed before it."""
+
+    def __init__(self, message: str, result: PathResult):
+        super().__init__(message)
+        self.result = result
+
+
+class _Stopped(Exception):
+    """Ends a program on an unsolvable increment of a stage with ``stop_on_failure``."""
+
+
+class _Run:
+    """The running state of a program: REV state, p0, the recorder, progress."""
+
+    def __init__(self, rev, rec, progress, total, chunk):
+        self.rev, self.rec, self.progress, self.total, self.chunk = rev, rec, progress, max(total, 1), chunk
+        self.state = rev.initial(1)
+        self.p0: float | None = None
+        self.done = 0
+        self.tangent = Tangent()
+
+    def advance(self, n: int) -> None:
+        self.done += n
+        if self.progress is not None:
+            self.progress(min(1.0, self.done / self.total))
+
+    def block(self, block: Block) -> None:
+        self.block_name = block.name
+        cycles = block.repeat > 1 or block.until is not None
+        for c in range(1, block.repeat + 1):
+            self.rec.tags["cycle"] = c if cycles else 0
+            for stage in block.stages:
+                met = self.stage(stage, block.until, c if cycles else 0,
+                                 stage.stop_on_failure or block.stop_on_failure)
+                if met is not None and met is block.until:
+                    self.rec.meta["stopped"].append({"stage": stage.name, "cycle": c, "until": met.text})
+                    self.rec.meta["cycles"][block.name] = c
+                    return
+        if cycles:
+            self.rec.meta["cycles"][block.name] = block.repeat
+        self.rec.tags["cycle"] = 0
+
+    def stage(self, stage: Stage, block_until: Criterion | None, cycle: int, stop_on_failure: bool):
+        """Run one stage; returns the criterion that ended it early (None: ran through)."""
+        if stage.iso is not None:
+            self.state = consolidate(self.rev, [stage.iso], state=self.state,
+                                     step=stage.max_increment or ISO_STEP, recorder=self.rec)
+            self.p0 = float(self.state.p[0])
+            self.tangent = Tangent()
+            self.advance(1)
+            if self.chunk is not None:
+                self.chunk(self.state, 0)
+            return None
+        seg = stage.segment(self.state, self.p0)
+        seg = replace(seg, stage=stage.name)
+        criteria = [c for c in (stage.until, block_until) if c is not None]
+        env = {"p0": self.p0 if self.p0 is not None else float("nan")}
+        for c in criteria:
+            if "p0" in c.names and self.p0 is None:
+                raise InputError(f"stage {stage.name!r}: until {c.text!r} uses p0, but no iso stage "
+                                 f"comes before it")
+
+        def stop(cols):
+            hits = [c({**cols, **env}) for c in criteria]
+            return np.logical_or.reduce(hits) if hits else None
+
+        label = stage.name if not cycle else f"{stage.name} (cycle {cycle})"
+        try:
+            out = run_stage(self.rev, self.state, seg, self.rec, stop if criteria else None,
+                            self.chunk, self.advance, self.tangent)
+        except StageFailed as e:
+            rows = ", ".join(f"{n} = {v:.6g}" for n, v, s in zip(stage.rows, seg.values, seg.stress_rows) if s)
+            why = (f"increment {e.increment} of {seg.n_steps}: the targets ({rows or 'strain rows only'}) "
+                   f"cannot be reached: {e}")
+            if not stop_on_failure:
+                raise StageFailed(f"stage {label!r}, {why}", e.increment) from None
+            self.rec.meta["stopped"].append({"stage": stage.name, "cycle": cycle,
+                                             "increment": e.increment, "failure": why})
+            if cycle:
+                self.rec.meta["cycles"][self.block_name] = cycle
+            raise _Stopped() from None
+        self.state = out.state
+        if out.met is None:
+            return None
+        last = {k: np.atleast_1d(v) for k, v in _state_columns(self.state).items()}
+        met = next(c for c in criteria if c({**last, **env})[-1])
+        if met is stage.until:
+            self.rec.meta["stopped"].append({"stage": stage.name, "cycle": cycle, "until": met.text})
+        return met
+
+
+def _state_columns(state: RevState) -> dict[str, np.ndarray]:
+    fr = state.fractions()
+    p, q = state.p, state.q
+    return {"eps11": state.eps[:, 0], "eps22": state.eps[:, 1], "eps12": state.eps[:, 2],
+            "sig11": state.sig[:, 0], "sig22": state.sig[:, 1], "sig12": state.sig[:, 2], "p": p,
+            "q": q, "eps_v": state.eps_v, "q_p": np.where(p != 0, q / np.where(p != 0, p, 1), 0), **fr}
+
+
+# ---------------------------------------------------------------------- parsing helpers
+
+def _keys(table: Mapping, allowed: set[str], where: str) -> None:
+    unknown = sorted(set(table) - allowed)
+    if unknown:
+        raise InputError(f"{where}: unknown key {unknown[0]!r} (allowed: {', '.join(sorted(allowed))})")
+
+
+def _label(item: Mapping, i: int) -> str:
+    name = item.get("name", item.get("preset", f"stage {i}"))
+    return str(name) if name else f"stage {i}"
+
+
+def _positive_int(value, what: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise InputError(f"{what} must be a positive integer, got {value!r}")
+    return value
+
+
+def _criterion(text, where: str) -> Criterion | None:
+    if text is None:
+        return None
+    return Criterion.parse(text, CRITERION_COLUMNS, ("p0",), what=f"{where}: until")
+
+
+def _block(item: Mapping, i: int) -> Block:
+    name = _label(item, i)
+    where = f"stage {name!r}"
+    _keys(item, _BLOCK_KEYS, where)
+    repeat = _positive_int(item.get("repeat", 1), f"{where}: repeat (the cycle count)")
+    stages = item.get("stages")
+    if not isinstance(stages, list) or not stages or not all(isinstance(s, Mapping) for s in stages):
+        raise InputError(f"{where}: stages must be a non-empty list of stage tables")
+    parsed = []
+    for j, s in enumerate(stages, 1):
+        if "stages" in s or "repeat" in s:
+            raise InputError(f"{where}: cycles cannot be nested")
+        parsed.append(_stage(s, _label(s, j)))
+        if parsed[-1].iso is not None and repeat > 1:
+            raise InputError(f"{where}: an iso stage cannot be repeated")
+    return Block(name, tuple(parsed), repeat, _criterion(item.get("until"), where),
+                 _flag(item, "stop_on_failure", where))
+
+
+def _stage(item: Mapping, name: str) -> Stage:
+    where = f"stage {name!r}"
+    preset = item.get("preset")
+    steps = item.get("steps")
+    if steps is not None:
+        steps = _positive_int(steps, f"{where}: steps")
+    max_inc = item.get("max_increment")
+    if max_inc is not None and (isinstance(max_inc, bool) or not isinstance(max_inc, (int, float))
+                                or not (math.isfinite(max_inc) and max_inc > 0)):
+        raise InputError(f"{where}: max_increment must be a positive number, got {max_inc!r}")
+    if steps is not None and max_inc is not None:
+        raise InputError(f"{where}: give steps or max_increment, not both")
+    until = _criterion(item.get("until"), where)
+    common = dict(name=name, steps=steps, max_increment=max_inc, until=until,
+                  stop_on_failure=_flag(item, "stop_on_failure", where))
+    if preset is None:
+        _keys(item, _STAGE_KEYS, where)
+        control = item.get("control")
+        if not isinstance(control, Mapping):
+            raise InputError(f"{where}: needs a preset or a control table, e.g. control = "
+                             f"{{eps11 = 0.02, sig22 = \"hold\", eps12 = 0}}")
+        return Stage(rows=_rows(control, where), **common)
+    if preset == "iso":
+        _keys(item, {"name", "preset", "p", "max_increment"}, where)
+        return Stage(name=name, iso=_pressure(item.get("p"), f"{where}: p"), max_increment=max_inc)
+    if preset == "proportional":
+        _keys(item, (_STAGE_KEYS - {"control"}) | {"direction", "magnitude"}, where)
+        d = item.get("direction")
+        m = item.get("magnitude")
+        if not (isinstance(d, list) and len(d) == 3 and all(_number(x) for x in d) and any(d)):
+            raise InputError(f"{where}: direction must be 3 numbers (eps11, eps22, eps12), not all zero")
+        if not (_number(m) and m > 0):
+            raise InputError(f"{where}: magnitude must be a positive strain, got {m!r}")
+        d = np.asarray(d, float) * m / np.linalg.norm(d)
+        return Stage(rows=dict(zip(("eps11", "eps22", "eps12"), map(float, d))), **common)
+    if preset not in PRESETS:
+        raise InputError(f"{where}: unknown preset {preset!r} (presets: iso, "
+                         f"{', '.join(PRESETS)}, proportional)")
+    fixed, drivers = PRESETS[preset]
+    _keys(item, (_STAGE_KEYS - {"control"}) | set(fixed) | set(drivers), where)
+    given = [k for k in drivers if k in item]
+    if len(given) != 1:
+        raise InputError(f"{where}: preset {preset!r} is driven by exactly one of "
+                         f"{', '.join(drivers)}, got {', '.join(given) or 'none'}")
+    rows = {**fixed, **{k: item[k] for k in fixed if k in item}, given[0]: item[given[0]]}
+    return Stage(rows=_rows(rows, where), **common)
+
+
+def _flag(item: Mapping, key: str, where: str) -> bool:
+    value = item.get(key, False)
+    if not isinstance(value, bool):
+        raise InputError(f"{where}: {key} must be true or false, got {value!r}")
+    return value
+
+
+def _number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def _pressure(value, what: str) -> float:
+    if _number(value) and value > 0:
+        return float(value)
+    if isinstance(value, str):
+        v = Expression.parse(value, (), what)({})
+        if _number(v) and v > 0:
+            return float(v)
+    raise InputError(f"{what} must be a positive pressure (a number in Pa or e.g. \"200kPa\"), got {value!r}")
+
+
+def _rows(control: Mapping, where: str) -> dict[str, object]:
+    """Check the three rows of a control table and read their values."""
+    unknown = [k for k in control if k not in ROWS]
+    if unknown:
+        raise InputError(f"{where}: unknown component {unknown[0]!r} (components: {', '.join(ROWS)})")
+    seen: dict[str, str] = {}
+    for name in control:
+        comp = _COMPONENT.get(name)
+        if comp is not None:
+            if comp in seen:
+                raise InputError(f"{where}: component {comp} is controlled twice ({seen[comp]} and {name})")
+            seen[comp] = name
+    if "12" not in seen:
+        raise InputError(f"{where}: component 12 is not controlled (give eps12 or sig12)")
+    if len(control) != 3:
+        free = [c for c in ("11", "22") if c not in seen]
+        raise InputError(f"{where}: {len(control)} rows control the components; give exactly three "
+                         f"(components 11, 22, 12{'; not controlled: ' + ', '.join(free) if len(control) < 3 else ''})")
+    M = np.array([ROWS[n][1] for n in control], float)
+    if abs(np.linalg.det(M)) < 1e-12:
+        raise InputError(f"{where}: rows {', '.join(control)} do not fix every component "
+                         f"(they are linearly dependent)")
+    rows: dict[str, object] = {}
+    for name, value in control.items():
+        stress = ROWS[name][0]
+        if not stress:
+            if not _number(value):
+                raise InputError(f"{where}: {name} must be a strain change (a number), got {value!r}")
+            rows[name] = float(value)
+        elif value == "hold":
+            rows[name] = "hold"
+        elif _number(value):
+            rows[name] = float(value)
+        elif isinstance(value, str):
+            rows[name] = Expression.parse(value, ("p0",), f"{where}: {name}")
+        else:
+            raise InputError(f"{where}: {name} must be a stress target (Pa, \"150kPa\", \"0.3 * p0\" "
+                             f"or \"hold\"), got {value!r}")
+    return rows
+
+
+def cycle_summary(result: PathResult) -> list[dict]:
+    """Per cycle of a program's result: the least mean stress (and over p0), the largest
+    excess pore pressure p0 − p, and the double-amplitude axial strain (max − min of eps11
+    within the cycle), the usual measures of cyclic liquefaction."""
+    if "cycle" not in result.columns:
+        return []
+    p0 = (result.meta.get("p0") or [float("nan")])[0]
+    c = result["cycle"]
+    rows = []
+    for k in np.unique(c[c > 0]):
+        m = c == k
+        p = result["p"][m]
+        rows.append({"cycle": int(k), "p_min": float(p.min()), "p_min_over_p0": float(p.min() / p0),
+                     "excess_pore_pressure_max": float(p0 - p.min()),
+                     "double_amplitude_eps11": float(np.ptp(result["eps11"][m]))})
+    return rows
