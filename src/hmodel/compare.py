@@ -21,7 +21,7 @@ from matplotlib.figure import Figure
 
 from .cell import CellSolver
 from .loading import PathSpec, Recorder, run_recipe
-from .loading import standard_paths  # noqa: F401  (re-exported: the CLI, reproduce and tests)
+from .loading import standard_paths  # (also re-exported: the CLI, reproduce and tests)
 from .loading.result import PathResult
 from .params import Params
 from .rev import Rev
@@ -43,6 +43,27 @@ def run_path(params: Params, spec: PathSpec, solver: "str | CellSolver", step: f
         e.partial = rec.result()
         raise
     return rec.result(), time.perf_counter() - t
+
+
+def warm_up(params: Params, solvers: "list[str | CellSolver]", step: float, iso_step: float) -> dict:
+    """Run every comparison path once, shortened to two increments, with each solver; returns
+    the seconds each took (solver name -> s). The first run of a compiled kernel includes its
+    Numba compilation (tens of seconds on a fresh install); warmed up, the timed runs of
+    :func:`compare_path` measure the computation only. A failure here is left to the timed run
+    to report."""
+    from .errors import SolverError
+
+    seconds = {}
+    for solver in solvers:
+        solver = get_solver(solver)
+        t = time.perf_counter()
+        for spec in standard_paths(2 * step):
+            try:
+                run_path(params, spec, solver, step, max(iso_step, 1e-3))
+            except SolverError:
+                pass
+        seconds[solver.name] = time.perf_counter() - t
+    return seconds
 
 
 def compare_path(params: Params, spec: PathSpec, other: "str | CellSolver", step: float,

@@ -27,7 +27,7 @@ def compare(
 ) -> None:
     """Run every comparison path with both solvers: overlaid curves, deviations and timings."""
     from ..solvers import get_solver
-    from ..compare import compare_path, plot_overlay
+    from ..compare import compare_path, plot_overlay, warm_up
     from ..loading import standard_paths
 
     params = Params.parse_assignments(param)
@@ -44,6 +44,7 @@ def compare(
             raise InputError(f"{name} must lie in (0, 1), got {v}")
     other = get_solver(solver)
     rows, figures = [], {}
+    warm = warm_up(params, ["closed-form", other], step, iso_step)
     with LazyProgress("comparing") as progress:
         for i, spec in enumerate(specs):
             ref, res, devs, st = compare_path(params, spec, other, step, iso_step)
@@ -68,4 +69,6 @@ def compare(
         typer.echo(f"{r['path']:<14} p0 {r['p0_kPa']:>5.0f} kPa  q dev max {100 * r['q_max_dev_rel']:6.2f} % of peak, "
                    f"eps_v dev max {100 * r['eps_v_max_dev']:.3f} %  time {r['seconds_closed_form']:.2f} s vs "
                    f"{r[f'seconds_{other.name}']:.2f} s")
+    typer.echo("times after a warm-up run of every path (Numba compilation on a fresh install): "
+               + ", ".join(f"{name} {s:.2f} s" for name, s in warm.items()))
     typer.echo(f"wrote {out / 'deviations.csv'} and {len(figures)} figures")
