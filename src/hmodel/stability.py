@@ -20,7 +20,7 @@ q on an undrained path, the peak of σ11 on a drained one).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
@@ -179,87 +179,190 @@ def first_sign_change(x: np.ndarray, values: np.ndarray, persist: int = 5) -> fl
     ``persist`` skips the isolated negative increments of single cell events (a contact
     opening is a small stress drop), which are not a loss of controllability of the sample."""
     v = np.asarray(values, float)
-    pos = np.flatnonzero(v > 0)
-    if not len(pos):
+    i = _first_persistent(v, persist)
+    if i is None:
         return float("nan")
-    cand = [i for i in np.flatnonzero((v <= 0) & (np.arange(len(v)) > pos[0]))
-            if np.all(v[i:i + persist] <= 0)]
-    if not cand:
-        return float("nan")
-    i = cand[0]
     x0, x1, v0, v1 = x[i - 1], x[i], v[i - 1], v[i]
     return float(x0 + (x1 - x0) * v0 / (v0 - v1)) if v0 != v1 else float(x1)
 
 
+#: Probes at every state (not every k-th) once the least normalized d²W seen, over the probes
+#: or the loading increments, falls below this: the critical region.
+NEAR = 0.25
+
+
 @dataclass
 class PathStability:
-    """Stability along a biaxial path: the path table, the loading increments' d²W, the probe
-    minimum at checkpoints, envelopes at requested strains, and the located points."""
+    """Stability along a path (a biaxial test or a loading program): the path table, the
+    loading increments' d²W, the probe minimum at the probed states, envelopes at requested
+    strains, and the located points.
+
+    ``shear_strain`` and the located points are axial strains since consolidation (eps11
+    minus its value there); ``*_step`` give the same points as rows (``step``) of the table,
+    unambiguous on cyclic paths."""
 
     result: "object"            # PathResult of the whole path
-    shear_strain: np.ndarray    # axial strain since consolidation, per shear row
-    loading_w: np.ndarray       # normalized d²W of each shear increment
+    shear_strain: np.ndarray    # axial strain since consolidation, per row after it
+    loading_w: np.ndarray       # normalized d²W of each increment after consolidation
     check_strain: np.ndarray    # axial strain of each probed state
     check_min_w: np.ndarray     # min over probe directions of normalized d²W there
     envelopes: dict             # axial strain -> (strain Envelope, stress Envelope)
-    bifurcation: float          # first probed strain with some d²W <= 0 (NaN: none)
-    controllability: float      # first strain where the loading increment's d²W <= 0
+    bifurcation: float          # first state with some d²W <= 0, probes or loading (NaN: none)
+    controllability: float      # first strain where the loading increment's d²W <= 0 and stays
+    check_step: np.ndarray = field(default_factory=lambda: np.empty(0, int))
+    check_magnitude: np.ndarray = field(default_factory=lambda: np.empty(0))
+    bifurcation_step: float = float("nan")
+    controllability_step: float = float("nan")
+    bifurcation_by: str = ""    # "probes" or "loading increment"
 
 
 def along_biaxial(params, p0: float, axial_strain: float, undrained: bool = False,
-                  every: int = 10, n_probes: int = 72, magnitude: float = 1e-5,
+                  every: int = 10, n_probes: int = 72, magnitude: float | None = None,
                   at: tuple[float, ...] = (), step: float | None = None,
-                  stress_magnitude: float = 1e-3, shear: bool = False, progress=None) -> PathStability:
-    """Drained or undrained biaxial test from p0 with strain probes at every ``every``-th
-    increment and full envelopes (strain probes of ``magnitude``, stress probes of
-    ``stress_magnitude``·p) at the axial strains ``at``; ``shear`` probes ε12 too."""
-    from .loading import AXIAL_STEP, Recorder, consolidate, run_segment
-    from .loading.paths import biaxial_segment
+                  stress_magnitude: float = 1e-3, shear: bool = False, progress=None,
+                  loading_probe: bool = True, near: float = NEAR) -> PathStability:
+    """Drained or undrained biaxial test from p0 with strain probes (see :func:`along_program`)
+    and full envelopes (strain probes, stress probes of ``stress_magnitude``·p) at the axial
+    strains ``at``; ``shear`` probes ε12 too."""
+    from .loading import AXIAL_STEP, Program
 
-    _check(n_probes, magnitude)
     step = step or AXIAL_STEP
-    if not (isinstance(every, (int, np.integer)) and every >= 1):
-        raise InputError(f"--every must be a positive integer, got {every!r}")
     if not (math.isfinite(axial_strain) and 0 < axial_strain < 1):
         raise InputError(f"axial strain must lie in (0, 1), got {axial_strain}")
     bad = [a for a in at if not 0 < a <= axial_strain]
     if bad:
         raise InputError(f"--at strains must lie on the path, in (0, {axial_strain}], got {bad}")
     n = max(1, math.ceil(axial_strain / step - 1e-9))
+    shear_stage = {"name": "shear", "preset": "undrained" if undrained else "drained",
+                   "eps11": axial_strain, "steps": n}
+    if not undrained:
+        shear_stage["sig22"] = float(p0)
+    program = Program.from_dict({"name": "undrained biaxial" if undrained else "drained biaxial",
+                                 "stage": [{"preset": "iso", "p": float(p0)}, shear_stage]})
     at_steps = {max(1, round(a / step)): a for a in at}
-    checks = sorted(set(range(every, n + 1, every)) | set(at_steps) | {n})
-    rev = Rev(params)
-    rec = Recorder({"test": "undrained biaxial" if undrained else "drained biaxial", "p0": p0})
-    state = consolidate(rev, [p0], recorder=rec)
-    e0 = float(state.eps[0, 0])
-    tangent = Tangent()
-    done, cs, cw, envs = 0, [], [], {}
-    for i, k in enumerate(checks):
-        d = (k - done) * axial_strain / n
-        seg = biaxial_segment(state, d, k - done, undrained, np.array([p0]))
-        state = run_segment(rev, state, seg, rec, tangent=tangent)
-        done = k
-        env = strain_envelope(rev, state, n_probes, magnitude, shear)
-        cs.append(state.eps[0, 0] - e0)
-        cw.append(env.min_normalized)
-        if k in at_steps:
-            envs[at_steps[k]] = (env, stress_envelope(rev, state, n_probes, stress_magnitude))
+    return along_program(program, params, every, n_probes, magnitude, shear=shear,
+                         progress=progress, loading_probe=loading_probe, near=near,
+                         at_steps=at_steps, stress_magnitude=stress_magnitude)
+
+
+def along_program(program, params, every: int = 10, n_probes: int = 72,
+                  magnitude: float | None = None, shear: bool = False, progress=None,
+                  loading_probe: bool = True, near: float = NEAR, at_steps: dict | None = None,
+                  stress_magnitude: float = 1e-3, solver=None) -> PathStability:
+    """Second-order work along a loading program (:class:`hmodel.loading.Program`).
+
+    Strain probes (``n_probes`` directions) at every ``every``-th increment, and at every
+    increment from when the least normalized d²W seen (probes or loading increments) is below
+    ``near`` until the probes find some d²W ≤ 0. ``magnitude``: the probes' strain norm; None ties it to the loading increment
+    (the norm of the path's last strain increment), so that a probe can trigger the same finite
+    cell events (a contact opening, a cell starting to slide) as the loading does. With
+    ``loading_probe``, each loading increment also counts as a probe from the state it starts
+    from: the loading direction is itself a direction of the bifurcation domain's definition,
+    so the domain is never found after the loss of controllability. ``at_steps`` maps
+    increments of the stage named ``shear`` to labels (axial strains) where full envelopes are
+    drawn.
+    """
+    from .loading import ProgramFailed
+
+    _check(n_probes, magnitude if magnitude is not None else 1.0)
+    if not (isinstance(every, (int, np.integer)) and every >= 1):
+        raise InputError(f"--every must be a positive integer, got {every!r}")
+    at_steps = dict(at_steps or {})
+    rev = Rev(params, solver)
+    seen = {"min": 1.0, "k": None, "eps": None, "sig": None, "mag": None, "entered": False}
+    probed: dict[tuple, tuple[float, float]] = {}
+    envs: dict = {}
+    stage_at: dict = {}
+
+    def chunk(state: RevState, k: int) -> int:
+        e = state.eps[0]
+        if seen["k"] is not None and 1 < k and k > seen["k"]:  # same stage: the mean increment
+            de = (e - seen["eps"]) / (k - seen["k"])
+            m = float(tensor_norm(de))
+            seen["mag"] = m if m > 0 else seen["mag"]
+            w = second_order_work(de, state.sig[0] - seen["sig"])[1]
+            if np.isfinite(w):  # the loading increments' own d²W tells of the region too
+                seen["min"] = min(seen["min"], float(w))
+        mag = magnitude or seen["mag"] or DEFAULT_MAGNITUDE
+        key = tuple(e)
+        if key not in probed:
+            env = strain_envelope(rev, state, n_probes, mag, shear)
+            probed[key] = (env.min_normalized, mag)
+            seen["min"] = min(seen["min"], env.min_normalized)
+            seen["entered"] |= env.min_normalized <= 0
+        if k - 1 in at_steps and at_steps[k - 1] not in envs:
+            envs[at_steps[k - 1]] = (strain_envelope(rev, state, n_probes, mag, shear),
+                                     stress_envelope(rev, state, n_probes, stress_magnitude))
+        seen["k"], seen["eps"], seen["sig"] = k, e.copy(), state.sig[0].copy()
+        # every state between the approach of the domain and its entry by the probes
+        size = 1 if seen["min"] < near and not seen["entered"] else every
+        later = [s - (k - 1) for s in at_steps if s > k - 1]
+        return min([size] + later)
+
+    def watch(fraction: float) -> None:
         if progress is not None:
-            progress((i + 1) / len(checks))
-    res = rec.result()
-    sh = res.stage("shear")
-    cons = res.stage("consolidation")
-    eps = np.column_stack([sh["eps11"], sh["eps22"], sh["eps12"]])
-    sig = np.column_stack([sh["sig11"], sh["sig22"], sh["sig12"]])
-    eps = np.vstack([[cons["eps11"][-1], cons["eps22"][-1], cons["eps12"][-1]], eps])
-    sig = np.vstack([[cons["sig11"][-1], cons["sig22"][-1], cons["sig12"][-1]], sig])
-    _, lw = loading_work(eps, sig)
-    x = sh["eps11"] - e0
-    cs, cw = np.array(cs), np.array(cw)
-    first = np.flatnonzero(cw <= 0)
-    return PathStability(res, x, lw, cs, cw, envs,
-                         float(cs[first[0]]) if len(first) else float("nan"),
-                         first_sign_change(x, lw))
+            progress(fraction)
+
+    try:
+        res = program.run(params, solver=solver, progress=watch, chunk=chunk)
+    except ProgramFailed as e:
+        res = e.result
+    return _located(res, probed, envs, loading_probe)
+
+
+#: Probe magnitude before the path has made an increment (the consolidated state).
+DEFAULT_MAGNITUDE = 1e-5
+
+
+def _located(res, probed: dict, envs: dict, loading_probe: bool) -> PathStability:
+    """Locate the entry into the bifurcation domain and the loss of controllability on a path."""
+    cons = res["stage"] == "consolidation"
+    first = int(np.flatnonzero(~cons)[0]) if (~cons).any() else len(res)
+    start = max(first - 1, 0)  # the consolidated state, then every state after it
+    eps = np.column_stack([res["eps11"], res["eps22"], res["eps12"]])[start:]
+    sig = np.column_stack([res["sig11"], res["sig22"], res["sig12"]])[start:]
+    steps = res["step"][start:]
+    _, lw = loading_work(eps, sig)  # lw[i]: increment from row i to row i + 1
+    e0 = eps[0, 0]
+    x = eps[1:, 0] - e0
+    # min normalized d²W over the probes from each state (NaN: not probed)
+    rowmin = np.full(len(eps), np.nan)
+    rowmag = np.full(len(eps), np.nan)
+    index = {tuple(r): i for i, r in enumerate(eps)}
+    for key, (w, m) in probed.items():
+        i = index.get(key)
+        if i is not None:
+            rowmin[i], rowmag[i] = w, m
+    checked = np.flatnonzero(np.isfinite(rowmin))
+    by_probe = np.flatnonzero(rowmin <= 0)
+    by_load = np.flatnonzero(lw <= 0) if loading_probe else np.empty(0, int)
+    candidates = [(int(by_probe[0]), "probes")] if len(by_probe) else []
+    if len(by_load):
+        candidates.append((int(by_load[0]), "loading increment"))  # a probe from its start row
+    entry, by = min(candidates) if candidates else (None, "")
+    xs = np.r_[0.0, x]
+    lost = first_sign_change(x, lw)
+    lost_step = float("nan")
+    if math.isfinite(lost):
+        i = _first_persistent(lw)
+        lost_step = float(steps[i + 1]) if i is not None else float("nan")
+    return PathStability(
+        res, x, lw, xs[checked], rowmin[checked], envs,
+        float(xs[entry]) if entry is not None else float("nan"), lost,
+        steps[checked], rowmag[checked],
+        float(steps[entry]) if entry is not None else float("nan"), lost_step, by)
+
+
+def _first_persistent(values: np.ndarray, persist: int = 5) -> int | None:
+    """Index of the increment where :func:`first_sign_change` locates the sign change."""
+    v = np.asarray(values, float)
+    pos = np.flatnonzero(v > 0)
+    if not len(pos):
+        return None
+    for i in np.flatnonzero((v <= 0) & (np.arange(len(v)) > pos[0])):
+        if np.all(v[i:i + persist] <= 0):
+            return int(i)
+    return None
 
 
 def plot_envelopes(envelopes: dict, path, title: str) -> None:
@@ -296,26 +399,34 @@ def plot_envelopes(envelopes: dict, path, title: str) -> None:
 
 def plot_path(ps: PathStability, path, title: str) -> None:
     """Normalized d²W of the loading increments and its minimum over probes along the path,
-    with the entry into the bifurcation domain and the loss of controllability marked."""
+    with the entry into the bifurcation domain and the loss of controllability marked; against
+    the axial strain since consolidation, or the row of the table where it goes back (cycles)."""
     from matplotlib.figure import Figure
 
-    sh = ps.result.stage("shear")
+    r = ps.result
+    sh = {k: v[r["stage"] != "consolidation"] for k, v in r.columns.items()}
+    monotonic = bool(np.all(np.diff(ps.shear_strain) >= 0))
+    if monotonic:
+        x, xc, xb, xl = (100 * ps.shear_strain, 100 * ps.check_strain, 100 * ps.bifurcation,
+                         100 * ps.controllability)
+        label = "axial strain since consolidation [%]"
+    else:
+        x, xc, xb, xl = sh["step"], ps.check_step, ps.bifurcation_step, ps.controllability_step
+        label = "row of the result table (step)"
     fig = Figure(figsize=(12, 4.5), layout="constrained")
     a, b = fig.subplots(1, 2)
-    x = 100 * ps.shear_strain
     a.plot(x, sh["q"] / 1e3, label="q")
     a.plot(x, sh["sig11"] / 1e3, label="σ11")
-    a.set(xlabel="axial strain since consolidation [%]", ylabel="stress [kPa]")
+    a.set(xlabel=label, ylabel="stress [kPa]")
     b.plot(x, ps.loading_w, lw=1, label="loading increment")
-    b.plot(100 * ps.check_strain, ps.check_min_w, "o-", ms=3, label="minimum over probes")
+    b.plot(xc, ps.check_min_w, "o-", ms=3, label="minimum over probes")
     b.axhline(0, color="k", lw=0.8)
     for ax in (a, b):
-        if math.isfinite(ps.bifurcation):
-            ax.axvline(100 * ps.bifurcation, color="tab:orange", ls="--", label="bifurcation domain")
-        if math.isfinite(ps.controllability):
-            ax.axvline(100 * ps.controllability, color="tab:red", ls=":", label="loss of controllability")
-    b.set(xlabel="axial strain since consolidation [%]", ylabel="normalized d²W = dσ:dε / (|dσ||dε|)",
-          ylim=(-1.05, 1.05))
+        if math.isfinite(xb):
+            ax.axvline(xb, color="tab:orange", ls="--", label=f"bifurcation domain ({ps.bifurcation_by})")
+        if math.isfinite(xl):
+            ax.axvline(xl, color="tab:red", ls=":", label="loss of controllability")
+    b.set(xlabel=label, ylabel="normalized d²W = dσ:dε / (|dσ||dε|)", ylim=(-1.05, 1.05))
     a.legend(fontsize=8)
     b.legend(fontsize=8)
     fig.suptitle(title)

@@ -25,19 +25,34 @@ def stability(
     at: Annotated[Optional[str], typer.Option(help="Axial strains (comma-separated) where full "
                                                    "envelopes are drawn.")] = None,
     probes: Annotated[int, typer.Option(help="Probe directions per state.")] = 72,
-    magnitude: Annotated[float, typer.Option(help="Strain-probe magnitude (tensor norm).")] = 1e-5,
+    magnitude: Annotated[Optional[float], typer.Option(
+        help="Strain-probe magnitude (tensor norm); default: the norm of the path's strain "
+             "increment, so that probes trigger the cell events the loading does.")] = None,
+    loading_probe: Annotated[bool, typer.Option(
+        "--loading-probe/--no-loading-probe",
+        help="Count each loading increment as a probe from the state it starts from.")] = True,
+    program: Annotated[Optional[Path], typer.Option(
+        "--program", help="A loading program (TOML, see docs/programs.md) instead of the biaxial "
+                          "test; --p0, --axial-strain, --undrained and --at do not apply.")] = None,
     stress_magnitude: Annotated[float, typer.Option(help="Stress-probe magnitude, relative to p.")] = 1e-3,
     shear: Annotated[bool, typer.Option("--shear", help="Strain probes in (ε11, ε22, ε12) space, "
                                                          "not only the (ε11, ε22) plane.")] = False,
-    every: Annotated[int, typer.Option(help="Probe every k-th increment of the path.")] = 10,
+    every: Annotated[int, typer.Option(help="Probe every k-th increment of the path (every "
+                                             "increment near the bifurcation domain).")] = 10,
     out: Annotated[Path, typer.Option("--out", "-o", help="Folder for CSV tables and PNG figures.")] = Path("results/stability"),
 ) -> None:
     """Where the material can stop sustaining load: d²W of the loading increments, its minimum
     over probe directions at every k-th state, envelopes at --at, the bifurcation-domain entry
     and the loss of controllability."""
-    from ..stability import along_biaxial, plot_envelopes, plot_path
+    from ..loading import Program
+    from ..stability import along_biaxial, along_program, plot_envelopes, plot_path
 
-    params = Params.parse_assignments(param)
+    if magnitude is not None and not (math.isfinite(magnitude) and magnitude > 0):
+        raise InputError(f"--magnitude must be positive, got {magnitude}")
+    prog = Program.from_toml(program) if program is not None else None
+    if prog is not None and at:
+        raise InputError("--at applies to the biaxial test, not to --program")
+    params = prog.with_params(param) if prog is not None else Params.parse_assignments(param)
     pressure = parse_pressure(p0)
     try:
         at_strains = tuple(float(a) for a in at.split(",") if a.strip()) if at else ()
@@ -46,25 +61,32 @@ def stability(
     if not (math.isfinite(stress_magnitude) and stress_magnitude > 0):
         raise InputError(f"--stress-magnitude must be positive, got {stress_magnitude}")
     with LazyProgress("probing") as progress:
-        ps = along_biaxial(params, pressure, axial_strain, undrained, every, probes, magnitude,
-                           at_strains, stress_magnitude=stress_magnitude, shear=shear,
-                           progress=progress)
+        if prog is not None:
+            ps = along_program(prog, params, every, probes, magnitude, shear=shear,
+                               progress=progress, loading_probe=loading_probe)
+        else:
+            ps = along_biaxial(params, pressure, axial_strain, undrained, every, probes, magnitude,
+                               at_strains, stress_magnitude=stress_magnitude, shear=shear,
+                               progress=progress, loading_probe=loading_probe)
     test = "undrained" if undrained else "drained"
 
     def write_path(p: Path) -> None:
-        sh = ps.result.stage("shear")
+        sh = ps.result
+        sh = type(sh)({k: v[sh["stage"] != "consolidation"] for k, v in sh.columns.items()}, sh.meta)
         with open(p, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["axial_strain", "eps11", "eps22", "sig11", "sig22", "q", "p", "d2W_loading_normalized"])
+            w.writerow(["step", "stage", "axial_strain", "eps11", "eps22", "sig11", "sig22", "q", "p",
+                        "d2W_loading_normalized"])
             for i in range(len(ps.shear_strain)):
-                w.writerow([ps.shear_strain[i], sh["eps11"][i], sh["eps22"][i], sh["sig11"][i],
-                            sh["sig22"][i], sh["q"][i], sh["p"][i], ps.loading_w[i]])
+                w.writerow([sh["step"][i], sh["stage"][i], ps.shear_strain[i], sh["eps11"][i],
+                            sh["eps22"][i], sh["sig11"][i], sh["sig22"][i], sh["q"][i], sh["p"][i],
+                            ps.loading_w[i]])
 
     def write_checks(p: Path) -> None:
         with open(p, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["axial_strain", "min_d2W_normalized"])
-            w.writerows(zip(ps.check_strain, ps.check_min_w))
+            w.writerow(["step", "axial_strain", "probe_magnitude", "min_d2W_normalized"])
+            w.writerows(zip(ps.check_step, ps.check_strain, ps.check_magnitude, ps.check_min_w))
 
     def write_envelopes(p: Path) -> None:
         with open(p, "w", newline="") as fh:
@@ -78,10 +100,12 @@ def stability(
                                     env.normalized[k]])
 
     def write_summary(p: Path) -> None:
-        p.write_text("quantity,axial_strain\n"
-                     f"bifurcation_domain_entry,{ps.bifurcation}\nloss_of_controllability,{ps.controllability}\n")
+        p.write_text("quantity,axial_strain,step,found_by\n"
+                     f"bifurcation_domain_entry,{ps.bifurcation},{ps.bifurcation_step},{ps.bifurcation_by}\n"
+                     f"loss_of_controllability,{ps.controllability},{ps.controllability_step},loading increments\n")
 
-    title = f"{test} biaxial, p0 = {pressure / 1e3:g} kPa"
+    title = (f"program {prog.name}" if prog is not None
+             else f"{test} biaxial, p0 = {pressure / 1e3:g} kPa")
     files = {"path.csv": write_path, "probes.csv": write_checks, "summary.csv": write_summary,
              "d2W-path.png": lambda p: plot_path(ps, p, title)}
     if ps.envelopes:
@@ -89,5 +113,8 @@ def stability(
         files["envelopes.png"] = lambda p: plot_envelopes(ps.envelopes, p, title)
     write_outputs(out, files)
     fmt = lambda v: "none" if not math.isfinite(v) else f"{100 * v:.3f} %"  # noqa: E731
-    typer.echo(f"bifurcation domain entered at axial strain {fmt(ps.bifurcation)}; "
-               f"loss of controllability at {fmt(ps.controllability)}; wrote {out}")
+    step = lambda v: "" if not math.isfinite(v) else f" (row {v:.0f})"  # noqa: E731
+    by = f", by the {ps.bifurcation_by}" if ps.bifurcation_by else ""
+    typer.echo(f"bifurcation domain entered at axial strain {fmt(ps.bifurcation)}{step(ps.bifurcation_step)}"
+               f"{by}; loss of controllability at {fmt(ps.controllability)}"
+               f"{step(ps.controllability_step)}; wrote {out}")

@@ -112,7 +112,8 @@ def run_stage(rev: Rev, state: RevState, seg: Segment, recorder: Recorder,
     for each row whether a criterion is met (or None: never); the stage ends on the first such
     state (``StageOutcome.met`` is what ``stop`` returned there, its row's truth value).
     ``chunk(state, k)``, when given, is asked before increment k for the number of increments
-    to run before it is asked again (a stability analysis probes the state between chunks).
+    to run before it is asked again (a stability analysis probes the state between chunks), and
+    shown the last state with k = n_steps + 1 (where a criterion ends the stage, it is not).
     ``progress(n)`` is told of every n increments done. Raises :class:`StageFailed`.
     """
     S = np.array(seg.stress_rows)
@@ -152,6 +153,8 @@ def run_stage(rev: Rev, state: RevState, seg: Segment, recorder: Recorder,
         if progress is not None:
             progress(k_end - k)
         k = k_end
+    if chunk is not None:  # the stage's last state, shown too (what it asks for is not used)
+        chunk(runner.state(), seg.n_steps + 1)
     return StageOutcome(runner.state(), seg.n_steps)
 
 
