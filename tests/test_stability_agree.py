@@ -77,3 +77,19 @@ def test_stability_of_a_cyclic_program(tmp_path, capsys):
     assert summary[0] == "quantity,axial_strain,step,found_by" and len(summary) == 3
     assert main(["stability", "--program", str(f), "--at", "0.01", "--out", str(tmp_path / "x")]) == 1
     assert "hmodel: error:" in capsys.readouterr().err and not (tmp_path / "x").exists()
+
+
+def test_flow_under_q_control_is_a_loss_of_controllability_found_after_the_entry():
+    """Loose, undrained q cycles beyond the extension strength: the q target of an increment
+    cannot be carried (flow). That unsolvable increment is the loss of controllability under
+    the program's control; probes find the domain at or before its last converged state."""
+    prog = Program.from_dict({"params": {"n_theta": 36, "alpha0": 60}, "stage": [
+        {"preset": "iso", "p": "200kPa"},
+        {"name": "cyc", "repeat": 3, "stop_on_failure": True, "stages": [
+            {"name": "up", "preset": "undrained", "q": "0.7 * p0", "steps": 50},
+            {"name": "down", "preset": "undrained", "q": "-0.7 * p0", "steps": 50}]}]})
+    ps = along_program(prog, prog.with_params([]), n_probes=36)
+    assert ps.result.meta["stopped"] and "failure" in ps.result.meta["stopped"][0]
+    assert ps.controllability_by == "unsolvable increment"
+    assert ps.controllability_step == ps.result["step"][-1]
+    assert ps.bifurcation_step <= ps.controllability_step

@@ -214,6 +214,7 @@ class PathStability:
     bifurcation_step: float = float("nan")
     controllability_step: float = float("nan")
     bifurcation_by: str = ""    # "probes" or "loading increment"
+    controllability_by: str = "loading increments"  # or "unsolvable increment" (a program's end)
 
 
 def along_biaxial(params, p0: float, axial_strain: float, undrained: bool = False,
@@ -307,7 +308,15 @@ def along_program(program, params, every: int = 10, n_probes: int = 72,
         res = program.run(params, solver=solver, progress=watch, chunk=chunk)
     except ProgramFailed as e:
         res = e.result
-    return _located(res, probed, envs, loading_probe)
+    ps = _located(res, probed, envs, loading_probe)
+    failed = [s for s in res.meta.get("stopped", []) if "failure" in s]
+    if failed and not math.isfinite(ps.controllability_step) and len(res):
+        # no strain increment carries the next targets: controllability under the stage's own
+        # control is lost there, after the last converged state (its row and strain)
+        ps.controllability_step = float(res["step"][-1])
+        ps.controllability = float(ps.shear_strain[-1]) if len(ps.shear_strain) else float("nan")
+        ps.controllability_by = "unsolvable increment"
+    return ps
 
 
 #: Probe magnitude before the path has made an increment (the consolidated state).

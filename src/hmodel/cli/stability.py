@@ -102,7 +102,7 @@ def stability(
     def write_summary(p: Path) -> None:
         p.write_text("quantity,axial_strain,step,found_by\n"
                      f"bifurcation_domain_entry,{ps.bifurcation},{ps.bifurcation_step},{ps.bifurcation_by}\n"
-                     f"loss_of_controllability,{ps.controllability},{ps.controllability_step},loading increments\n")
+                     f"loss_of_controllability,{ps.controllability},{ps.controllability_step},{ps.controllability_by}\n")
 
     title = (f"program {prog.name}" if prog is not None
              else f"{test} biaxial, p0 = {pressure / 1e3:g} kPa")

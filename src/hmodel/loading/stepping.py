@@ -113,7 +113,8 @@ def run_stage(rev: Rev, state: RevState, seg: Segment, recorder: Recorder,
     state (``StageOutcome.met`` is what ``stop`` returned there, its row's truth value).
     ``chunk(state, k)``, when given, is asked before increment k for the number of increments
     to run before it is asked again (a stability analysis probes the state between chunks), and
-    shown the last state with k = n_steps + 1 (where a criterion ends the stage, it is not).
+    shown the last state with k = n_steps + 1 (where a criterion ends the stage, it is not); in
+    a chunk that fails, it is shown every state before the failing increment.
     ``progress(n)`` is told of every n increments done. Raises :class:`StageFailed`.
     """
     S = np.array(seg.stress_rows)
@@ -136,7 +137,7 @@ def run_stage(rev: Rev, state: RevState, seg: Segment, recorder: Recorder,
             rec = runner.run(k, k_end)
         except SolverError:
             runner.restore(snap)
-            _one_by_one(runner, k, k_end, recorder, seg.stage)  # raises at the failing increment
+            _one_by_one(runner, k, k_end, recorder, seg.stage, chunk)  # raises where it fails
             raise AssertionError("a failed chunk ran through one increment at a time") from None
         met = stop(row_values(rec[:, 0])) if stop is not None else None
         hit = np.flatnonzero(met) if met is not None else np.empty(0, int)
@@ -162,9 +163,13 @@ def _record(recorder: Recorder, rec: np.ndarray, stage: str) -> None:
     recorder.record_block(rec[:, :, :3], rec[:, :, 3:6], rec[:, :, 6:], stage)
 
 
-def _one_by_one(runner, k_begin: int, k_end: int, recorder: Recorder, stage: str) -> None:
-    """Increments k_begin..k_end-1 one at a time, each recorded, until the one that fails."""
+def _one_by_one(runner, k_begin: int, k_end: int, recorder: Recorder, stage: str, chunk=None) -> None:
+    """Increments k_begin..k_end-1 one at a time, each recorded, until the one that fails;
+    ``chunk`` (see :func:`run_stage`) is shown every state before it, the last converged one
+    included (where a stability analysis matters most)."""
     for k in range(k_begin, k_end):
+        if chunk is not None and k > k_begin:
+            chunk(runner.state(), k)
         try:
             rec = runner.run(k, k + 1)
         except SolverError as e:
