@@ -1,0 +1,66 @@
+"""Internal forces and tangent stiffness from Gauss-point stresses and tangents (scikit-fem).
+
+Sign and axis conventions. The finite-element fields are the usual ones: displacement
+u = (u_x, u_y), strain e = sym(grad u) and stress s, tension positive. hmodel's material
+points (like the report, eqs. 1.1-1.21) use soil mechanics' signs, compression positive, and
+tensor components (11, 22, 12) with axis 1 the axial direction. Axis 1 is the vertical y
+(the loading direction of the biaxial test and of the footing), axis 2 the horizontal x, so
+
+    eps_hm = (-e_yy, -e_xx, -e_xy),    s_yy = -sig_hm[0], s_xx = -sig_hm[1], s_xy = -sig_hm[2].
+
+eps12 is the tensor component (half the engineering shear strain) in both. The two sign flips
+cancel in the tangent: with D = d sig_hm / d eps_hm (B, 3, 3) in hmodel's order, the
+finite-element tangent in the order (yy, xx, xy) is the same D. The cell directions theta are
+measured from axis 1 (vertical), which matters only for an anisotropic fabric (beta_omega).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from skfem import Basis, BilinearForm, LinearForm, asm
+
+
+def strain_hm(basis: Basis, u: np.ndarray) -> np.ndarray:
+    """Strain of the displacement field ``u`` at every Gauss point (B, 3), hmodel's
+    convention (compression positive, (11, 22, 12) = (-yy, -xx, -xy))."""
+    g = basis.interpolate(u).grad  # (2, 2, nelems, nqp): g[i, j] = du_i/dx_j
+    return -np.stack([g[1, 1].ravel(), g[0, 0].ravel(), 0.5 * (g[0, 1] + g[1, 0]).ravel()], axis=1)
+
+
+def _fields(basis: Basis, arr: np.ndarray) -> np.ndarray:
+    """A Gauss-point array (B,) as scikit-fem's (nelems, nqp) field."""
+    return np.ascontiguousarray(arr).reshape(basis.nelems, -1)
+
+
+@LinearForm
+def _internal(v, w):
+    # e(v) : s with s = -sig_hm mapped to (yy, xx, xy)
+    return -(v.grad[1][1] * w.s11 + v.grad[0][0] * w.s22 + (v.grad[0][1] + v.grad[1][0]) * w.s12)
+
+
+def internal_force(basis: Basis, sig_hm: np.ndarray) -> np.ndarray:
+    """Nodal internal forces f = int B^T s dV (N,) of Gauss-point stresses (B, 3) [N per m of
+    thickness, plane strain]."""
+    return asm(_internal, basis, s11=_fields(basis, sig_hm[:, 0]), s22=_fields(basis, sig_hm[:, 1]),
+               s12=_fields(basis, sig_hm[:, 2]))
+
+
+@BilinearForm
+def _tangent(u, v, w):
+    a = (u.grad[1][1], u.grad[0][0], 0.5 * (u.grad[0][1] + u.grad[1][0]))
+    b = (v.grad[1][1], v.grad[0][0], 0.5 * (v.grad[0][1] + v.grad[1][0]))
+    D = w.D
+    ds = [D[i][0] * a[0] + D[i][1] * a[1] + D[i][2] * a[2] for i in range(3)]
+    return b[0] * ds[0] + b[1] * ds[1] + 2.0 * b[2] * ds[2]
+
+
+def stiffness(basis: Basis, D: np.ndarray):
+    """Tangent stiffness K = int B^T D B dV (sparse N x N) of Gauss-point tangents D (B, 3, 3)
+    in hmodel's order; not symmetric when D is not (non-associated sliding)."""
+    Dw = np.ascontiguousarray(np.moveaxis(D, 0, -1)).reshape(3, 3, basis.nelems, -1)
+    return asm(_tangent, basis, D=Dw)
+
+
+def volume_average(dx: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Volume average over the Gauss points (weights ``dx`` (B,)) of values (B, ...)."""
+    return np.tensordot(dx, values, axes=(0, 0)) / dx.sum()

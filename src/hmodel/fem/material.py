@@ -1,0 +1,125 @@
+"""Material laws at the Gauss points: the batched H-model REV, and linear elasticity (tests).
+
+A law answers one question, the stress after a strain increment from its committed state and
+the consistent tangent there, for all Gauss points at once (:meth:`trial`); :meth:`commit`
+makes a trial the new committed state once the global Newton has converged. Strains, stresses
+and tangents use hmodel's convention (:mod:`hmodel.fem.assembly`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..loading import consolidate
+from ..rev import Rev, RevState
+
+#: Finite-difference strain perturbation of the tangent. The stress of one increment is
+#: piecewise smooth in the increment (a cell's regime changes at a kink); a perturbation far
+#: below the load step's strain (1e-4 .. 1e-3) keeps the tangent on the trial's own branch,
+#: and at stresses ~1e5 Pa and stiffnesses ~1e8 Pa it still moves the stress by ~1 Pa, nine
+#: orders above round-off.
+FD_STEP = 1e-8
+
+
+@dataclass
+class Trial:
+    """Response of every Gauss point to strain increments ``deps`` (B, 3): stress (B, 3),
+    tangent (B, 3, 3) and the REV state (None for laws without one)."""
+
+    deps: np.ndarray
+    sig: np.ndarray
+    D: np.ndarray
+    state: RevState | None = None
+
+
+class HModelMaterial:
+    """Every Gauss point a material point of one batched :class:`~hmodel.rev.Rev`.
+
+    Parameters
+    ----------
+    rev : Rev
+        Its parameter sets (one, or one per zone: an imperfection is a zone of other parameters).
+    sets : ndarray (B,) int
+        Each Gauss point's parameter set.
+    p0 : float
+        Isotropic consolidation pressure [Pa] (:func:`hmodel.loading.consolidate`, each set once:
+        all points of a set start in the same state).
+    """
+
+    def __init__(self, rev: Rev, sets: np.ndarray, p0: float):
+        self.rev = rev
+        sets = np.asarray(sets, np.int64)
+        if sets.min() < 0 or sets.max() >= rev.n_sets:
+            raise InputError(f"Gauss-point parameter sets must lie in [0, {rev.n_sets})")
+        start = consolidate(rev, [p0], state=rev.initial(rev.n_sets))
+        self.state = start.select(sets if rev.n_sets > 1 else np.zeros(len(sets), np.int64))
+        self._tiled = None
+
+    @property
+    def n_points(self) -> int:
+        return self.state.n_points
+
+    @property
+    def sig(self) -> np.ndarray:
+        return self.state.sig
+
+    def trial(self, deps: np.ndarray) -> Trial:
+        """Stress and finite-difference tangent after ``deps`` (B, 3) from the committed state:
+        one batched REV call of 4B points (the increment and its three perturbations)."""
+        B = self.n_points
+        if self._tiled is None:  # the committed state four times over, once per load step
+            self._tiled = self.state.select(np.tile(np.arange(B), 4))
+        d = np.tile(deps, (4, 1))
+        for j in range(3):
+            d[(j + 1) * B:(j + 2) * B, j] += FD_STEP
+        out = self.rev.step(self._tiled, d)
+        sig = out.sig[:B]
+        D = np.stack([(out.sig[(j + 1) * B:(j + 2) * B] - sig) / FD_STEP for j in range(3)], axis=-1)
+        return Trial(deps, sig, D, out.select(slice(0, B)))
+
+    def commit(self, trial: Trial) -> None:
+        self.state = trial.state
+        self._tiled = None
+
+    def checkpoint(self) -> RevState:
+        return self.state
+
+    def restore(self, state: RevState) -> None:
+        self.state = state
+        self._tiled = None
+
+    def fractions(self) -> dict[str, np.ndarray]:
+        """Fractions of sliding and open cells per Gauss point (B,)."""
+        return self.state.fractions()
+
+
+class LinearElastic:
+    """Isotropic linear elasticity (plane strain) with Lamé constants: the patch test's law."""
+
+    def __init__(self, n_points: int, lam: float, mu: float, sig0: np.ndarray | None = None):
+        self.D = np.array([[lam + 2 * mu, lam, 0.0], [lam, lam + 2 * mu, 0.0], [0.0, 0.0, 2 * mu]])
+        self.sig0 = np.zeros((n_points, 3)) if sig0 is None else np.array(sig0, float)
+        self.eps = np.zeros((n_points, 3))
+
+    @property
+    def n_points(self) -> int:
+        return self.eps.shape[0]
+
+    @property
+    def sig(self) -> np.ndarray:
+        return self.sig0 + self.eps @ self.D.T
+
+    def trial(self, deps: np.ndarray) -> Trial:
+        return Trial(deps, self.sig0 + (self.eps + deps) @ self.D.T, np.broadcast_to(self.D, (len(deps), 3, 3)))
+
+    def commit(self, trial: Trial) -> None:
+        self.eps = self.eps + trial.deps
+
+    def checkpoint(self) -> np.ndarray:
+        return self.eps
+
+    def restore(self, eps: np.ndarray) -> None:
+        self.eps = eps

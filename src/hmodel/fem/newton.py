@@ -1,0 +1,200 @@
+"""Global Newton-Raphson on the nodal displacements, and load stepping with step cutting.
+
+A load step moves the load factor from lambda to lambda + d_lambda: the prescribed
+displacements (platens, footing, walls) move by d_lambda times their full increment ``g``;
+dead loads ``f_ext`` (the confining tractions) stay constant. Newton solves
+f_int(u) = f_ext on the free degrees of freedom with the consistent tangent of the material
+law; each iteration is one batched material call for all Gauss points. A step converges when
+the residual norm on the free dofs is below ``rtol`` times the reference force (the norm of the
+internal forces of the committed state, which is the confining pressure times the mesh size:
+non-zero from the first step on).
+
+Cell events. With ``sliding_rhs="report"`` a cell that starts sliding with T1 < 0 loses its
+contact at once (docs/model.md), a jump of the stress. When equilibrium lies inside such a jump
+no displacement meets it and Newton cycles across it. As the material-point driver does
+(docs/loading.md, "Cell events"), a step whose Newton has not converged after ``event_after``
+iterations commits its trial in which the most cells broke (the event happens: the
+prescribed displacements are met, the free nodes are out of balance) and restores equilibrium
+from there with no further load, at most ``max_events`` times per step.
+
+A step that does not converge (too many iterations, a diverging residual, or a material point
+that refuses its increment) is cut in half, up to ``max_cuts`` times; after a converged cut
+the step grows back towards the nominal one. A step that still fails ends the run: the
+caller keeps every converged step and the reason.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from skfem import Basis, condense, solve
+
+from ..errors import HModelError
+from .assembly import internal_force, stiffness, strain_hm
+from .material import Trial
+
+
+@dataclass(frozen=True)
+class NewtonSettings:
+    """``rtol``: residual tolerance relative to the reference force; ``max_iter`` per step;
+    ``max_cuts``: halvings of a failing step before the run stops."""
+
+    rtol: float = 1e-8
+    max_iter: int = 20
+    max_cuts: int = 6
+    event_after: int = 8
+    max_events: int = 6
+
+
+@dataclass
+class Problem:
+    """A discretized boundary-value problem: ``basis``; the material law at its Gauss points;
+    the prescribed dofs ``fixed`` and their increments per unit load factor ``g`` (N,);
+    the dead loads ``f_ext`` (N,)."""
+
+    basis: Basis
+    material: object
+    fixed: np.ndarray
+    g: np.ndarray
+    f_ext: np.ndarray
+    free: np.ndarray = field(init=False)
+
+    def __post_init__(self):
+        mask = np.ones(self.basis.N, bool)
+        mask[self.fixed] = False
+        self.free = np.flatnonzero(mask)
+
+
+@dataclass
+class StepResult:
+    """A converged step: displacement increment (N,), the material trial, internal forces
+    (N,), the residual norms of each iteration (relative), and the load-factor increment."""
+
+    du: np.ndarray
+    trial: Trial
+    f_int: np.ndarray
+    residuals: list
+    d_lambda: float
+    event: bool = False  # an event state out of balance: commit it, then restore equilibrium
+
+    @property
+    def iterations(self) -> int:
+        return len(self.residuals) - 1
+
+
+class NotConverged(Exception):
+    """A load step that Newton could not converge (the reason in the message)."""
+
+
+def _broken(obj) -> int:
+    """Number of open cells of all Gauss points of a material or trial (0 without cells)."""
+    state = getattr(obj, "state", None)
+    return 0 if state is None else int(state.flags.broken.sum())
+
+
+def newton_step(pb: Problem, d_lambda: float, guess: np.ndarray | None,
+                settings: NewtonSettings, scale: float, events_left: int = 0) -> StepResult:
+    """Solve one load step from the committed state; raises :class:`NotConverged`. With
+    ``events_left``, a stalled Newton may return an event state (:class:`StepResult.event`)."""
+    du = np.zeros(pb.basis.N) if guess is None else guess.copy()
+    du[pb.fixed] = d_lambda * pb.g[pb.fixed]
+    residuals, trials = [], []
+    broken0 = _broken(pb.material)
+    for it in range(settings.max_iter + 1):
+        try:
+            trial = pb.material.trial(strain_hm(pb.basis, du))
+        except HModelError as e:
+            why = " ".join(str(e).split())
+            raise NotConverged("a material point refused its increment ("
+                               + (why if len(why) < 200 else why[:200] + "...") + ")") from None
+        f_int = internal_force(pb.basis, trial.sig)
+        r = f_int - pb.f_ext
+        res = float(np.linalg.norm(r[pb.free])) / scale
+        residuals.append(res)
+        if not np.isfinite(res):
+            raise NotConverged("non-finite residual")
+        if res <= settings.rtol:
+            return StepResult(du, trial, f_int, residuals, d_lambda)
+        if len(residuals) > 3 and res > 1e3 * residuals[0]:
+            raise NotConverged(f"Newton diverged (relative residual {res:.2e})")
+        trials.append((_broken(trial), du, trial, f_int, res))
+        if it == settings.event_after and events_left > 0:
+            most = max(trials, key=lambda t: t[0])
+            if most[0] > broken0:
+                return StepResult(most[1], most[2], most[3], residuals[:trials.index(most) + 1],
+                                  d_lambda, event=True)
+        K = stiffness(pb.basis, trial.D)
+        du = du + solve(*condense(K, -r, D=pb.fixed))
+    raise NotConverged(f"Newton did not converge in {settings.max_iter} iterations "
+                       f"(relative residual {residuals[-1]:.2e}, last ones "
+                       + ", ".join(f"{x:.1e}" for x in residuals[-3:]) + ")")
+
+
+@dataclass
+class Stepping:
+    """Outcome of :func:`run_steps`: the number of converged steps and, when the run stopped
+    early, why (None: the full load was applied)."""
+
+    n_steps: int
+    stopped: str | None
+
+
+def run_steps(pb: Problem, n_steps: int, on_step: Callable[[StepResult, float], None],
+              settings: NewtonSettings = NewtonSettings(),
+              where: Callable[[float], str] = lambda lam: f"load factor {lam:.4g}") -> Stepping:
+    """Apply the load in ``n_steps`` nominal steps, cutting failing ones; ``on_step(step,
+    lambda)`` after each converged step (its state committed). ``where(lambda)`` describes a
+    load level for the stop message."""
+    nominal = 1.0 / n_steps
+    smallest = nominal / 2 ** settings.max_cuts
+    lam, d_lam, done = 0.0, nominal, 0
+    prev = None
+    while lam < 1.0 - 1e-12:
+        d_lam = min(d_lam, 1.0 - lam)
+        while True:
+            guess = None if prev is None else prev.du * (d_lam / prev.d_lambda)
+            try:
+                step = _step_with_events(pb, d_lam, guess, settings)
+                break
+            except NotConverged as e:
+                if d_lam <= smallest * (1 + 1e-9):
+                    return Stepping(done, f"step {done + 1} did not converge at {where(lam)} "
+                                          f"with the step cut {settings.max_cuts} times (to "
+                                          f"{d_lam / nominal:.3g} of the nominal one): {e}")
+                d_lam = max(d_lam / 2, smallest)
+        lam += step.d_lambda
+        done += 1
+        prev = step
+        on_step(step, lam)
+        if step.iterations <= settings.max_iter // 2:  # grow back after a cut
+            d_lam = min(nominal, 2 * d_lam)
+    return Stepping(done, None)
+
+
+def _scale(pb: Problem) -> float:
+    """Reference force: the norm of the committed state's internal forces."""
+    return max(float(np.linalg.norm(internal_force(pb.basis, pb.material.sig))), 1e-300)
+
+
+def _step_with_events(pb: Problem, d_lam: float, guess, settings: NewtonSettings) -> StepResult:
+    """One load step, committed on success, with the event fallback; on failure the material
+    is back in its state at the start of the step."""
+    start = pb.material.checkpoint()
+    scale = _scale(pb)
+    step = newton_step(pb, d_lam, guess, settings, scale, settings.max_events)
+    du, residuals = step.du, list(step.residuals)
+    events = 0
+    while step.event:
+        events += 1
+        pb.material.commit(step.trial)
+        try:  # restore equilibrium at the reached load, from the event state
+            step = newton_step(pb, 0.0, None, settings, scale, settings.max_events - events)
+        except NotConverged:
+            pb.material.restore(start)
+            raise
+        du = du + step.du
+        residuals += step.residuals
+    pb.material.commit(step.trial)
+    return StepResult(du, step.trial, step.f_int, residuals, d_lam)
