@@ -18,6 +18,7 @@ from . import calibrate as calibrate_cmd
 from . import compare as compare_cmd
 from . import data as data_cmds
 from . import dem as dem_cmds
+from . import fem as fem_cmds
 from . import reproduce as reproduce_cmd
 from . import run as run_cmds
 from . import stability as stability_cmd
@@ -30,6 +31,7 @@ app.add_typer(run_cmds.app, name="run")
 app.add_typer(data_cmds.app, name="data")
 app.add_typer(surrogate_cmds.app, name="surrogate")
 app.add_typer(dem_cmds.app, name="dem")
+app.add_typer(fem_cmds.app, name="fem")
 app.command("compare")(compare_cmd.compare)
 app.command("calibrate")(calibrate_cmd.calibrate)
 app.command("reproduce")(reproduce_cmd.reproduce)

@@ -1,0 +1,105 @@
+"""``hmodel fem biaxial | footing``: boundary-value problems with the H-model at every Gauss point."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from ..errors import InputError
+from ..params import Params
+from ..solvers import get_solver
+from ..units import parse_pressure
+from .progress import LazyProgress
+from .run import ParamOpt, SolverOpt
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
+                  help="Finite elements (plane strain) with an H-model material point at every Gauss point.")
+
+MeshOpt = Annotated[str, typer.Option(help="Elements NXxNY, e.g. 8x16.")]
+ElementOpt = Annotated[str, typer.Option(help="q4 (2x2 Gauss points), q8 (serendipity, 3x3) or t6 "
+                                              "(quadratic triangles, 3 points).")]
+StepsOpt = Annotated[int, typer.Option("--steps", help="Nominal load steps (a failing step is cut in halves).")]
+OutOpt = Annotated[Path, typer.Option("--out", "-o", help="Output folder (result.csv, fields_*.vtu, "
+                                                          "fields.pvd, fields.png, curve.png, meta.json).")]
+
+
+def _finish(res, out: Path) -> None:
+    from ..fem import write_result
+
+    write_result(res, out)
+    typer.echo(f"wrote {out / 'result.csv'} ({len(res) - 1} load steps, "
+               f"{res.meta['gauss_points']} Gauss points, {res.meta['seconds']:.1f} s) and fields, figures")
+    if res.stopped:
+        typer.echo(f"hmodel: warning: the run stopped early: {res.stopped}", err=True)
+
+
+def _common(param, steps, solver):
+    if steps < 1:
+        raise InputError(f"--steps must be a positive integer, got {steps}")
+    return Params.parse_assignments(param), get_solver(solver)
+
+
+@app.command("biaxial")
+def biaxial_cmd(
+    p0: Annotated[str, typer.Option(help="Confining pressure, e.g. 200kPa.")] = "200kPa",
+    axial_strain: Annotated[float, typer.Option(help="Platen displacement / height after consolidation.")] = 0.05,
+    mesh: MeshOpt = "8x16",
+    size: Annotated[str, typer.Option(help="Specimen width x height [m].")] = "0.05x0.1",
+    element: ElementOpt = "q4",
+    platens: Annotated[str, typer.Option(help="smooth or rough platens.")] = "smooth",
+    undrained: Annotated[bool, typer.Option("--undrained", help="Constant specimen volume (rigid "
+                                                                 "lateral walls moving apart).")] = False,
+    imperfection: Annotated[Optional[str], typer.Option(
+        help="Weaker zone NAME=VALUE[,NAME=VALUE]@X,Y,R: other parameters (angles in degrees) in "
+             "the disc of radius R [m] around (X, Y) [m], e.g. alpha0=50@0,0.05,0.006.")] = None,
+    steps: StepsOpt = 100,
+    solver: SolverOpt = "closed-form",
+    param: ParamOpt = None,
+    out: OutOpt = Path("results/fem-biaxial"),
+) -> None:
+    """Plane-strain biaxial specimen: consolidation to p0, then drained (lateral pressure p0)
+    or undrained compression by the top platen."""
+    from ..fem import biaxial, parse_pair
+
+    pressure = parse_pressure(p0)
+    if not (math.isfinite(axial_strain) and 0 < axial_strain < 1):
+        raise InputError(f"--axial-strain must lie in (0, 1), got {axial_strain}")
+    nxy = parse_pair(mesh, "--mesh", integer=True)
+    wh = parse_pair(size, "--size", integer=False)
+    params, cell_solver = _common(param, steps, solver)
+    with LazyProgress("FEM biaxial") as progress:
+        res = biaxial(params, pressure, axial_strain, size=wh, mesh=nxy, element=element.lower(),
+                      platens=platens, undrained=undrained, imperfection=imperfection, n_steps=steps,
+                      solver=cell_solver, progress=progress)
+    _finish(res, out)
+
+
+@app.command("footing")
+def footing_cmd(
+    p0: Annotated[str, typer.Option(help="Initial isotropic stress and surcharge, e.g. 100kPa.")] = "100kPa",
+    settlement: Annotated[float, typer.Option(help="Final settlement / footing width.")] = 0.05,
+    mesh: MeshOpt = "20x10",
+    layer: Annotated[str, typer.Option(help="Layer width x depth [m].")] = "1.0x0.5",
+    width: Annotated[float, typer.Option(help="Footing width [m] (its edges on mesh nodes).")] = 0.2,
+    smooth: Annotated[bool, typer.Option("--smooth", help="Smooth footing (default rough).")] = False,
+    element: ElementOpt = "q4",
+    steps: StepsOpt = 50,
+    solver: SolverOpt = "closed-form",
+    param: ParamOpt = None,
+    out: OutOpt = Path("results/fem-footing"),
+) -> None:
+    """Rigid strip footing on a layer consolidated to p0: the load-settlement curve."""
+    from ..fem import footing, parse_pair
+
+    pressure = parse_pressure(p0)
+    nxy = parse_pair(mesh, "--mesh", integer=True)
+    lh = parse_pair(layer, "--layer", integer=False)
+    params, cell_solver = _common(param, steps, solver)
+    with LazyProgress("FEM footing") as progress:
+        res = footing(params, pressure, settlement, width=width, layer=lh, mesh=nxy,
+                      element=element.lower(), rough=not smooth, n_steps=steps, solver=cell_solver,
+                      progress=progress)
+    _finish(res, out)
