@@ -6,8 +6,8 @@ dead loads ``f_ext`` (the confining tractions) stay constant. Newton solves
 f_int(u) = f_ext on the free degrees of freedom with the consistent tangent of the material
 law; each iteration is one batched material call for all Gauss points. A step converges when
 the residual norm on the free dofs is below ``rtol`` times the reference force (the norm of the
-internal forces of the committed state, which is the confining pressure times the mesh size:
-non-zero from the first step on).
+internal forces of the committed state, which is the confining pressure times the mesh size,
+or of the step's first trial where that is larger, e.g. from an unstressed state).
 
 Cell events. With ``sliding_rhs="report"`` a cell that starts sliding with T1 < 0 loses its
 contact at once (docs/model.md), a jump of the stress. When equilibrium lies inside such a jump
@@ -110,6 +110,8 @@ def newton_step(pb: Problem, d_lambda: float, guess: np.ndarray | None,
             raise NotConverged("a material point refused its increment ("
                                + (why if len(why) < 200 else why[:200] + "...") + ")") from None
         f_int = internal_force(pb.basis, trial.sig)
+        if it == 0:  # an unstressed start: the forces of the prescribed motion set the scale
+            scale = max(scale, float(np.linalg.norm(f_int)))
         r = f_int - pb.f_ext
         res = float(np.linalg.norm(r[pb.free])) / scale
         residuals.append(res)

@@ -1,0 +1,166 @@
+"""Finite elements with the H-model at the Gauss points: patch tests, the homogeneous biaxial
+test against the material-point driver, equilibrium, Newton's convergence rate, bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from skfem import Basis, ElementQuad1, ElementQuadS2, ElementTriP2, ElementVector, MeshQuad
+
+from hmodel import Params
+from hmodel.cli.app import main
+from hmodel.fem import NewtonSettings, biaxial, material_point_curve
+from hmodel.fem.assembly import internal_force, strain_hm
+from hmodel.fem.material import HModelMaterial, LinearElastic
+from hmodel.fem.mesh import dofs_where, gauss_points
+from hmodel.fem.newton import Problem, run_steps
+from hmodel.loading import consolidate
+from hmodel.rev import Rev
+
+FAST = Params(n_theta=36)
+SMOOTH = Params(n_theta=36, sliding_rhs="equilibrium")  # no cell events: a unique response
+
+
+def _distorted_basis(kind: str) -> Basis:
+    """A 3x3 patch on the unit square whose interior nodes are moved off the grid."""
+    m = MeshQuad.init_tensor(np.linspace(0, 1, 4), np.linspace(0, 1, 4))
+    p = m.p.copy()
+    interior = (p[0] > 1e-9) & (p[0] < 1 - 1e-9) & (p[1] > 1e-9) & (p[1] < 1 - 1e-9)
+    rng = np.random.default_rng(3)
+    p[:, interior] += rng.uniform(-0.08, 0.08, (2, interior.sum()))
+    m = MeshQuad(p, m.t)
+    elem, order = {"q4": (ElementQuad1(), 2), "q8": (ElementQuadS2(), 4), "t6": (ElementTriP2(), 2)}[kind]
+    if kind == "t6":
+        m = m.to_meshtri()
+    return Basis(m, ElementVector(elem), intorder=order)
+
+
+def _linear_field(basis: Basis, A: np.ndarray) -> np.ndarray:
+    """Nodal values of u = A x (FEM convention)."""
+    u = np.zeros(basis.N)
+    for c in range(2):
+        d = dofs_where(basis, c, lambda x: np.ones(x.shape[1], bool))
+        u[d] = A[c] @ basis.doflocs[:, d]
+    return u
+
+
+def _patch(basis: Basis, material, A: np.ndarray, n_steps: int = 1):
+    boundary = lambda x: (np.abs(x[0]) < 1e-9) | (np.abs(x[0] - 1) < 1e-9) | (np.abs(x[1]) < 1e-9) | (np.abs(x[1] - 1) < 1e-9)  # noqa: E731
+    fixed = np.concatenate([dofs_where(basis, c, boundary) for c in range(2)])
+    g = _linear_field(basis, A)
+    pb = Problem(basis, material, fixed, g, internal_force(basis, material.sig))
+    steps = []
+    out = run_steps(pb, n_steps, lambda s, lam: steps.append(s), NewtonSettings(rtol=1e-11))
+    assert out.stopped is None
+    return g, sum(s.du for s in steps), steps
+
+
+A = np.array([[1.0e-3, 0.4e-3], [-0.2e-3, -2.0e-3]])  # grad u: stretch x, compress y, shear
+EXPECTED = -np.array([A[1, 1], A[0, 0], 0.5 * (A[0, 1] + A[1, 0])])  # hmodel's (11, 22, 12)
+
+
+@pytest.mark.parametrize("kind", ["q4", "q8", "t6"])
+def test_patch_linear_elastic(kind):
+    basis = _distorted_basis(kind)
+    B = gauss_points(basis)[1].size
+    g, u, _ = _patch(basis, LinearElastic(B, 3e7, 2e7), A)
+    np.testing.assert_allclose(u, g, atol=1e-14)  # interior nodes on the linear field
+    np.testing.assert_allclose(strain_hm(basis, u), np.tile(EXPECTED, (B, 1)), atol=1e-14)
+
+
+def test_patch_hmodel_uniform_state():
+    """The H-model at every Gauss point of a distorted patch: a homogeneous boundary motion
+    leaves every point in the state of one material point given that strain."""
+    basis = _distorted_basis("q4")
+    B = gauss_points(basis)[1].size
+    rev = Rev(FAST)
+    mat = HModelMaterial(rev, np.zeros(B, np.int64), 1e5)
+    g, u, steps = _patch(basis, mat, A, n_steps=4)
+    np.testing.assert_allclose(strain_hm(basis, u), np.tile(EXPECTED, (B, 1)), atol=1e-12)
+    one = consolidate(rev, [1e5])
+    for _ in range(4):
+        one = rev.step(one, (EXPECTED / 4)[None, :])
+    np.testing.assert_allclose(mat.state.sig, np.tile(one.sig, (B, 1)), rtol=1e-7, atol=1e-3)
+
+
+def _errors(res):
+    c = material_point_curve(res.reference)
+    assert np.allclose(res.column("eps11"), c["eps11"])  # same increments (no cut steps)
+    upto = np.argmax(c["q"]) + 1
+    scale = c["q"].max()
+    return (np.abs(res.column("q") - c["q"])[:upto] / scale,
+            np.abs(res.column("eps_v") - c["eps_v"])[:upto])
+
+
+@pytest.mark.parametrize("mesh", [(1, 1), (2, 4)])
+@pytest.mark.parametrize("undrained", [False, True])
+def test_homogeneous_biaxial_equals_material_point(mesh, undrained):
+    """Smooth platens, no imperfection: every Gauss point follows run_biaxial with the same
+    increments, q within 1e-6 of peak q and eps_v within 1e-8."""
+    res = biaxial(SMOOTH, 2e5, 0.02, mesh=mesh, n_steps=40, undrained=undrained)
+    assert res.stopped is None and len(res) == 41
+    eq, ev = _errors(res)
+    assert eq.max() < 1e-6 and ev.max() < 1e-8
+    if not undrained:  # the lateral pressure is held by the traction
+        np.testing.assert_allclose(res.column("sig22"), 2e5, rtol=1e-7)
+
+
+def test_homogeneous_biaxial_report_closure_events():
+    """The report's sliding closure has stress jumps (cell events): an increment whose
+    equilibrium lies at a jump may end on either side, in the FEM and in the material-point
+    driver alike. Every other row agrees within 0.5 % of peak q, and the row after an event
+    agrees again."""
+    res = biaxial(Params(n_theta=90), 2e5, 0.02, mesh=(2, 4), n_steps=40)
+    eq, _ = _errors(res)
+    off = np.flatnonzero(eq > 5e-3)
+    assert len(off) <= 0.1 * len(eq)
+    assert all(eq[i + 1] < 1e-4 for i in off if i + 1 < len(eq))
+
+
+def test_equilibrium_reactions_match_gauss_stresses():
+    """With a weak zone the field is not homogeneous; at equilibrium the mean stresses from
+    the boundary forces equal the volume averages of the Gauss-point stresses (average-stress
+    theorem: int sig dV = sum_a x_a f_a), and the lateral pressure is p0 on average."""
+    res = biaxial(FAST, 2e5, 0.01, mesh=(4, 8), n_steps=10,
+                  imperfection="alpha0=50@0.0,0.05,0.012", reference=False, n_saved=10)
+    assert res.stopped is None
+    last = res.snapshots[-1]
+    avg = (res.gauss_dx @ last.sig) / res.gauss_dx.sum()
+    assert np.std(last.sig[:, 0]) > 1e-3 * avg[0]  # not homogeneous
+    np.testing.assert_allclose(res.column("sig11")[-1], avg[0], rtol=1e-6)
+    np.testing.assert_allclose(res.column("sig22")[-1], 2e5, rtol=1e-6)
+    np.testing.assert_allclose(avg[1], 2e5, rtol=1e-6)
+
+
+def test_newton_converges_quadratically():
+    """Consistent tangent: in a step without cell events, each residual is about the square of
+    the previous one (relative to the reference force)."""
+    res = biaxial(SMOOTH, 2e5, 0.02, mesh=(2, 4), n_steps=20, reference=False)
+    rates = [np.log(r[2]) / np.log(r[1]) for r in res.residuals if len(r) >= 3 and r[1] < 1e-2 and r[2] > 1e-14]
+    assert rates and np.median(rates) > 1.7
+
+
+def test_stopped_run_keeps_converged_steps(tmp_path):
+    res = biaxial(FAST, 2e5, 0.02, mesh=(1, 1), n_steps=5, reference=False,
+                  settings=NewtonSettings(max_iter=1, max_cuts=1))
+    assert res.stopped is not None and "did not converge at axial strain" in res.stopped
+    assert 1 <= len(res) < 6
+    assert np.all(res.column("residual") <= 1e-8)
+
+
+def test_cli_writes_outputs_and_refuses_bad_input(tmp_path, capsys):
+    out = tmp_path / "fem"
+    assert main(["fem", "biaxial", "--axial-strain", "0.004", "--mesh", "1x2", "--steps", "4",
+                 "-p", "n_theta=36", "--out", str(out)]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert {"result.csv", "fields.pvd", "fields.png", "curve.png", "fields_00000.vtu"} <= names
+    rows = np.genfromtxt(out / "result.csv", delimiter=",", names=True)
+    assert len(rows) >= 5 and rows["eps11"][-1] == pytest.approx(0.004)
+    for bad in (["--mesh", "0x2"], ["--mesh", "1.5x2"], ["--imperfection", "alpha0=50@1,1,0.01"],
+                ["--solver", "nonsense"], ["--element", "q5"]):
+        bad_out = tmp_path / "bad"
+        assert main(["fem", "biaxial", "--steps", "1", "-p", "n_theta=36", *bad, "--out", str(bad_out)]) == 1
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("hmodel: error:") and "\n" not in err
+        assert not bad_out.exists()
+    assert main(["fem", "footing", "--width", "2", "--out", str(tmp_path / "bad")]) == 1
