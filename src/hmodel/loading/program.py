@@ -35,6 +35,7 @@ from ..params import Params
 from ..rev import Rev, RevState
 from .control import Tangent
 from .expressions import Criterion, Expression
+from .newton import NewtonSettings
 from .paths import AXIAL_STEP, ISO_STEP, Segment, consolidate
 from .result import COLUMNS, PathResult, Recorder
 from .stepping import StageFailed, run_stage
@@ -171,13 +172,16 @@ class Program:
     # ------------------------------------------------------------------ running
 
     def run(self, params: Params, solver: CellSolver | None = None, progress=None,
-            chunk: Callable[[RevState, int], int] | None = None) -> PathResult:
+            chunk: Callable[[RevState, int], int] | None = None,
+            settings: NewtonSettings = NewtonSettings()) -> PathResult:
         """Run the program on one material point of ``params``; returns the table of every state.
 
         ``meta["stopped"]`` lists the criteria that ended stages or cycles early (stage, cycle,
         criterion). An increment that cannot be solved raises :class:`ProgramFailed`, whose
         ``result`` holds every state before it. ``chunk``: see
         :func:`~hmodel.loading.stepping.run_stage` (stability probes between chunks).
+        ``settings``: the mixed-control Newton's (e.g. ``max_events``, the cell events one
+        increment may commit before it is refused).
         """
         if not isinstance(params, Params):
             raise InputError("a program runs one material point: give one parameter set")
@@ -186,7 +190,7 @@ class Program:
                         "solver": rev.solver.name, "stopped": [], "cycles": {},
                         "undrained_stages": self.undrained_stages})
         rec.tags["cycle"] = 0
-        run = _Run(rev, rec, progress, self.n_increments, chunk)
+        run = _Run(rev, rec, progress, self.n_increments, chunk, settings)
         try:
             for block in self.blocks:
                 run.block(block)
@@ -221,8 +225,9 @@ class _Stopped(Exception):
 class _Run:
     """The running state of a program: REV state, p0, the recorder, progress."""
 
-    def __init__(self, rev, rec, progress, total, chunk):
+    def __init__(self, rev, rec, progress, total, chunk, settings):
         self.rev, self.rec, self.progress, self.total, self.chunk = rev, rec, progress, max(total, 1), chunk
+        self.settings = settings
         self.state = rev.initial(1)
         self.p0: float | None = None
         self.done = 0
@@ -276,7 +281,7 @@ class _Run:
         label = stage.name if not cycle else f"{stage.name} (cycle {cycle})"
         try:
             out = run_stage(self.rev, self.state, seg, self.rec, stop if criteria else None,
-                            self.chunk, self.advance, self.tangent)
+                            self.chunk, self.advance, self.tangent, self.settings)
         except StageFailed as e:
             rows = ", ".join(f"{n} = {v:.6g}" for n, v, s in zip(stage.rows, seg.values, seg.stress_rows) if s)
             why = (f"increment {e.increment} of {seg.n_steps}: the targets ({rows or 'strain rows only'}) "
