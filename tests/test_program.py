@@ -169,3 +169,31 @@ def test_cli_program_writes_contract_columns_and_refuses_bad_files(tmp_path, cap
 def test_shipped_examples_parse(name):
     prog = Program.from_toml(EXAMPLES / name)
     assert prog.n_increments > 1 and prog.with_params(["n_theta=36"]).n_theta == 36
+
+
+def test_generic_driver_gives_the_compiled_states(monkeypatch):
+    """Without a compiled increment, stages run one increment per chunk through the generic
+    driver: the same states (to the Newton's tolerance), and a criterion ends on the same row."""
+    prog = program({"name": "u", "preset": "undrained", "q": "0.3 * p0", "steps": 20},
+                   {"name": "d", "preset": "drained", "eps11": 0.01, "until": "q_p >= 0.6"})
+    fast = prog.run(P)
+    import hmodel.loading.stepping as stepping
+    monkeypatch.setattr(stepping, "supports", lambda rev: False)
+    slow = prog.run(P)
+    assert len(slow) == len(fast)
+    np.testing.assert_array_equal(slow["stage"], fast["stage"])
+    np.testing.assert_allclose(slow["sig11"], fast["sig11"], rtol=1e-6)
+    np.testing.assert_allclose(slow["eps22"], fast["eps22"], rtol=1e-6, atol=1e-12)
+
+
+def test_keep_partial_writes_the_states_before_the_failure(tmp_path, capsys):
+    f = tmp_path / "flow.toml"
+    f.write_text('[params]\nn_theta = 36\nalpha0 = 60\n[[stage]]\npreset = "iso"\np = "200kPa"\n'
+                 '[[stage]]\nname = "flow"\npreset = "undrained"\nq = "1.5 * p0"\nsteps = 100\n')
+    assert main(["run", "program", str(f), "--out", str(tmp_path / "a")]) == 1
+    assert not (tmp_path / "a").exists()
+    assert main(["run", "program", str(f), "--keep-partial", "--out", str(tmp_path / "b")]) == 1
+    err = capsys.readouterr().err
+    assert "stage 'flow', increment" in err and "q = 300000" in err
+    rows = (tmp_path / "b" / "result.csv").read_text().splitlines()
+    assert 1 < len(rows) and any(",flow," in r for r in rows)

@@ -296,19 +296,10 @@ class _Run:
         self.state = out.state
         if out.met is None:
             return None
-        last = {k: np.atleast_1d(v) for k, v in _state_columns(self.state).items()}
-        met = next(c for c in criteria if c({**last, **env})[-1])
+        met = next(c for c in criteria if c({**out.met, **env})[-1])
         if met is stage.until:
             self.rec.meta["stopped"].append({"stage": stage.name, "cycle": cycle, "until": met.text})
         return met
-
-
-def _state_columns(state: RevState) -> dict[str, np.ndarray]:
-    fr = state.fractions()
-    p, q = state.p, state.q
-    return {"eps11": state.eps[:, 0], "eps22": state.eps[:, 1], "eps12": state.eps[:, 2],
-            "sig11": state.sig[:, 0], "sig22": state.sig[:, 1], "sig12": state.sig[:, 2], "p": p,
-            "q": q, "eps_v": state.eps_v, "q_p": np.where(p != 0, q / np.where(p != 0, p, 1), 0), **fr}
 
 
 # ---------------------------------------------------------------------- parsing helpers

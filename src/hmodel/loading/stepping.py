@@ -92,12 +92,12 @@ class _GenericSegment:
 
 @dataclass
 class StageOutcome:
-    """How a stage ended: its final state, the increments run, and the criterion met (None:
-    the stage ran all its increments)."""
+    """How a stage ended: its final state, the increments run, and where a criterion ended it
+    early, the columns (:func:`row_values`, arrays of one row) of the state that met it."""
 
     state: RevState
     increments: int
-    met: object | None = None
+    met: dict[str, np.ndarray] | None = None
 
 
 def run_stage(rev: Rev, state: RevState, seg: Segment, recorder: Recorder,
@@ -110,7 +110,7 @@ def run_stage(rev: Rev, state: RevState, seg: Segment, recorder: Recorder,
 
     ``stop(columns)`` gets the columns (:func:`row_values`) of a chunk of new states and returns
     for each row whether a criterion is met (or None: never); the stage ends on the first such
-    state (``StageOutcome.met`` is what ``stop`` returned there, its row's truth value).
+    state (``StageOutcome.met``: its columns).
     ``chunk(state, k)``, when given, is asked before increment k for the number of increments
     to run before it is asked again (a stability analysis probes the state between chunks), and
     shown the last state with k = n_steps + 1 (where a criterion ends the stage, it is not); in
@@ -149,7 +149,7 @@ def run_stage(rev: Rev, state: RevState, seg: Segment, recorder: Recorder,
             _record(recorder, rec, seg.stage)
             if progress is not None:
                 progress(j + 1)
-            return StageOutcome(runner.state(), k + j, True)
+            return StageOutcome(runner.state(), k + j, row_values(rec[-1:, 0]))
         _record(recorder, rec, seg.stage)
         if progress is not None:
             progress(k_end - k)
