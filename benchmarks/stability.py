@@ -3,7 +3,9 @@
 (a) ``strain_envelope`` with 360 strain probes from the consolidated state at 200 kPa,
     nθ = 360 (the state is reused; best of N);
 (b) ``along_biaxial``: drained biaxial at 200 kPa to 10 % (1000 increments) with 72 strain
-    probes at every 10th state (100 states), nθ = 360 — the path and the probes together.
+    probes at every 10th state and at every state from the approach of the bifurcation domain
+    to its entry (153 states in all), probes tied to the increment, nθ = 360 — the path and the
+    probes together.
 
 Usage: ``python benchmarks/stability.py [--repeat N]``; prints a table, writes ``stability.json``.
 """
@@ -33,7 +35,7 @@ def main() -> None:
     state = consolidate(rev, [2e5])
     rows = [("one envelope, 360 strain probes, ntheta=360 [s]",
              best_of(lambda: strain_envelope(rev, state, 360, 1e-5), args.repeat), "<= 0.01"),
-            ("d2W map, drained 200 kPa to 10 %, 100 states x 72 probes, ntheta=360 [s]",
+            ("d2W map, drained 200 kPa to 10 %, 153 states x 72 probes, ntheta=360 [s]",
              best_of(lambda: along_biaxial(params, 2e5, 0.1, every=10, n_probes=72), args.repeat), "<= 1")]
     write_table(rows, args.out, record(__file__, args.repeat, rows))
 
