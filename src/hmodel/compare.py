@@ -35,7 +35,7 @@ def run_path(params: Params, spec: PathSpec, solver: "str | CellSolver", step: f
     from .errors import SolverError
 
     rev = Rev(params, get_solver(solver))
-    rec = Recorder({"path": spec.name, "solver": rev.solver.name})
+    rec = Recorder({"path": spec.name, "solver": rev.solver.name}, rev.solver_fractions)
     t = time.perf_counter()
     try:
         run_recipe(rev, spec, step, iso_step, rec)

@@ -83,3 +83,9 @@ class CellSolver(Protocol):
         """The compiled form of :meth:`step` for the compiled loading path, or None (the
         generic driver then calls :meth:`step`)."""
         ...
+
+    def fractions(self, params: Params, state: CellState) -> dict[str, np.ndarray]:
+        """Diagnostics of this solver beyond the cells' flags: name -> boolean array (S) of the
+        cells it holds for, recorded as fractions of each point's cells (a gated surrogate's
+        ``gated``: the cells its next increment sends to the exact solver); {} for most."""
+        ...

@@ -184,6 +184,10 @@ class ClosedFormSolver:
         """Eq. 1.7 in the compiled loading path."""
         return CellKernel(kernel_params(params))
 
+    def fractions(self, params: Params, state: CellState) -> dict[str, np.ndarray]:
+        """None beyond the flags."""
+        return {}
+
     def step(self, params: Params, state: CellState, dl1, dl2) -> tuple[CellState, CellFlags]:
         """One increment of every cell.
 

@@ -11,7 +11,7 @@ from ..errors import InputError
 from ..io import write_outputs, write_rows
 from ..params import Params
 from .progress import LazyProgress
-from .run import ParamOpt
+from .run import FallbackOpt, GateOpt, ParamOpt
 
 
 def compare(
@@ -24,10 +24,12 @@ def compare(
     step: Annotated[float, typer.Option(help="Strain increment of both solvers.")] = 1e-3,
     iso_step: Annotated[float, typer.Option(help="Strain increment of the consolidations.")] = 1e-4,
     param: ParamOpt = None,
+    gate: GateOpt = None,
+    fallback: FallbackOpt = None,
 ) -> None:
     """Run every comparison path with both solvers: overlaid curves, deviations and timings."""
-    from ..solvers import get_solver
     from ..compare import compare_path, plot_overlay, warm_up
+    from ..surrogate.solver import gate_summary, gated_solver
     from ..loading import standard_paths
 
     params = Params.parse_assignments(param)
@@ -42,9 +44,10 @@ def compare(
     for v, name in ((step, "--step"), (iso_step, "--iso-step"), (axial_strain, "--axial-strain")):
         if not 0 < v < 1:
             raise InputError(f"{name} must lie in (0, 1), got {v}")
-    other = get_solver(solver)
+    other = gated_solver(solver, gate, fallback)
     rows, figures = [], {}
     warm = warm_up(params, ["closed-form", other], step, iso_step)
+    other.counts.update(dict.fromkeys(other.counts, 0))  # count the compared runs only
     with LazyProgress("comparing") as progress:
         for i, spec in enumerate(specs):
             ref, res, devs, st = compare_path(params, spec, other, step, iso_step)
@@ -69,6 +72,8 @@ def compare(
         typer.echo(f"{r['path']:<14} p0 {r['p0_kPa']:>5.0f} kPa  q dev max {100 * r['q_max_dev_rel']:6.2f} % of peak, "
                    f"eps_v dev max {100 * r['eps_v_max_dev']:.3f} %  time {r['seconds_closed_form']:.2f} s vs "
                    f"{r[f'seconds_{other.name}']:.2f} s")
+    if gate is not None:
+        typer.echo(gate_summary(other))
     typer.echo("times after a warm-up run of every path (Numba compilation on a fresh install): "
                + ", ".join(f"{name} {s:.2f} s" for name, s in warm.items()))
     typer.echo(f"wrote {out / 'deviations.csv'} and {len(figures)} figures")

@@ -34,6 +34,28 @@ P0Opt = Annotated[str, typer.Option("--p0", help="Confining pressure(s): 200kPa,
                                                   "comma list 100kPa,200kPa,400kPa.")]
 
 
+GateOpt = Annotated[Optional[float], typer.Option(
+    "--gate", help="Quantile level of a learned solver's trust score (e.g. 0.99) above which a cell "
+                   "increment goes to --fallback; needs a model with a trust reference "
+                   "('hmodel surrogate trust').")]
+FallbackOpt = Annotated[Optional[str], typer.Option(
+    "--fallback", help="Exact cell solver for the cells above --gate: closed-form.")]
+
+
+def _solver(spec: str, gate: float | None, fallback: str | None):
+    """The cell solver of --solver, gated where --gate/--fallback say so."""
+    if gate is None and fallback is None:
+        return get_solver(spec)
+    from ..surrogate.solver import gated_solver
+    return gated_solver(spec, gate, fallback)
+
+
+def _gate_line(solver) -> None:
+    if getattr(solver, "gate", None) is not None:
+        from ..surrogate.solver import gate_summary
+        typer.echo(gate_summary(solver))
+
+
 def _finish(result: PathResult, out: Path) -> None:
     write_outputs(out, {"result.csv": result.to_csv, "result.png": lambda p: plot_result(result, p)})
     typer.echo(f"wrote {out / 'result.csv'} ({len(result)} rows) and {out / 'result.png'}")
@@ -58,14 +80,17 @@ def _material_points(param: list[str] | None, n_pressures: int) -> Params | list
 @app.command("iso")
 def iso(p0: P0Opt = "200kPa", param: ParamOpt = None, out: OutOpt = Path("results/iso"),
         iso_step: Annotated[float, typer.Option(help="Strain increment of eps11 and eps22.")] = ISO_STEP,
-        solver: SolverOpt = "closed-form") -> None:
+        solver: SolverOpt = "closed-form", gate: GateOpt = None,
+        fallback: FallbackOpt = None) -> None:
     """Isotropic compression (equal strain increments) until p reaches p0."""
     pressures = parse_pressures(p0)
     params = _material_points(param, len(pressures))
     with LazyProgress("isotropic compression") as progress:
-        result = run_isotropic(params, pressures, solver=get_solver(solver),
+        cells = _solver(solver, gate, fallback)
+        result = run_isotropic(params, pressures, solver=cells,
                                step=_positive(iso_step, "--iso-step"), progress=progress)
     _finish(result, out)
+    _gate_line(cells)
 
 
 @app.command("biaxial")
@@ -75,7 +100,8 @@ def biaxial(p0: P0Opt = "200kPa",
             param: ParamOpt = None, out: OutOpt = Path("results/biaxial"),
             step: Annotated[float, typer.Option(help="Axial strain increment.")] = AXIAL_STEP,
             iso_step: Annotated[float, typer.Option(help="Strain increment of the consolidation.")] = ISO_STEP,
-            solver: SolverOpt = "closed-form") -> None:
+            solver: SolverOpt = "closed-form", gate: GateOpt = None,
+        fallback: FallbackOpt = None) -> None:
     """Isotropic consolidation to p0, then drained (sig22 = p0) or undrained biaxial compression."""
     pressures = parse_pressures(p0)
     params = _material_points(param, len(pressures))
@@ -83,10 +109,12 @@ def biaxial(p0: P0Opt = "200kPa",
     if axial_strain >= 1:
         raise InputError(f"--axial-strain must be below 1, got {axial_strain}")
     with LazyProgress("biaxial test") as progress:
-        result = run_biaxial(params, pressures, axial_strain, undrained=undrained, solver=get_solver(solver),
+        cells = _solver(solver, gate, fallback)
+        result = run_biaxial(params, pressures, axial_strain, undrained=undrained, solver=cells,
                              iso_step=_positive(iso_step, "--iso-step"),
                              step=_positive(step, "--step"), progress=progress)
     _finish(result, out)
+    _gate_line(cells)
 
 
 @app.command("strain-path")
@@ -95,21 +123,25 @@ def strain_path(path: Annotated[Path, typer.Argument(help="CSV with header eps11
                 max_step: Annotated[Optional[float], typer.Option(
                     help=f"Split a row's increment into sub-steps no larger than this strain "
                          f"(default: one increment per row; {MAX_STRAIN_STEP:g} is converged).")] = None,
-                solver: SolverOpt = "closed-form") -> None:
+                solver: SolverOpt = "closed-form", gate: GateOpt = None,
+        fallback: FallbackOpt = None) -> None:
     """Follow a prescribed strain path; one result row per input row, in order."""
     params = _material_points(param, 1)
     eps = read_strain_path(path)
     if max_step is not None:
         _positive(max_step, "--max-step")
     with LazyProgress("strain path") as progress:
-        result = run_strain_path(params, eps, solver=get_solver(solver), max_step=max_step, progress=progress)
+        cells = _solver(solver, gate, fallback)
+        result = run_strain_path(params, eps, solver=cells, max_step=max_step, progress=progress)
     _finish(result, out)
+    _gate_line(cells)
 
 
 @app.command("program")
 def program(path: Annotated[Path, typer.Argument(help="TOML file of stages (see docs/programs.md and examples/).")],
             param: ParamOpt = None, out: OutOpt = Path("results/program"),
-            solver: SolverOpt = "closed-form",
+            solver: SolverOpt = "closed-form", gate: GateOpt = None,
+        fallback: FallbackOpt = None,
             keep_partial: Annotated[bool, typer.Option(
                 "--keep-partial", help="When an increment cannot be solved, still write every state "
                                        "computed before it (exit status 1 all the same).")] = False) -> None:
@@ -118,7 +150,7 @@ def program(path: Annotated[Path, typer.Argument(help="TOML file of stages (see 
     params = prog.with_params(param)
     with LazyProgress(f"program {prog.name}") as progress:
         try:
-            result = prog.run(params, solver=get_solver(solver), progress=progress)
+            result = prog.run(params, solver=_solver(solver, gate, fallback), progress=progress)
         except ProgramFailed as e:
             if keep_partial and len(e.result):
                 _finish(e.result, out)

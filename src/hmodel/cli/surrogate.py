@@ -155,6 +155,39 @@ def evaluate_cmd(
     typer.echo(f"wrote {out / 'metrics.csv'} and {len(writers)} parity plot(s)")
 
 
+@app.command("trust")
+def trust_cmd(
+    model: Annotated[str, typer.Argument(help="Model file, or a shipped model: shipped (the default), "
+                                              "increment.")],
+    sample: Annotated[Path, typer.Argument(help="Sample folder of the model's training rows (its train "
+                                                "rows give the reference, its test rows the measure).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Model file written with its trust reference.")],
+    reference: Annotated[int, typer.Option(help="Training rows kept as the reference.")] = 4096,
+    k: Annotated[int, typer.Option("--k", help="Nearest reference rows the score averages over.")] = 8,
+    rows: Annotated[Optional[int], typer.Option(help="Held-out rows measured (default: all).")] = None,
+    seed: Seed = 0,
+) -> None:
+    """Add a trust score to a model (distance of a cell's inputs to its training rows, for
+    --gate): measures on held-out rows which share of the error the least trusted rows hold."""
+    from ..surrogate import modelfile
+    from ..surrogate.rows import read_rows
+    from ..surrogate.shipped import model_path
+    from ..surrogate.trust import fit_trust
+
+    if out.suffix != ".safetensors":
+        raise InputError(f"--out must name a .safetensors file, got {str(out)!r}")
+    s = modelfile.load(model_path(model))
+    train, _ = read_rows(sample, "train")
+    held, _ = read_rows(sample, "test", rows, seed)
+    trusted, table = fit_trust(s, train, held, reference=reference, k=k, seed=seed)
+    modelfile.save(trusted, out)
+    for r in table:
+        typer.echo(f"least trusted {100 * r['top_fraction']:g} % of {len(held['deps1']):,} held-out rows: "
+                   f"{100 * r['share_of_error']:.1f} % of the error, "
+                   f"{100 * r['share_of_squared_error']:.1f} % of the squared error")
+    typer.echo(f"Spearman correlation of score and error {table[0]['spearman']:.3f}; wrote {out}")
+
+
 @app.command("sweep")
 def sweep_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset 2 folder.")],

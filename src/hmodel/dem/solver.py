@@ -218,6 +218,10 @@ class DEMSolver:
         """None: every cell increment is a YADE run (the generic loading driver)."""
         return None
 
+    def fractions(self, params: Params, state: CellState) -> dict[str, np.ndarray]:
+        """None beyond the flags."""
+        return {}
+
     def with_options(self, **changes) -> "DEMSolver":
         """A copy with other :class:`DEMOptions`."""
         copy = DEMSolver(self.name)

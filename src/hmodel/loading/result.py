@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -68,8 +69,12 @@ class PathResult:
 class Recorder:
     """Collects rows while a path runs; :meth:`result` builds the :class:`PathResult`."""
 
-    def __init__(self, meta: dict | None = None):
+    def __init__(self, meta: dict | None = None,
+                 columns: Callable[[RevState], dict[str, np.ndarray]] | None = None):
         self._rows: list[dict[str, np.ndarray]] = []
+        #: more columns of the rows recorded from states (not from the compiled kernel's
+        #: blocks, where they are NaN): e.g. ``Rev.solver_fractions``
+        self.columns = columns
         self._step: np.ndarray | None = None
         self.meta = dict(meta or {})
         #: extra columns after :data:`COLUMNS`, with the value they take in the rows recorded
@@ -82,13 +87,15 @@ class Recorder:
         m = np.ones(B, bool) if mask is None else np.asarray(mask, bool)
         fr = state.fractions()
         frac = np.stack([fr[c] for c in FRACTIONS], axis=1)
-        self.record_block(state.eps[None], state.sig[None], frac[None], stage, m)
+        extra = {} if self.columns is None else {c: v[None] for c, v in self.columns(state).items()}
+        self.record_block(state.eps[None], state.sig[None], frac[None], stage, m, extra)
 
     def record_block(self, eps: np.ndarray, sig: np.ndarray, frac: np.ndarray, stage: str,
-                     mask: np.ndarray | None = None) -> None:
+                     mask: np.ndarray | None = None, extra: dict | None = None) -> None:
         """Append K consecutive states of B points: eps, sig (K, B, 3), frac (K, B, 4) in the
-        order of :data:`FRACTIONS`; only the points where ``mask`` (B,) is true, and only the
-        states that exist (a point dropped after a failure has NaN strains from then on)."""
+        order of :data:`FRACTIONS`, ``extra`` columns (K, B); only the points where ``mask``
+        (B,) is true, and only the states that exist (a point dropped after a failure has NaN
+        strains from then on)."""
         K, B = eps.shape[:2]
         if self._step is None:
             self._step = np.zeros(B, dtype=np.int64)
@@ -109,6 +116,7 @@ class Recorder:
                "sig11": sig[:, 0], "sig22": sig[:, 1], "sig12": sig[:, 2],
                "p": p, "q": q, "eps_v": eps[:, 0] + eps[:, 1], "q_p": q_p}
         row.update({c: frac[:, j] for j, c in enumerate(FRACTIONS)})
+        row.update({c: np.asarray(v, float)[valid] for c, v in (extra or {}).items()})
         row.update({c: np.full(len(steps), v) for c, v in self.tags.items()})
         self._rows.append(row)
 
@@ -117,6 +125,8 @@ class Recorder:
             cols = {c: np.array([]) for c in COLUMNS}
         else:
             names = COLUMNS + tuple(dict.fromkeys(c for r in self._rows for c in r if c not in COLUMNS))
-            cols = {c: np.concatenate([r[c] for r in self._rows]) for c in names}
+            # a column some rows lack (one recorded from states only) is NaN there
+            cols = {c: np.concatenate([r[c] if c in r else np.full(len(r["step"]), np.nan)
+                                       for r in self._rows]) for c in names}
         order = np.lexsort((cols["step"], cols["point"])) if len(cols["step"]) else slice(None)
         return PathResult({c: v[order] for c, v in cols.items()}, self.meta)

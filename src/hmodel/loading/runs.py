@@ -29,7 +29,7 @@ def run_isotropic(params: Params | Sequence[Params], p0, *, solver: CellSolver |
     """Isotropic compression of one material point per value of ``p0`` [Pa]."""
     rev = Rev(params, solver)
     p0 = np.atleast_1d(np.asarray(p0, float))
-    rec = Recorder(_meta(params, rev, "iso", p0=p0.tolist(), iso_step=step))
+    rec = Recorder(_meta(params, rev, "iso", p0=p0.tolist(), iso_step=step), rev.solver_fractions)
     paths.consolidate(rev, p0, step=step, recorder=rec, progress=progress)
     return rec.result()
 
@@ -46,7 +46,8 @@ def run_biaxial(params: Params | Sequence[Params], p0, axial_strain: float, *, u
     rev = Rev(params, solver)
     p0 = np.atleast_1d(np.asarray(p0, float))
     rec = Recorder(_meta(params, rev, "undrained biaxial" if undrained else "drained biaxial",
-                         p0=p0.tolist(), axial_strain=axial_strain, iso_step=iso_step, step=step))
+                         p0=p0.tolist(), axial_strain=axial_strain, iso_step=iso_step, step=step),
+                   rev.solver_fractions)
     consolidation = None if progress is None else (lambda f: progress(0.1 * f))
     shear = None if progress is None else (lambda f: progress(0.1 + 0.9 * f))
     failures = {} if drop_failed else None
@@ -67,6 +68,7 @@ def run_strain_path(params: Params | Sequence[Params], eps, *, solver: CellSolve
     if eps.ndim == 2 and eps.shape[1] == 2:
         eps = np.column_stack([eps, np.zeros(len(eps))])
     rev = Rev(params, solver)
-    rec = Recorder(_meta(params, rev, "strain path", n_rows=len(eps), max_step=max_step))
+    rec = Recorder(_meta(params, rev, "strain path", n_rows=len(eps), max_step=max_step),
+                   rev.solver_fractions)
     paths.strain_path(rev, eps, max_step=max_step, recorder=rec, progress=progress)
     return rec.result()

@@ -222,6 +222,19 @@ class Rev:
                          dot(nn, ws2) + dot(tt, wc2) + 2.0 * dot(nt, wsc),
                          dot(nn - tt, wsc) + dot(nt, c2s2)], axis=-1)
 
+    def solver_fractions(self, state: RevState) -> dict[str, np.ndarray]:
+        """The cell solver's own diagnostics (:meth:`hmodel.cell.CellSolver.fractions`) as the
+        fraction of each point's cells, name -> (B,)."""
+        idx = state.set_index
+        out: dict[str, np.ndarray] = {}
+        for k in np.unique(idx):
+            rows = idx == k
+            cells = CellState(state.cells.values[rows])
+            for name, hit in self.solver.fractions(self.sets[k], cells).items():
+                frac = np.mean(np.reshape(hit, (int(rows.sum()), -1)), axis=1)
+                out.setdefault(name, np.full(state.n_points, np.nan))[rows] = frac
+        return out
+
     def _by_set(self, idx: np.ndarray, call):
         """``call(set, rows)`` for each parameter set present in idx (B,), its outputs (arrays
         or tuples of arrays over the rows' points) put back in point order."""

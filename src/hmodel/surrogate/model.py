@@ -98,6 +98,16 @@ class Surrogate:
     meta: dict = field(default_factory=dict)
     #: Range of every input over the training rows (the training domain), (2, n_inputs).
     input_range: np.ndarray | None = None
+    #: Sample of the training rows' normalized inputs (m, n_inputs) for the trust score
+    #: (:mod:`hmodel.surrogate.trust`); None: no trust score.
+    trust_reference: np.ndarray | None = None
+
+    @cached_property
+    def trust_tree(self):
+        """k-d tree of the trust reference (built once per model)."""
+        from scipy.spatial import cKDTree
+
+        return cKDTree(self.trust_reference)
 
     def outside(self, X: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """Rows of X (n, 8) outside the training domain by more than ``margin`` of each input's

@@ -1,7 +1,7 @@
 """Surrogate model files: safetensors weights plus JSON metadata, loaded without unpickling.
 
 One ``.safetensors`` file holds the layer weights and biases, the scaler offsets and scales
-(float64), and under the header key ``hmodel`` a JSON document: format version, formulation,
+(float64), optionally a trust reference (:mod:`hmodel.surrogate.trust`), and under the header key ``hmodel`` a JSON document: format version, formulation,
 architecture, normalization, material parameters, the training dataset's checksum, the training
 configuration and history summary, metrics and the package version. A SHA-256 over the tensors
 and that JSON (stored as ``checksum``) detects any alteration; a truncated file fails to parse.
@@ -52,6 +52,8 @@ def _tensors(s: Surrogate) -> dict[str, np.ndarray]:
         t[f"layer{i}.weight"], t[f"layer{i}.bias"] = W, b
     if s.input_range is not None:
         t["input_range"] = s.input_range
+    if s.trust_reference is not None:
+        t["trust_reference"] = s.trust_reference
     return {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in t.items()}
 
 
@@ -129,7 +131,8 @@ def _surrogate(meta: dict, tensors: dict[str, np.ndarray]) -> Surrogate:
             if isinstance(n, int) and not isinstance(n, bool) else set())
     if not want or want != {k for k in tensors if k.startswith("layer")}:
         raise InputError(f"the metadata name {n!r} layers, the tensors hold {len(held)}")
-    extra = set(tensors) - want - {"x_offset", "x_scale", "y_offset", "y_scale", "input_range"}
+    extra = set(tensors) - want - {"x_offset", "x_scale", "y_offset", "y_scale", "input_range",
+                                   "trust_reference"}
     if extra:
         raise InputError(f"unexpected tensors {', '.join(sorted(extra))}")
     if a["depth"] != n - 1:
@@ -148,7 +151,11 @@ def _surrogate(meta: dict, tensors: dict[str, np.ndarray]) -> Surrogate:
     rng = tensors.get("input_range")
     if rng is not None and rng.shape != (2, len(x)):
         raise InputError(f"the input range has shape {rng.shape} for {len(x)} inputs")
+    trust = tensors.get("trust_reference")
+    if trust is not None and (trust.ndim != 2 or trust.shape[1] != len(x) or "trust" not in meta):
+        raise InputError(f"the trust reference has shape {trust.shape} for {len(x)} inputs"
+                         + ("" if "trust" in meta else " and no trust metadata"))
     method = meta["normalization"]
     return Surrogate(formulation_from_dict(f), Architecture(a["width"], a["depth"], a["activation"]),
                      Affine(method, tensors["x_offset"], tensors["x_scale"]),
-                     Affine(method, tensors["y_offset"], tensors["y_scale"]), weights, meta, rng)
+                     Affine(method, tensors["y_offset"], tensors["y_scale"]), weights, meta, rng, trust)

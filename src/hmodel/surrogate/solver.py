@@ -19,6 +19,13 @@ Cells whose inputs lie outside the training domain are either handed to the clos
 solver (``on_outside="fallback"``; a ``meso`` cell, which has none, is extrapolated) or stop
 the run (``"error"``); ``counts`` reports how many.
 
+With a gate (``gate=0.99, fallback=ClosedFormSolver()``; ``--gate 0.99 --fallback
+closed-form``), the cells whose trust score (:mod:`hmodel.surrogate.trust`: distance to the
+training data) exceeds that quantile of the held-out rows' scores are solved by the fallback
+solver in the same increment, in one batched call; ``counts["gated"]`` and
+``counts["gate_checked"]`` count them per evaluated state (once per increment), and the REV
+records their fraction (``gated`` in result.csv, via :meth:`fractions`).
+
 An ensemble (``SurrogateSolver([m1, m2, ...])``, ``--solver surrogate:A+B+C``) of ``meso``
 models of one formulation (networks trained alike, e.g. with other seeds) averages the members'
 increments dz before the way back: independent training errors of the members partly cancel
@@ -33,10 +40,11 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..cell import CellFlags, CellKernel, CellState
+from ..cell import CellFlags, CellKernel, CellSolver, CellState
 from ..cell.closed_form import ClosedFormSolver
 from ..errors import InputError, SolverError
 from ..params import Params
+from .compliance import ComplianceFormulation as Compliance
 from .model import Surrogate
 
 #: Parameters a surrogate is specific to (it was trained on cells with these values).
@@ -64,7 +72,8 @@ class SurrogateSolver:
     max_substeps = 100
 
     def __init__(self, model: Surrogate | Sequence[Surrogate], on_outside: str = "fallback",
-                 margin: float = 0.0, opening: str = "rule"):
+                 margin: float = 0.0, opening: str = "rule", gate: float | None = None,
+                 fallback: CellSolver | None = None):
         if on_outside not in ("fallback", "error"):
             raise InputError(f"on_outside must be fallback or error, got {on_outside!r}")
         if opening not in ("rule", "classifier"):
@@ -72,15 +81,49 @@ class SurrogateSolver:
         self.members = _members(model)
         self.model, self.on_outside, self.margin, self.opening = self.members[0], on_outside, margin, opening
         self.formulation = self.model.formulation
-        self.closed_form = ClosedFormSolver()
-        self.counts = {"cell_updates": 0, "network_cells": 0, "outside": 0, "substeps": 0}
+        self.fallback = self.closed_form = ClosedFormSolver()
+        self.counts = {"cell_updates": 0, "network_cells": 0, "outside": 0, "substeps": 0,
+                       "gated": 0, "gate_checked": 0}
+        #: trust-score threshold of the gate (None: no gate), and the gate's quantile level
+        self.gate, self.gate_threshold = gate, None
+        if gate is not None or fallback is not None:
+            self._set_gate(gate, fallback)
         # (states, network outputs, outside mask) of the last two batches of states seen: a
         # Newton iteration's state and the copies its finite-difference tangent probes.
         self._cache: list[tuple] = []
+        self._gated: np.ndarray | None = None  # the gate's mask of the states last evaluated
         self._checked = None
         #: Largest cell strain increment of one network step (inf: any, where the network sees
         #: the state only).
         self.max_increment = self.formulation.max_increment(self.model.input_range)
+
+    def _set_gate(self, gate: float | None, fallback: CellSolver | None) -> None:
+        from .trust import threshold
+
+        if gate is None:
+            raise InputError("a fallback solver needs a gate (--gate LEVEL, e.g. 0.99)")
+        if fallback is None:
+            raise InputError("a gate needs a fallback solver (--fallback closed-form)")
+        if not isinstance(self.formulation, Compliance):
+            raise InputError(f"gating needs a network that sees the H-cell's state only (the "
+                             f"compliance formulation, the default model's), so that an exact "
+                             f"solver can take the cell over; this is a "
+                             f"{self.formulation.name!r} model")
+        if fallback.initial(Params()).values.shape[-1] != self.n_state:
+            raise InputError(f"the fallback solver {fallback.name!r} keeps other cell states than "
+                             f"the surrogate's H-cells")
+        self.gate_threshold = threshold(self.model, gate)
+        self.fallback = fallback
+
+    def fractions(self, params: Params, state: CellState) -> dict[str, np.ndarray]:
+        """With a gate: ``gated``, the cells whose next increment the fallback solves."""
+        if self.gate_threshold is None:
+            return {}
+        from .trust import scores
+
+        v = np.asarray(state.values, float).reshape(-1, self.n_state)
+        X = self.formulation.features(v)
+        return {"gated": (scores(self.model, X) > self.gate_threshold).reshape(state.shape)}
 
     def check(self, params: Params) -> None:
         """Refuse a material the surrogate was not trained for."""
@@ -167,9 +210,10 @@ class SurrogateSolver:
         """Every member's network outputs and the out-of-domain mask for states ``v`` (inputs
         X, from the state only); kept while the states do not change, so that the trial
         increments of one Newton iteration cost no inference."""
-        for seen, outs, mask in self._cache:
+        for seen, outs, mask, gated in self._cache:
             if seen.shape == v.shape and np.array_equal(seen, v):
-                return outs, mask
+                self._gated = gated
+                return outs, mask | gated
         # A state equal to the one before it is evaluated once: the cells of an isotropic REV
         # are all alike until shear starts (a sizeable share of a drained test's network rows),
         # and finding them costs two comparisons per field.
@@ -182,25 +226,38 @@ class SurrogateSolver:
         spare = f.spare_columns if len(self.members) == 1 else 0
         outs = [m.forward(Xu, single=f.single_precision, spare=spare) for m in self.members]
         mask = np.any([m.outside(Xu, self.margin) for m in self.members], axis=0)
+        gated = np.zeros(len(Xu), bool)
+        if self.gate_threshold is not None:
+            from .trust import scores
+            gated = scores(self.model, Xu) > self.gate_threshold
         if not first.all():
             row = np.cumsum(first) - 1
-            outs, mask = [o[row] for o in outs], mask[row]
-        self._cache = [(v.copy(), outs, mask)] + self._cache[:1]
-        return outs, mask
+            outs, mask, gated = [o[row] for o in outs], mask[row], gated[row]
+        self.counts["gated"] += int(gated.sum())
+        self.counts["gate_checked"] += len(gated) if self.gate_threshold is not None else 0
+        self._cache = [(v.copy(), outs, mask, gated)] + self._cache[:1]
+        self._gated = gated
+        return outs, mask | gated
 
     def count_outside(self, mask: np.ndarray, describe: Callable[[int], str]) -> int:
-        """Count the cells outside the training domain; stop the run with ``on_outside="error"``."""
+        """Count the cells outside the training domain (``mask`` of :meth:`outputs`: outside or
+        gated); stop the run with ``on_outside="error"`` where one is outside and not gated
+        (a gated cell has its exact solver). Returns how many cells the fallback takes."""
+        gated = self._gated if self._gated is not None and len(self._gated) == len(mask) else False
+        n_fall = int(mask.sum())
+        mask = mask & ~gated
         n_out = int(mask.sum())
         self.counts["outside"] += n_out
         if n_out and self.on_outside == "error":
             raise SolverError(f"{n_out} cell(s) outside the surrogate's training domain, e.g. "
                               + describe(int(np.flatnonzero(mask)[0])))
-        return n_out
+        return n_fall
 
     def fall_back(self, params: Params, v: np.ndarray, dl: np.ndarray, mask: np.ndarray,
                   new: np.ndarray, flags: np.ndarray) -> None:
-        """The closed form's increment for the H-cells ``mask``, written into ``new``, ``flags``."""
-        cf, cflags = self.closed_form.step(params, CellState(v[mask]), dl[mask, 0], dl[mask, 1])
+        """The fallback solver's increment (the closed form's unless a gate names another) for
+        the H-cells ``mask``, written into ``new``, ``flags``."""
+        cf, cflags = self.fallback.step(params, CellState(v[mask]), dl[mask, 0], dl[mask, 1])
         new[mask], flags[mask] = cf.values, cflags.flags
 
 
@@ -233,3 +290,31 @@ def load_solver(spec: str, on_outside: str = "fallback") -> SurrogateSolver:
     from .shipped import model_path
 
     return SurrogateSolver([load(model_path(ref)) for ref in spec.partition(":")[2].split("+")], on_outside)
+
+
+def gated_solver(spec: "str | CellSolver", gate: float | None = None,
+                     fallback: "str | CellSolver | None" = None) -> CellSolver:
+    """:func:`hmodel.solvers.get_solver`, with an uncertainty gate where ``gate`` or ``fallback`` is given: the
+    learned cells whose trust score exceeds the ``gate`` quantile are solved by ``fallback``
+    (see :class:`hmodel.surrogate.solver.SurrogateSolver`). Both or neither are required."""
+    from ..solvers import get_solver
+
+    solver = get_solver(spec)
+    if gate is None and fallback is None:
+        return solver
+    if gate is None:
+        raise InputError("a fallback solver needs a gate (--gate LEVEL, e.g. 0.99)")
+    if fallback is None:
+        raise InputError("a gate needs a fallback solver (--fallback closed-form)")
+    if not isinstance(solver, SurrogateSolver):
+        raise InputError(f"--gate and --fallback are for learned cell solvers (surrogate[:MODEL]), "
+                         f"got {solver.name!r}")
+    return SurrogateSolver(solver.members, solver.on_outside, solver.margin, solver.opening,
+                           gate=gate, fallback=get_solver(fallback))
+
+
+def gate_summary(solver: SurrogateSolver) -> str:
+    """One line: how many learned cell states the gate sent to the fallback solver."""
+    n, m = solver.counts["gated"], solver.counts["gate_checked"]
+    return (f"gate {solver.gate:g}: {n:,} of {m:,} cell states ({100 * n / max(m, 1):.3g} %) "
+            f"solved by {solver.fallback.name}")
