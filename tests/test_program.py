@@ -13,7 +13,7 @@ from hmodel.cli.app import main
 from hmodel.errors import InputError
 from hmodel.loading import Program, ProgramFailed, consolidate, run_segment
 from hmodel.loading.expressions import Criterion, Expression
-from hmodel.loading.paths import Segment, biaxial_segment
+from hmodel.loading.paths import biaxial_segment
 from hmodel.loading.program import cycle_summary
 from hmodel.rev import Rev
 
@@ -134,6 +134,12 @@ def test_bad_stages_are_refused_naming_the_stage(stage, message):
     with pytest.raises(InputError, match=message) as e:
         program({"name": "bad one", **stage})
     assert "bad one" in str(e.value)
+
+
+def test_p0_before_any_iso_stage_is_refused():
+    with pytest.raises(InputError, match="'early'.*uses p0, but no iso stage"):
+        Program.from_dict({"stage": [{"name": "early", "preset": "drained", "q": "0.5 * p0", "steps": 5},
+                                     {"preset": "iso", "p": "100kPa"}]})
 
 
 def test_expressions_are_evaluated_without_eval():

@@ -28,7 +28,6 @@ from numba import njit
 from .errors import InputError
 from .loading.compiled import (NOT_CONVERGED, cell_responses_of, fd_tangent, kernel_inputs, solve_point,
                                supports, trial)
-from .loading.control import Tangent
 from .loading.newton import NewtonSettings
 from .rev import Rev, RevState
 

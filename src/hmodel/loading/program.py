@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 import tomllib
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -83,10 +83,10 @@ class Stage:
         S = tuple(ROWS[n][0] for n in names)
         M = np.array([ROWS[n][1] for n in names], float)
         values = []
-        for n, (stress, row) in zip(names, (ROWS[n] for n in names)):
+        for n, row in zip(names, M):
             v = self.rows[n]
             if v == "hold":
-                v = float(np.asarray(row) @ state.sig[0])
+                v = float(row @ state.sig[0])
             elif isinstance(v, Expression):
                 if "p0" in v.names and p0 is None:
                     raise InputError(f"stage {self.name!r}: {n} = {v.text!r} uses p0, but no iso stage "
@@ -155,6 +155,7 @@ class Program:
                 raise InputError(f"stage {i} must be a table")
             blocks.append(_block(item, i) if "stages" in item or "repeat" in item
                           else Block(_label(item, i), (_stage(item, _label(item, i)),)))
+        _p0_after_iso(blocks)
         return cls(str(data.get("name", default_name)), tuple(blocks),
                    {str(k): str(v) for k, v in params.items()})
 
@@ -232,6 +233,7 @@ class _Run:
         self.p0: float | None = None
         self.done = 0
         self.tangent = Tangent()
+        self.block_name = ""
 
     def advance(self, n: int) -> None:
         self.done += n
@@ -266,7 +268,6 @@ class _Run:
                 self.chunk(self.state, 0)
             return None
         seg = stage.segment(self.state, self.p0)
-        seg = replace(seg, stage=stage.name)
         criteria = [c for c in (stage.until, block_until) if c is not None]
         env = {"p0": self.p0 if self.p0 is not None else float("nan")}
         for c in criteria:
@@ -303,6 +304,19 @@ class _Run:
 
 
 # ---------------------------------------------------------------------- parsing helpers
+
+def _p0_after_iso(blocks: list[Block]) -> None:
+    """Refuse a stage whose targets or criteria use p0 before any iso stage has set it."""
+    for block in blocks:
+        for stage in block.stages:
+            if stage.iso is not None:
+                return
+            uses = [v.text for v in stage.rows.values() if isinstance(v, Expression) and "p0" in v.names]
+            uses += [c.text for c in (stage.until, block.until) if c is not None and "p0" in c.names]
+            if uses:
+                raise InputError(f"stage {stage.name!r}: {uses[0]!r} uses p0, but no iso stage comes "
+                                 f"before it")
+
 
 def _keys(table: Mapping, allowed: set[str], where: str) -> None:
     unknown = sorted(set(table) - allowed)
