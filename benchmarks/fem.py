@@ -1,0 +1,64 @@
+"""FEM speed: plane-strain biaxial test, 8x16 Q4 elements (512 Gauss points), drained at
+200 kPa, nθ = 360, to 5 % axial strain in 100 load steps, with the closed form and with the
+shipped surrogate (``--solver surrogate``), each run once (a run is minutes, not milliseconds).
+
+Also recorded: load steps taken (with cuts), Newton iterations, the largest deviation of q from
+the material-point test with the same increments up to its peak (relative to peak q), and the
+median convergence rate of the residual (log r_{k+1} / log r_k).
+
+Usage: ``python benchmarks/fem.py [--solvers closed-form,surrogate]``; prints a table, writes
+``fem.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+from timing import record, write_table
+
+from hmodel import Params
+from hmodel.fem import biaxial, material_point_curve
+from hmodel.solvers import get_solver
+
+TARGETS = {"closed-form": "<= 120", "surrogate": "<= 300"}
+
+
+def rate(residuals) -> float:
+    r = [np.log(x[k + 1]) / np.log(x[k]) for x in residuals for k in range(len(x) - 1)
+         if 1e-14 < x[k + 1] and x[k] < 1e-2]
+    return float(np.median(r)) if r else float("nan")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--solvers", default="closed-form,surrogate")
+    ap.add_argument("--out", type=Path, default=Path(__file__).with_name("fem.json"))
+    args = ap.parse_args()
+    rows, details = [], {}
+    for spec in args.solvers.split(","):
+        solver = get_solver(spec)
+        t = time.perf_counter()
+        res = biaxial(Params(n_theta=360), 2e5, 0.05, mesh=(8, 16), n_steps=100, solver=solver,
+                      reference=False)
+        wall = time.perf_counter() - t
+        rows.append((f"FEM biaxial 8x16 Q4, 512 Gauss points, ntheta=360, 100 steps, {spec} [s]", wall,
+                     TARGETS.get(spec.split(":")[0], "")))
+        from hmodel.loading import run_biaxial
+        c = material_point_curve(run_biaxial(Params(n_theta=360), 2e5, 0.05, solver=solver, step=5e-4))
+        n = min(len(res), len(c["q"]))
+        same = np.allclose(res.column("eps11")[:n], c["eps11"][:n])
+        upto = min(n, int(np.argmax(c["q"])) + 1)
+        dev = float(np.max(np.abs(res.column("q")[:upto] - c["q"][:upto])) / c["q"].max()) if same else None
+        details[spec] = {"steps": len(res) - 1, "newton_iterations": int(res.column("newton_iterations").sum()),
+                         "stopped": res.stopped, "q_deviation_to_peak": dev,
+                         "median_convergence_rate": rate(res.residuals)}
+    write_table(rows, args.out, record(__file__, 1, rows, details=details))
+    for k, v in details.items():
+        print(k, v)
+
+
+if __name__ == "__main__":
+    main()
