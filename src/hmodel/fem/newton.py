@@ -39,13 +39,16 @@ from .material import Trial
 @dataclass(frozen=True)
 class NewtonSettings:
     """``rtol``: residual tolerance relative to the reference force; ``max_iter`` per step;
-    ``max_cuts``: halvings of a failing step before the run stops."""
+    ``max_cuts``: halvings of a failing step before the run stops; ``event_after``,
+    ``max_events``: the cell-event fallback; ``line_search``: halvings of a correction that
+    raises the residual."""
 
     rtol: float = 1e-8
     max_iter: int = 20
     max_cuts: int = 6
     event_after: int = 8
     max_events: int = 6
+    line_search: int = 3
 
 
 @dataclass
@@ -94,31 +97,42 @@ def _broken(obj) -> int:
     return 0 if state is None else int(state.flags.broken.sum())
 
 
+def _evaluate(pb: Problem, du: np.ndarray):
+    """Material trial and internal forces of the displacement increment ``du``."""
+    try:
+        trial = pb.material.trial(strain_hm(pb.basis, du))
+    except HModelError as e:
+        why = " ".join(str(e).split())
+        raise NotConverged("a material point refused its increment ("
+                           + (why if len(why) < 200 else why[:200] + "...") + ")") from None
+    f_int = internal_force(pb.basis, trial.sig)
+    return trial, f_int, f_int - pb.f_ext
+
+
 def newton_step(pb: Problem, d_lambda: float, guess: np.ndarray | None,
                 settings: NewtonSettings, scale: float, events_left: int = 0) -> StepResult:
     """Solve one load step from the committed state; raises :class:`NotConverged`. With
-    ``events_left``, a stalled Newton may return an event state (:class:`StepResult.event`)."""
+    ``events_left``, a stalled Newton may return an event state (:class:`StepResult.event`).
+
+    A correction that raises the residual is halved up to ``settings.line_search`` times
+    (the best trial is kept): where cells change regime between iterates (sliding starts or
+    stops at a kink of the response) the full correction can cycle between two states."""
     du = np.zeros(pb.basis.N) if guess is None else guess.copy()
     du[pb.fixed] = d_lambda * pb.g[pb.fixed]
-    residuals, trials = [], []
+    trial, f_int, r = _evaluate(pb, du)
+    # an unstressed start: the forces of the prescribed motion set the scale
+    scale = max(scale, float(np.linalg.norm(f_int)))
+    norm = lambda r: float(np.linalg.norm(r[pb.free])) / scale  # noqa: E731
+    res = norm(r)
+    residuals, trials = [res], []
     broken0 = _broken(pb.material)
     for it in range(settings.max_iter + 1):
-        try:
-            trial = pb.material.trial(strain_hm(pb.basis, du))
-        except HModelError as e:
-            why = " ".join(str(e).split())
-            raise NotConverged("a material point refused its increment ("
-                               + (why if len(why) < 200 else why[:200] + "...") + ")") from None
-        f_int = internal_force(pb.basis, trial.sig)
-        if it == 0:  # an unstressed start: the forces of the prescribed motion set the scale
-            scale = max(scale, float(np.linalg.norm(f_int)))
-        r = f_int - pb.f_ext
-        res = float(np.linalg.norm(r[pb.free])) / scale
-        residuals.append(res)
         if not np.isfinite(res):
             raise NotConverged("non-finite residual")
         if res <= settings.rtol:
             return StepResult(du, trial, f_int, residuals, d_lambda)
+        if it == settings.max_iter:
+            break
         if len(residuals) > 3 and res > 1e3 * residuals[0]:
             raise NotConverged(f"Newton diverged (relative residual {res:.2e})")
         trials.append((_broken(trial), du, trial, f_int, res))
@@ -127,8 +141,18 @@ def newton_step(pb: Problem, d_lambda: float, guess: np.ndarray | None,
             if most[0] > broken0:
                 return StepResult(most[1], most[2], most[3], residuals[:trials.index(most) + 1],
                                   d_lambda, event=True)
-        K = stiffness(pb.basis, trial.D)
-        du = du + solve(*condense(K, -r, D=pb.fixed))
+        ddu = solve(*condense(stiffness(pb.basis, trial.D), -r, D=pb.fixed))
+        best = None
+        for k in range(settings.line_search + 1):
+            cand = du + ddu / 2 ** k
+            t2, f2, r2 = _evaluate(pb, cand)
+            n2 = norm(r2)
+            if best is None or n2 < best[4]:
+                best = (cand, t2, f2, r2, n2)
+            if n2 < res:
+                break
+        du, trial, f_int, r, res = best
+        residuals.append(res)
     raise NotConverged(f"Newton did not converge in {settings.max_iter} iterations "
                        f"(relative residual {residuals[-1]:.2e}, last ones "
                        + ", ".join(f"{x:.1e}" for x in residuals[-3:]) + ")")
