@@ -100,7 +100,9 @@ def band(out: dict) -> None:
         x, dx = res.gauss_x, res.gauss_dx
         far = (x[0] - zone[0]) ** 2 + (x[1] - zone[1]) ** 2 > (2 * zone[2]) ** 2
         upper = far & (x[1] > zone[1])
-        angle = band_inclination(x, inc, dx, top=0.2, mask=upper)
+        conc = concentration(inc, dx)
+        # a band only where the increment field has localized (twice its average somewhere)
+        angle = band_inclination(x, inc, dx, top=0.2, mask=upper) if conc > 2 else float("nan")
         # onset: first step whose deviatoric strain increment is twice its average somewhere
         onset = float("nan")
         for k in range(1, len(res.snapshots)):
@@ -111,11 +113,13 @@ def band(out: dict) -> None:
                 break
         rows.append({"mesh": f"{mesh[0]}x{mesh[1]}", "gauss_points": int(dx.size), "seconds": wall,
                      "stopped": res.stopped, "peak_strain": float(res.column("eps11")[ipk]),
-                     "peak_q": float(q[ipk]), "band_angle_deg": angle, "localization_onset": onset,
+                     "peak_q": float(q[ipk]), "band_angle_deg": angle, "post_peak_concentration": conc,
+                     "localization_onset": onset,
                      "q_end": float(q[-1])})
         ax = axes[j]
         sc = ax.scatter(x[0], x[1], c=inc, s=2500 / dx.size ** 0.85, marker="s", cmap="viridis")
-        ax.set_aspect("equal"), ax.set_title(f"{mesh[0]}x{mesh[1]}: band {angle:.0f} deg", fontsize=9)
+        ax.set_aspect("equal"), ax.set_title(f"{mesh[0]}x{mesh[1]}: " + (f"band {angle:.0f} deg" if angle == angle else "no band"),
+                                           fontsize=9)
         ax.set_xticks([]), ax.set_yticks([])
         fig.colorbar(sc, ax=ax, fraction=0.06)
         axes[-1].plot(res.column("eps11"), q / 1e3, label=f"FEM {mesh[0]}x{mesh[1]}")

@@ -20,7 +20,9 @@ from ..rev import Rev, RevState
 #: piecewise smooth in the increment (a cell's regime changes at a kink); a perturbation far
 #: below the load step's strain (1e-4 .. 1e-3) keeps the tangent on the trial's own branch,
 #: and at stresses ~1e5 Pa and stiffnesses ~1e8 Pa it still moves the stress by ~1 Pa, nine
-#: orders above round-off.
+#: orders above round-off. A solver whose cells are converged only to a relative ``stress_rtol``
+#: (DEM cells, surrogates' sub-steps) gets ten times that instead, so that its noise stays
+#: far below the perturbation's response.
 FD_STEP = 1e-8
 
 
@@ -57,6 +59,7 @@ class HModelMaterial:
         start = consolidate(rev, [p0], state=rev.initial(rev.n_sets))
         self.state = start.select(sets if rev.n_sets > 1 else np.zeros(len(sets), np.int64))
         self._tiled = None
+        self.fd_step = max(FD_STEP, 10 * float(getattr(rev.solver, "stress_rtol", 0.0)))
 
     @property
     def n_points(self) -> int:
@@ -73,11 +76,12 @@ class HModelMaterial:
         if self._tiled is None:  # the committed state four times over, once per load step
             self._tiled = self.state.select(np.tile(np.arange(B), 4))
         d = np.tile(deps, (4, 1))
+        h = self.fd_step
         for j in range(3):
-            d[(j + 1) * B:(j + 2) * B, j] += FD_STEP
+            d[(j + 1) * B:(j + 2) * B, j] += h
         out = self.rev.step(self._tiled, d)
         sig = out.sig[:B]
-        D = np.stack([(out.sig[(j + 1) * B:(j + 2) * B] - sig) / FD_STEP for j in range(3)], axis=-1)
+        D = np.stack([(out.sig[(j + 1) * B:(j + 2) * B] - sig) / h for j in range(3)], axis=-1)
         return Trial(deps, sig, D, out.select(slice(0, B)))
 
     def commit(self, trial: Trial) -> None:
