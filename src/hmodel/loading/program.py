@@ -189,7 +189,7 @@ class Program:
         rev = Rev(params, solver)
         rec = Recorder({"test": "program", "program": self.name, "params": params.to_dict(),
                         "solver": rev.solver.name, "stopped": [], "cycles": {},
-                        "undrained_stages": self.undrained_stages})
+                        "undrained_stages": self.undrained_stages}, rev.solver_fractions)
         rec.tags["cycle"] = 0
         run = _Run(rev, rec, progress, self.n_increments, chunk, settings)
         try:
