@@ -72,24 +72,26 @@ def plot_fields(res: FemResult, path: Path, n_show: int = 3) -> None:
     rows = [("deviatoric_strain", "viridis"), ("volumetric_strain", "coolwarm"),
             ("frac_sliding", "magma"), ("frac_open", "magma"), ("d2w_normalized", "RdBu")]
     W, H = res.domain.width, res.domain.height
-    fig, axes = plt.subplots(len(rows), len(pick), figsize=(2.2 * len(pick) * max(W / H, 0.5) + 1.5,
-                                                            2.2 * len(rows)), squeeze=False)
+    fig, axes = plt.subplots(len(rows), len(pick), figsize=(3.2 * len(pick), 2.6 * len(rows) * max(H / W, 0.6) / 1.4),
+                             squeeze=False)
     x, y = res.gauss_x
-    size = 3000.0 / max(res.gauss_dx.size, 1) ** 0.9
     for j, snap in enumerate(pick):
         fields = _point_fields(snap)
         for i, (name, cmap) in enumerate(rows):
             ax = axes[i, j]
             v = fields[name]
             kw = {"vmin": -1, "vmax": 1} if name == "d2w_normalized" else {}
-            sc = ax.scatter(x, y, c=v, s=size, marker="s", cmap=cmap, **kw)
+            # Gauss-point values interpolated on their Delaunay triangulation (no extrapolation
+            # to the boundary: the outermost Gauss points bound the drawing)
+            sc = ax.tripcolor(x, y, np.nan_to_num(v), shading="gouraud", cmap=cmap, **kw)
             ax.set_aspect("equal")
             ax.set_xticks([]), ax.set_yticks([])
             if i == 0:
-                ax.set_title(f"step {snap.step} ({_load_label(res, snap)})", fontsize=8)
+                ax.set_title(_load_label(res, snap), fontsize=8)
             if j == 0:
                 ax.set_ylabel(name.replace("_", " "), fontsize=8)
-            fig.colorbar(sc, ax=ax, fraction=0.05)
+            cb = fig.colorbar(sc, ax=ax, fraction=0.05, format="%.3g")
+            cb.ax.tick_params(labelsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -97,8 +99,8 @@ def plot_fields(res: FemResult, path: Path, n_show: int = 3) -> None:
 
 def _load_label(res: FemResult, snap: Snapshot) -> str:
     if res.problem == "biaxial":
-        return f"eps11 = {snap.load * res.meta['axial_strain']:.3g}"
-    return f"s/B = {snap.load * res.meta['settlement']:.3g}"
+        return f"step {snap.step}: eps11 = {snap.load * res.meta['axial_strain']:.3g}"
+    return f"step {snap.step}: s/B = {snap.load * res.meta['settlement']:.3g}"
 
 
 def plot_curve(res: FemResult, path: Path) -> None:
