@@ -9,7 +9,7 @@ from skfem import Basis, ElementQuad1, ElementQuadS2, ElementTriP2, ElementVecto
 
 from hmodel import Params
 from hmodel.cli.app import main
-from hmodel.fem import NewtonSettings, biaxial, material_point_curve
+from hmodel.fem import NewtonSettings, biaxial, footing, material_point_curve
 from hmodel.fem.assembly import internal_force, strain_hm
 from hmodel.fem.material import HModelMaterial, LinearElastic
 from hmodel.fem.mesh import dofs_where, gauss_points
@@ -164,3 +164,16 @@ def test_cli_writes_outputs_and_refuses_bad_input(tmp_path, capsys):
         assert err.startswith("hmodel: error:") and "\n" not in err
         assert not bad_out.exists()
     assert main(["fem", "footing", "--width", "2", "--out", str(tmp_path / "bad")]) == 1
+
+
+def test_footing_refinement_softens_towards_the_limit():
+    """Displacement-based elements are too stiff: while the response is close to elastic,
+    refining the mesh lowers the load a settlement needs (10x5 -> 20x10 elements, s/B up to
+    0.004); the three-mesh study to s/B = 0.05 is in docs/fem.md."""
+    params = Params(n_theta=36, sliding_rhs="equilibrium")
+    coarse = footing(params, 1e5, 0.004, mesh=(10, 5), n_steps=4)
+    fine = footing(params, 1e5, 0.004, mesh=(20, 10), n_steps=4)
+    assert coarse.stopped is None and fine.stopped is None
+    pc, pf = coarse.column("pressure"), fine.column("pressure")
+    assert pc[0] == pf[0] == 1e5 and np.all(np.diff(pf) > 0)
+    assert np.all(pf[1:] < pc[1:])
