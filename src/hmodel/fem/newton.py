@@ -119,6 +119,12 @@ def newton_step(pb: Problem, d_lambda: float, guess: np.ndarray | None,
     stops at a kink of the response) the full correction can cycle between two states."""
     du = np.zeros(pb.basis.N) if guess is None else guess.copy()
     du[pb.fixed] = d_lambda * pb.g[pb.fixed]
+    if guess is None and d_lambda != 0:
+        # no previous step to extrapolate: the committed state's tangent predicts the free
+        # nodes (moving only the prescribed ones puts large strains into the boundary
+        # elements, where cells may open and leave interior nodes without stiffness)
+        t0, _, r0 = _evaluate(pb, np.zeros(pb.basis.N))
+        du = solve(*condense(stiffness(pb.basis, t0.D), -r0, x=du, D=pb.fixed))
     trial, f_int, r = _evaluate(pb, du)
     # an unstressed start: the forces of the prescribed motion set the scale
     scale = max(scale, float(np.linalg.norm(f_int)))
