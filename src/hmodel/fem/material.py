@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..cell import CellFlags, CellState
 from ..errors import InputError
 from ..loading import consolidate
 from ..rev import Rev, RevState
@@ -51,8 +52,11 @@ class HModelMaterial:
         all points of a set start in the same state).
     """
 
-    def __init__(self, rev: Rev, sets: np.ndarray, p0: float):
+    def __init__(self, rev: Rev, sets: np.ndarray, p0: float, step=None):
         self.rev = rev
+        #: ``step(rev, state, deps) -> state``: where the batched REV call runs (this process,
+        #: or a Dask cluster: :class:`DaskStep`)
+        self.step = step or (lambda rev, state, deps: rev.step(state, deps))
         sets = np.asarray(sets, np.int64)
         if sets.min() < 0 or sets.max() >= rev.n_sets:
             raise InputError(f"Gauss-point parameter sets must lie in [0, {rev.n_sets})")
@@ -79,7 +83,7 @@ class HModelMaterial:
         h = self.fd_step
         for j in range(3):
             d[(j + 1) * B:(j + 2) * B, j] += h
-        out = self.rev.step(self._tiled, d)
+        out = self.step(self.rev, self._tiled, d)
         sig = out.sig[:B]
         D = np.stack([(out.sig[(j + 1) * B:(j + 2) * B] - sig) / h for j in range(3)], axis=-1)
         return Trial(deps, sig, D, out.select(slice(0, B)))
@@ -98,6 +102,54 @@ class HModelMaterial:
     def fractions(self) -> dict[str, np.ndarray]:
         """Fractions of sliding and open cells per Gauss point (B,)."""
         return self.state.fractions()
+
+
+def _arrays(state: RevState) -> tuple:
+    # plain arrays travel to the workers (the state's cell containers do not pickle)
+    return state.cells.values, state.flags.flags, state.eps, state.sig, state.sets
+
+
+def _state(values, flags, eps, sig, sets) -> RevState:
+    return RevState(CellState(values), CellFlags(flags), eps, sig, sets)
+
+
+def _step_chunk(rev: Rev, arrays: tuple, deps: np.ndarray) -> tuple:
+    return _arrays(rev.step(_state(*arrays), deps))
+
+
+def concatenate(parts: list[tuple]) -> RevState:
+    """Material points of several states' arrays (:func:`_arrays`), in order, as one state."""
+    sets = None if parts[0][4] is None else np.concatenate([p[4] for p in parts])
+    return _state(*(np.concatenate([p[i] for p in parts]) for i in range(4)), sets)
+
+
+class DaskStep:
+    """The batched REV call split into one contiguous chunk of Gauss points per worker of a
+    Dask cluster (``scheduler``: its address, as for ``hmodel data generate --scheduler``).
+    Every material point's update is independent of the others, so the states are those of a
+    local call; what is worth sending away is an expensive cell solver (DEM cells)."""
+
+    def __init__(self, scheduler: str, rev: Rev):
+        try:
+            from distributed import Client
+        except ImportError:
+            raise InputError("--scheduler needs Dask: pip install 'hmodel[dask]'") from None
+        try:
+            self.client = Client(scheduler, timeout="10s", set_as_default=False)
+        except (OSError, TimeoutError) as e:
+            raise InputError(f"cannot reach the Dask scheduler at {scheduler!r}: {e}") from None
+        self.n = max(1, len(self.client.scheduler_info().get("workers", {})))
+        self.rev = self.client.scatter(rev, broadcast=True)
+
+    def __call__(self, rev: Rev, state: RevState, deps: np.ndarray) -> RevState:
+        bounds = np.linspace(0, state.n_points, self.n + 1).astype(int)
+        futures = [self.client.submit(_step_chunk, self.rev, _arrays(state.select(slice(a, b))), deps[a:b],
+                                      pure=False)
+                   for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+        return concatenate(self.client.gather(futures))
+
+    def close(self) -> None:
+        self.client.close()
 
 
 class LinearElastic:

@@ -21,7 +21,7 @@ from ..params import Params, parse_point_assignments
 from ..rev import Rev
 from ..stability import second_order_work
 from .assembly import volume_average
-from .material import HModelMaterial
+from .material import DaskStep, HModelMaterial
 from .mesh import Domain, dofs_where, gauss_points
 from .newton import NewtonSettings, Problem, StepResult, run_steps
 from .result import FemResult, Snapshot
@@ -111,7 +111,8 @@ class _Recorder:
         self._prev = (st.eps.copy(), st.sig.copy())
 
 
-def _material(params: Params, imperfection, domain, gx, solver, p0) -> tuple[HModelMaterial, Rev, np.ndarray]:
+def _material(params: Params, imperfection, domain, gx, solver, p0,
+              scheduler: str | None = None) -> tuple[HModelMaterial, Rev, np.ndarray]:
     sets_params = [params]
     zone = None
     if imperfection is not None:
@@ -119,7 +120,7 @@ def _material(params: Params, imperfection, domain, gx, solver, p0) -> tuple[HMo
         sets_params.append(weak)
     sets = _zone_sets(domain, gx, zone)
     rev = Rev(sets_params if len(sets_params) > 1 else params, solver)
-    return HModelMaterial(rev, sets, p0), rev, sets
+    return HModelMaterial(rev, sets, p0, DaskStep(scheduler, rev) if scheduler else None), rev, sets
 
 
 def _check_common(p0: float, n_steps: int) -> None:
@@ -147,7 +148,11 @@ def _run(name, domain, pb, columns, row, where, n_steps, n_saved, settings, prog
         if progress is not None:
             progress(lam)
     rec.before()
-    out = run_steps(pb, n_steps, on_step, settings, where)
+    try:
+        out = run_steps(pb, n_steps, on_step, settings, where)
+    finally:
+        if isinstance(pb.material.step, DaskStep):
+            pb.material.step.close()
     meta = {**meta, "rtol": settings.rtol, "seconds": time.perf_counter() - t0, "steps": out.n_steps,
             "gauss_points": int(dx.size), "dofs": int(pb.basis.N)}
     return FemResult(name, domain, tuple(columns), {k: np.asarray(v) for k, v in rec.rows.items()},
@@ -163,7 +168,7 @@ def biaxial(params: Params | None = None, p0: float = 2e5, axial_strain: float =
             imperfection: "str | tuple[Params, tuple[float, float, float]] | None" = None,
             n_steps: int = 100, solver: CellSolver | None = None,
             settings: NewtonSettings = NewtonSettings(), n_saved: int = 10,
-            reference: bool = True, progress=None) -> FemResult:
+            reference: bool = True, scheduler: str | None = None, progress=None) -> FemResult:
     """Plane-strain biaxial test of a ``size`` = (width, height) [m] specimen.
 
     Consolidated to ``p0`` [Pa], then compressed by the top platen to ``axial_strain``
@@ -176,6 +181,8 @@ def biaxial(params: Params | None = None, p0: float = 2e5, axial_strain: float =
     ``platens``: smooth (free lateral sliding; one node pinned) or rough (no lateral sliding).
     ``imperfection``: ``"NAME=VALUE,...@X,Y,R"`` (see :func:`parse_imperfection`).
     ``reference``: also run the material-point test of the same parameters (``result.reference``).
+    ``scheduler``: a Dask scheduler's address; the Gauss points' material updates run there
+    (:class:`~hmodel.fem.material.DaskStep`), with the same results.
     """
     params = params or Params()
     _check_common(p0, n_steps)
@@ -186,7 +193,7 @@ def biaxial(params: Params | None = None, p0: float = 2e5, axial_strain: float =
     domain = Domain(*size, *mesh, element)
     basis = domain.basis()
     gx, dx = gauss_points(basis)
-    material, rev, sets = _material(params, imperfection, domain, gx, solver, p0)
+    material, rev, sets = _material(params, imperfection, domain, gx, solver, p0, scheduler)
     W, H = domain.width, domain.height
     tol = 1e-9 * max(W, H)
     bottom = dofs_where(basis, 1, lambda x: x[1] < tol)
@@ -243,7 +250,8 @@ FOOTING_COLUMNS = ("step", "settlement", "s_B", "pressure", "newton_iterations",
 def footing(params: Params | None = None, p0: float = 1e5, settlement: float = 0.05, *,
             width: float = 0.2, layer: tuple[float, float] = (1.0, 0.5), mesh: tuple[int, int] = (20, 10),
             element: str = "q4", rough: bool = True, n_steps: int = 50, solver: CellSolver | None = None,
-            settings: NewtonSettings = NewtonSettings(), n_saved: int = 10, progress=None) -> FemResult:
+            settings: NewtonSettings = NewtonSettings(), n_saved: int = 10,
+            scheduler: str | None = None, progress=None) -> FemResult:
     """Rigid strip footing of ``width`` [m] at the centre of the top of a ``layer`` = (width,
     depth) [m] layer, pushed down to ``settlement`` times its width in ``n_steps`` load steps.
 
@@ -251,6 +259,7 @@ def footing(params: Params | None = None, p0: float = 1e5, settlement: float = 0
     are smooth rigid walls, its base is fixed. ``rough``: the footing holds its nodes
     horizontally too. The footing's edges must fall on mesh nodes. Rows: the footing's mean
     contact pressure [Pa] (from the nodal forces under it) against its settlement [m].
+    ``scheduler``: as for :func:`biaxial`.
     """
     params = params or Params()
     _check_common(p0, n_steps)
@@ -266,7 +275,7 @@ def footing(params: Params | None = None, p0: float = 1e5, settlement: float = 0
                          f"mesh nodes (element width {L / domain.nx:g} m): choose --mesh accordingly")
     basis = domain.basis()
     gx, dx = gauss_points(basis)
-    material, rev, _ = _material(params, None, domain, gx, solver, p0)
+    material, rev, _ = _material(params, None, domain, gx, solver, p0, scheduler)
     tol = 1e-9 * max(L, H)
     under = lambda x: (x[1] > H - tol) & (np.abs(x[0] - L / 2) <= width / 2 + tol)  # noqa: E731
     foot_y = dofs_where(basis, 1, under)
