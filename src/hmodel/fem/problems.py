@@ -9,7 +9,6 @@ measured from that state. There is no gravity (a weightless layer under the surc
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -63,7 +62,7 @@ def _zone_sets(domain: Domain, gx: np.ndarray, zone) -> np.ndarray:
     return inside.astype(np.int64)
 
 
-def _traction(domain: Domain, basis, facets, p0: float) -> np.ndarray:
+def _traction(basis, facets, p0: float) -> np.ndarray:
     """Nodal forces of the pressure p0 on ``facets`` (traction -p0 n, n the outer normal)."""
     fb = FacetBasis(basis.mesh, basis.elem, facets=facets, intorder=4)  # exact up to quadratic
     form = LinearForm(lambda v, w: -p0 * (w.n[0] * v[0] + w.n[1] * v[1]))
@@ -213,7 +212,7 @@ def biaxial(params: Params | None = None, p0: float = 2e5, axial_strain: float =
         if platens == "smooth":  # no rigid-body translation in x: pin the bottom-left corner
             fixed.append(dofs_where(basis, 0, lambda x: (x[0] < tol) & (x[1] < tol)))
         sides = basis.mesh.facets_satisfying(lambda x: (x[0] < tol) | (x[0] > W - tol))
-        f_ext = _traction(domain, basis, sides, p0)
+        f_ext = _traction(basis, sides, p0)
     pb = Problem(basis, material, np.unique(np.concatenate(fixed)), g, f_ext)
     eps0 = material.state.eps.copy()
 
@@ -287,7 +286,7 @@ def footing(params: Params | None = None, p0: float = 1e5, settlement: float = 0
         fixed.append(dofs_where(basis, 0, under))
     surface = basis.mesh.facets_satisfying(
         lambda x: (x[1] > H - tol) & (np.abs(x[0] - L / 2) >= width / 2 - tol))
-    f_ext = _traction(domain, basis, surface, p0)
+    f_ext = _traction(basis, surface, p0)
     pb = Problem(basis, material, np.unique(np.concatenate(fixed)), g, f_ext)
 
     def row(u, f_int, lam):
@@ -301,11 +300,3 @@ def footing(params: Params | None = None, p0: float = 1e5, settlement: float = 0
                 lambda lam: f"settlement {lam * settlement:.4g} B", n_steps, n_saved, settings,
                 progress, meta, material.state.eps.copy())
 
-
-def with_params(params: Params | None, assignments: Sequence[str] | None) -> Params:
-    """``params`` with ``NAME=VALUE`` assignments applied (one value each)."""
-    sets = parse_point_assignments(list(assignments or []), params)
-    if len(sets) != 1:
-        raise InputError("a finite-element run takes one value per parameter (the imperfection "
-                         "is the way to vary them in space)")
-    return replace(sets[0])
