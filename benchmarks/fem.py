@@ -55,7 +55,8 @@ def main() -> None:
         details[spec] = {"steps": len(res) - 1, "newton_iterations": int(res.column("newton_iterations").sum()),
                          "stopped": res.stopped, "q_deviation_to_peak": dev,
                          "median_convergence_rate": rate(res.residuals)}
-    write_table(rows, args.out, record(__file__, 1, rows, details=details))
+        # written after each solver: a slow one that is stopped leaves the others' results
+        write_table(rows, args.out, record(__file__, 1, rows, details=details))
     for k, v in details.items():
         print(k, v)
 
