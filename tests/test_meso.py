@@ -41,6 +41,9 @@ class SummaryOfClosedForm:
     def initial_cells(self, params, alpha0):
         return self.initial(params, np.shape(alpha0))
 
+    def fractions(self, params, state):
+        return {}
+
     def kernel(self, params):  # the generic driver
         return None
 
