@@ -126,3 +126,15 @@ def test_compiled_consolidation_equals_the_generic_loop():
     np.testing.assert_allclose(rc["eps11"], rg["eps11"], rtol=0, atol=1e-15)
     np.testing.assert_allclose(rc["q"], rg["q"], rtol=1e-12, atol=1e-6)
     assert len(set(np.bincount(rc["point"]))) > 2  # the points did take different numbers of steps
+
+
+def test_the_serial_and_parallel_kernels_keep_separate_cache_entries():
+    """Numba names its on-disk cache after a function's qualified name and line: the parallel
+    kernel made from the same Python function as the serial one loaded the serial machine code
+    whenever that was cached first, and ran on one thread."""
+    from hmodel.loading import compiled
+
+    serial, parallel = compiled._run_steps, compiled._run_steps_parallel
+    assert parallel.targetoptions.get("parallel") and not serial.targetoptions.get("parallel")
+    assert serial.py_func.__qualname__ != parallel.py_func.__qualname__
+    assert serial.py_func.__code__ is parallel.py_func.__code__  # one algorithm

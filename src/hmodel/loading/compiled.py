@@ -25,6 +25,8 @@ kernel resumes after it. Results equal the generic path's to the Newton toleranc
 
 from __future__ import annotations
 
+import types
+
 import numpy as np
 from numba import njit, prange
 
@@ -429,10 +431,22 @@ def _iso_steps(values, flags, eps, sig, geo, p, mode, volume0, sets, step, p0, r
         sig[b] = sg
 
 
+def _renamed(fn, name: str):
+    """``fn`` as a function of another name. Numba's on-disk cache files are named after a
+    function's qualified name and line, not its compile options: two dispatchers of one Python
+    function (serial and parallel) share one cache entry, and whichever compiled first would be
+    loaded by the other (the parallel kernel then ran on one thread)."""
+    out = types.FunctionType(fn.__code__, fn.__globals__, name, fn.__defaults__, fn.__closure__)
+    out.__qualname__ = name
+    out.__doc__ = fn.__doc__
+    return out
+
+
 #: :func:`_steps` on one core, and on all cores for batches of several points (a thread team
 #: per increment costs more than one point's increment saves when there is one point).
 _run_steps = njit(cache=True, error_model="numpy")(_steps)
-_run_steps_parallel = njit(cache=True, parallel=True, error_model="numpy")(_steps)
+_run_steps_parallel = njit(cache=True, parallel=True, error_model="numpy")(
+    _renamed(_steps, "_steps_parallel"))
 _run_iso_steps = njit(cache=True, parallel=True, error_model="numpy")(_iso_steps)
 
 
