@@ -83,6 +83,34 @@ def test_patch_hmodel_uniform_state():
     np.testing.assert_allclose(mat.state.sig, np.tile(one.sig, (B, 1)), rtol=1e-7, atol=1e-3)
 
 
+def test_surrogate_trial_runs_the_network_once_per_committed_state():
+    """A trial's increment and its three tangent perturbations start from one committed state:
+    the shipped surrogate's network sees each of its cells once, and so do later iterates
+    of the same load step, until a commit gives new states."""
+    from hmodel.surrogate.shipped import load_shipped
+    from hmodel.surrogate.solver import SurrogateSolver
+
+    solver = SurrogateSolver(load_shipped())
+    params = Params(n_theta=36)
+    B = 3
+    mat = HModelMaterial(Rev(params, solver=solver), np.zeros(B, np.int64), 2e5)
+    before = solver.counts["network_cells"]
+    deps = np.array([[-2e-4, 1e-4, 0.0], [-1e-4, 5e-5, 2e-5], [-3e-4, 0.0, -1e-5]])
+    t1 = mat.trial(deps)
+    used = solver.counts["network_cells"] - before
+    assert 0 < used <= B * params.n_theta
+    mat.trial(0.5 * deps)
+    assert solver.counts["network_cells"] - before == used
+    mat.commit(t1)
+    mat.trial(deps)
+    assert solver.counts["network_cells"] - before > used
+    # the finite-difference tangent is the response's: a small increment along it is predicted
+    h = 1e-6 * np.array([1.0, -0.5, 0.2])
+    t2 = mat.trial(deps + h)
+    t0 = mat.trial(deps)
+    np.testing.assert_allclose(t2.sig - t0.sig, t0.D @ h, rtol=1e-3, atol=1e-3)
+
+
 def _errors(res):
     c = material_point_curve(res.reference)
     assert np.allclose(res.column("eps11"), c["eps11"])  # same increments (no cut steps)
