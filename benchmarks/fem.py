@@ -6,8 +6,11 @@ Also recorded: load steps taken (with cuts), Newton iterations, the largest devi
 the material-point test with the same increments up to its peak (relative to peak q), and the
 median convergence rate of the residual (log r_{k+1} / log r_k).
 
-Usage: ``python benchmarks/fem.py [--solvers closed-form,surrogate]``; prints a table, writes
-``fem.json``.
+The richer-cell surrogate runs with the closure its DEM cells follow:
+``python benchmarks/fem.py --solvers surrogate:hexagon-center -p sliding_rhs=equilibrium``.
+
+Usage: ``python benchmarks/fem.py [--solvers closed-form,surrogate] [-p NAME=VALUE ...] [--out PATH]``;
+prints a table, writes ``fem.json`` (or ``--out``).
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import numpy as np
 from timing import record, write_table
 
 from hmodel import Params
+from hmodel.params import parse_point_assignments
 from hmodel.fem import biaxial, material_point_curve
 from hmodel.solvers import get_solver
 
@@ -35,19 +39,21 @@ def rate(residuals) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--solvers", default="closed-form,surrogate")
+    ap.add_argument("-p", "--param", action="append", default=[], help="NAME=VALUE (Params field)")
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("fem.json"))
     args = ap.parse_args()
+    params = parse_point_assignments(args.param, Params(n_theta=360))[0]
     rows, details = [], {}
     for spec in args.solvers.split(","):
         solver = get_solver(spec)
         t = time.perf_counter()
-        res = biaxial(Params(n_theta=360), 2e5, 0.05, mesh=(8, 16), n_steps=100, solver=solver,
+        res = biaxial(params, 2e5, 0.05, mesh=(8, 16), n_steps=100, solver=solver,
                       reference=False)
         wall = time.perf_counter() - t
         rows.append((f"FEM biaxial 8x16 Q4, 512 Gauss points, ntheta=360, 100 steps, {spec} [s]", wall,
                      TARGETS.get(spec.split(":")[0], "")))
         from hmodel.loading import run_biaxial
-        c = material_point_curve(run_biaxial(Params(n_theta=360), 2e5, 0.05, solver=solver, step=5e-4))
+        c = material_point_curve(run_biaxial(params, 2e5, 0.05, solver=solver, step=5e-4))
         n = min(len(res), len(c["q"]))
         same = np.allclose(res.column("eps11")[:n], c["eps11"][:n])
         upto = min(n, int(np.argmax(c["q"])) + 1)
@@ -56,7 +62,7 @@ def main() -> None:
                          "stopped": res.stopped, "q_deviation_to_peak": dev,
                          "median_convergence_rate": rate(res.residuals)}
         # written after each solver: a slow one that is stopped leaves the others' results
-        write_table(rows, args.out, record(__file__, 1, rows, details=details))
+        write_table(rows, args.out, record(__file__, 1, rows, details=details, params=args.param))
     for k, v in details.items():
         print(k, v)
 

@@ -180,6 +180,30 @@ def test_compare_and_reproduce_commands(tmp_path, capsys, monkeypatch):
     capsys.readouterr()
     assert main(["compare", "--paths", "spiral", "--out", str(tmp_path / "x")]) != 0
     assert "spiral" in capsys.readouterr().err
+    assert main(["compare", "--reference", "nonsense", "--out", str(tmp_path / "y")]) != 0
+    assert "nonsense" in capsys.readouterr().err and not (tmp_path / "y").exists()
+
+
+def test_compare_against_another_reference(tmp_path):
+    """--reference names the solver the deviations are taken from: the closed form against
+    itself deviates by nothing, and the surrogate against the closed form by what it deviates
+    the other way round (the same curves, normalized by the other peak)."""
+    import csv
+
+    common = ["--paths", "drained", "--axial-strain", "0.004", "--param", "n_theta=18"]
+    assert main(["compare", "--solver", "closed-form", "--reference", "closed-form", *common,
+                 "--out", str(tmp_path / "same")]) == 0
+    same = list(csv.DictReader((tmp_path / "same" / "deviations.csv").open()))
+    assert same and all(float(r["q_max_dev_rel"]) == 0.0 and r["reference"] == "closed-form" for r in same)
+    assert main(["compare", "--solver", "surrogate", *common, "--out", str(tmp_path / "a")]) == 0
+    assert main(["compare", "--solver", "closed-form", "--reference", "surrogate", *common,
+                 "--out", str(tmp_path / "b")]) == 0
+    a = list(csv.DictReader((tmp_path / "a" / "deviations.csv").open()))
+    b = list(csv.DictReader((tmp_path / "b" / "deviations.csv").open()))
+    assert b[0]["reference"] == "surrogate"
+    for ra, rb in zip(a, b):
+        qa, qb = float(ra["q_max_dev_rel"]), float(rb["q_max_dev_rel"])
+        assert qa > 0 and qb == pytest.approx(qa, rel=0.05)
 
 
 def test_full_reproduce_trains_its_own_surrogate(tmp_path, monkeypatch):

@@ -67,20 +67,23 @@ def warm_up(params: Params, solvers: "list[str | CellSolver]", step: float, iso_
 
 
 def compare_path(params: Params, spec: PathSpec, other: "str | CellSolver", step: float,
-                 iso_step: float) -> tuple[PathResult, PathResult | None, list[dict], dict]:
-    """Both runs of one path: (closed form, other or None, deviation rows, timings/status).
+                 iso_step: float, reference: "str | CellSolver" = "closed-form"
+                 ) -> tuple[PathResult, PathResult | None, list[dict], dict]:
+    """Both runs of one path: (reference, other or None, deviation rows, timings/status).
 
-    A run of the other solver that fails (a SolverError: the surrogate drove a cell or the
-    mixed-control Newton out of bounds) is reported as such, with its message, not hidden."""
+    ``reference`` is the closed form unless given (e.g. a REV of DEM cells, ``dem:hexagon-center``,
+    against the surrogate that learned them). A run of the other solver that fails (a
+    SolverError: the surrogate drove a cell or the mixed-control Newton out of bounds) is
+    reported as such, with its message, not hidden."""
     from .errors import SolverError
 
-    ref, t_ref = run_path(params, spec, "closed-form", step, iso_step)
+    ref, t_ref = run_path(params, spec, reference, step, iso_step)
     try:
         res, t_other = run_path(params, spec, other, step, iso_step)
     except SolverError as e:
-        return ref, None, [], {"seconds_closed_form": t_ref, "seconds_other": float("nan"),
+        return ref, None, [], {"seconds_reference": t_ref, "seconds_other": float("nan"),
                                "status": "failed: " + " ".join(str(e).split())[:200]}
-    return ref, res, deviations(ref, res), {"seconds_closed_form": t_ref, "seconds_other": t_other,
+    return ref, res, deviations(ref, res), {"seconds_reference": t_ref, "seconds_other": t_other,
                                              "status": "ok"}
 
 
