@@ -3,12 +3,12 @@ first shear increments, and whether the REV increment changes it.
 
 For the model of ``benchmarks/dem_ann.py`` (one network, or an ensemble) against the DEM-REV, drained at 100 and 200 kPa
 (nθ = 12): the rows of consolidation and of the first ``--axial`` of shear at increments of
-``--step`` (volumetric strain and q of both), and the max |Δq| / peak q over 1 % paths at REV
-increments of 10⁻³, 5·10⁻⁴ and 2.5·10⁻⁴; and whether the model's first shear increment is
+``--step`` (volumetric strain and q of both), and the max |Δq| / peak q over 1 % paths at the REV
+increments ``--steps`` (default 2·10⁻³, 10⁻³, 5·10⁻⁴ and 2.5·10⁻⁴); and whether the model's first shear increment is
 linear in the strain, as an elastic one is (:func:`onset`).
 
 Prints both tables, writes ``dem_ann_start.json``.
-Usage: ``python benchmarks/dem_ann_start.py [--model A+B+C]``.
+Usage: ``python benchmarks/dem_ann_start.py [--model A+B+C|hexagon-center] [--steps 2e-3,1e-3,...]``.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from hmodel import Params
 from hmodel.compare import deviations, run_path, standard_paths
 from hmodel.dem.solver import DEMSolver
 from hmodel.surrogate.modelfile import load
+from hmodel.surrogate.shipped import model_path
 from hmodel.surrogate.solver import SurrogateSolver
 
 SOLVER = "dem:hexagon-center:tol=1e-7,max_iter=100000"
@@ -72,13 +73,14 @@ def onset(models, step: float) -> list[dict]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--model", default="/tmp/hmodel-dem-ann-hexagon-center/model-0.safetensors",
-                    help="a model file, or an ensemble A+B+...")
+    ap.add_argument("--model", default="hexagon-center",
+                    help="a shipped model's name or a model file, or an ensemble A+B+...")
+    ap.add_argument("--steps", default="2e-3,1e-3,5e-4,2.5e-4", help="REV increments of the 1 %% paths")
     ap.add_argument("--step", type=float, default=2.5e-4)
     ap.add_argument("--axial", type=float, default=0.002)
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("dem_ann_start.json"))
     args = ap.parse_args()
-    models = [load(p) for p in args.model.split("+")]
+    models = [load(model_path(p)) for p in args.model.split("+")]
     ref, res = both(models, args.axial, args.step)
     rows = []
     print(f"{'p0 kPa':>7} {'stage':<14}{'eps11 %':>9}{'eps_v DEM %':>12}{'eps_v ANN %':>12}{'q DEM kPa':>11}{'q ANN kPa':>11}")
@@ -97,7 +99,7 @@ def main() -> None:
                   f"{row['eps_v_ann_pct']:>12.4f}{row['q_dem_kPa']:>11.2f}{row['q_ann_kPa']:>11.2f}")
     kinks = onset(models, args.step)
     steps = []
-    for step in (1e-3, 5e-4, 2.5e-4):
+    for step in (float(x) for x in args.steps.split(",")):
         dev = deviations(*both(models, 0.01, step))
         steps.append({"step": step, **{f"q_max_dev_pct_of_peak_{p0 / 1e3:g}kPa": 100 * d["q_max_dev_rel"]
                                        for p0, d in zip(P0, dev)}})

@@ -50,8 +50,9 @@ def _solver(spec: str, gate: float | None, fallback: str | None):
     return gated_solver(spec, gate, fallback)
 
 
-def _gate_line(solver) -> None:
-    if getattr(solver, "gate", None) is not None:
+def _gate_line(solver, gate: float | None) -> None:
+    """The summary line of a gated run (--gate given)."""
+    if gate is not None:
         from ..surrogate.solver import gate_summary
         typer.echo(gate_summary(solver))
 
@@ -90,7 +91,7 @@ def iso(p0: P0Opt = "200kPa", param: ParamOpt = None, out: OutOpt = Path("result
         result = run_isotropic(params, pressures, solver=cells,
                                step=_positive(iso_step, "--iso-step"), progress=progress)
     _finish(result, out)
-    _gate_line(cells)
+    _gate_line(cells, gate)
 
 
 @app.command("biaxial")
@@ -114,7 +115,7 @@ def biaxial(p0: P0Opt = "200kPa",
                              iso_step=_positive(iso_step, "--iso-step"),
                              step=_positive(step, "--step"), progress=progress)
     _finish(result, out)
-    _gate_line(cells)
+    _gate_line(cells, gate)
 
 
 @app.command("strain-path")
@@ -134,7 +135,7 @@ def strain_path(path: Annotated[Path, typer.Argument(help="CSV with header eps11
         cells = _solver(solver, gate, fallback)
         result = run_strain_path(params, eps, solver=cells, max_step=max_step, progress=progress)
     _finish(result, out)
-    _gate_line(cells)
+    _gate_line(cells, gate)
 
 
 @app.command("program")

@@ -4,6 +4,9 @@
   REV-scale increments (:data:`REV_DATASET`); the one ``--solver surrogate`` uses.
 - ``increment`` (``h-cell-increment.safetensors``): formulation ``increment``, trained on the
   report-scale Dataset 2 (1 % increments in 10 sub-steps); the surrogate of report ch. 2.
+- ``hexagon-center`` (``hexagon-center.safetensors``): formulation ``meso``, a richer cell with
+  no closed form (the hexagon with a free centre grain) learned from YADE's DEM increments
+  (``benchmarks/dem_ann.py``); runs without YADE, with ``sliding_rhs=equilibrium``.
 
 Each is produced by the commands in ``models/README.md`` (a fixed dataset, sample and seed) and
 loaded like any other model file (checked, never unpickled).
@@ -18,7 +21,8 @@ from ..data import DatasetSpec
 from ..errors import InputError
 from .training import TrainConfig
 
-SHIPPED = {"default": "h-cell-default.safetensors", "increment": "h-cell-increment.safetensors"}
+SHIPPED = {"default": "h-cell-default.safetensors", "increment": "h-cell-increment.safetensors",
+           "hexagon-center": "hexagon-center.safetensors"}
 
 #: The database of the default model: Dataset 2 increments of at most 0.2 % (the size of a
 #: REV's cell increments), each one step of eq. 1.7, from paths in every direction between
@@ -46,8 +50,8 @@ def shipped_path(name: str = "default") -> Path:
 
 
 def model_path(ref: str) -> Path:
-    """A model reference: a shipped name (``default``, ``increment``; ``shipped`` is the default)
-    or a model file's path."""
+    """A model reference: a shipped name (``default``, ``increment``, ``hexagon-center``;
+    ``shipped`` is the default) or a model file's path."""
     if ref in ("", "shipped"):
         return shipped_path()
     return shipped_path(ref) if ref in SHIPPED else Path(ref)
