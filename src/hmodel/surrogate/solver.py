@@ -46,6 +46,7 @@ from ..errors import InputError, SolverError
 from ..params import Params
 from .compliance import ComplianceFormulation as Compliance
 from .model import Surrogate
+from .state_cache import StateCache
 
 #: Parameters a surrogate is specific to (it was trained on cells with these values).
 MATERIAL = ("kn", "kt_kn", "phi_g", "radius", "g2", "sliding_rhs", "volume")
@@ -88,14 +89,17 @@ class SurrogateSolver:
         self.gate, self.gate_threshold = gate, None
         if gate is not None or fallback is not None:
             self._set_gate(gate, fallback)
-        # (states, network outputs, outside mask) of the last two batches of states seen: a
-        # Newton iteration's state and the copies its finite-difference tangent probes.
-        self._cache: list[tuple] = []
+        # network outputs, outside and gate masks of the batches of states seen last: every
+        # Newton trial from a state, and every set's batch of a many-set REV, reuse them
+        self._cache = StateCache()
         self._gated: np.ndarray | None = None  # the gate's mask of the states last evaluated
-        self._checked = None
+        self._accepted: set[tuple] = set()  # materials (MATERIAL fields) already checked
         #: Largest cell strain increment of one network step (inf: any, where the network sees
         #: the state only).
         self.max_increment = self.formulation.max_increment(self.model.input_range)
+
+    def __getstate__(self) -> dict:  # a copy in another process starts with an empty cache
+        return {**self.__dict__, "_cache": StateCache(), "_gated": None}
 
     def _set_gate(self, gate: float | None, fallback: CellSolver | None) -> None:
         from .trust import threshold
@@ -128,14 +132,18 @@ class SurrogateSolver:
     def check(self, params: Params) -> None:
         """Refuse a material the surrogate was not trained for."""
         trained = self.model.meta.get("params")
-        if not trained or params is self._checked:  # Params are frozen: once per object
+        if not trained:
+            return
+        # a REV of many parameter sets calls once per set and trial: compare each material once
+        key = tuple(getattr(params, k) for k in MATERIAL)
+        if key in self._accepted:
             return
         mine = params.to_dict()
         wrong = [k for k in MATERIAL if k in trained and not _same(trained[k], mine[k])]
         if wrong:
             raise InputError("the surrogate was trained for other material parameters: " + ", ".join(
                 f"{k}={trained[k]} (run: {mine[k]})" for k in wrong))
-        self._checked = params
+        self._accepted.add(key)
 
     @property
     def n_state(self) -> int:
@@ -210,10 +218,11 @@ class SurrogateSolver:
         """Every member's network outputs and the out-of-domain mask for states ``v`` (inputs
         X, from the state only); kept while the states do not change, so that the trial
         increments of one Newton iteration cost no inference."""
-        for seen, outs, mask, gated in self._cache:
-            if seen.shape == v.shape and np.array_equal(seen, v):
-                self._gated = gated
-                return outs, mask | gated
+        hit = self._cache.get(v)
+        if hit is not None:
+            outs, mask, gated = hit
+            self._gated = gated
+            return outs, mask | gated
         # A state equal to the one before it is evaluated once: the cells of an isotropic REV
         # are all alike until shear starts (a sizeable share of a drained test's network rows),
         # and finding them costs two comparisons per field.
@@ -235,7 +244,7 @@ class SurrogateSolver:
             outs, mask, gated = [o[row] for o in outs], mask[row], gated[row]
         self.counts["gated"] += int(gated.sum())
         self.counts["gate_checked"] += len(gated) if self.gate_threshold is not None else 0
-        self._cache = [(v.copy(), outs, mask, gated)] + self._cache[:1]
+        self._cache.put(v, (outs, mask, gated))
         self._gated = gated
         return outs, mask | gated
 

@@ -1,0 +1,77 @@
+"""The network outputs of recently seen batches of cell states, looked up by the states themselves.
+
+A surrogate whose network sees the state only (the ``compliance`` and ``meso`` formulations)
+answers every Newton trial of an increment, and every finite-difference probe of its tangent,
+from one evaluation per state. The REV calls the cell solver once per parameter set present, so
+a batch of many sets (the walkers of a calibration, the zones of a finite-element mesh) sends
+the network as many batches per trial, in turn: a cache of the last one or two batches would
+miss on every call, and each trial would cost a full inference. This cache keeps the batches of
+the last few increments, up to a memory budget, keyed by a hash of their bytes and confirmed by
+comparison.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from typing import Any
+
+import numpy as np
+
+#: Memory budget of one cache (states and outputs); the last ``MIN_ENTRIES`` batches are kept
+#: whatever their size (a finite-element mesh's batch alone can exceed it).
+MAX_BYTES = 256 * 2**20
+MAX_ENTRIES = 256
+MIN_ENTRIES = 2
+
+
+def _nbytes(value: Any) -> int:
+    if isinstance(value, np.ndarray):
+        return value.nbytes
+    if isinstance(value, (list, tuple)):
+        return sum(_nbytes(v) for v in value)
+    return 0
+
+
+class StateCache:
+    """Least-recently-used map from a batch of states ``v`` (an array) to what was computed
+    from it, within :data:`MAX_BYTES` and :data:`MAX_ENTRIES`."""
+
+    def __init__(self, max_bytes: int = MAX_BYTES, max_entries: int = MAX_ENTRIES):
+        self.max_bytes, self.max_entries = max_bytes, max_entries
+        self._entries: OrderedDict[tuple, tuple[np.ndarray, Any, int]] = OrderedDict()
+        self._bytes = 0
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    @staticmethod
+    def _key(v: np.ndarray) -> tuple:
+        return v.shape, v.dtype.str, hash(np.ascontiguousarray(v).tobytes())
+
+    def get(self, v: np.ndarray) -> Any | None:
+        """What was stored for states equal to ``v``, or None."""
+        key = self._key(v)
+        hit = self._entries.get(key)
+        if hit is None or not np.array_equal(hit[0], v):
+            return None
+        self._entries.move_to_end(key)
+        return hit[1]
+
+    def put(self, v: np.ndarray, value: Any) -> None:
+        """Keep ``value`` for (a copy of) the states ``v``, dropping the oldest entries beyond
+        the budget."""
+        key = self._key(v)
+        old = self._entries.pop(key, None)
+        if old is not None:
+            self._bytes -= old[2]
+        size = v.nbytes + _nbytes(value)
+        self._entries[key] = (v.copy(), value, size)
+        self._bytes += size
+        while len(self._entries) > MIN_ENTRIES and (self._bytes > self.max_bytes
+                                                    or len(self._entries) > self.max_entries):
+            _, (_, _, n) = self._entries.popitem(last=False)
+            self._bytes -= n
+
+    def clear(self) -> None:
+        self._entries.clear()
+        self._bytes = 0
