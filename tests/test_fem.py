@@ -133,6 +133,18 @@ def test_homogeneous_biaxial_equals_material_point(mesh, undrained):
         np.testing.assert_allclose(res.column("sig22"), 2e5, rtol=1e-7)
 
 
+def test_homogeneous_biaxial_with_the_learned_dem_cell_equals_its_material_point():
+    """The shipped richer-cell surrogate at the Gauss points (the generic REV step) follows the
+    material-point test (its compiled meso kernel) with the same increments."""
+    from hmodel.solvers import get_solver
+
+    res = biaxial(Params(n_theta=12, sliding_rhs="equilibrium"), 2e5, 0.005, mesh=(1, 1), n_steps=10,
+                  solver=get_solver("surrogate:hexagon-center"))
+    dq, dv = _errors(res)
+    assert dq.max() <= 1e-3 and dv.max() <= 1e-6, (dq.max(), dv.max())
+    assert res.column("q")[-1] > 1e5
+
+
 def test_homogeneous_biaxial_report_closure_events():
     """The report's sliding closure has stress jumps (cell events): an increment whose
     equilibrium lies at a jump may end on either side, in the FEM and in the material-point
