@@ -33,7 +33,8 @@ COMMANDS = {
     "data": "python benchmarks/data.py",
     "surrogate": "python benchmarks/surrogate.py",
     "ann_rev": "python benchmarks/ann_rev.py",
-    "dem_ann": "python benchmarks/dem_ann.py",
+    "dem_ann": "python benchmarks/dem_ann.py --no-student (the shipped hexagon-center network, "
+               "--work /tmp/hexship --reuse after its training)",
     "dem_ann_seed1": "python benchmarks/dem_ann.py (a second network trained alike, seed 1; "
                      "exact options not recorded)",
     "dem_ann_standard": "python benchmarks/dem_ann.py --mesostructure standard",
@@ -45,7 +46,7 @@ COMMANDS = {
     "dem_ann_speed_repeat": "python benchmarks/dem_ann_speed.py --points 64 --cells 2304 "
                             "--model STUDENT --teacher TEACHER "
                             "--out benchmarks/dem_ann_speed_repeat.json",
-    "dem_ann_start": "python benchmarks/dem_ann_start.py --model STUDENT",
+    "dem_ann_start": "python benchmarks/dem_ann_start.py (the shipped hexagon-center network)",
     "dem_ann_start_teacher": "python benchmarks/dem_ann_start.py --model TEACHER "
                              "--out benchmarks/dem_ann_start_teacher.json",
 }

@@ -6,7 +6,8 @@
   report-scale Dataset 2 (1 % increments in 10 sub-steps); the surrogate of report ch. 2.
 - ``hexagon-center`` (``hexagon-center.safetensors``): formulation ``meso``, a richer cell with
   no closed form (the hexagon with a free centre grain) learned from YADE's DEM increments
-  (``benchmarks/dem_ann.py``); runs without YADE, with ``sliding_rhs=equilibrium``.
+  (``benchmarks/dem_ann.py --no-student``, the 96x3 network); runs without YADE, with
+  ``sliding_rhs=equilibrium``.
 
 Each is produced by the commands in ``models/README.md`` (a fixed dataset, sample and seed) and
 loaded like any other model file (checked, never unpickled).
