@@ -1,5 +1,5 @@
 """FEM x DEM cells against FEM x learned DEM cells: the plane-strain biaxial test on a 1x2 Q4
-mesh (8 Gauss points), drained at 200 kPa to 1 % axial strain in 10 load steps,
+mesh (8 Gauss points; ``--mesh``), drained at 200 kPa to 1 % axial strain in 10 load steps,
 ``sliding_rhs=equilibrium`` (the closure a DEM cell obeys), with every cell increment solved by
 YADE (``--dem``), with the surrogate that learned those cells (``--learned``) and with the closed
 form of the H-cell (a third reference: exact for the standard cell only). Wall times, their
@@ -11,7 +11,7 @@ Each run is recorded as soon as it ends; ``--reuse`` keeps the runs of an earlie
 same settings (the DEM run is the long one).
 
 Usage: ``python benchmarks/fem_dem.py [--dem dem:hexagon-center:tol=1e-7,max_iter=100000]
-[--learned surrogate:hexagon-center] [--n-theta 12] [--reuse] [--out PATH] [--figure PNG]``;
+[--learned surrogate:hexagon-center] [--n-theta 12] [--mesh 1x2] [--reuse] [--out PATH] [--figure PNG]``;
 prints a table, writes ``fem_dem.json``.
 """
 
@@ -61,12 +61,15 @@ def main() -> None:
     ap.add_argument("--dem", default="dem:hexagon-center:tol=1e-7,max_iter=100000")
     ap.add_argument("--learned", default="surrogate:hexagon-center")
     ap.add_argument("--n-theta", type=int, default=12)
+    ap.add_argument("--mesh", default="1x2", help="elements NXxNY")
     ap.add_argument("--reuse", action="store_true", help="keep the runs of --out with the same settings")
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("fem_dem.json"))
     ap.add_argument("--figure", type=Path, default=Path(__file__).parents[1] / "docs" / "figures" / "fem-dem.png")
     args = ap.parse_args()
     params = Params(n_theta=args.n_theta, sliding_rhs="equilibrium")
-    settings = {"dem": args.dem, "learned": args.learned, "n_theta": args.n_theta}
+    mesh = tuple(int(x) for x in args.mesh.split("x"))
+    settings = {"dem": args.dem, "learned": args.learned, "n_theta": args.n_theta, "mesh": args.mesh}
+    label = f"FEM {args.mesh} Q4, {4 * mesh[0] * mesh[1]} Gauss points, ntheta={args.n_theta}, 1 % in 10 steps"
     runs: dict[str, dict] = {}
     if args.reuse and args.out.is_file():
         old = json.loads(args.out.read_text())
@@ -74,7 +77,7 @@ def main() -> None:
             runs = old.get("runs", {})
 
     def write() -> None:
-        rows = [(f"FEM 1x2 Q4, 8 Gauss points, ntheta={args.n_theta}, 1 % in 10 steps, {k} [s]", r["seconds"], "")
+        rows = [(f"{label}, {k} [s]", r["seconds"], "")
                 for k, r in runs.items()]
         if args.dem in runs and args.learned in runs:
             rows.append(("DEM / learned time ratio", runs[args.dem]["seconds"] / runs[args.learned]["seconds"],
@@ -96,13 +99,13 @@ def main() -> None:
         solver = get_solver(spec)
         cells = count_cells(solver)
         t = time.perf_counter()
-        res = biaxial(params, 2e5, 0.01, mesh=(1, 2), n_steps=10, solver=solver, reference=False)
+        res = biaxial(params, 2e5, 0.01, mesh=mesh, n_steps=10, solver=solver, reference=False)
         runs[spec] = {"seconds": time.perf_counter() - t, "stopped": res.stopped, "cell_increments": cells[0],
                       "seconds_per_cell_increment": (time.perf_counter() - t) / max(cells[0], 1),
                       **{c: res.column(c).tolist() for c in ("eps11", "q", "eps_v", "newton_iterations")}}
         print(spec, f"{runs[spec]['seconds']:.3g} s", res.stopped, np.round(res.column("q") / 1e3, 2))
         write()
-    overlay(runs, args.figure, f"FEM 1x2 Q4, n_theta = {args.n_theta}, drained 200 kPa")
+    overlay(runs, args.figure, f"FEM {args.mesh} Q4, n_theta = {args.n_theta}, drained 200 kPa")
     print(f"wrote {args.out} and {args.figure}")
 
 
