@@ -1,4 +1,4 @@
-"""``hmodel surrogate train | distill | evaluate | sweep``: neural surrogates of the H-cell (report §2.4-2.5)."""
+"""``hmodel surrogate train | distill | evaluate | trust | sweep | refine``: neural surrogates of the H-cell (report §2.4-2.5)."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ import typer
 from ..errors import InputError
 from ..io import write_outputs, write_rows
 from .progress import LazyProgress
+from .run import ParamOpt
 
 app = typer.Typer(no_args_is_help=True, help="Train, evaluate and compare neural surrogates of the H-cell.")
 
@@ -191,19 +192,29 @@ def trust_cmd(
 @app.command("sweep")
 def sweep_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset 2 folder.")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for sweep.csv and sweep.png.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for sweep.csv and sweep.png; an "
+                                                         "interrupted sweep into it resumes.")],
     depths: Annotated[str, typer.Option(help="Hidden layers, comma-separated.")] = "3,5,7,9,11,13,15,17",
     losses: Annotated[str, typer.Option(help="Losses, comma-separated.")] = "mae,mse",
     sizes: Annotated[str, typer.Option(help="Training-set sizes, comma-separated.")] = "6000,60000,600000",
     test: Annotated[int, typer.Option(help="Held-out test rows shared by all runs.")] = 100_000,
-    formulation: Formulation = "report", normalization: Normalization = "minmax",
+    formulation: Formulation = "report",
+    normalization: Annotated[str, typer.Option(help="minmax, zscore, robust, maxabs or unit; "
+                                                    "comma-separated for several.")] = "minmax",
+    inputs: Annotated[str, typer.Option(help="Input conventions, comma-separated: before (the forces "
+                                             "before the increment) and after (the report's published "
+                                             "code: forces after the increment, the answer leak).")] = "before",
+    dataset1: Annotated[Optional[Path], typer.Option("--dataset1", help="Dataset 1 folder: --test of "
+                                                     "its rows are scored too, as the report did.")] = None,
     width: Width = 8, activation: Activation = "tanh", epochs: Epochs = 200,
     batch_size: BatchSize = 1024, lr: Lr = 3e-3, patience: Patience = 20, seed: Seed = 0,
     device: Device = "auto", max_minutes: MaxMinutes = None,
 ) -> None:
-    """Report Table 2.1: every depth × loss × training-set size, one results table and plot."""
+    """Report Table 2.1: every depth × loss × training-set size (× normalization × input
+    convention), one results table and plot, with the report's pooled scores (§2.5)."""
     from ..data import Dataset
-    from ..surrogate.sweep import plot_sweep, run_sweep
+    from ..surrogate.rows import read_rows
+    from ..surrogate.sweep import KEYS, plot_sweep, run_sweep
     from ..surrogate.torch_support import require_torch
 
     require_torch()
@@ -214,18 +225,95 @@ def sweep_cmd(
         except ValueError:
             raise InputError(f"--{name} expects comma-separated integers, got {text!r}") from None
 
-    base = _config(formulation=formulation, normalization=normalization, width=width,
-                   activation=activation, epochs=epochs, batch_size=batch_size, lr=lr,
+    def names(text: str) -> list[str]:
+        return [t.strip() for t in text.split(",") if t.strip()]
+
+    base = _config(formulation=formulation, normalization=names(normalization)[0] if names(normalization) else "",
+                   width=width, activation=activation, epochs=epochs, batch_size=batch_size, lr=lr,
                    patience=patience, seed=seed, device=device, max_minutes=max_minutes)
-    loss_list = [t.strip() for t in losses.split(",") if t.strip()]
+    loss_list = names(losses)
     for name in loss_list:
         _config(loss=name)
+    for name in names(normalization):
+        _config(normalization=name)
     ds = Dataset.open(data)
+    tests = {"d1": read_rows(dataset1, "test", test, seed)[0]} if dataset1 is not None else {}
+    config = {"data": str(data), "dataset1": str(dataset1) if dataset1 else None, "base": base.__dict__,
+              "depths": depths, "losses": losses, "sizes": sizes, "test": test,
+              "normalization": normalization, "inputs": inputs}
+    # Finished runs are kept beside the output folder until the sweep ends, so that re-running
+    # the same command after an interruption trains only the missing ones.
+    partial = out.parent / f".{out.name}.partial.jsonl"
+    done = []
+    if partial.exists():
+        lines = [json.loads(x) for x in partial.read_text().splitlines() if x.strip()]
+        if lines and lines[0] == config:
+            done = lines[1:]
+    if not done:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        partial.write_text(json.dumps(config) + "\n")
+
+    def keep(row: dict) -> None:
+        with partial.open("a") as f:
+            f.write(json.dumps(row) + "\n")
+
+    if done:
+        typer.echo(f"resuming: {len(done)} finished run(s) of {partial}")
     with LazyProgress("sweep") as progress:
         rows = run_sweep(ds, base, ints(depths, "depths"), loss_list, ints(sizes, "sizes"), test,
-                         seed, progress)
+                         seed, progress, normalizations=names(normalization), inputs=names(inputs),
+                         tests=tests, done=[r for r in done if all(k in r for k in KEYS)], on_row=keep)
     write_outputs(out, {"sweep.csv": lambda p: write_rows(rows, p),
                         "sweep.png": lambda p: plot_sweep(rows, p),
-                        "config.json": lambda p: p.write_text(json.dumps(
-                            {"data": str(data), "base": base.__dict__}, indent=1))})
+                        "config.json": lambda p: p.write_text(json.dumps(config, indent=1))})
+    partial.unlink(missing_ok=True)
     typer.echo(f"wrote {out / 'sweep.csv'} ({len(rows)} runs) and {out / 'sweep.png'}")
+
+
+@app.command("refine")
+def refine_cmd(
+    model: Annotated[str, typer.Argument(help="Model file with a trust reference, or a shipped model "
+                                              "(shipped, the default).")],
+    data: Annotated[Path, typer.Option("--data", help="Sample folder of the model's training rows "
+                                                      "(fine-tuning keeps them).")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for the rounds (rows, models), "
+                                                         "rounds.csv, rounds.png and model.safetensors; "
+                                                         "an interrupted run into it resumes.")],
+    solver: Annotated[str, typer.Option("--solver", help="Exact cell solver of the new rows: "
+                                                         "closed-form or dem:standard.")] = "closed-form",
+    reference: Annotated[str, typer.Option(help="Solver the rounds' errors are measured against.")] = "closed-form",
+    paths: Annotated[str, typer.Option(help="REV paths (hmodel compare's names), comma-separated.")] = "drained,undrained,unload-reload",
+    rounds: Annotated[int, typer.Option(help="Rounds of gate, exact rows and fine-tuning.")] = 3,
+    gate: Annotated[float, typer.Option(help="Trust quantile above which a cell is gated.")] = 0.99,
+    states: Annotated[int, typer.Option(help="Most gated states solved per round.")] = 2000,
+    increments: Annotated[int, typer.Option(help="Increment directions per gated state.")] = 24,
+    magnitude: Annotated[float, typer.Option(help="Largest cell strain increment of the new rows.")] = 2e-3,
+    epochs: Annotated[int, typer.Option(help="Fine-tuning epochs per round (early stopping may end sooner).")] = 100,
+    patience: Patience = 20, lr: Annotated[float, typer.Option(help="Fine-tuning learning rate.")] = 1e-3,
+    axial_strain: Annotated[float, typer.Option(help="Axial strain of the biaxial paths.")] = 0.1,
+    step: Annotated[float, typer.Option(help="Strain increment of the REV paths.")] = 1e-3,
+    iso_step: Annotated[float, typer.Option(help="Strain increment of the consolidations.")] = 1e-4,
+    param: ParamOpt = None,
+    seed: Seed = 0,
+) -> None:
+    """Active learning: run REV paths with the gate on, solve the gated cells' increments with
+    the exact solver, fine-tune, repeat; error and exact rows per round."""
+    from ..params import Params
+    from ..surrogate import modelfile
+    from ..surrogate.refine import RefineConfig, plot_rounds, refine
+    from ..surrogate.shipped import model_path
+    from ..surrogate.torch_support import require_torch
+
+    require_torch()
+    params = Params.parse_assignments(param)
+    cfg = RefineConfig(exact=solver, reference=reference, paths=tuple(p.strip() for p in paths.split(",") if p.strip()),
+                       rounds=rounds, gate=gate, states=states, increments=increments, magnitude=magnitude,
+                       epochs=epochs, patience=patience, lr=lr, axial=axial_strain, step=step,
+                       iso_step=iso_step, seed=seed)
+    s = modelfile.load(model_path(model))
+    with LazyProgress("refining") as progress:
+        final, rows = refine(s, data, params, cfg, out, progress, typer.echo)
+    write_outputs(out, {"rounds.csv": lambda p: write_rows(rows, p),
+                        "rounds.png": lambda p: plot_rounds(rows, p),
+                        "model.safetensors": lambda p: modelfile.save(final, p)})
+    typer.echo(f"wrote {out / 'rounds.csv'}, {out / 'rounds.png'} and {out / 'model.safetensors'}")

@@ -327,6 +327,17 @@ def _start_states(spec, first: np.ndarray, advance: Callable[[], np.ndarray]) ->
 
 def _increments(spec, params, solver, start, l0, paths, alpha0, theta) -> pa.Table:
     """Dataset-2 increments from start states (P, L, n_fields) of P paths."""
+    return increment_rows(spec, params, solver, start, l0, paths, alpha0, theta,
+                          spec.step * spec.start_steps)
+
+
+def increment_rows(spec: DatasetSpec, params: Params, solver, start: np.ndarray, l0, paths: np.ndarray,
+                   alpha0: np.ndarray, theta: np.ndarray, strain: np.ndarray) -> pa.Table:
+    """Rows of the spec's Dataset-2 increments (``n_increments`` directions, their magnitudes,
+    ``substeps``) applied by ``solver`` to start states (P, L, n_fields): P cells of initial
+    lengths ``l0`` = (l10, l20) (P,) each, at L states each, labelled by ``paths``, ``alpha0``,
+    ``theta`` (P,) and ``strain`` (L,, the ``start_strain`` column). Used by the generator and
+    by active learning (:mod:`hmodel.surrogate.refine`), whose start states are a REV's."""
     P, L, nf = start.shape
     J = spec.n_increments
     phi = spec.increment_angles
@@ -339,7 +350,6 @@ def _increments(spec, params, solver, start, l0, paths, alpha0, theta) -> pa.Tab
     state = before
     for _ in range(spec.substeps):
         state, f = solver.step(params, state, sub1, sub2)
-    strain = spec.step * spec.start_steps
     labels = (np.repeat(alpha0, L * J), np.repeat(paths, L * J), np.repeat(theta, L * J),
               np.tile(np.repeat(strain, J), P))
     return _table(np.tile(deps, (P * L, 1)), before.values.reshape(-1, nf),

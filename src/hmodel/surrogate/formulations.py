@@ -5,6 +5,10 @@ inputs X and targets Y, and maps predictions back to the state after the increme
 (``alpha_next, N1_next, N2_next, T1_next``; lengths follow from the strain, report §2.3).
 
 - ``report`` (report §2.3): X = (δε1, δε2, α, l1, l2, N1, N2, T1), Y = (α′, N1′, N2′, T1′).
+- ``report-leak``: the input convention of the report's published code, whose force inputs are
+  the forces *after* the increment (N1′, N2′, T1′), three of the four answers. Kept to measure
+  how much that leak flatters the report's accuracy tables (:mod:`hmodel.surrogate.sweep`); it
+  cannot step cells, since it needs the answer to make its inputs.
 - ``increment`` (ours): dimensionless inputs (lengths over 2r, forces over kn·2r) and targets
   that are the *increments* α′ − α, (N1′ − N1)/(kn·2r), (N2′ − N2)/(kn·2r), the mobilized
   friction s = T1′/(tan φg N1′) in [−1, 1], and a fifth output, the logit of "a contact opens"
@@ -39,10 +43,13 @@ import numpy as np
 
 from ..cell.base import CellKernel
 from ..cell.state import FIELDS, CellState, initial_cells
+from ..errors import InputError
 from ..params import Params
 
 OUTPUTS = ("alpha_next", "N1_next", "N2_next", "T1_next")
 REPORT_INPUTS = ("deps1", "deps2", "alpha", "l1", "l2", "N1", "N2", "T1")
+LEAK_REFUSED = ("a report-leak model takes the forces after the increment as inputs, so it cannot "
+                "step cells; train --formulation report to run one")
 
 
 class Networks(Protocol):
@@ -325,6 +332,25 @@ class ReportFormulation(StrainFormulation):
     def _corrected(self, cols, Y, Y0, opening):
         before = np.column_stack([cols[k] for k in ("alpha", "N1", "N2", "T1")])
         return before + Y - Y0
+
+
+@dataclass(frozen=True)
+class LeakedReportFormulation(ReportFormulation):
+    """``report-leak``: the report's published inputs, X = (δε1, δε2, α, l1, l2, N1′, N2′, T1′),
+    with the forces after the increment (the answer leak); Y as ``report``. For accuracy
+    tables only."""
+
+    name = "report-leak"
+    #: Its inputs need the state after the increment: no cell solver can run it.
+    needs_answer = True
+
+    def inputs(self, c: dict[str, np.ndarray]) -> np.ndarray:
+        """X (n, 8): the strain, α and the lengths before, the forces after the increment."""
+        return np.column_stack([c[k + "_next" if k in ("N1", "N2", "T1") else k]
+                                for k in REPORT_INPUTS]).astype(float)
+
+    def step_cells(self, net, params, v, e1, e2, dl):
+        raise InputError(LEAK_REFUSED)
 
 
 @dataclass(frozen=True)

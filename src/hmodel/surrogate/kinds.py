@@ -1,4 +1,4 @@
-"""The surrogate formulations by name: ``report`` and ``increment`` (:mod:`.formulations`),
+"""The surrogate formulations by name: ``report``, ``increment`` and ``report-leak`` (:mod:`.formulations`),
 ``compliance`` (:mod:`.compliance`) and ``meso`` (:mod:`.meso`), made for a material or
 rebuilt from a model file's metadata. (Apart from the formulations themselves, which build on
 :mod:`.formulations`: no module imports back.)
@@ -9,12 +9,13 @@ from __future__ import annotations
 from ..errors import InputError
 from ..params import Params
 from .compliance import ComplianceFormulation
-from .formulations import IncrementFormulation, ReportFormulation
+from .formulations import IncrementFormulation, LeakedReportFormulation, ReportFormulation
 from .meso import MesoFormulation
 
-FORMULATIONS = ("report", "increment", "compliance", "meso")
+FORMULATIONS = ("report", "increment", "compliance", "meso", "report-leak")
 #: The strain-input formulations, made from the material's scales.
-STRAIN_INPUT = {"report": ReportFormulation, "increment": IncrementFormulation}
+STRAIN_INPUT = {"report": ReportFormulation, "increment": IncrementFormulation,
+                "report-leak": LeakedReportFormulation}
 
 
 def make_formulation(name: str, params: Params, cell: str = "closed-form", mechanisms: int = 4):

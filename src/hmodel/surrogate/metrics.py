@@ -26,3 +26,17 @@ def metrics_table(y_true: np.ndarray, y_pred: np.ndarray, names, **labels) -> li
     m = regression_metrics(y_true, y_pred)
     return [{**labels, "output": name, **{k: float(m[k][j]) for k in METRICS}}
             for j, name in enumerate(names)]
+
+
+def pooled_metrics(y_true: np.ndarray, y_pred: np.ndarray) -> dict[str, float]:
+    """The report's §2.5 summary of (n, 4) arrays of (α′, N1′, N2′, T1′): the angle's R², MAE
+    and RMSE, the forces' pooled over the three force outputs as the report's printout gives
+    them (scikit-learn's defaults: R² averaged over the outputs, MAE and RMSE over all force
+    values), and the largest predicted and true angle (the report's sign of a failed
+    normalization: a predicted maximum far below the true one)."""
+    m = regression_metrics(y_true, y_pred)
+    err = np.asarray(y_pred, float)[:, 1:4] - np.asarray(y_true, float)[:, 1:4]
+    return {"r2_angle": float(m["r2"][0]), "mae_angle": float(m["mae"][0]),
+            "rmse_angle": float(m["rmse"][0]), "r2_force": float(np.mean(m["r2"][1:4])),
+            "mae_force": float(np.mean(np.abs(err))), "rmse_force": float(np.sqrt(np.mean(err ** 2))),
+            "max_angle": float(np.max(y_pred[:, 0])), "true_max_angle": float(np.max(y_true[:, 0]))}

@@ -45,6 +45,7 @@ from ..cell.closed_form import ClosedFormSolver
 from ..errors import InputError, SolverError
 from ..params import Params
 from .compliance import ComplianceFormulation as Compliance
+from .formulations import LEAK_REFUSED
 from .model import Surrogate
 from .state_cache import StateCache
 
@@ -82,9 +83,11 @@ class SurrogateSolver:
         self.members = _members(model)
         self.model, self.on_outside, self.margin, self.opening = self.members[0], on_outside, margin, opening
         self.formulation = self.model.formulation
+        if getattr(self.formulation, "needs_answer", False):
+            raise InputError(LEAK_REFUSED)
         self.fallback = self.closed_form = ClosedFormSolver()
         self.counts = {"cell_updates": 0, "network_cells": 0, "outside": 0, "substeps": 0,
-                       "gated": 0, "gate_checked": 0}
+                       "gated": 0, "gate_checked": 0, "fallback_cells": 0}
         #: trust-score threshold of the gate (None: no gate), and the gate's quantile level
         self.gate, self.gate_threshold = gate, None
         if gate is not None or fallback is not None:
@@ -94,6 +97,9 @@ class SurrogateSolver:
         self._cache = StateCache()
         self._gated: np.ndarray | None = None  # the gate's mask of the states last evaluated
         self._accepted: set[tuple] = set()  # materials (MATERIAL fields) already checked
+        #: When a list: every batch of states the gate sends to the fallback is appended to it
+        #: (active learning collects them, :mod:`hmodel.surrogate.refine`).
+        self.gated_states: list[np.ndarray] | None = None
         #: Largest cell strain increment of one network step (inf: any, where the network sees
         #: the state only).
         self.max_increment = self.formulation.max_increment(self.model.input_range)
@@ -243,6 +249,8 @@ class SurrogateSolver:
             row = np.cumsum(first) - 1
             outs, mask, gated = [o[row] for o in outs], mask[row], gated[row]
         self.counts["gated"] += int(gated.sum())
+        if self.gated_states is not None and gated.any():
+            self.gated_states.append(v[gated].copy())
         self.counts["gate_checked"] += len(gated) if self.gate_threshold is not None else 0
         self._cache.put(v, (outs, mask, gated))
         self._gated = gated
@@ -266,6 +274,7 @@ class SurrogateSolver:
                   new: np.ndarray, flags: np.ndarray) -> None:
         """The fallback solver's increment (the closed form's unless a gate names another) for
         the H-cells ``mask``, written into ``new``, ``flags``."""
+        self.counts["fallback_cells"] += int(mask.sum())
         cf, cflags = self.fallback.step(params, CellState(v[mask]), dl[mask, 0], dl[mask, 1])
         new[mask], flags[mask] = cf.values, cflags.flags
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -85,19 +85,28 @@ def _device(name: str):
 
 
 def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = TrainConfig(),
-          progress: Callable[[float], None] | None = None, cell: str = "closed-form"
-          ) -> tuple[Surrogate, list[dict]]:
+          progress: Callable[[float], None] | None = None, cell: str = "closed-form",
+          init: Surrogate | None = None) -> tuple[Surrogate, list[dict]]:
     """Fit a surrogate on database rows ``columns`` of cells of the solver ``cell``; returns it
     and the per-epoch history.
 
     20 % (``val_fraction``) of the rows are held out for early stopping; scalers are fitted on
     the remaining training rows only. The best weights on the validation loss are kept.
+    ``init``: fine-tune that model instead (its formulation, architecture, scalers and weights
+    are the start; ``config``'s own are ignored), as active learning does; the rows must be of
+    its material and cells.
     """
     torch = require_torch()
 
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
-    form = make_formulation(config.formulation, params, cell, config.mechanisms)
+    if init is None:
+        form = make_formulation(config.formulation, params, cell, config.mechanisms)
+    else:  # the caller checks that the rows are of the model's material and cells
+        form = init.formulation
+        config = replace(config, formulation=form.name, width=init.architecture.width,
+                         depth=init.architecture.depth, activation=init.architecture.activation,
+                         normalization=init.x_scaler.method)
     X, (Y, W), A = form.inputs(columns), form.targets(columns), form.aux(columns)
     if config.secant_floor:
         W = W * secant_weights(A, config.secant_floor / form.m0)[:, None]
@@ -107,11 +116,12 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
     perm = rng.permutation(n)
     n_val = max(1, int(round(config.val_fraction * n)))
     val, tr = perm[:n_val], perm[n_val:]
-    xs = fit_scaler(config.normalization, X[tr])
+    xs = fit_scaler(config.normalization, X[tr]) if init is None else init.x_scaler
     dev = _device(config.device)
     to = lambda a: torch.as_tensor(a, dtype=torch.float32, device=dev)  # noqa: E731
     if A is None:
-        ys = fit_target_scaler(config.normalization, Y[tr], W[tr], form.logit_column)
+        ys = (fit_target_scaler(config.normalization, Y[tr], W[tr], form.logit_column)
+              if init is None else init.y_scaler)
         Y, n_out = ys.transform(Y), Y.shape[1]
         At = Av = None
     else:  # structured head: the network's outputs are not the targets and pass unscaled
@@ -122,7 +132,7 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
     Xv, Yv, Wv = to(xs.transform(X[val])), to(Y[val]), to(W[val])
 
     arch = Architecture(config.width, config.depth, config.activation)
-    net = build_network(arch, X.shape[1], n_out).to(dev)
+    net = (build_network(arch, X.shape[1], n_out) if init is None else torch_network(init)).to(dev)
     opt = torch.optim.Adam(net.parameters(), lr=config.lr)
     sched = torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=0.5, patience=max(1, config.patience // 3))
     loss_fn = _loss(config.loss, form.logit_column)
@@ -201,8 +211,9 @@ def train_on_sample(folder, config: TrainConfig, progress: Callable[[float], Non
 
 def union(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
     """The rows of several samples as one; path ids count from 0 in every dataset, so each
-    sample's are shifted past the previous ones' (a path stays one path, for rollout windows)."""
-    shift, out = 0, {k: [] for k in parts[0]}
+    sample's are shifted past the previous ones' (a path stays one path, for rollout windows).
+    Columns that not every part has (a sample's source ``row``) are left out."""
+    shift, out = 0, {k: [] for k in parts[0] if all(k in p for p in parts)}
     for cols in parts:
         for k in out:
             out[k].append(cols[k] + shift if k == "path_id" else cols[k])
