@@ -97,3 +97,23 @@ def test_sweep_scores_both_datasets_and_resumes(data, tmp_path, monkeypatch, cap
     assert json.loads((tmp_path / "sw" / "config.json").read_text())["inputs"] == "before,after"
     assert main(args[:-2] + ["--formulation", "increment", "--out", str(tmp_path / "x")]) != 0
     assert "published input convention" in capsys.readouterr().err
+
+
+def test_reproduce_shows_the_table_beside_the_report(tmp_path):
+    """The full reproduce's Table 2.1 step, at a tiny scale: both conventions, both test sets,
+    and the report's Fig. 2.7 numbers beside our Model 1."""
+    from hmodel.reproduce import FULL, table21
+    from hmodel.surrogate.sweep import REPORT_FIG_2_7
+
+    assert FULL.table21_sizes == (6_000, 60_000, 600_000)  # the report's sizes in the full run
+    d2 = DatasetSpec(kind=2, n_directions=13, alpha0_min=40, alpha0_max=60, alpha0_step=5, max_strain=0.1,
+                     start_every=0.01)  # 109,200 rows: enough for Model 1's 60k
+    rows, files = table21(tmp_path, (60_000,), minutes=0.03, depths=(3,), d1_spec=SPEC1, d2_spec=d2,
+                          n_test=300)
+    assert {(r["inputs"], r["depth"], r["loss"]) for r in rows} == {
+        (i, 3, loss) for i in ("before", "after") for loss in ("mae", "mse")} and len(rows) == 4
+    for name, write in files.items():
+        write(tmp_path / name)
+    fig = (tmp_path / "fig-2-7.csv").read_text().splitlines()
+    assert len(fig) == 1 + sum(len(v) for v in REPORT_FIG_2_7.values()) and "nan" not in "".join(fig).lower()
+    assert "0.9996026" in (tmp_path / "fig-2-7.csv").read_text() and (tmp_path / "table-2-1.png").is_file()

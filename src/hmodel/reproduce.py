@@ -5,7 +5,9 @@ Steps: (1) the engine's drained biaxial curves at 100, 200 and 400 kPa (report F
 reduced in ``--quick``, at the report's scale of ≈10⁷ rows in the full run); (3) a surrogate
 (``--quick``: the shipped one, evaluated on the new rows; full: trained on a 600k-row sample of
 them with the shipped model's recipe, saved as ``surrogate.safetensors``); (4) the macro
-comparison of the ANN-based H-model with the closed form on every path, with timings. Every figure is a PNG beside ``report.html``, every
+comparison of the ANN-based H-model with the closed form on every path, with timings; (5) in the
+full run, the report's Table 2.1 study at its scale beside the report's Fig. 2.7 numbers
+(:func:`table21`, about two hours on two cores). Every figure is a PNG beside ``report.html``, every
 table a CSV; the HTML embeds the figures, so the file alone can be sent.
 """
 
@@ -20,6 +22,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import numpy as np
+
 from . import __version__
 from .params import Params
 
@@ -33,10 +37,13 @@ class Plan:
     data_directions: int
     data_alpha0: str
     train_rows: int = 0  #: 0: use the shipped surrogate instead of training one
+    #: Table 2.1 beside the report's (full run): training-set sizes of the sweep (empty: skipped)
+    table21_sizes: tuple[int, ...] = ()
+    table21_minutes: float = 3.0  #: training-time cap of each of its runs
 
 
 QUICK = Plan(True, 360, 0.1, 1e-3, 8, "40:50:5")
-FULL = Plan(False, 360, 0.1, 1e-4, 211, "32:88:2", 600_000)
+FULL = Plan(False, 360, 0.1, 1e-4, 211, "32:88:2", 600_000, (6_000, 60_000, 600_000))
 
 
 def _img(path: Path) -> str:
@@ -52,6 +59,29 @@ def _table(rows: list[dict], digits: int = 4) -> str:
     head = "".join(f"<th>{html.escape(str(k))}</th>" for k in keys)
     body = "".join("<tr>" + "".join(cell(r.get(k, "")) for k in keys) + "</tr>" for r in rows)
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def table21(work: Path, sizes: tuple[int, ...], minutes: float, depths=None, d1_spec=None, d2_spec=None,
+            n_test: int = 100_000) -> tuple[list[dict], dict]:
+    """The Table 2.1 sweep (:mod:`hmodel.surrogate.sweep`) on a report-scale Dataset 2 (the
+    generator's defaults unless ``d2_spec``), scored on it and on Dataset 1, in both input
+    conventions; returns its rows and the writers of ``table-2-1.csv``, ``fig-2-7.csv`` and
+    ``table-2-1.png``."""
+    from .data import Dataset, DatasetSpec, generate
+    from .io import write_rows
+    from .surrogate.sweep import DEPTHS, beside_report, plot_sweep, run_sweep
+    from .surrogate.training import TrainConfig
+
+    d1 = generate(d1_spec or DatasetSpec(kind=1), Params(), work / "d1", workers=os.cpu_count() or 1)
+    d2 = generate(d2_spec or DatasetSpec(kind=2), Params(), work / "d2", workers=os.cpu_count() or 1)
+    test1 = d1.read(rows=np.sort(np.random.default_rng(0).choice(d1.n_rows, min(n_test, d1.n_rows), replace=False)))
+    base = TrainConfig(formulation="report", normalization="minmax", epochs=200, patience=20,
+                       max_minutes=minutes)
+    rows = run_sweep(Dataset.open(d2.folder), base, depths or DEPTHS, sizes=sizes,
+                     n_test=min(n_test, d2.n_rows // 10), inputs=("before", "after"), tests={"d1": test1})
+    return rows, {"table-2-1.csv": lambda p: write_rows(rows, p),
+                  "fig-2-7.csv": lambda p: write_rows(beside_report(rows), p),
+                  "table-2-1.png": lambda p: plot_sweep(rows, p)}
 
 
 def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
@@ -141,6 +171,12 @@ def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
                 n, x, y, ("closed form", "surrogate"), p))(path_spec.name, ref, res)
         tick(0.4 + 0.55 * (i + 1) / len(specs))
     files["deviations.csv"] = lambda p: write_rows(dev_rows, p)
+    t21 = []
+    if plan.table21_sizes:
+        t = time.perf_counter()
+        t21, t21_files = table21(work / "table21", plan.table21_sizes, plan.table21_minutes)
+        files.update(t21_files)
+        timings.append({"step": f"Table 2.1 sweep ({len(t21)} trainings)", "seconds": time.perf_counter() - t})
     files["timings.csv"] = lambda p: write_rows(timings, p)
 
     def write_html(p: Path) -> None:
@@ -158,6 +194,14 @@ def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
                 f" Held-out rows of the database above.</p>", _table(metrics), _img(figs["parity.png"]),
                 "<h2>4. ANN-based H-model against the closed form</h2>", _table(dev_rows, 3)]
         body += [_img(figs[f"compare-{s.name}.png"]) for s in specs if f"compare-{s.name}.png" in figs]
+        if t21:
+            from .surrogate.sweep import beside_report
+            body += ["<h2>5. Table 2.1 beside the report's</h2>",
+                     "<p>Model 1 (3 tanh layers of 8 nodes, 60k rows of Dataset 2, min-max) scored as the "
+                     "report's Fig. 2.7, with the inputs as the model runs them (forces before the "
+                     "increment) and as the report's published code feeds them (forces after it).</p>",
+                     _table(beside_report(t21), 6), _img(figs["table-2-1.png"]),
+                     "<p>Every run (table-2-1.csv):</p>", _table(t21, 4)]
         body += ["<h2>Timings</h2>", _table(timings, 3)]
         style = "body{font-family:sans-serif;max-width:1200px;margin:auto}table{border-collapse:collapse}" \
                 "td,th{border:1px solid #ccc;padding:3px 6px;font-size:13px}"

@@ -159,7 +159,8 @@ def evaluate_cmd(
 @app.command("trust")
 def trust_cmd(
     model: Annotated[str, typer.Argument(help="Model file, or a shipped model: shipped (the default), "
-                                              "increment.")],
+                                              "increment; or an ensemble A+B+..., whose trust score is "
+                                              "then the members' disagreement (stored with A).")],
     sample: Annotated[Path, typer.Argument(help="Sample folder of the model's training rows (its train "
                                                 "rows give the reference, its test rows the measure).")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Model file written with its trust reference.")],
@@ -173,20 +174,27 @@ def trust_cmd(
     from ..surrogate import modelfile
     from ..surrogate.rows import read_rows
     from ..surrogate.shipped import model_path
-    from ..surrogate.trust import fit_trust
+    from ..surrogate.trust import fit_ensemble_trust, fit_trust
 
     if out.suffix != ".safetensors":
         raise InputError(f"--out must name a .safetensors file, got {str(out)!r}")
-    s = modelfile.load(model_path(model))
-    train, _ = read_rows(sample, "train")
+    members = [modelfile.load(model_path(m)) for m in model.split("+")]
     held, _ = read_rows(sample, "test", rows, seed)
-    trusted, table = fit_trust(s, train, held, reference=reference, k=k, seed=seed)
+    if len(members) > 1:  # an ensemble: its disagreement, stored with the first member
+        trusted, table = fit_ensemble_trust(members, held)
+        trusted = trusted[0]
+    else:
+        train, _ = read_rows(sample, "train")
+        trusted, table = fit_trust(members[0], train, held, reference=reference, k=k, seed=seed)
     modelfile.save(trusted, out)
     for r in table:
         typer.echo(f"least trusted {100 * r['top_fraction']:g} % of {len(held['deps1']):,} held-out rows: "
                    f"{100 * r['share_of_error']:.1f} % of the error, "
                    f"{100 * r['share_of_squared_error']:.1f} % of the squared error")
     typer.echo(f"Spearman correlation of score and error {table[0]['spearman']:.3f}; wrote {out}")
+    if len(members) > 1:
+        rest = "+".join(model.split("+")[1:])
+        typer.echo(f"gate the ensemble as --solver surrogate:{out}+{rest} (members in this order)")
 
 
 @app.command("sweep")
@@ -272,8 +280,9 @@ def sweep_cmd(
 
 @app.command("refine")
 def refine_cmd(
-    model: Annotated[str, typer.Argument(help="Model file with a trust reference, or a shipped model "
-                                              "(shipped, the default).")],
+    model: Annotated[str, typer.Argument(help="Model file with a trust score, a shipped model (shipped, "
+                                              "the default), or an ensemble A+B+... whose trust is its "
+                                              "disagreement (hmodel surrogate trust A+B+...).")],
     data: Annotated[Path, typer.Option("--data", help="Sample folder of the model's training rows "
                                                       "(fine-tuning keeps them).")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Folder for the rounds (rows, models), "
@@ -310,10 +319,11 @@ def refine_cmd(
                        rounds=rounds, gate=gate, states=states, increments=increments, magnitude=magnitude,
                        epochs=epochs, patience=patience, lr=lr, axial=axial_strain, step=step,
                        iso_step=iso_step, seed=seed)
-    s = modelfile.load(model_path(model))
+    members = [modelfile.load(model_path(m)) for m in model.split("+")]
     with LazyProgress("refining") as progress:
-        final, rows = refine(s, data, params, cfg, out, progress, typer.echo)
+        final, rows = refine(members, data, params, cfg, out, progress, typer.echo)
+    names = ["model.safetensors"] + [f"model-{k}.safetensors" for k in range(1, len(final))]
     write_outputs(out, {"rounds.csv": lambda p: write_rows(rows, p),
                         "rounds.png": lambda p: plot_rounds(rows, p),
-                        "model.safetensors": lambda p: modelfile.save(final, p)})
-    typer.echo(f"wrote {out / 'rounds.csv'}, {out / 'rounds.png'} and {out / 'model.safetensors'}")
+                        **{n: (lambda m: lambda p: modelfile.save(m, p))(m) for n, m in zip(names, final)}})
+    typer.echo(f"wrote {out / 'rounds.csv'}, {out / 'rounds.png'} and " + "+".join(str(out / n) for n in names))

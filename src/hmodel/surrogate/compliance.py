@@ -51,6 +51,9 @@ class ComplianceFormulation(MaterialScales, HCellStates):
     name: str = "compliance"
     logit_column = None
     n_outputs = N_OUT
+    #: Members' compliances average (an ensemble: within a contact regime the increment is
+    #: linear in them), and their spread can be the gate's trust score.
+    ensembles = True
 
     def to_dict(self) -> dict:
         return {"name": self.name, "params": self.params.to_dict()}
@@ -132,7 +135,7 @@ class ComplianceFormulation(MaterialScales, HCellStates):
     def step_cells(self, net, params, v, e1, e2, dl):
         """One exact increment of cells ``v`` with the learned compliances of their states."""
         outs, mask = net.outputs(v, self.features(v))
-        new, flags = self.advance(v, dl, outs[0])  # one network, no spare columns
+        new, flags = self.advance(v, dl, outs[0] if len(outs) == 1 else np.mean(outs, axis=0))
         self.closed_form_outside(net, params, v, dl, mask, new, flags,
                                  lambda i: ", ".join(f"{k}={v[i, j]:.4g}" for j, k in enumerate(FIELDS)))
         return new, flags

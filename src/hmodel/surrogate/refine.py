@@ -9,8 +9,9 @@ its cells through states that the training paths may have visited rarely. Each r
    exact cell solver, ``increments`` directions each with magnitudes spread over
    (0, ``magnitude``] as the training data's, and writes them as a sample folder (the usual
    manifest: material, cell solver, checksums, and the round's provenance);
-3. fine-tunes the model on its training rows and every round's rows (weights, scalers and
-   architecture kept), and refits its trust reference on them;
+3. fine-tunes the model (every member of an ensemble) on its training rows and every round's
+   rows (weights, scalers and architecture kept), and refits its trust score on them (the
+   distance reference, or the ensemble's disagreement on the held-out rows);
 4. measures the new model, ungated, against the reference solver on the same paths: the largest
    deviation of q (relative to peak q) and of εv, as ``hmodel compare`` reports them.
 
@@ -48,7 +49,7 @@ from . import modelfile
 from .model import Surrogate
 from .solver import SurrogateSolver
 from .training import TrainConfig, train, union
-from .trust import fit_trust
+from .trust import fingerprint, fit_ensemble_trust, fit_trust
 
 PATHS = ("drained", "undrained", "unload-reload")
 
@@ -92,26 +93,28 @@ class RefineConfig:
             raise InputError(f"the gate is a quantile level in (0, 1], got {self.gate}")
 
 
-def refine(model: Surrogate, sample: "str | Path", params: Params, config: RefineConfig,
-           out: "str | Path", progress: Callable[[float], None] | None = None,
-           log: Callable[[str], None] = lambda s: None) -> tuple[Surrogate, list[dict]]:
-    """Active learning from ``model`` and its training ``sample`` folder; returns the last
-    round's model and one summary row per round (round 0: the starting model)."""
+def refine(model: "Surrogate | list[Surrogate]", sample: "str | Path", params: Params,
+           config: RefineConfig, out: "str | Path", progress: Callable[[float], None] | None = None,
+           log: Callable[[str], None] = lambda s: None) -> tuple[list[Surrogate], list[dict]]:
+    """Active learning from ``model`` (one network, or an ensemble whose trust is its
+    disagreement: every member is fine-tuned) and its training ``sample`` folder; returns the
+    last round's members and one summary row per round (round 0: the starting model)."""
     from .rows import read_sample
 
     out = Path(out)
+    members = list(model) if isinstance(model, (list, tuple)) else [model]
     exact = _exact_solver(config.exact)
-    probe = SurrogateSolver(model, gate=config.gate, fallback=exact)  # refuses what cannot gate
+    probe = SurrogateSolver(members, gate=config.gate, fallback=exact)  # refuses what cannot gate
     probe.check(params)
-    model_trust(model)
+    model_trust(members[0])
     base, info = read_sample(sample, "train")
     base_test = read_sample(sample, "test")[0]
-    if info["params"] != model.meta.get("params", info["params"]):
+    if info["params"] != members[0].meta.get("params", info["params"]):
         raise InputError(f"{str(sample)!r} holds rows of other material parameters than the model's")
     specs = {s.name: s for s in standard_paths(config.axial)}
     specs = [specs[n] for n in config.paths]
     key = {**asdict(config), "paths": list(config.paths), "params": params.to_dict(),
-           "model": _fingerprint(model), "sample": str(sample)}
+           "model": [fingerprint(m) for m in members], "sample": str(sample)}
     t0 = time.perf_counter()
     references = {s.name: run_path(params, s, config.reference, config.step, config.iso_step)[0]
                   for s in specs}
@@ -119,22 +122,22 @@ def refine(model: Surrogate, sample: "str | Path", params: Params, config: Refin
     rows, parts = [], []
     summary = _load(out / "round-0", key)
     if summary is None:
-        summary = {"round": 0, "rows_added": 0, "exact_rows": 0, **_measure(model, params, specs,
+        summary = {"round": 0, "rows_added": 0, "exact_rows": 0, **_measure(members, params, specs,
                                                                             references, config)}
-        _save(out / "round-0", key, summary, None)
+        _save(out / "round-0", key, summary, [])
     rows.append(summary)
     log(_line(summary))
     for r in range(1, config.rounds + 1):
         folder = out / f"round-{r}"
         done = _load(folder, key)
         if done is not None:
-            model = modelfile.load(folder / "model.safetensors")
+            members = [modelfile.load(folder / _member_file(k)) for k in range(len(members))]
             parts.append(_read_rows(folder / "rows"))
             rows.append(done)
             log(_line(done) + " (done before)")
         else:
             t = time.perf_counter()
-            states, gate = _collect(model, exact, params, specs, config)
+            states, gate = _collect(members, exact, params, specs, config)
             if len(states) == 0:
                 log(f"round {r}: the gate sent no cell to the exact solver; stopping")
                 break
@@ -146,25 +149,37 @@ def refine(model: Surrogate, sample: "str | Path", params: Params, config: Refin
             parts.append(_read_rows(folder / "rows"))
             cols = union([base] + [p[0] for p in parts])
             held = union([base_test] + [p[1] for p in parts])
-            cfg = TrainConfig(formulation=model.formulation.name, epochs=config.epochs,
-                              patience=config.patience, lr=config.lr, seed=config.seed + r,
-                              loss=model.meta.get("config", {}).get("loss", "mse"))
-            trust = model_trust(model)
-            model, hist = train(cols, params, cfg, init=model)
-            model, _ = fit_trust(model, cols, held, reference=trust["reference_rows"], k=trust["k"],
-                                 seed=config.seed + r)
-            model.meta.update(params=params.to_dict(), refined={"round": r, "rows": len(cols["deps1"])})
+            trust, tuned, epochs = model_trust(members[0]), [], 0
+            for k, m in enumerate(members):
+                cfg = TrainConfig(formulation=m.formulation.name, epochs=config.epochs,
+                                  patience=config.patience, lr=config.lr, seed=config.seed + 1000 * r + k,
+                                  loss=m.meta.get("config", {}).get("loss", "mse"))
+                m, hist = train(cols, params, cfg, init=m)
+                m.meta.update(params=params.to_dict(), refined={"round": r, "rows": len(cols["deps1"])})
+                tuned.append(m)
+                epochs += len(hist)
+            if trust.get("kind") == "ensemble":
+                members, _ = fit_ensemble_trust(tuned, held)
+            else:
+                first, _ = fit_trust(tuned[0], cols, held, reference=trust["reference_rows"], k=trust["k"],
+                                     seed=config.seed + r)
+                members = [first, *tuned[1:]]
             summary = {"round": r, "rows_added": len(new["deps1"]), "gated_states": len(states),
-                       **gate, "epochs": len(hist),
-                       **_measure(model, params, specs, references, config),
+                       **gate, "epochs": epochs,
+                       **_measure(members, params, specs, references, config),
                        "seconds": time.perf_counter() - t}
             summary["exact_rows"] = rows[-1]["exact_rows"] + summary["rows_added"]
-            _save(folder, key, summary, model)
+            _save(folder, key, summary, members)
             rows.append(summary)
             log(_line(summary))
         if progress is not None:
             progress(r / config.rounds)
-    return model, rows
+    return members, rows
+
+
+def _member_file(k: int) -> str:
+    """File name of an ensemble's member k in a round's folder (the first: model.safetensors)."""
+    return "model.safetensors" if k == 0 else f"model-{k}.safetensors"
 
 
 def model_trust(model: Surrogate) -> dict:
@@ -176,17 +191,6 @@ def model_trust(model: Surrogate) -> dict:
     return trust
 
 
-def _fingerprint(model: Surrogate) -> str:
-    """SHA-256 of a model's weights: which model a run started from."""
-    import hashlib
-
-    h = hashlib.sha256()
-    for W, b in model.weights:
-        h.update(np.ascontiguousarray(W).tobytes())
-        h.update(np.ascontiguousarray(b).tobytes())
-    return h.hexdigest()
-
-
 def _exact_solver(spec: str):
     solver = get_solver(spec)
     if solver.name.startswith("dem:"):
@@ -196,13 +200,13 @@ def _exact_solver(spec: str):
     return solver
 
 
-def _measure(model, params, specs, references, config) -> dict:
+def _measure(members, params, specs, references, config) -> dict:
     """Largest deviations of the ungated model from the reference on every path; a path the
     model cannot run to its end (a SolverError) counts as failed, its deviations NaN."""
     out, qs, evs = {}, [], []
     for spec in specs:
         try:
-            res, _ = run_path(params, spec, SurrogateSolver(model), config.step, config.iso_step)
+            res, _ = run_path(params, spec, SurrogateSolver(members), config.step, config.iso_step)
             dev = deviations(references[spec.name], res)
             q, ev = max(d["q_max_dev_rel"] for d in dev), max(d["eps_v_max_dev"] for d in dev)
         except SolverError:
@@ -215,9 +219,9 @@ def _measure(model, params, specs, references, config) -> dict:
             "eps_v_dev_max": float(np.max(evs))}
 
 
-def _collect(model, exact, params, specs, config) -> tuple[np.ndarray, dict]:
+def _collect(members, exact, params, specs, config) -> tuple[np.ndarray, dict]:
     """The distinct states the gate sent to the exact solver on every path, and the gate's counts."""
-    solver = SurrogateSolver(model, gate=config.gate, fallback=exact)
+    solver = SurrogateSolver(members, gate=config.gate, fallback=exact)
     solver.gated_states = []
     for spec in specs:
         try:
@@ -293,8 +297,8 @@ def _load(folder: Path, key: dict) -> dict | None:
     return saved["summary"] if saved.get("config") == json.loads(json.dumps(key)) else None
 
 
-def _save(folder: Path, key: dict, summary: dict, model: Surrogate | None) -> None:
-    writers = {} if model is None else {"model.safetensors": lambda p: modelfile.save(model, p)}
+def _save(folder: Path, key: dict, summary: dict, members: list[Surrogate]) -> None:
+    writers = {_member_file(k): (lambda m: lambda p: modelfile.save(m, p))(m) for k, m in enumerate(members)}
     # the summary goes last: it marks the round as finished
     writers["summary.json"] = lambda p: p.write_text(json.dumps({"config": key, "summary": summary},
                                                                 indent=1, default=float))

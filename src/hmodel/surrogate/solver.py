@@ -26,11 +26,14 @@ solver in the same increment, in one batched call; ``counts["gated"]`` and
 ``counts["gate_checked"]`` count them per evaluated state (once per increment), and the REV
 records their fraction (``gated`` in result.csv, via :meth:`fractions`).
 
-An ensemble (``SurrogateSolver([m1, m2, ...])``, ``--solver surrogate:A+B+C``) of ``meso``
-models of one formulation (networks trained alike, e.g. with other seeds) averages the members'
-increments dz before the way back: independent training errors of the members partly cancel
-(see the DEM cells page of the documentation), at the cost of one network per member. A cell is
-outside the training domain when it is outside any member's.
+An ensemble (``SurrogateSolver([m1, m2, ...])``, ``--solver surrogate:A+B+C``) of ``meso`` or
+``compliance`` models of one formulation (networks trained alike, e.g. with other seeds)
+averages the members' increments dz (``meso``) or compliances (``compliance``) before the way
+back: independent training errors of the members partly cancel (see the DEM cells page of the
+documentation), at the cost of one network per member. A cell is outside the training domain
+when it is outside any member's. The gate of an ensemble whose trust is its disagreement
+(:func:`hmodel.surrogate.trust.fit_ensemble_trust`) scores each state by the spread of the
+members' outputs, which the solver has computed anyway.
 """
 
 from __future__ import annotations
@@ -108,7 +111,7 @@ class SurrogateSolver:
         return {**self.__dict__, "_cache": StateCache(), "_gated": None}
 
     def _set_gate(self, gate: float | None, fallback: CellSolver | None) -> None:
-        from .trust import threshold
+        from .trust import check_members, is_ensemble_trust, threshold
 
         if gate is None:
             raise InputError("a fallback solver needs a gate (--gate LEVEL, e.g. 0.99)")
@@ -123,17 +126,30 @@ class SurrogateSolver:
             raise InputError(f"the fallback solver {fallback.name!r} keeps other cell states than "
                              f"the surrogate's H-cells")
         self.gate_threshold = threshold(self.model, gate)
+        if is_ensemble_trust(self.model):
+            check_members(self.members)
+        elif len(self.members) > 1:
+            raise InputError("an ensemble's gate needs its disagreement as trust score: add it with "
+                             "'hmodel surrogate trust MODEL+MODEL+... SAMPLE --out FILE'")
         self.fallback = fallback
 
     def fractions(self, params: Params, state: CellState) -> dict[str, np.ndarray]:
         """With a gate: ``gated``, the cells whose next increment the fallback solves."""
         if self.gate_threshold is None:
             return {}
-        from .trust import scores
-
         v = np.asarray(state.values, float).reshape(-1, self.n_state)
-        X = self.formulation.features(v)
-        return {"gated": (scores(self.model, X) > self.gate_threshold).reshape(state.shape)}
+        return {"gated": (self._trust(self.formulation.features(v)) > self.gate_threshold).reshape(state.shape)}
+
+    def _trust(self, X: np.ndarray, outs: list[np.ndarray] | None = None) -> np.ndarray:
+        """Trust scores of inputs X: the ensemble's disagreement (from the members' outputs
+        ``outs`` where given) or the distance to the training data (:mod:`.trust`)."""
+        from .trust import disagreement, ensemble_scores, is_ensemble_trust, scores
+
+        if not is_ensemble_trust(self.model):
+            return scores(self.model, X)
+        if outs is None:
+            return ensemble_scores(self.members, X)
+        return disagreement(outs, np.asarray(self.model.meta["trust"]["output_scale"]))
 
     def check(self, params: Params) -> None:
         """Refuse a material the surrogate was not trained for."""
@@ -243,8 +259,7 @@ class SurrogateSolver:
         mask = np.any([m.outside(Xu, self.margin) for m in self.members], axis=0)
         gated = np.zeros(len(Xu), bool)
         if self.gate_threshold is not None:
-            from .trust import scores
-            gated = scores(self.model, Xu) > self.gate_threshold
+            gated = self._trust(Xu, outs) > self.gate_threshold
         if not first.all():
             row = np.cumsum(first) - 1
             outs, mask, gated = [o[row] for o in outs], mask[row], gated[row]
@@ -287,7 +302,7 @@ def _members(model) -> list[Surrogate]:
         raise InputError("an ensemble of surrogates needs at least one model")
     first = members[0].formulation
     if len(members) > 1 and not first.ensembles:
-        raise InputError(f"an ensemble averages increments of meso-formulation models, got {first.name!r} models")
+        raise InputError(f"an ensemble averages meso or compliance models, got {first.name!r} models")
     for m in members[1:]:
         if m.formulation.to_dict() != first.to_dict():
             raise InputError("the ensemble's models have different formulations (cell solver, material "

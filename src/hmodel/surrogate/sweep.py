@@ -104,19 +104,61 @@ def run_sweep(ds: Dataset, base: TrainConfig, depths: Sequence[int] = DEPTHS,
     return out
 
 
+#: The report's Fig. 2.7 (Model 1: 3 layers, 60 k rows of Dataset 2; (a) MAE loss, (b) MSE loss),
+#: its printout's numbers by (loss, test set: d1 Dataset 1, d2 Dataset 2).
+REPORT_FIG_2_7 = {
+    ("mae", "d1"): {"r2_force": 0.9936103, "r2_angle": 0.9978329, "rmse_force": 2053983.4027934917,
+                    "rmse_angle": 0.012878974260744575, "mae_force": 1027287.5057290787,
+                    "mae_angle": 0.008618506962517676, "max_angle": 1.5815281059447595},
+    ("mae", "d2"): {"r2_force": 0.9982584, "r2_angle": 0.99747574, "rmse_force": 1099740.6071886998,
+                    "rmse_angle": 0.013810898698387737, "mae_force": 269311.5010334855,
+                    "mae_angle": 0.0025588723417527006, "max_angle": 1.5631415415492529},
+    ("mse", "d1"): {"r2_force": 0.99906445, "r2_angle": 0.99820596, "rmse_force": 785949.4258878548,
+                    "rmse_angle": 0.011717967977173588, "mae_force": 547470.3972178464,
+                    "mae_angle": 0.008653581617502928, "max_angle": 1.5899907085333709},
+    ("mse", "d2"): {"r2_force": 0.9996026, "r2_angle": 0.99910367, "rmse_force": 525325.7164393435,
+                    "rmse_angle": 0.008229814778000335, "mae_force": 364731.42883928766,
+                    "mae_angle": 0.004217218558574834, "max_angle": 2.054645643857},
+}
+
+
+def beside_report(rows: list[dict]) -> list[dict]:
+    """The report's Fig. 2.7 numbers beside ours: one record per (loss, test set, metric) with
+    the report's value and those of our Model 1 (3 layers, 60 k rows) in both input
+    conventions, where the sweep ``rows`` have them (missing: NaN)."""
+    ours = {(r["inputs"], r["loss"]): r for r in rows if int(r["depth"]) == 3 and int(r["train_rows"]) == 60_000}
+    out = []
+    for (loss, test), theirs in REPORT_FIG_2_7.items():
+        for m, value in theirs.items():
+            rec = {"loss": loss.upper(), "test": {"d1": "Dataset 1", "d2": "Dataset 2"}[test], "metric": m,
+                   "report": value}
+            for inputs, key in (("before", "ours (forces before)"), ("after", "ours (forces after, as published)")):
+                rec[key] = float(ours[(inputs, loss)].get(f"{test}_{m}", np.nan)) if (inputs, loss) in ours else np.nan
+            out.append(rec)
+    return out
+
+
 def plot_sweep(rows: list[dict], path: Path) -> None:
     """R² of the angle and the forces against the number of hidden layers (Table 2.1)."""
     outputs = ("alpha_next", "N1_next", "N2_next", "T1_next")
     fig = Figure(figsize=(16, 4.2), layout="constrained")
     axes = fig.subplots(1, 4, sharex=True)
+    conventions = sorted({r.get("inputs", "before") for r in rows})
+    scalings = sorted({r.get("normalization", "") for r in rows})
     for ax, o in zip(axes, outputs):
         for size in sorted({r["train_rows"] for r in rows}):
             for loss, ls in (("mse", "-"), ("mae", "--")):
-                sel = sorted((r for r in rows if r["train_rows"] == size and r["loss"] == loss),
-                             key=lambda r: r["depth"])
-                if sel:
-                    ax.plot([r["depth"] for r in sel], [1 - r[f"r2_{o}"] for r in sel], ls,
-                            marker="o", label=f"{size:,} rows, {loss.upper()}")
+                for inputs in conventions:
+                    for z in scalings:
+                        sel = sorted((r for r in rows if r["train_rows"] == size and r["loss"] == loss
+                                      and r.get("inputs", "before") == inputs and r.get("normalization", "") == z),
+                                     key=lambda r: r["depth"])
+                        if sel:
+                            tag = (f", forces {inputs}" if len(conventions) > 1 else "") + (
+                                f", {z}" if len(scalings) > 1 else "")
+                            ax.plot([r["depth"] for r in sel], [1 - r[f"r2_{o}"] for r in sel], ls,
+                                    marker="o" if inputs == "before" else "x",
+                                    label=f"{size:,} rows, {loss.upper()}{tag}")
         ax.set_yscale("log")
         ax.set_xlabel("hidden layers")
         ax.set_ylabel(f"1 − R² of {o[:-5]}′ (test)")

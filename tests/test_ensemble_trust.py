@@ -1,0 +1,108 @@
+"""An ensemble of compliance networks: averaged compliances, its disagreement as the gate's trust
+score, and active learning with it."""
+
+import json
+
+import numpy as np
+import pytest
+
+from hmodel import InputError, Params
+from hmodel.cell.closed_form import ClosedFormSolver
+from hmodel.compare import run_path
+from hmodel.data import DatasetSpec, generate
+from hmodel.data.sampling import write_split
+from hmodel.loading import standard_paths
+from hmodel.surrogate import modelfile
+from hmodel.surrogate.rows import params_of, read_sample
+from hmodel.surrogate.solver import SurrogateSolver
+from hmodel.surrogate.training import TrainConfig, train
+from hmodel.surrogate.trust import disagreement, ensemble_scores, fit_ensemble_trust
+
+SPEC = DatasetSpec(kind=2, n_directions=7, theta_min=-60, theta_max=150, alpha0_min=40, alpha0_max=50,
+                   alpha0_step=5, max_strain=0.04, step=0.001, start_every=0.004, magnitude=0.002,
+                   magnitude_min=0.0, n_increments=12, substeps=1)
+PARAMS = Params(n_theta=12)
+
+
+@pytest.fixture(scope="module")
+def ensemble(tmp_path_factory):
+    root = tmp_path_factory.mktemp("ens")
+    write_split(generate(SPEC, Params(), root / "d"), root / "sample", 2000, 400, "random", 0)
+    cols, info = read_sample(root / "sample", "train")
+    members = []
+    for seed in (0, 1, 2):
+        m, _ = train(cols, params_of(info), TrainConfig(formulation="compliance", width=16, depth=2, epochs=15,
+                                                        seed=seed, device="cpu"))
+        m.meta["params"] = info["params"]
+        members.append(m)
+    trusted, table = fit_ensemble_trust(members, read_sample(root / "sample", "test")[0])
+    for k, m in enumerate(trusted):
+        modelfile.save(m, root / f"m{k}.safetensors")
+    return root, trusted, table
+
+
+def test_disagreement_is_the_members_spread():
+    a, b = np.array([[1.0, 2.0], [0.0, 0.0]]), np.array([[3.0, 2.0], [0.0, 4.0]])
+    # member std per output: row 0 (1, 0), row 1 (0, 2); in units of the scales (1, 2)
+    np.testing.assert_allclose(disagreement([a, b], np.array([1.0, 2.0])), [np.sqrt(0.5), np.sqrt(0.5)])
+    assert np.all(disagreement([a, a], np.ones(2)) == 0.0)
+
+
+def test_the_ensemble_averages_compliances_and_ranks_its_errors(ensemble):
+    root, members, table = ensemble
+    t = members[0].meta["trust"]
+    assert t["kind"] == "ensemble" and len(t["members"]) == 3 and members[0].trust_reference is None
+    assert -1.0 <= table[0]["spearman"] <= 1.0 and table[-1]["top_fraction"] == 0.1  # measured: benchmarks
+    # identical members: the ensemble is that network, and it agrees with itself everywhere
+    spec = [s for s in standard_paths(0.01) if s.name == "drained"][0]
+    one, _ = run_path(PARAMS, spec, SurrogateSolver(members[1]), 2e-3, 1e-3)
+    two, _ = run_path(PARAMS, spec, SurrogateSolver([members[1], members[1]]), 2e-3, 1e-3)
+    np.testing.assert_array_equal(one.point(0)["q"], two.point(0)["q"])
+    # the ensemble's own scores of held-out states: those its gate compares with the quantiles
+    held = read_sample(root / "sample", "test")[0]
+    s = ensemble_scores(members, members[0].formulation.inputs(held))
+    assert np.quantile(s, 0.5) == pytest.approx(np.interp(0.5, t["quantiles"]["levels"], t["quantiles"]["scores"]))
+
+
+def test_a_gate_that_holds_every_cell_is_the_closed_form(ensemble):
+    _, members, _ = ensemble
+    spec = [s for s in standard_paths(0.01) if s.name == "drained"][0]
+    ref, _ = run_path(PARAMS, spec, "closed-form", 2e-3, 1e-3)
+    gated = SurrogateSolver(members, gate=0.5, fallback=ClosedFormSolver())
+    gated.gate_threshold = -1.0  # below any spread: every cell to the closed form
+    res, _ = run_path(PARAMS, spec, gated, 2e-3, 1e-3)
+    assert gated.counts["gated"] == gated.counts["gate_checked"] > 0
+    np.testing.assert_allclose(res.point(0)["q"], ref.point(0)["q"], rtol=1e-7)  # Newton tolerance
+
+
+def test_the_gate_refuses_other_members_or_no_disagreement(ensemble):
+    _, members, _ = ensemble
+    with pytest.raises(InputError, match="in the order"):
+        SurrogateSolver([members[0], members[2], members[1]], gate=0.9, fallback=ClosedFormSolver())
+    with pytest.raises(InputError, match="trust"):  # members[1] holds no trust at all
+        SurrogateSolver([members[1], members[2]], gate=0.9, fallback=ClosedFormSolver())
+
+
+def test_cli_trust_and_refine_of_an_ensemble(ensemble, tmp_path, capsys):
+    from hmodel.cli.app import main
+
+    root, _, _ = ensemble
+    m = [str(root / f"m{k}.safetensors") for k in range(3)]
+    plain = [modelfile.load(p) for p in m]
+    for k, p in enumerate(plain):  # the members without the ensemble's trust
+        p.meta.pop("trust", None)
+        modelfile.save(p, tmp_path / f"p{k}.safetensors")
+    assert main(["surrogate", "trust", "+".join(str(tmp_path / f"p{k}.safetensors") for k in range(3)),
+                 str(root / "sample"), "--out", str(tmp_path / "t0.safetensors")]) == 0
+    assert "surrogate:" in capsys.readouterr().out
+    assert modelfile.load(tmp_path / "t0.safetensors").meta["trust"]["kind"] == "ensemble"
+    out = tmp_path / "al"
+    assert main(["surrogate", "refine", "+".join([str(tmp_path / "t0.safetensors")] + m[1:]), "--data",
+                 str(root / "sample"), "--out", str(out), "--rounds", "1", "--gate", "0.05", "--states", "20",
+                 "--increments", "4", "--epochs", "2", "--paths", "drained", "--axial-strain", "0.01",
+                 "--step", "2e-3", "--iso-step", "1e-3", "-p", "n_theta=12"]) == 0
+    summary = json.loads((out / "round-1" / "summary.json").read_text())["summary"]
+    assert summary["rows_added"] > 0
+    final = [modelfile.load(out / n) for n in ("model.safetensors", "model-1.safetensors", "model-2.safetensors")]
+    assert final[0].meta["trust"]["kind"] == "ensemble"
+    SurrogateSolver(final, gate=0.5, fallback=ClosedFormSolver())  # the refitted trust fits the new members
