@@ -11,8 +11,11 @@ target is the shipped model's own largest deviation on the same paths. Controls 
 noise of that measure at this data size: the start model trained on without new rows, and the
 recipe retrained on the same rows with other seeds.
 
-Usage: ``python benchmarks/refine.py [--work DIR]``; prints a table, writes ``refine.json`` and
-``docs/figures/refine.png``.
+With ``--members K``, the start is an ensemble of K networks of that recipe (seeds 0…K−1) whose
+trust score is their disagreement, and every member is fine-tuned.
+
+Usage: ``python benchmarks/refine.py [--work DIR] [--members 4]``; prints a table, writes
+``refine.json`` (``refine_ensemble.json``) and ``docs/figures/refine.png`` (``refine_ensemble.png``).
 """
 
 from __future__ import annotations
@@ -45,8 +48,13 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--states", type=int, default=250)
     ap.add_argument("--gate", type=float, nargs="+", default=[0.99, 0.5])
-    ap.add_argument("--out", type=Path, default=Path(__file__).with_name("refine.json"))
+    ap.add_argument("--members", type=int, default=1,
+                    help="an ensemble of this many networks (the recipe, seeds 0, 1, ...), gated on "
+                         "their disagreement")
+    ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args()
+    if args.out is None:
+        args.out = Path(__file__).with_name("refine.json" if args.members == 1 else "refine_ensemble.json")
     w = args.work
     w.mkdir(parents=True, exist_ok=True)
     n = int(round(600_000 * args.fraction))
@@ -61,6 +69,19 @@ def main() -> None:
         sh("hmodel", "surrogate", "trust", str(model), str(sample), "--out", str(model),
            "--reference", str(min(4096, int(0.8 * n))))
         print(f"start model trained in {time.perf_counter() - t:.0f} s")
+    spec, trust = str(model), None
+    if args.members > 1:
+        paths = [model]
+        for seed in range(1, args.members):
+            paths.append(w / f"start-{n}-seed{seed}.safetensors")
+            if not paths[-1].is_file():
+                sh("hmodel", "surrogate", "train", str(sample), "--out", str(paths[-1]),
+                   *RECIPE[:-1], str(seed))  # the recipe, another seed
+        first = w / f"ensemble-{n}-{args.members}.safetensors"
+        sh("hmodel", "surrogate", "trust", "+".join(map(str, paths)), str(sample), "--out", str(first))
+        spec = "+".join(map(str, [first, *paths[1:]]))
+        from hmodel.surrogate import modelfile
+        trust = modelfile.load(first).meta["trust"]["ranking"]
     target = w / "shipped-compare"
     sh("hmodel", "compare", "--solver", "surrogate", "--paths", PATHS, "--out", str(target))
     with open(target / "deviations.csv") as f:
@@ -68,9 +89,9 @@ def main() -> None:
     rows = [("full recipe (shipped, 600,000 rows): max |dq| / peak q over the paths [%]", 100 * full, "target")]
     runs, reached = {}, {}
     for gate in args.gate:
-        out = w / f"refine-gate{gate:g}"
+        out = w / (f"refine-gate{gate:g}" + (f"-ensemble{args.members}" if args.members > 1 else ""))
         t = time.perf_counter()
-        sh("hmodel", "surrogate", "refine", str(model), "--data", str(sample), "--out", str(out),
+        sh("hmodel", "surrogate", "refine", spec, "--data", str(sample), "--out", str(out),
            "--paths", PATHS, "--rounds", str(args.rounds), "--states", str(args.states), "--gate", str(gate))
         with open(out / "rounds.csv") as f:
             runs[gate] = list(csv.DictReader(f))
@@ -86,13 +107,19 @@ def main() -> None:
         rows.append((f"gate {gate:g}: wall time of all rounds [s]", time.perf_counter() - t, "-"))
     if len(runs[args.gate[-1]]) > 1:
         (ROOT / "docs" / "figures").mkdir(exist_ok=True)
-        (ROOT / "docs" / "figures" / "refine.png").write_bytes(
-            (w / f"refine-gate{args.gate[-1]:g}" / "rounds.png").read_bytes())
-    controls = spread(model, sample, n)
+        (ROOT / "docs" / "figures" / args.out.with_suffix(".png").name).write_bytes((out / "rounds.png").read_bytes())
+    controls = spread(model, sample, n) if args.members == 1 else {}
     for name, q in controls.items():
         rows.append((f"control: {name}: max |dq| / peak q [%]", 100 * q, "the noise floor"))
-    write_table(rows, args.out, record(__file__, 1, rows, start_rows=n, rounds={f"gate {g:g}": r for g, r in runs.items()},
-                                       full_recipe_q_dev_max=full, controls=controls))
+    for r in trust or []:
+        f = 100 * r["top_fraction"]
+        rows.append((f"ensemble disagreement: least trusted {f:g} % of held-out rows: share of the squared "
+                     f"error [%]", 100 * r["share_of_squared_error"], "most"))
+    if trust:
+        rows.append(("ensemble disagreement: Spearman correlation with the error", trust[0]["spearman"], "-"))
+    write_table(rows, args.out, record(__file__, 1, rows, start_rows=n, members=args.members,
+                                       rounds={f"gate {g:g}": r for g, r in runs.items()},
+                                       full_recipe_q_dev_max=full, controls=controls, trust_ranking=trust))
 
 
 def spread(model_path: Path, sample: Path, n: int) -> dict[str, float]:

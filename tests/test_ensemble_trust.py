@@ -16,7 +16,7 @@ from hmodel.surrogate import modelfile
 from hmodel.surrogate.rows import params_of, read_sample
 from hmodel.surrogate.solver import SurrogateSolver
 from hmodel.surrogate.training import TrainConfig, train
-from hmodel.surrogate.trust import disagreement, ensemble_scores, fit_ensemble_trust
+from hmodel.surrogate.trust import disagreement, fit_ensemble_trust
 
 SPEC = DatasetSpec(kind=2, n_directions=7, theta_min=-60, theta_max=150, alpha0_min=40, alpha0_max=50,
                    alpha0_step=5, max_strain=0.04, step=0.001, start_every=0.004, magnitude=0.002,
@@ -58,10 +58,15 @@ def test_the_ensemble_averages_compliances_and_ranks_its_errors(ensemble):
     one, _ = run_path(PARAMS, spec, SurrogateSolver(members[1]), 2e-3, 1e-3)
     two, _ = run_path(PARAMS, spec, SurrogateSolver([members[1], members[1]]), 2e-3, 1e-3)
     np.testing.assert_array_equal(one.point(0)["q"], two.point(0)["q"])
-    # the ensemble's own scores of held-out states: those its gate compares with the quantiles
+    # the held-out scores it stores are the spread of the members' own increments of those rows
     held = read_sample(root / "sample", "test")[0]
-    s = ensemble_scores(members, members[0].formulation.inputs(held))
-    assert np.quantile(s, 0.5) == pytest.approx(np.interp(0.5, t["quantiles"]["levels"], t["quantiles"]["scores"]))
+    f = members[0].formulation
+    names = ("alpha_next", "N1_next", "N2_next", "T1_next")
+    before = np.column_stack([held[k[:-5]] for k in names])
+    inc = [np.column_stack([m.predict(held)[k] for k in names]) - before for m in members]
+    s = disagreement(inc, np.asarray(t["increment_scale"]))
+    levels, q = t["quantiles"]["levels"], t["quantiles"]["scores"]
+    assert np.quantile(s, 0.9) == pytest.approx(np.interp(0.9, levels, q), rel=1e-9) and f.name == "compliance"
 
 
 def test_a_gate_that_holds_every_cell_is_the_closed_form(ensemble):
@@ -72,6 +77,7 @@ def test_a_gate_that_holds_every_cell_is_the_closed_form(ensemble):
     gated.gate_threshold = -1.0  # below any spread: every cell to the closed form
     res, _ = run_path(PARAMS, spec, gated, 2e-3, 1e-3)
     assert gated.counts["gated"] == gated.counts["gate_checked"] > 0
+    assert gated.fractions(PARAMS, gated.initial(PARAMS, (12,))) == {}  # decided per increment
     np.testing.assert_allclose(res.point(0)["q"], ref.point(0)["q"], rtol=1e-7)  # Newton tolerance
 
 

@@ -80,6 +80,12 @@ class Networks(Protocol):
         says so (``describe(i)`` names cell i's inputs). Returns their number."""
         ...
 
+    def gate_increments(self, v: np.ndarray, dl: np.ndarray, outs: list[np.ndarray],
+                        advance: Callable) -> np.ndarray | None:
+        """An ensemble's gate of cell increments (None: no such gate), from every member's
+        outputs ``outs`` and ``advance(v, dl, out) -> (new, flags)``."""
+        ...
+
     def fall_back(self, params: Params, v: np.ndarray, dl: np.ndarray, mask: np.ndarray,
                   new: np.ndarray, flags: np.ndarray) -> None:
         """Write the closed form's increment of the cells ``mask`` into ``new`` and ``flags``."""

@@ -32,8 +32,9 @@ averages the members' increments dz (``meso``) or compliances (``compliance``) b
 back: independent training errors of the members partly cancel (see the DEM cells page of the
 documentation), at the cost of one network per member. A cell is outside the training domain
 when it is outside any member's. The gate of an ensemble whose trust is its disagreement
-(:func:`hmodel.surrogate.trust.fit_ensemble_trust`) scores each state by the spread of the
-members' outputs, which the solver has computed anyway.
+(:func:`hmodel.surrogate.trust.fit_ensemble_trust`) scores each cell increment by the spread of
+the members' increments (each member's compliances applied to it), so it is decided per
+increment, Newton trials included, and counted so.
 """
 
 from __future__ import annotations
@@ -51,6 +52,7 @@ from .compliance import ComplianceFormulation as Compliance
 from .formulations import LEAK_REFUSED
 from .model import Surrogate
 from .state_cache import StateCache
+from .trust import INCREMENT_FIELDS, disagreement, scores
 
 #: Parameters a surrogate is specific to (it was trained on cells with these values).
 MATERIAL = ("kn", "kt_kn", "phi_g", "radius", "g2", "sliding_rhs", "volume")
@@ -93,6 +95,8 @@ class SurrogateSolver:
                        "gated": 0, "gate_checked": 0, "fallback_cells": 0}
         #: trust-score threshold of the gate (None: no gate), and the gate's quantile level
         self.gate, self.gate_threshold = gate, None
+        #: An ensemble gate's scales of the increments (None: no such gate).
+        self._increment_scale: np.ndarray | None = None
         if gate is not None or fallback is not None:
             self._set_gate(gate, fallback)
         # network outputs, outside and gate masks of the batches of states seen last: every
@@ -128,6 +132,7 @@ class SurrogateSolver:
         self.gate_threshold = threshold(self.model, gate)
         if is_ensemble_trust(self.model):
             check_members(self.members)
+            self._increment_scale = np.asarray(self.model.meta["trust"]["increment_scale"])
         elif len(self.members) > 1:
             raise InputError("an ensemble's gate needs its disagreement as trust score: add it with "
                              "'hmodel surrogate trust MODEL+MODEL+... SAMPLE --out FILE'")
@@ -135,21 +140,27 @@ class SurrogateSolver:
 
     def fractions(self, params: Params, state: CellState) -> dict[str, np.ndarray]:
         """With a gate: ``gated``, the cells whose next increment the fallback solves."""
-        if self.gate_threshold is None:
-            return {}
+        if self.gate_threshold is None or self._increment_scale is not None:
+            return {}  # an ensemble's gate depends on the increment, not known at a state
         v = np.asarray(state.values, float).reshape(-1, self.n_state)
-        return {"gated": (self._trust(self.formulation.features(v)) > self.gate_threshold).reshape(state.shape)}
+        return {"gated": (scores(self.model, self.formulation.features(v)) > self.gate_threshold
+                          ).reshape(state.shape)}
 
-    def _trust(self, X: np.ndarray, outs: list[np.ndarray] | None = None) -> np.ndarray:
-        """Trust scores of inputs X: the ensemble's disagreement (from the members' outputs
-        ``outs`` where given) or the distance to the training data (:mod:`.trust`)."""
-        from .trust import disagreement, ensemble_scores, is_ensemble_trust, scores
-
-        if not is_ensemble_trust(self.model):
-            return scores(self.model, X)
-        if outs is None:
-            return ensemble_scores(self.members, X)
-        return disagreement(outs, np.asarray(self.model.meta["trust"]["output_scale"]))
+    def gate_increments(self, v: np.ndarray, dl: np.ndarray, outs: list[np.ndarray], advance) -> np.ndarray | None:
+        """The ensemble's gate (None where the gate is not an ensemble's): cells whose members'
+        increments under length increments ``dl`` (``advance(v, dl, outs[k])`` each) disagree
+        beyond the threshold. Counted per cell increment, Newton trials included."""
+        if self._increment_scale is None or self.gate_threshold is None:
+            return None
+        cols = list(INCREMENT_FIELDS)
+        inc = [advance(v, dl, o)[0][:, cols] - v[:, cols] for o in outs]
+        gated = disagreement(inc, self._increment_scale) > self.gate_threshold
+        self.counts["gated"] += int(gated.sum())
+        self.counts["gate_checked"] += len(gated)
+        if self.gated_states is not None and gated.any():
+            self.gated_states.append(v[gated].copy())
+        self._gated = gated
+        return gated
 
     def check(self, params: Params) -> None:
         """Refuse a material the surrogate was not trained for."""
@@ -258,15 +269,15 @@ class SurrogateSolver:
         outs = [m.forward(Xu, single=f.single_precision, spare=spare) for m in self.members]
         mask = np.any([m.outside(Xu, self.margin) for m in self.members], axis=0)
         gated = np.zeros(len(Xu), bool)
-        if self.gate_threshold is not None:
-            gated = self._trust(Xu, outs) > self.gate_threshold
+        if self.gate_threshold is not None and self._increment_scale is None:
+            gated = scores(self.model, Xu) > self.gate_threshold
         if not first.all():
             row = np.cumsum(first) - 1
             outs, mask, gated = [o[row] for o in outs], mask[row], gated[row]
         self.counts["gated"] += int(gated.sum())
         if self.gated_states is not None and gated.any():
             self.gated_states.append(v[gated].copy())
-        self.counts["gate_checked"] += len(gated) if self.gate_threshold is not None else 0
+        self.counts["gate_checked"] += len(gated) if self.gate_threshold is not None and self._increment_scale is None else 0
         self._cache.put(v, (outs, mask, gated))
         self._gated = gated
         return outs, mask | gated
