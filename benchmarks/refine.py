@@ -108,7 +108,7 @@ def main() -> None:
     if len(runs[args.gate[-1]]) > 1:
         (ROOT / "docs" / "figures").mkdir(exist_ok=True)
         (ROOT / "docs" / "figures" / args.out.with_suffix(".png").name).write_bytes((out / "rounds.png").read_bytes())
-    controls = spread(model, sample, n) if args.members == 1 else {}
+    controls = spread(model, sample, n) if args.members == 1 else tuned_only(spec, sample, args.rounds)
     for name, q in controls.items():
         rows.append((f"control: {name}: max |dq| / peak q [%]", 100 * q, "the noise floor"))
     for r in trust or []:
@@ -148,6 +148,33 @@ def spread(model_path: Path, sample: Path, n: int) -> dict[str, float]:
         m, _ = train(cols, params, TrainConfig(formulation="compliance", width=64, depth=3, activation="silu",
                                                epochs=614, patience=60, seed=seed))
         out[f"recipe retrained on the {n:,} rows, seed {seed}"] = _measure(m, params, specs, refs, cfg)["q_dev_max"]
+    return out
+
+
+def tuned_only(spec: str, sample: Path, rounds: int) -> dict[str, float]:
+    """The ensemble fine-tuned as the rounds do (same epochs, learning rate and seeds) on its own
+    training rows only, without any new row: how much of a round's change the fine-tuning
+    alone makes."""
+    from hmodel import Params
+    from hmodel.compare import run_path
+    from hmodel.loading import standard_paths
+    from hmodel.surrogate import modelfile
+    from hmodel.surrogate.refine import RefineConfig, _measure
+    from hmodel.surrogate.rows import read_sample
+    from hmodel.surrogate.training import TrainConfig, train
+
+    members = [modelfile.load(p) for p in spec.split("+")]
+    cols, _ = read_sample(sample, "train")
+    params, cfg = Params(), RefineConfig(paths=tuple(PATHS.split(",")))
+    specs = [s for s in standard_paths(cfg.axial) if s.name in cfg.paths]
+    refs = {s.name: run_path(params, s, "closed-form", cfg.step, cfg.iso_step)[0] for s in specs}
+    out = {}
+    for r in range(1, rounds + 1):
+        members = [train(cols, params, TrainConfig(formulation="compliance", epochs=cfg.epochs, patience=cfg.patience,
+                                                   lr=cfg.lr, seed=cfg.seed + 1000 * r + k), init=m)[0]
+                   for k, m in enumerate(members)]
+        out[f"ensemble fine-tuned {r} time(s) on its own rows only, no new row"] = _measure(
+            members, params, specs, refs, cfg)["q_dev_max"]
     return out
 
 

@@ -22,8 +22,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-import numpy as np
-
 from . import __version__
 from .params import Params
 
@@ -69,12 +67,13 @@ def table21(work: Path, sizes: tuple[int, ...], minutes: float, depths=None, d1_
     ``table-2-1.png``."""
     from .data import Dataset, DatasetSpec, generate
     from .io import write_rows
+    from .surrogate.rows import read_rows
     from .surrogate.sweep import DEPTHS, beside_report, plot_sweep, run_sweep
     from .surrogate.training import TrainConfig
 
     d1 = generate(d1_spec or DatasetSpec(kind=1), Params(), work / "d1", workers=os.cpu_count() or 1)
     d2 = generate(d2_spec or DatasetSpec(kind=2), Params(), work / "d2", workers=os.cpu_count() or 1)
-    test1 = d1.read(rows=np.sort(np.random.default_rng(0).choice(d1.n_rows, min(n_test, d1.n_rows), replace=False)))
+    test1, _ = read_rows(d1.folder, "test", min(n_test, d1.n_rows - 1), 0)  # as the CLI's --dataset1
     base = TrainConfig(formulation="report", normalization="minmax", epochs=200, patience=20,
                        max_minutes=minutes)
     rows = run_sweep(Dataset.open(d2.folder), base, depths or DEPTHS, sizes=sizes,
@@ -89,7 +88,7 @@ def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
     """Run the study into ``out`` (a fresh folder is written atomically); returns report.html."""
     from .solvers import get_solver
     from .compare import compare_path, plot_overlay, warm_up
-    from .data import DatasetSpec, generate
+    from .data import generate
     from .io import write_outputs, write_rows
     from .loading import run_biaxial, standard_paths
     from .plotting import plot_result

@@ -41,7 +41,6 @@ import pyarrow as pa
 
 from ..cell import CellState
 from ..solvers import get_solver
-from ..cell.state import initial_lengths
 from ..errors import InputError
 from ..params import Params
 from .schema import EXTRA_COLUMNS, FLAG_COLUMNS, STATE, arrow_schema, to_arrow
