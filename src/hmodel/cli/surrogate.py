@@ -280,9 +280,9 @@ def sweep_cmd(
 
 @app.command("refine")
 def refine_cmd(
-    model: Annotated[str, typer.Argument(help="Model file with a trust score, a shipped model (shipped, "
-                                              "the default), or an ensemble A+B+... whose trust is its "
-                                              "disagreement (hmodel surrogate trust A+B+...).")],
+    model: Annotated[str, typer.Argument(help="Model file with a trust score, a shipped model (shipped: "
+                                              "the default model), or an ensemble A+B+... whose trust is "
+                                              "its disagreement (hmodel surrogate trust A+B+...).")],
     data: Annotated[Path, typer.Option("--data", help="Sample folder of the model's training rows "
                                                       "(fine-tuning keeps them).")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Folder for the rounds (rows, models), "
