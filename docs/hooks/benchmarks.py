@@ -79,6 +79,8 @@ def num(x, sig: int = 4) -> str:
             return f"{'' if m == '1' else m + '·'}10{str(int(e)).translate(_SUPER)}"
         if a >= 1000:
             return f"{x:,.0f}"
+        if 0.99 < a < 1.0:  # an R² or a share near 1: two significant digits of what it misses
+            return f"{x:.{min(int(math.ceil(-math.log10(1.0 - a))) + 1, 12)}f}"
         return f"{x:.{sig}g}"
     return text(x)
 
