@@ -112,3 +112,23 @@ def test_cli_trust_and_refine_of_an_ensemble(ensemble, tmp_path, capsys):
     final = [modelfile.load(out / n) for n in ("model.safetensors", "model-1.safetensors", "model-2.safetensors")]
     assert final[0].meta["trust"]["kind"] == "ensemble"
     SurrogateSolver(final, gate=0.5, fallback=ClosedFormSolver())  # the refitted trust fits the new members
+
+
+def test_the_shipped_ensemble_gates_on_its_disagreement():
+    """``--solver surrogate:ensemble``: the default network and two more of its recipe, whose
+    trust is their disagreement, with a fresh install's files only."""
+    from hmodel.solvers import get_solver
+    from hmodel.surrogate.shipped import load_shipped
+    from hmodel.surrogate.solver import gated_solver
+    from hmodel.surrogate.trust import fingerprint
+
+    ens = get_solver("surrogate:ensemble")
+    assert len(ens.members) == 3 and ens.model.meta["trust"]["kind"] == "ensemble"
+    assert fingerprint(ens.members[0]) == fingerprint(load_shipped())  # the default network first
+    assert ens.model.meta["trust"]["ranking"][1]["share_of_squared_error"] > 0.9  # measured when made
+    gated = gated_solver("surrogate:ensemble", 0.5, "closed-form")
+    spec = [s for s in standard_paths(0.01) if s.name == "drained"][0]
+    ref, _ = run_path(PARAMS, spec, "closed-form", 2e-3, 1e-3)
+    res, _ = run_path(PARAMS, spec, gated, 2e-3, 1e-3)
+    assert gated.counts["gated"] > 0
+    np.testing.assert_allclose(res.point(0)["q"], ref.point(0)["q"], rtol=2e-3, atol=1e-6 * ref.point(0)["q"].max())

@@ -173,12 +173,13 @@ def trust_cmd(
     --gate): measures on held-out rows which share of the error the least trusted rows hold."""
     from ..surrogate import modelfile
     from ..surrogate.rows import read_rows
-    from ..surrogate.shipped import model_path
+    from ..surrogate.shipped import model_paths
     from ..surrogate.trust import fit_ensemble_trust, fit_trust
 
     if out.suffix != ".safetensors":
         raise InputError(f"--out must name a .safetensors file, got {str(out)!r}")
-    members = [modelfile.load(model_path(m)) for m in model.split("+")]
+    paths = model_paths(model)
+    members = [modelfile.load(p) for p in paths]
     held, _ = read_rows(sample, "test", rows, seed)
     if len(members) > 1:  # an ensemble: its disagreement, stored with the first member
         trusted, table = fit_ensemble_trust(members, held)
@@ -193,7 +194,7 @@ def trust_cmd(
                    f"{100 * r['share_of_squared_error']:.1f} % of the squared error")
     typer.echo(f"Spearman correlation of score and error {table[0]['spearman']:.3f}; wrote {out}")
     if len(members) > 1:
-        rest = "+".join(model.split("+")[1:])
+        rest = "+".join(map(str, paths[1:]))
         typer.echo(f"gate the ensemble as --solver surrogate:{out}+{rest} (members in this order)")
 
 
@@ -310,7 +311,7 @@ def refine_cmd(
     from ..params import Params
     from ..surrogate import modelfile
     from ..surrogate.refine import RefineConfig, plot_rounds, refine
-    from ..surrogate.shipped import model_path
+    from ..surrogate.shipped import model_paths
     from ..surrogate.torch_support import require_torch
 
     require_torch()
@@ -319,7 +320,7 @@ def refine_cmd(
                        rounds=rounds, gate=gate, states=states, increments=increments, magnitude=magnitude,
                        epochs=epochs, patience=patience, lr=lr, axial=axial_strain, step=step,
                        iso_step=iso_step, seed=seed)
-    members = [modelfile.load(model_path(m)) for m in model.split("+")]
+    members = [modelfile.load(p) for p in model_paths(model)]
     with LazyProgress("refining") as progress:
         final, rows = refine(members, data, params, cfg, out, progress, typer.echo)
     names = ["model.safetensors"] + [f"model-{k}.safetensors" for k in range(1, len(final))]

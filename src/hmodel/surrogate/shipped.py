@@ -8,6 +8,9 @@
   no closed form (the hexagon with a free centre grain) learned from YADE's DEM increments
   (``benchmarks/dem_ann.py --no-student``, the 96x3 network); runs without YADE, with
   ``sliding_rhs=equilibrium``.
+- ``ensemble`` (``h-cell-ensemble-{0,1,2}.safetensors``): the default network and two more of
+  its recipe (seeds 1, 2), whose compliances average and whose disagreement is the trust score
+  of ``--gate`` (stored with the first, a copy of the default network).
 
 Each is produced by the commands in ``models/README.md`` (a fixed dataset, sample and seed) and
 loaded like any other model file (checked, never unpickled).
@@ -23,7 +26,11 @@ from ..errors import InputError
 from .training import TrainConfig
 
 SHIPPED = {"default": "h-cell-default.safetensors", "increment": "h-cell-increment.safetensors",
-           "hexagon-center": "hexagon-center.safetensors"}
+           "hexagon-center": "hexagon-center.safetensors",
+           "ensemble-0": "h-cell-ensemble-0.safetensors", "ensemble-1": "h-cell-ensemble-1.safetensors",
+           "ensemble-2": "h-cell-ensemble-2.safetensors"}
+#: Shipped ensembles by name: their members, the one holding the ensemble's trust first.
+ENSEMBLES = {"ensemble": ("ensemble-0", "ensemble-1", "ensemble-2")}
 
 #: The database of the default model: Dataset 2 increments of at most 0.2 % (the size of a
 #: REV's cell increments), each one step of eq. 1.7, from paths in every direction between
@@ -56,6 +63,13 @@ def model_path(ref: str) -> Path:
     if ref in ("", "shipped"):
         return shipped_path()
     return shipped_path(ref) if ref in SHIPPED else Path(ref)
+
+
+def model_paths(spec: str) -> list[Path]:
+    """The model files of ``A+B+...``: each a model reference (:func:`model_path`) or a shipped
+    ensemble's name (``ensemble``: its members, in order)."""
+    refs = [r for part in spec.split("+") for r in ENSEMBLES.get(part, (part,))]
+    return [model_path(r) for r in refs]
 
 
 def load_shipped(name: str = "default"):

@@ -328,12 +328,12 @@ def _same(a, b) -> bool:
 
 
 def load_solver(spec: str, on_outside: str = "fallback") -> SurrogateSolver:
-    """``surrogate`` (the shipped default), ``surrogate:NAME`` (a shipped model),
+    """``surrogate`` (the shipped default), ``surrogate:NAME`` (a shipped model or ensemble),
     ``surrogate:PATH`` or an ensemble ``surrogate:PATH+PATH+...``."""
     from .modelfile import load
-    from .shipped import model_path
+    from .shipped import model_paths
 
-    return SurrogateSolver([load(model_path(ref)) for ref in spec.partition(":")[2].split("+")], on_outside)
+    return SurrogateSolver([load(p) for p in model_paths(spec.partition(":")[2])], on_outside)
 
 
 def gated_solver(spec: "str | CellSolver", gate: float | None = None,
@@ -360,5 +360,6 @@ def gated_solver(spec: "str | CellSolver", gate: float | None = None,
 def gate_summary(solver: SurrogateSolver) -> str:
     """One line: how many learned cell states the gate sent to the fallback solver."""
     n, m = solver.counts["gated"], solver.counts["gate_checked"]
-    return (f"gate {solver.gate:g}: {n:,} of {m:,} cell states ({100 * n / max(m, 1):.3g} %) "
+    what = "cell states" if solver._increment_scale is None else "cell increments (Newton trials included)"
+    return (f"gate {solver.gate:g}: {n:,} of {m:,} {what} ({100 * n / max(m, 1):.3g} %) "
             f"solved by {solver.fallback.name}")
