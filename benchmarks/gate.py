@@ -42,25 +42,33 @@ def main() -> None:
         rows.append((f"(a) least trusted {f:g} % of held-out rows: share of the squared error [%]",
                      100 * r["share_of_squared_error"], "most"))
     rows.append(("(a) Spearman correlation of score and error", model.meta["trust"]["ranking"][0]["spearman"], "-"))
-    params = Params()
-    warm_up(params, ["closed-form", SurrogateSolver(model)], args.step, 1e-4)
-    for gate in (None, 0.5, 0.9, 0.99, 0.999):
+    rows += gate_curve(model, (0.5, 0.9, 0.99, 0.999), args.step, "(b) ", "cell states")
+    write_table(rows, args.out, record(__file__, 1, rows, step=args.step))
+
+
+def gate_curve(model, gates, step: float, prefix: str = "", what: str = "cell states") -> list[tuple]:
+    """Every comparison path, ungated and gated at ``gates`` with the closed form as fallback:
+    (measure, value, target) rows of the largest |dq| / peak q over the paths, the share of
+    ``what`` the gate sent to the closed form, and the wall time."""
+    params, rows = Params(), []
+    warm_up(params, ["closed-form", SurrogateSolver(model)], step, 1e-4)
+    for gate in (None, *gates):
         solver = (SurrogateSolver(model) if gate is None
                   else SurrogateSolver(model, gate=gate, fallback=ClosedFormSolver()))
         worst, t = 0.0, time.perf_counter()
         for spec in standard_paths(0.1):
-            _, _, devs, st = compare_path(params, spec, solver, args.step, 1e-4)
+            _, _, devs, st = compare_path(params, spec, solver, step, 1e-4)
             assert st["status"] == "ok", st
             worst = max([worst] + [d["q_max_dev_rel"] for d in devs])
         t = time.perf_counter() - t
         label = "ungated" if gate is None else f"gate {gate:g}"
-        rows.append((f"(b) {label}: max |dq| / peak q over the paths [%]", 100 * worst, "<= 1"))
+        rows.append((f"{prefix}{label}: max |dq| / peak q over the paths [%]", 100 * worst, "<= 1"))
         if gate is not None:
             c = solver.counts
-            rows.append((f"(b) {label}: cell states sent to the closed form [%]",
+            rows.append((f"{prefix}{label}: {what} sent to the closed form [%]",
                          100 * c["gated"] / max(c["gate_checked"], 1), "small"))
-        rows.append((f"(b) {label}: wall time of the six paths (both solvers) [s]", t, "-"))
-    write_table(rows, args.out, record(__file__, 1, rows, step=args.step))
+        rows.append((f"{prefix}{label}: wall time of the six paths (both solvers) [s]", t, "-"))
+    return rows
 
 
 if __name__ == "__main__":

@@ -13,17 +13,12 @@ Usage: ``python benchmarks/gate_ensemble.py --ensemble A+B+C+D``; prints a table
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
+from gate import gate_curve
 from timing import record, write_table
 
-from hmodel import Params
-from hmodel.cell import ClosedFormSolver
-from hmodel.compare import compare_path, warm_up
-from hmodel.loading import standard_paths
 from hmodel.surrogate import modelfile
-from hmodel.surrogate.solver import SurrogateSolver
 
 
 def main() -> None:
@@ -34,24 +29,7 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("gate_ensemble.json"))
     args = ap.parse_args()
     members = [modelfile.load(p) for p in args.ensemble.split("+")]
-    params, rows = Params(), []
-    warm_up(params, ["closed-form", SurrogateSolver(members)], args.step, 1e-4)
-    for gate in (None, *args.gates):
-        solver = (SurrogateSolver(members) if gate is None
-                  else SurrogateSolver(members, gate=gate, fallback=ClosedFormSolver()))
-        worst, t = 0.0, time.perf_counter()
-        for spec in standard_paths(0.1):
-            _, _, devs, st = compare_path(params, spec, solver, args.step, 1e-4)
-            assert st["status"] == "ok", st
-            worst = max([worst] + [d["q_max_dev_rel"] for d in devs])
-        t = time.perf_counter() - t
-        label = "ungated" if gate is None else f"gate {gate:g}"
-        rows.append((f"{label}: max |dq| / peak q over the paths [%]", 100 * worst, "-"))
-        if gate is not None:
-            c = solver.counts
-            rows.append((f"{label}: cell increments sent to the closed form [%]",
-                         100 * c["gated"] / max(c["gate_checked"], 1), "small"))
-        rows.append((f"{label}: wall time of the six paths (both solvers) [s]", t, "-"))
+    rows = gate_curve(members, args.gates, args.step, what="cell increments")
     write_table(rows, args.out, record(__file__, 1, rows, step=args.step, members=len(members)))
 
 

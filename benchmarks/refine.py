@@ -129,32 +129,40 @@ def main() -> None:
                                        full_recipe_q_dev_max=full, controls=controls, trust_ranking=trust))
 
 
-def spread(model_path: Path, sample: Path, n: int) -> dict[str, float]:
-    """What the same measure gives without active learning: the start model trained on, on its
-    own rows only, and the recipe retrained on the same rows with other seeds."""
+def references():
+    """The refine runs' material, settings, paths and closed-form results, for the controls."""
     from hmodel import Params
     from hmodel.compare import run_path
     from hmodel.loading import standard_paths
+    from hmodel.surrogate.refine import RefineConfig
+
+    params, cfg = Params(), RefineConfig(paths=tuple(PATHS.split(",")))
+    specs = [s for s in standard_paths(cfg.axial) if s.name in cfg.paths]
+    return params, cfg, specs, {s.name: run_path(params, s, "closed-form", cfg.step, cfg.iso_step)[0]
+                                for s in specs}
+
+
+def spread(model_path: Path, sample: Path, n: int) -> dict[str, float]:
+    """What the same measure gives without active learning: the start model trained on, on its
+    own rows only, and the recipe retrained on the same rows with other seeds."""
     from hmodel.surrogate import modelfile
-    from hmodel.surrogate.refine import RefineConfig, _measure
+    from hmodel.surrogate.refine import measure
     from hmodel.surrogate.rows import read_sample
     from hmodel.surrogate.training import TrainConfig, train
 
     m0 = modelfile.load(model_path)
     cols, _ = read_sample(sample, "train")
-    params, cfg = Params(), RefineConfig(paths=tuple(PATHS.split(",")))
-    specs = [s for s in standard_paths(cfg.axial) if s.name in cfg.paths]
-    refs = {s.name: run_path(params, s, "closed-form", cfg.step, cfg.iso_step)[0] for s in specs}
-    out = {"start model (seed 0)": _measure(m0, params, specs, refs, cfg)["q_dev_max"]}
+    params, cfg, specs, refs = references()
+    out = {"start model (seed 0)": measure(m0, params, specs, refs, cfg)["q_dev_max"]}
     for lr in (1e-3, 1e-4):
         m, _ = train(cols, params, TrainConfig(formulation="compliance", epochs=100, patience=20, lr=lr, seed=1),
                      init=m0)
-        out[f"start model fine-tuned on its own {n:,} rows only (100 epochs, lr {lr:g})"] = _measure(
+        out[f"start model fine-tuned on its own {n:,} rows only (100 epochs, lr {lr:g})"] = measure(
             m, params, specs, refs, cfg)["q_dev_max"]
     for seed in (1, 2):
         m, _ = train(cols, params, TrainConfig(formulation="compliance", width=64, depth=3, activation="silu",
                                                epochs=614, patience=60, seed=seed))
-        out[f"recipe retrained on the {n:,} rows, seed {seed}"] = _measure(m, params, specs, refs, cfg)["q_dev_max"]
+        out[f"recipe retrained on the {n:,} rows, seed {seed}"] = measure(m, params, specs, refs, cfg)["q_dev_max"]
     return out
 
 
@@ -162,25 +170,20 @@ def tuned_only(spec: str, sample: Path, rounds: int) -> dict[str, float]:
     """The ensemble fine-tuned as the rounds do (same epochs, learning rate and seeds) on its own
     training rows only, without any new row: how much of a round's change the fine-tuning
     alone makes."""
-    from hmodel import Params
-    from hmodel.compare import run_path
-    from hmodel.loading import standard_paths
     from hmodel.surrogate import modelfile
-    from hmodel.surrogate.refine import RefineConfig, _measure
+    from hmodel.surrogate.refine import measure
     from hmodel.surrogate.rows import read_sample
     from hmodel.surrogate.training import TrainConfig, train
 
     members = [modelfile.load(p) for p in spec.split("+")]
     cols, _ = read_sample(sample, "train")
-    params, cfg = Params(), RefineConfig(paths=tuple(PATHS.split(",")))
-    specs = [s for s in standard_paths(cfg.axial) if s.name in cfg.paths]
-    refs = {s.name: run_path(params, s, "closed-form", cfg.step, cfg.iso_step)[0] for s in specs}
+    params, cfg, specs, refs = references()
     out = {}
     for r in range(1, rounds + 1):
         members = [train(cols, params, TrainConfig(formulation="compliance", epochs=cfg.epochs, patience=cfg.patience,
                                                    lr=cfg.lr, seed=cfg.seed + 1000 * r + k), init=m)[0]
                    for k, m in enumerate(members)]
-        m = _measure(members, params, specs, refs, cfg)
+        m = measure(members, params, specs, refs, cfg)
         out[f"ensemble fine-tuned {r} time(s) on its own rows only, no new row"] = m["q_dev_max"]
         for name in cfg.paths:
             out[f"  same, {r} time(s), {name}"] = m[f"q_dev_{name}"]

@@ -136,7 +136,7 @@ class ComplianceFormulation(MaterialScales, HCellStates):
         """One exact increment of cells ``v`` with the learned compliances of their states."""
         outs, mask = net.outputs(v, self.features(v))
         new, flags = self.advance(v, dl, outs[0] if len(outs) == 1 else np.mean(outs, axis=0))
-        gated = net.gate_increments(v, dl, outs, self.advance) if len(outs) > 1 else None
+        gated = net.gate_increments(v, dl, outs, self.advance)
         if gated is not None:  # an ensemble's gate: its members disagree on this increment
             mask = mask | gated
         self.closed_form_outside(net, params, v, dl, mask, new, flags,

@@ -122,7 +122,7 @@ def refine(model: "Surrogate | list[Surrogate]", sample: "str | Path", params: P
     rows, parts = [], []
     summary = _load(out / "round-0", key)
     if summary is None:
-        summary = {"round": 0, "rows_added": 0, "exact_rows": 0, **_measure(members, params, specs,
+        summary = {"round": 0, "rows_added": 0, "exact_rows": 0, **measure(members, params, specs,
                                                                             references, config)}
         _save(out / "round-0", key, summary, [])
     rows.append(summary)
@@ -149,24 +149,10 @@ def refine(model: "Surrogate | list[Surrogate]", sample: "str | Path", params: P
             parts.append(_read_rows(folder / "rows"))
             cols = union([base] + [p[0] for p in parts])
             held = union([base_test] + [p[1] for p in parts])
-            trust, tuned, epochs = model_trust(members[0]), [], 0
-            for k, m in enumerate(members):
-                cfg = TrainConfig(formulation=m.formulation.name, epochs=config.epochs,
-                                  patience=config.patience, lr=config.lr, seed=config.seed + 1000 * r + k,
-                                  loss=m.meta.get("config", {}).get("loss", "mse"))
-                m, hist = train(cols, params, cfg, init=m)
-                m.meta.update(params=params.to_dict(), refined={"round": r, "rows": len(cols["deps1"])})
-                tuned.append(m)
-                epochs += len(hist)
-            if trust.get("kind") == "ensemble":
-                members, _ = fit_ensemble_trust(tuned, held)
-            else:
-                first, _ = fit_trust(tuned[0], cols, held, reference=trust["reference_rows"], k=trust["k"],
-                                     seed=config.seed + r)
-                members = [first, *tuned[1:]]
+            members, epochs = _fine_tune(members, cols, held, params, config, r)
             summary = {"round": r, "rows_added": len(new["deps1"]), "gated_states": len(states),
                        **gate, "epochs": epochs,
-                       **_measure(members, params, specs, references, config),
+                       **measure(members, params, specs, references, config),
                        "seconds": time.perf_counter() - t}
             summary["exact_rows"] = rows[-1]["exact_rows"] + summary["rows_added"]
             _save(folder, key, summary, members)
@@ -175,6 +161,27 @@ def refine(model: "Surrogate | list[Surrogate]", sample: "str | Path", params: P
         if progress is not None:
             progress(r / config.rounds)
     return members, rows
+
+
+def _fine_tune(members: list[Surrogate], cols: dict, held: dict, params: Params, config: RefineConfig,
+               r: int) -> tuple[list[Surrogate], int]:
+    """Every member fine-tuned on ``cols`` (round ``r``'s seeds), with its trust score refitted
+    as it was made (the distance reference, or the ensemble's disagreement on ``held``); and
+    the epochs run in all."""
+    trust, tuned, epochs = model_trust(members[0]), [], 0
+    for k, m in enumerate(members):
+        cfg = TrainConfig(formulation=m.formulation.name, epochs=config.epochs, patience=config.patience,
+                          lr=config.lr, seed=config.seed + 1000 * r + k,
+                          loss=m.meta.get("config", {}).get("loss", "mse"))
+        m, hist = train(cols, params, cfg, init=m)
+        m.meta.update(params=params.to_dict(), refined={"round": r, "rows": len(cols["deps1"])})
+        tuned.append(m)
+        epochs += len(hist)
+    if trust.get("kind") == "ensemble":
+        return fit_ensemble_trust(tuned, held)[0], epochs
+    first, _ = fit_trust(tuned[0], cols, held, reference=trust["reference_rows"], k=trust["k"],
+                         seed=config.seed + r)
+    return [first, *tuned[1:]], epochs
 
 
 def _member_file(k: int) -> str:
@@ -200,7 +207,7 @@ def _exact_solver(spec: str):
     return solver
 
 
-def _measure(members, params, specs, references, config) -> dict:
+def measure(members, params, specs, references, config) -> dict:
     """Largest deviations of the ungated model from the reference on every path; a path the
     model cannot run to its end (a SolverError) counts as failed, its deviations NaN."""
     out, qs, evs = {}, [], []

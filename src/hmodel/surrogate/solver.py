@@ -155,12 +155,16 @@ class SurrogateSolver:
         cols = list(INCREMENT_FIELDS)
         inc = [advance(v, dl, o)[0][:, cols] - v[:, cols] for o in outs]
         gated = disagreement(inc, self._increment_scale) > self.gate_threshold
+        self._record_gate(v, gated)
+        self._gated = gated
+        return gated
+
+    def _record_gate(self, v: np.ndarray, gated: np.ndarray) -> None:
+        """Count the gate's decisions on cells ``v`` and keep the gated states when asked to."""
         self.counts["gated"] += int(gated.sum())
         self.counts["gate_checked"] += len(gated)
         if self.gated_states is not None and gated.any():
             self.gated_states.append(v[gated].copy())
-        self._gated = gated
-        return gated
 
     def check(self, params: Params) -> None:
         """Refuse a material the surrogate was not trained for."""
@@ -268,16 +272,13 @@ class SurrogateSolver:
         spare = f.spare_columns if len(self.members) == 1 else 0
         outs = [m.forward(Xu, single=f.single_precision, spare=spare) for m in self.members]
         mask = np.any([m.outside(Xu, self.margin) for m in self.members], axis=0)
-        gated = np.zeros(len(Xu), bool)
-        if self.gate_threshold is not None and self._increment_scale is None:
-            gated = scores(self.model, Xu) > self.gate_threshold
+        state_gate = self.gate_threshold is not None and self._increment_scale is None
+        gated = scores(self.model, Xu) > self.gate_threshold if state_gate else np.zeros(len(Xu), bool)
         if not first.all():
             row = np.cumsum(first) - 1
             outs, mask, gated = [o[row] for o in outs], mask[row], gated[row]
-        self.counts["gated"] += int(gated.sum())
-        if self.gated_states is not None and gated.any():
-            self.gated_states.append(v[gated].copy())
-        self.counts["gate_checked"] += len(gated) if self.gate_threshold is not None and self._increment_scale is None else 0
+        if state_gate:
+            self._record_gate(v, gated)
         self._cache.put(v, (outs, mask, gated))
         self._gated = gated
         return outs, mask | gated

@@ -36,9 +36,16 @@ def row_errors(model: Surrogate, cols: dict[str, np.ndarray]) -> np.ndarray:
     """Error of each row: the RMS over the predicted outputs of (prediction − truth), each
     output in units of the standard deviation of its true increment over the rows."""
     y, p, before = truth_and_prediction(model, cols)
-    scale = np.std(y - before, axis=0)
-    scale[scale == 0] = 1.0
+    scale = increment_spread(y, before)
     return np.sqrt(np.mean(((p - y) / scale) ** 2, axis=1))
+
+
+def increment_spread(after: np.ndarray, before: np.ndarray) -> np.ndarray:
+    """Standard deviation of each output's true increment over the rows (1 where it is 0): the
+    unit of the errors and of an ensemble's disagreement."""
+    scale = np.std(after - before, axis=0)
+    scale[scale == 0] = 1.0
+    return scale
 
 
 def ranking(score: np.ndarray, error: np.ndarray) -> list[dict]:
@@ -170,8 +177,7 @@ def fit_ensemble_trust(members: list[Surrogate], held_out: dict[str, np.ndarray]
     outs = [m.forward(X, single=f.single_precision) for m in members]
     names = ("alpha_next", "N1_next", "N2_next", "T1_next")
     y, before = (np.column_stack([held_out[k[:-5] if b else k] for k in names]) for b in (False, True))
-    scale = np.std(y - before, axis=0)
-    scale[scale == 0] = 1.0
+    scale = increment_spread(y, before)
     # each member's increment and the ensemble's (the members' outputs averaged, as the solver does)
     inc = [np.column_stack([f.decode(held_out, o)[k] for k in names]) - before for o in outs]
     mean = np.column_stack([f.decode(held_out, np.mean(outs, axis=0))[k] for k in names])
