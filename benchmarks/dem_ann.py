@@ -100,6 +100,15 @@ HEX_REV = replace(HEX_DATASET, kind=3, n_directions=16, theta_min=0.0, theta_max
                   start_every=0.001, n_increments=16,
                   rev_paths="drained:50e3,drained:75e3,drained:125e3,drained:150e3,drained:250e3,"
                             "drained:300e3,undrained:100e3,undrained:150e3,undrained:300e3")
+#: Dataset 3 again, at the start of shear, dense in increment size: the states every 0.05 % of
+#: axial strain to 0.6 % of the same loadings, 64 increment directions with magnitudes spread over
+#: 1e-4 ... 2.5e-3 (golden-ratio sequence: every size along every sector). A REV's first shear
+#: increment from a consolidated cell crosses the onsets of sliding within the increment; the
+#: rows above hold one size per direction, and the network took the first increments as linear
+#: (too soft for small REV increments, too stiff for large ones: the rate dependence of
+#: benchmarks/dem_ann_start.py). 119,808 rows (4 min here).
+HEX_START = replace(HEX_REV, max_strain=0.006, step=5e-4, start_every=5e-4, n_increments=64,
+                    magnitude=2.5e-3, magnitude_min=1e-4)
 #: Errors weighed as errors of the secant dz/|de| down to increments of 2.5e-4 (``secant_floor``):
 #: on dz/m0 the first shear increments from a consolidated cell were left to the large increments,
 #: and every network was too soft there at 100 kPa (docs/dem.md).

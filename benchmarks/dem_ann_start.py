@@ -24,7 +24,7 @@ from hmodel import Params
 from hmodel.compare import deviations, run_path, standard_paths
 from hmodel.dem.solver import DEMSolver
 from hmodel.surrogate.modelfile import load
-from hmodel.surrogate.shipped import model_path
+from hmodel.surrogate.shipped import model_paths
 from hmodel.surrogate.solver import SurrogateSolver
 
 SOLVER = "dem:hexagon-center:tol=1e-7,max_iter=100000"
@@ -80,7 +80,7 @@ def main() -> None:
     ap.add_argument("--axial", type=float, default=0.002)
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("dem_ann_start.json"))
     args = ap.parse_args()
-    models = [load(model_path(p)) for p in args.model.split("+")]
+    models = [load(p) for p in model_paths(args.model)]
     ref, res = both(models, args.axial, args.step)
     rows = []
     print(f"{'p0 kPa':>7} {'stage':<14}{'eps11 %':>9}{'eps_v DEM %':>12}{'eps_v ANN %':>12}{'q DEM kPa':>11}{'q ANN kPa':>11}")

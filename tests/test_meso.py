@@ -395,3 +395,33 @@ def test_an_ensemble_averages_its_members_increments(tiny_model):
         SurrogateSolver([])
     with pytest.raises(InputError, match="different formulations"):
         SurrogateSolver([model, replace(other, formulation=replace(form, mechanisms=2))])
+
+
+def test_a_cell_step_cuts_every_increment_into_network_steps_of_at_most_that_size(tmp_path):
+    """With ``cell_step`` h, a cell increment of 3h is three network steps of h, each from the
+    state the one before reached (not one step, as without it), whatever the REV increment;
+    the step travels with the model file."""
+    from hmodel.surrogate.shipped import load_shipped
+
+    shipped = load_shipped("hexagon-center-0")
+    model = replace(shipped, formulation=replace(shipped.formulation, cell_step=None))
+    h = 2.5e-4
+    stepped = replace(model, formulation=replace(model.formulation, cell_step=h))
+    save(stepped, tmp_path / "m.safetensors")
+    again = load(tmp_path / "m.safetensors")
+    assert again.formulation.cell_step == h and again.formulation.max_increment(None) == h
+    params = Params(sliding_rhs="equilibrium")
+    whole, one = SurrogateSolver(again), SurrogateSolver(model)
+    assert whole.kernel(params) is None and one.kernel(params) is not None
+    cells = whole.initial(params, (4,))
+    dl = -3 * h * params.l10 * np.array([1.0, 0.5, -0.5, 0.2])
+    dl2 = 3 * h * params.l20 * np.array([0.5, -0.5, 1.0, 0.1])
+    got, _ = whole.step(params, cells, dl, dl2)
+    by_hand = cells
+    for _ in range(3):
+        by_hand, _ = one.step(params, by_hand, dl / 3, dl2 / 3)
+    np.testing.assert_allclose(got.values, by_hand.values, rtol=1e-12, atol=1e-12 * np.abs(by_hand.values).max())
+    in_one, _ = one.step(params, cells, dl, dl2)
+    assert np.abs(in_one.values - got.values).max() > 1e-6 * np.abs(got.values).max()
+    with pytest.raises(InputError, match="cell_step"):
+        replace(model.formulation, cell_step=0.0)

@@ -13,19 +13,23 @@ from hmodel.cli.app import main
 from hmodel.dem.yade import available
 from hmodel.loading import run_biaxial
 from hmodel.solvers import get_solver
-from hmodel.surrogate.shipped import load_shipped, model_path, shipped_path
+from hmodel.surrogate.shipped import load_shipped, model_paths, shipped_path
+from hmodel.surrogate.trust import check_members
 
 needs_yade = pytest.mark.skipif(not available(), reason="YADE is not installed (apt-get install -y yade)")
 PARAMS = Params(sliding_rhs="equilibrium", n_theta=12)
 DEM = "dem:hexagon-center:tol=1e-7,max_iter=100000"
 
 
-def test_the_name_resolves_to_a_small_meso_model():
-    assert model_path("hexagon-center") == shipped_path("hexagon-center")
-    assert shipped_path("hexagon-center").stat().st_size < 500_000
-    model = load_shipped("hexagon-center")
-    assert model.formulation.name == "meso"
-    assert model.meta["params"]["sliding_rhs"] == "equilibrium"
+def test_the_name_resolves_to_a_small_meso_ensemble_with_its_trust():
+    paths = model_paths("hexagon-center")
+    assert paths == [shipped_path("hexagon-center-0"), shipped_path("hexagon-center-1")]
+    assert sum(p.stat().st_size for p in paths) < 500_000
+    first, second = (load_shipped(n) for n in ("hexagon-center-0", "hexagon-center-1"))
+    for model in (first, second):
+        assert model.formulation.name == "meso" and model.formulation.cell_step == 2.5e-4
+        assert model.meta["params"]["sliding_rhs"] == "equilibrium"
+    check_members([first, second])  # the trust was measured on these two, in this order
 
 
 def test_runs_without_yade_and_holds_its_stress_control(monkeypatch):

@@ -39,7 +39,8 @@ GateOpt = Annotated[Optional[float], typer.Option(
                    "increment goes to --fallback; needs a model with a trust reference "
                    "('hmodel surrogate trust').")]
 FallbackOpt = Annotated[Optional[str], typer.Option(
-    "--fallback", help="Exact cell solver for the cells above --gate: closed-form.")]
+    "--fallback", help="Exact cell solver for the cells above --gate: closed-form (H-cell networks), or "
+                       "a richer cell's DEM cell dem:MESO (its meso network; each cell carries its DEM state).")]
 
 
 def _solver(spec: str, gate: float | None, fallback: str | None):

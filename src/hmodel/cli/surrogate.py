@@ -41,6 +41,9 @@ RolloutSubsteps = Annotated[int, typer.Option(help="Experimental, tried and not 
                                                    "increment than the data's).")]
 SecantFloor = Annotated[float, typer.Option(help="meso: weigh errors as errors of the secant dz/|de|, "
                                                  "increments below this strain as this (0: of dz/m0).")]
+CellStep = Annotated[Optional[float], typer.Option(help="meso: largest cell strain of one network step in a "
+                                                        "REV (larger increments in equal sub-steps; default: "
+                                                        "any), e.g. the rollout sub-steps' size.")]
 
 
 def _config(**kw):
@@ -58,7 +61,7 @@ def train_cmd(
     epochs: Epochs = 300, batch_size: BatchSize = 1024, lr: Lr = 3e-3, patience: Patience = 30,
     seed: Seed = 0, device: Device = "auto", max_minutes: MaxMinutes = None,
     mechanisms: Mechanisms = 4, rollout: Rollout = 0, rollout_weight: RolloutWeight = 1.0,
-    rollout_substeps: RolloutSubsteps = 1, secant_floor: SecantFloor = 0.0,
+    rollout_substeps: RolloutSubsteps = 1, secant_floor: SecantFloor = 0.0, cell_step: CellStep = None,
 ) -> None:
     """Train a surrogate on a sample's training rows (20 % held out for early stopping),
     evaluate it on the sample's test rows, and save it with its metrics."""
@@ -73,7 +76,7 @@ def train_cmd(
                   activation=activation, loss=loss, epochs=epochs, batch_size=batch_size, lr=lr,
                   patience=patience, seed=seed, device=device, max_minutes=max_minutes,
                   mechanisms=mechanisms, rollout=rollout, rollout_weight=rollout_weight,
-                  rollout_substeps=rollout_substeps, secant_floor=secant_floor)
+                  rollout_substeps=rollout_substeps, secant_floor=secant_floor, cell_step=cell_step)
     with LazyProgress("training") as progress:
         s, history = train_on_sample(data if len(data) > 1 else data[0], cfg, progress)
     modelfile.save(s, out)
@@ -161,8 +164,9 @@ def trust_cmd(
     model: Annotated[str, typer.Argument(help="Model file, or a shipped model: shipped (the default), "
                                               "increment; or an ensemble A+B+..., whose trust score is "
                                               "then the members' disagreement (stored with A).")],
-    sample: Annotated[Path, typer.Argument(help="Sample folder of the model's training rows (its train "
-                                                "rows give the reference, its test rows the measure).")],
+    sample: Annotated[str, typer.Argument(help="Sample folder of the model's training rows (its train "
+                                               "rows give the reference, its test rows the measure); "
+                                               "several, comma-separated, for a model trained on several.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Model file written with its trust reference.")],
     reference: Annotated[int, typer.Option(help="Training rows kept as the reference.")] = 4096,
     k: Annotated[int, typer.Option("--k", help="Nearest reference rows the score averages over.")] = 8,
@@ -171,21 +175,28 @@ def trust_cmd(
 ) -> None:
     """Add a trust score to a model (distance of a cell's inputs to its training rows, for
     --gate): measures on held-out rows which share of the error the least trusted rows hold."""
+    import numpy as np
+
     from ..surrogate import modelfile
     from ..surrogate.rows import read_rows
     from ..surrogate.shipped import model_paths
+    from ..surrogate.training import union
     from ..surrogate.trust import fit_ensemble_trust, fit_trust
 
     if out.suffix != ".safetensors":
         raise InputError(f"--out must name a .safetensors file, got {str(out)!r}")
     paths = model_paths(model)
     members = [modelfile.load(p) for p in paths]
-    held, _ = read_rows(sample, "test", rows, seed)
+    folders = [Path(f) for f in sample.split(",") if f]
+    held = union([read_rows(f, "test")[0] for f in folders])
+    if rows is not None and rows < len(held["deps1"]):
+        keep = np.sort(np.random.default_rng(seed).choice(len(held["deps1"]), rows, replace=False))
+        held = {c: v[keep] for c, v in held.items()}
     if len(members) > 1:  # an ensemble: its disagreement, stored with the first member
         trusted, table = fit_ensemble_trust(members, held)
         trusted = trusted[0]
     else:
-        train, _ = read_rows(sample, "train")
+        train = union([read_rows(f, "train")[0] for f in folders])
         trusted, table = fit_trust(members[0], train, held, reference=reference, k=k, seed=seed)
     modelfile.save(trusted, out)
     for r in table:
@@ -284,13 +295,14 @@ def refine_cmd(
     model: Annotated[str, typer.Argument(help="Model file with a trust score, a shipped model (shipped: "
                                               "the default model), or an ensemble A+B+... whose trust is "
                                               "its disagreement (hmodel surrogate trust A+B+...).")],
-    data: Annotated[Path, typer.Option("--data", help="Sample folder of the model's training rows "
-                                                      "(fine-tuning keeps them).")],
+    data: Annotated[str, typer.Option("--data", help="Sample folder of the model's training rows "
+                                                     "(fine-tuning keeps them); several, comma-separated.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Folder for the rounds (rows, models), "
                                                          "rounds.csv, rounds.png and model.safetensors; "
                                                          "an interrupted run into it resumes.")],
     solver: Annotated[str, typer.Option("--solver", help="Exact cell solver of the new rows: "
-                                                         "closed-form or dem:standard.")] = "closed-form",
+                                                         "closed-form or dem:standard (H-cell networks), "
+                                                         "or a richer cell's dem:MESO (its meso network).")] = "closed-form",
     reference: Annotated[str, typer.Option(help="Solver the rounds' errors are measured against.")] = "closed-form",
     paths: Annotated[str, typer.Option(help="REV paths (hmodel compare's names), comma-separated.")] = "drained,undrained,unload-reload",
     rounds: Annotated[int, typer.Option(help="Rounds of gate, exact rows and fine-tuning.")] = 3,
@@ -322,7 +334,8 @@ def refine_cmd(
                        iso_step=iso_step, seed=seed)
     members = [modelfile.load(p) for p in model_paths(model)]
     with LazyProgress("refining") as progress:
-        final, rows = refine(members, data, params, cfg, out, progress, typer.echo)
+        final, rows = refine(members, [Path(f) for f in data.split(",") if f], params, cfg, out, progress,
+                             typer.echo)
     names = ["model.safetensors"] + [f"model-{k}.safetensors" for k in range(1, len(final))]
     write_outputs(out, {"rounds.csv": lambda p: write_rows(rows, p),
                         "rounds.png": lambda p: plot_rounds(rows, p),

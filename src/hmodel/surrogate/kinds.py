@@ -18,13 +18,17 @@ STRAIN_INPUT = {"report": ReportFormulation, "increment": IncrementFormulation,
                 "report-leak": LeakedReportFormulation}
 
 
-def make_formulation(name: str, params: Params, cell: str = "closed-form", mechanisms: int = 4):
+def make_formulation(name: str, params: Params, cell: str = "closed-form", mechanisms: int = 4,
+                     cell_step: float | None = None):
     """The formulation ``name`` for the material of ``params`` and data of the cell solver
-    ``cell`` (``mechanisms``: kinks of the ``meso`` formulation's incremental response)."""
+    ``cell`` (``mechanisms``, ``cell_step``: the ``meso`` formulation's kinks of its incremental
+    response and largest network step, :class:`~hmodel.surrogate.meso.MesoFormulation`)."""
     if name not in FORMULATIONS:
         raise InputError(f"unknown formulation {name!r} (known: {', '.join(FORMULATIONS)})")
     if name == "meso":
-        return MesoFormulation(params, cell, mechanisms)
+        return MesoFormulation(params, cell, mechanisms, cell_step)
+    if cell_step is not None:
+        raise InputError("cell_step (--cell-step) is the meso formulation's")
     if cell != "closed-form" and cell.split(":")[:2] != ["dem", "standard"]:
         raise InputError(f"the {name} formulation learns H-cells; cells of {cell!r} need --formulation meso")
     if name == "compliance":
@@ -35,7 +39,7 @@ def make_formulation(name: str, params: Params, cell: str = "closed-form", mecha
 def formulation_from_dict(d: dict):
     """Inverse of ``to_dict`` (model files)."""
     if d["name"] == "meso":
-        return MesoFormulation(Params.from_dict(d["params"]), d["cell"], d["mechanisms"])
+        return MesoFormulation(Params.from_dict(d["params"]), d["cell"], d["mechanisms"], d.get("cell_step"))
     if d["name"] == "compliance":
         return ComplianceFormulation(Params.from_dict(d["params"]))
     return STRAIN_INPUT[d["name"]](d["force_scale"], d["tan_phi"], d["radius"])

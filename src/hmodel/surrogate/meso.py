@@ -113,6 +113,12 @@ class MesoFormulation(MaterialScales):
     params: Params  #: the material the data was made with
     cell: str = "closed-form"  #: the data's cell solver (``dem:hexagon-center``, ...)
     mechanisms: int = 4  #: kinks of the incremental response (see the module docstring)
+    #: Largest cell strain of one network step (None: any, one step per increment). A network
+    #: trained with rollouts in sub-steps (``TrainConfig.rollout_substeps``) of this size is
+    #: stepped so in the REV, whatever the REV increment: the cells' strain paths are then cut
+    #: alike at every increment, and a learned response no longer depends on it (see the DEM
+    #: cells page: rate independence).
+    cell_step: float | None = None
     name: str = "meso"
     logit_column = None
     n_state = len(STATE_FIELDS)
@@ -158,10 +164,12 @@ class MesoFormulation(MaterialScales):
     def __post_init__(self) -> None:
         if not (self.cell == "closed-form" or self.cell.startswith("dem:")):
             raise InputError(f"the meso formulation needs H-cell or DEM data, got cells of {self.cell!r}")
+        if self.cell_step is not None and not (math.isfinite(self.cell_step) and self.cell_step > 0):
+            raise InputError(f"cell_step must be a positive strain, got {self.cell_step}")
 
     def to_dict(self) -> dict:
         return {"name": self.name, "params": self.params.to_dict(), "cell": self.cell,
-                "mechanisms": self.mechanisms}
+                "mechanisms": self.mechanisms, "cell_step": self.cell_step}
 
     @cached_property
     def geometry(self) -> CellGeometry:
@@ -374,13 +382,17 @@ class MesoFormulation(MaterialScales):
 
     # -- the cell solver's side ----------------------------------------------------------
     def max_increment(self, input_range: np.ndarray | None) -> float:
-        """Any: the response is homogeneous in the increment (no sub-steps)."""
-        return math.inf
+        """:attr:`cell_step`; without it any (the response is homogeneous in the increment)."""
+        return math.inf if self.cell_step is None else self.cell_step
 
-    def kernel(self, net: Networks, params: Params) -> CellKernel:
+    def kernel(self, net: Networks, params: Params) -> CellKernel | None:
         """The compiled increment: the learned responses of the states (one network evaluation
         per increment), which every Newton trial applies in
-        :func:`hmodel.cell.meso_kernel.meso_increment`."""
+        :func:`hmodel.cell.meso_kernel.meso_increment`. None with a :attr:`cell_step`: each
+        sub-step needs the network at its own state, and the generic path takes them
+        (:meth:`hmodel.surrogate.solver.SurrogateSolver.step`)."""
+        if self.cell_step is not None:
+            return None
         return CellKernel(kernel_params(self, params), lambda values: self.responses(net, values))
 
     def step_cells(self, net, params, v, e1, e2, dl):

@@ -17,10 +17,12 @@ its cells through states that the training paths may have visited rarely. Each r
 
 Round 0 measures the starting model. Each round is written to ``OUT/round-K/`` (its rows, model
 and summary); a round whose summary is there is not redone, so an interrupted run resumes at the
-round it was in. The exact solver must keep the surrogate's cell state, which holds for the
-H-cell networks (the ``compliance`` formulation) and the H-cell solvers, ``closed-form`` and
-``dem:standard``: the summary state of a ``meso`` network of a richer cell holds no grain
-positions for a DEM cell to restart from.
+round it was in. The exact solver keeps the surrogate's cell state for the H-cell networks
+(the ``compliance`` formulation) and the H-cell solvers, ``closed-form`` and ``dem:standard``.
+A ``meso`` network of a richer cell is gated to its DEM cell (``dem:hexagon-center``, ...) with
+the DEM state each cell carries beside its summary (:mod:`hmodel.surrogate.shadow`): the gated
+states are those DEM cells, caught up with the strain the network took them through, and the new
+rows are DEM increments from them, with the full DEM state as any DEM dataset's.
 """
 
 from __future__ import annotations
@@ -93,28 +95,31 @@ class RefineConfig:
             raise InputError(f"the gate is a quantile level in (0, 1], got {self.gate}")
 
 
-def refine(model: "Surrogate | list[Surrogate]", sample: "str | Path", params: Params,
+def refine(model: "Surrogate | list[Surrogate]", sample: "str | Path | list", params: Params,
            config: RefineConfig, out: "str | Path", progress: Callable[[float], None] | None = None,
            log: Callable[[str], None] = lambda s: None) -> tuple[list[Surrogate], list[dict]]:
     """Active learning from ``model`` (one network, or an ensemble whose trust is its
-    disagreement: every member is fine-tuned) and its training ``sample`` folder; returns the
+    disagreement: every member is fine-tuned) and its training ``sample`` folder (or folders); returns the
     last round's members and one summary row per round (round 0: the starting model)."""
     from .rows import read_sample
 
     out = Path(out)
+    samples = [Path(f) for f in (sample if isinstance(sample, (list, tuple)) else [sample])]
     members = list(model) if isinstance(model, (list, tuple)) else [model]
     exact = _exact_solver(config.exact)
-    probe = SurrogateSolver(members, gate=config.gate, fallback=exact)  # refuses what cannot gate
+    probe = _gated(members, exact, config.gate)  # refuses what cannot gate
     probe.check(params)
     model_trust(members[0])
-    base, info = read_sample(sample, "train")
-    base_test = read_sample(sample, "test")[0]
-    if info["params"] != members[0].meta.get("params", info["params"]):
-        raise InputError(f"{str(sample)!r} holds rows of other material parameters than the model's")
+    parts = [read_sample(f, "train") for f in samples]
+    for f, (_, info) in zip(samples, parts):
+        if info["params"] != members[0].meta.get("params", info["params"]):
+            raise InputError(f"{str(f)!r} holds rows of other material parameters than the model's")
+    base = union([c for c, _ in parts])
+    base_test = union([read_sample(f, "test")[0] for f in samples])
     specs = {s.name: s for s in standard_paths(config.axial)}
     specs = [specs[n] for n in config.paths]
     key = {**asdict(config), "paths": list(config.paths), "params": params.to_dict(),
-           "model": [fingerprint(m) for m in members], "sample": str(sample)}
+           "model": [fingerprint(m) for m in members], "sample": [str(f) for f in samples]}
     t0 = time.perf_counter()
     references = {s.name: run_path(params, s, config.reference, config.step, config.iso_step)[0]
                   for s in specs}
@@ -170,10 +175,13 @@ def _fine_tune(members: list[Surrogate], cols: dict, held: dict, params: Params,
     the epochs run in all."""
     trust, tuned, epochs = model_trust(members[0]), [], 0
     for k, m in enumerate(members):
+        made = m.meta.get("config", {})
+        # the loss weighting it was trained with (a meso network's secant floor); no rollouts:
+        # the new rows are single increments from scattered states, not paths
         cfg = TrainConfig(formulation=m.formulation.name, epochs=config.epochs, patience=config.patience,
-                          lr=config.lr, seed=config.seed + 1000 * r + k,
-                          loss=m.meta.get("config", {}).get("loss", "mse"))
-        m, hist = train(cols, params, cfg, init=m)
+                          lr=config.lr, seed=config.seed + 1000 * r + k, loss=made.get("loss", "mse"),
+                          secant_floor=made.get("secant_floor", 0.0))
+        m, hist = train(cols, params, cfg, init=m, cell=getattr(m.formulation, "cell", "closed-form"))
         m.meta.update(params=params.to_dict(), refined={"round": r, "rows": len(cols["deps1"])})
         tuned.append(m)
         epochs += len(hist)
@@ -196,6 +204,17 @@ def model_trust(model: Surrogate) -> dict:
         raise InputError("active learning needs a model with a trust reference: add one with "
                          "'hmodel surrogate trust MODEL SAMPLE --out FILE'")
     return trust
+
+
+def _gated(members: list[Surrogate], exact, gate: float):
+    """The members gated at ``gate`` to the exact solver: a richer cell's ``meso`` network with
+    its DEM cells carried along (:class:`~hmodel.surrogate.shadow.ShadowedSolver`), any other
+    with the exact solver on the same state."""
+    if getattr(members[0].formulation, "richer", False):
+        from .shadow import ShadowedSolver
+
+        return ShadowedSolver(SurrogateSolver(members), exact, gate)
+    return SurrogateSolver(members, gate=gate, fallback=exact)
 
 
 def _exact_solver(spec: str):
@@ -228,7 +247,7 @@ def measure(members, params, specs, references, config) -> dict:
 
 def _collect(members, exact, params, specs, config) -> tuple[np.ndarray, dict]:
     """The distinct states the gate sent to the exact solver on every path, and the gate's counts."""
-    solver = SurrogateSolver(members, gate=config.gate, fallback=exact)
+    solver = _gated(members, exact, config.gate)
     solver.gated_states = []
     for spec in specs:
         try:
@@ -239,7 +258,7 @@ def _collect(members, exact, params, specs, config) -> tuple[np.ndarray, dict]:
     gate = {"gated_fraction": c["gated"] / max(c["gate_checked"], 1),
             "fallback_cells": c["fallback_cells"]}
     if not solver.gated_states:
-        return np.zeros((0, solver.n_state)), gate
+        return np.zeros((0, exact.initial(params).values.shape[-1])), gate
     return np.unique(np.vstack(solver.gated_states), axis=0), gate
 
 
@@ -268,7 +287,8 @@ def _write_rows(folder: Path, cols: dict[str, np.ndarray], params: Params, confi
     state = cols["path_id"]
     test_states = rng.random(int(state.max()) + 1) < 0.1
     masks = {"train": ~test_states[state], "test": test_states[state]}
-    schema = arrow_schema()
+    extra = cols.get("state_extra")
+    schema = arrow_schema(n_extra=0 if extra is None else extra.shape[1])
     meta = {"format": "hmodel-cell-sample", "hmodel": __version__, "source": "active learning",
             "source_checksum": "", "schema_version": SCHEMA_VERSION, "kind": 2,
             "options": {"solver": config.exact, "n_increments": config.increments,

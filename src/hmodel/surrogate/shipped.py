@@ -4,10 +4,12 @@
   REV-scale increments (:data:`REV_DATASET`); the one ``--solver surrogate`` uses.
 - ``increment`` (``h-cell-increment.safetensors``): formulation ``increment``, trained on the
   report-scale Dataset 2 (1 % increments in 10 sub-steps); the surrogate of report ch. 2.
-- ``hexagon-center`` (``hexagon-center.safetensors``): formulation ``meso``, a richer cell with
-  no closed form (the hexagon with a free centre grain) learned from YADE's DEM increments
-  (``benchmarks/dem_ann.py --no-student``, the 96x3 network); runs without YADE, with
-  ``sliding_rhs=equilibrium``.
+- ``hexagon-center`` (``hexagon-center-{0,1}.safetensors``): two networks of formulation
+  ``meso``, a richer cell with no closed form (the hexagon with a free centre grain) learned from
+  YADE's DEM increments, stepped in cell strains of at most 2.5e-4 (``cell_step``); their
+  increments average, their disagreement is the trust score of ``--gate`` (stored with the
+  first). Runs without YADE, with ``sliding_rhs=equilibrium``; gated, with
+  ``--fallback dem:hexagon-center``.
 - ``ensemble`` (``h-cell-ensemble-{0,1,2}.safetensors``): the default network and two more of
   its recipe (seeds 1, 2), whose compliances average and whose disagreement is the trust score
   of ``--gate`` (stored with the first, a copy of the default network).
@@ -26,11 +28,12 @@ from ..errors import InputError
 from .training import TrainConfig
 
 SHIPPED = {"default": "h-cell-default.safetensors", "increment": "h-cell-increment.safetensors",
-           "hexagon-center": "hexagon-center.safetensors",
+           "hexagon-center-0": "hexagon-center-0.safetensors", "hexagon-center-1": "hexagon-center-1.safetensors",
            "ensemble-0": "h-cell-ensemble-0.safetensors", "ensemble-1": "h-cell-ensemble-1.safetensors",
            "ensemble-2": "h-cell-ensemble-2.safetensors"}
 #: Shipped ensembles by name: their members, the one holding the ensemble's trust first.
-ENSEMBLES = {"ensemble": ("ensemble-0", "ensemble-1", "ensemble-2")}
+ENSEMBLES = {"ensemble": ("ensemble-0", "ensemble-1", "ensemble-2"),
+             "hexagon-center": ("hexagon-center-0", "hexagon-center-1")}
 
 #: The database of the default model: Dataset 2 increments of at most 0.2 % (the size of a
 #: REV's cell increments), each one step of eq. 1.7, from paths in every direction between
@@ -58,8 +61,8 @@ def shipped_path(name: str = "default") -> Path:
 
 
 def model_path(ref: str) -> Path:
-    """A model reference: a shipped name (``default``, ``increment``, ``hexagon-center``;
-    ``shipped`` is the default) or a model file's path."""
+    """A model reference: a shipped model's name (``default``, ``increment``; ``shipped`` is the
+    default) or a model file's path (a shipped ensemble's name: :func:`model_paths`)."""
     if ref in ("", "shipped"):
         return shipped_path()
     return shipped_path(ref) if ref in SHIPPED else Path(ref)

@@ -52,7 +52,7 @@ from .compliance import ComplianceFormulation as Compliance
 from .formulations import LEAK_REFUSED
 from .model import Surrogate
 from .state_cache import StateCache
-from .trust import INCREMENT_FIELDS, disagreement, scores
+from .trust import disagreement, increment_fields, scores
 
 #: Parameters a surrogate is specific to (it was trained on cells with these values).
 MATERIAL = ("kn", "kt_kn", "phi_g", "radius", "g2", "sliding_rhs", "volume")
@@ -152,7 +152,7 @@ class SurrogateSolver:
         beyond the threshold. Counted per cell increment, Newton trials included."""
         if self._increment_scale is None or self.gate_threshold is None:
             return None
-        cols = list(INCREMENT_FIELDS)
+        cols = list(increment_fields(self.formulation)[0])
         inc = [advance(v, dl, o)[0][:, cols] - v[:, cols] for o in outs]
         gated = disagreement(inc, self._increment_scale) > self.gate_threshold
         self._record_gate(v, gated)
@@ -354,13 +354,22 @@ def gated_solver(spec: "str | CellSolver", gate: float | None = None,
     if not isinstance(solver, SurrogateSolver):
         raise InputError(f"--gate and --fallback are for learned cell solvers (surrogate[:MODEL]), "
                          f"got {solver.name!r}")
+    exact = get_solver(fallback)
+    if getattr(solver.formulation, "richer", False):  # a DEM cell kept in step (shadow.py)
+        from .shadow import ShadowedSolver
+
+        return ShadowedSolver(solver, exact, gate)
     return SurrogateSolver(solver.members, solver.on_outside, solver.margin, solver.opening,
-                           gate=gate, fallback=get_solver(fallback))
+                           gate=gate, fallback=exact)
 
 
-def gate_summary(solver: SurrogateSolver) -> str:
+def gate_summary(solver) -> str:
     """One line: how many learned cell states the gate sent to the fallback solver."""
     n, m = solver.counts["gated"], solver.counts["gate_checked"]
-    what = "cell states" if solver._increment_scale is None else "cell increments (Newton trials included)"
-    return (f"gate {solver.gate:g}: {n:,} of {m:,} {what} ({100 * n / max(m, 1):.3g} %) "
+    what = ("cell increments (Newton trials included)" if getattr(solver, "_increment_scale", None) is not None
+            else "cell states")
+    line = (f"gate {solver.gate:g}: {n:,} of {m:,} {what} ({100 * n / max(m, 1):.3g} %) "
             f"solved by {solver.fallback.name}")
+    if "dem_increments" in solver.counts:
+        line += f" ({solver.counts['dem_increments']:,} DEM cell increments with the catch-ups)"
+    return line

@@ -52,6 +52,9 @@ class TrainConfig:
     #: increments down to this strain (smaller ones weigh as this): the loss on dz/m0 leaves the
     #: first increments of a loading to the large ones, whose sliding dominates it (0: off).
     secant_floor: float = 0.0
+    #: ``meso``: largest cell strain of one network step in a REV (None: any), stored with the
+    #: model (:attr:`hmodel.surrogate.meso.MesoFormulation.cell_step`).
+    cell_step: float | None = None
 
     def __post_init__(self) -> None:
         Architecture(self.width, self.depth, self.activation)
@@ -72,6 +75,8 @@ class TrainConfig:
             raise InputError(f"secant_floor must be positive or zero, got {self.secant_floor}")
         if self.secant_floor and self.formulation != "meso":
             raise InputError("secant weighting needs --formulation meso")
+        if self.cell_step is not None and self.formulation != "meso":
+            raise InputError("--cell-step needs --formulation meso")
 
 
 def _device(name: str):
@@ -101,7 +106,7 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
     if init is None:
-        form = make_formulation(config.formulation, params, cell, config.mechanisms)
+        form = make_formulation(config.formulation, params, cell, config.mechanisms, config.cell_step)
     else:  # the caller checks that the rows are of the model's material and cells
         form = init.formulation
         config = replace(config, formulation=form.name, width=init.architecture.width,

@@ -141,6 +141,17 @@ def is_ensemble_trust(model: Surrogate) -> bool:
 
 #: The state fields whose increments the disagreement compares (α, N1, N2, T1 of the packed state).
 INCREMENT_FIELDS = (2, 3, 4, 5)
+#: ... and of a richer cell's summary state (:mod:`hmodel.surrogate.meso`): also V σ_nn, V σ_tt.
+RICHER_INCREMENT_FIELDS = INCREMENT_FIELDS + (8, 9)
+
+
+def increment_fields(formulation) -> tuple[tuple[int, ...], tuple[str, ...]]:
+    """The state columns whose increments an ensemble's disagreement compares, and the
+    database columns of their values after an increment."""
+    names = ("alpha_next", "N1_next", "N2_next", "T1_next")
+    if getattr(formulation, "richer", False):
+        return RICHER_INCREMENT_FIELDS, names + ("Vs_nn_next", "Vs_tt_next")
+    return INCREMENT_FIELDS, names
 
 
 def disagreement(increments: list[np.ndarray], scale: np.ndarray) -> np.ndarray:
@@ -164,23 +175,24 @@ def fit_ensemble_trust(members: list[Surrogate], held_out: dict[str, np.ndarray]
     members' fingerprints, the increments' scales and the quantiles of the score over the
     ``held_out`` rows), and the ranking table of the ensemble's errors on those rows. Needs a
     formulation whose networks see the state only and decode an increment from their outputs
-    (``compliance``)."""
+    (``compliance``, ``meso``; a richer cell's V σ increments are compared too)."""
     if len(members) < 2:
         raise InputError("an ensemble's disagreement needs at least two networks")
     f = members[0].formulation
     if not hasattr(f, "advance"):
-        raise InputError(f"an ensemble's disagreement needs compliance networks, got {f.name!r}")
+        raise InputError(f"an ensemble's disagreement needs compliance or meso networks, got {f.name!r}")
     for m in members[1:]:
         if m.formulation.to_dict() != f.to_dict():
             raise InputError("the ensemble's networks have different formulations or materials")
+    held_out = getattr(f, "augment", lambda c: c)(held_out)
     X = np.asarray(f.inputs(held_out), float)
     outs = [m.forward(X, single=f.single_precision) for m in members]
-    names = ("alpha_next", "N1_next", "N2_next", "T1_next")
+    names = increment_fields(f)[1]
     y, before = (np.column_stack([held_out[k[:-5] if b else k] for k in names]) for b in (False, True))
     scale = increment_spread(y, before)
     # each member's increment and the ensemble's (the members' outputs averaged, as the solver does)
     inc = [np.column_stack([f.decode(held_out, o)[k] for k in names]) - before for o in outs]
-    mean = np.column_stack([f.decode(held_out, np.mean(outs, axis=0))[k] for k in names])
+    mean = _ensemble_after(f, held_out, outs, names)
     s = disagreement(inc, scale)
     error = np.sqrt(np.mean(((mean - y) / scale) ** 2, axis=1))
     table = ranking(s, error)
@@ -189,3 +201,17 @@ def fit_ensemble_trust(members: list[Surrogate], held_out: dict[str, np.ndarray]
              "quantiles": {"levels": LEVELS.tolist(), "scores": np.quantile(s, LEVELS).tolist()}}
     first = replace(members[0], meta={**members[0].meta, "trust": trust}, trust_reference=None)
     return [first, *members[1:]], table
+
+
+def _ensemble_after(f, held_out: dict[str, np.ndarray], outs: list[np.ndarray], names) -> np.ndarray:
+    """The ensemble's state after each held-out row's increment, as the solver makes it: the
+    members' increments averaged (``meso``) or their outputs averaged (``compliance``)."""
+    if not hasattr(f, "mean_response"):
+        return np.column_stack([f.decode(held_out, np.mean(outs, axis=0))[k] for k in names])
+    from .meso import STATE_FIELDS
+
+    v = np.column_stack([held_out[k] for k in STATE_FIELDS])
+    dl = np.column_stack([held_out["l1_next"] - held_out["l1"], held_out["l2_next"] - held_out["l2"]])
+    Y = np.mean([f.increment(o, held_out["deps1"], held_out["deps2"]) for o in outs], axis=0)
+    new, _ = f.advance(v, Y, dl)
+    return new[:, list(increment_fields(f)[0])]
