@@ -139,3 +139,50 @@ def test_dem_cells_answer_the_gate(start, tmp_path):
     assert manifest["options"]["solver"] == "dem:standard" and manifest["method"] == "active"
     summary = json.loads((out / "round-1" / "summary.json").read_text())["summary"]
     assert summary["rows_added"] == 12 and summary["fallback_cells"] > 0
+
+
+def test_a_richer_cells_rows_are_dem_increments_from_its_gated_cells(tmp_path):
+    """With YADE, a meso ensemble of the hexagon-center cell gated to its DEM cell: the new rows
+    carry the full DEM state, and each is the DEM cell's own increment from its start state,
+    stepped here by hand."""
+    from hmodel.cli.app import main
+    from hmodel.dem.solver import DEMSolver
+    from hmodel.dem.yade import available
+    from hmodel.surrogate.trust import fit_ensemble_trust
+
+    if not available():
+        pytest.skip("YADE is not installed")
+    dem = "dem:hexagon-center:tol=1e-7,max_iter=100000"
+    params = Params(sliding_rhs="equilibrium")
+    spec = DatasetSpec(kind=2, n_directions=4, theta_min=-60, theta_max=150, alpha0_min=45, alpha0_max=45,
+                       alpha0_step=1, max_strain=0.004, step=0.001, start_every=0.002, magnitude=0.002,
+                       magnitude_min=0.0, n_increments=6, substeps=1, solver=dem, from_unloaded=True)
+    ds = generate(spec, params, tmp_path / "d", workers=1)
+    write_split(ds, tmp_path / "sample", ds.n_rows // 2, ds.n_rows // 4, "random", 0)
+    cols, info = read_sample(tmp_path / "sample", "train")
+    members = []
+    for seed in (0, 1):
+        m, _ = train(cols, params_of(info), TrainConfig(formulation="meso", width=8, depth=1, epochs=3, seed=seed,
+                                                        device="cpu", cell_step=1e-3), cell=dem)
+        m.meta["params"] = info["params"]
+        members.append(m)
+    members, _ = fit_ensemble_trust(members, read_sample(tmp_path / "sample", "test")[0])
+    for k, m in enumerate(members):
+        modelfile.save(m, tmp_path / f"m{k}.safetensors")
+    out = tmp_path / "r"
+    assert main(["surrogate", "refine", f"{tmp_path / 'm0.safetensors'}+{tmp_path / 'm1.safetensors'}",
+                 "--data", str(tmp_path / "sample"), "--out", str(out), "--rounds", "1", "--gate", "0.5",
+                 "--states", "3", "--increments", "4", "--epochs", "1", "--solver", dem, "--reference", dem,
+                 "--paths", "undrained", "--axial-strain", "0.003", "--step", "1e-3", "--iso-step", "2e-4",
+                 "-p", "n_theta=6", "-p", "sliding_rhs=equilibrium"]) == 0
+    rows, info = read_sample(out / "round-1" / "rows", "train")
+    test, _ = read_sample(out / "round-1" / "rows", "test")
+    rows = {k: np.concatenate([rows[k], test[k]]) for k in rows if k in test}
+    solver = DEMSolver(dem)
+    assert rows["state_extra"].shape[1] == solver.n_fields - 8 and len(rows["deps1"]) == 12
+    fields = ("d1", "d2", "alpha", "N1", "N2", "T1", "l1", "l2")
+    before = np.column_stack([rows[k] for k in fields] + [rows["state_extra"]])
+    after = np.column_stack([rows[k + "_next"] for k in fields] + [rows["state_extra_next"]])
+    l10, l20 = params.l10, params.l20
+    by_hand, _ = solver.step(params, CellState(before), -rows["deps1"] * l10, -rows["deps2"] * l20)
+    np.testing.assert_allclose(by_hand.values, after, rtol=0, atol=1e-9 * np.abs(after).max())

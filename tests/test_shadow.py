@@ -106,3 +106,11 @@ def test_the_command_line_reports_the_gated_fraction(tmp_path, capsys):
     rows = list(csv.DictReader((out / "result.csv").open()))
     gated = [float(r["gated"]) for r in rows]
     assert all(0 <= g <= 1 for g in gated) and max(gated) > 0  # the ensemble's median disagreement
+
+
+def test_a_run_of_another_material_is_refused_even_where_every_cell_is_gated():
+    solver = gated_solver("surrogate:hexagon-center", 0.5, DEM)
+    solver.gate_threshold = -math.inf
+    other = Params(sliding_rhs="equilibrium", phi_g=math.radians(25.0))
+    with pytest.raises(InputError, match="phi_g"):
+        solver.step(other, solver.initial(other, (2,)), np.zeros(2), np.zeros(2))

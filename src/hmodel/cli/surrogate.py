@@ -62,6 +62,9 @@ def train_cmd(
     seed: Seed = 0, device: Device = "auto", max_minutes: MaxMinutes = None,
     mechanisms: Mechanisms = 4, rollout: Rollout = 0, rollout_weight: RolloutWeight = 1.0,
     rollout_substeps: RolloutSubsteps = 1, secant_floor: SecantFloor = 0.0, cell_step: CellStep = None,
+    init: Annotated[Optional[Path], typer.Option(help="Fine-tune this model file instead (its formulation, "
+                                                      "architecture, scalers and weights; the options "
+                                                      "of those are ignored).")] = None,
 ) -> None:
     """Train a surrogate on a sample's training rows (20 % held out for early stopping),
     evaluate it on the sample's test rows, and save it with its metrics."""
@@ -78,7 +81,8 @@ def train_cmd(
                   mechanisms=mechanisms, rollout=rollout, rollout_weight=rollout_weight,
                   rollout_substeps=rollout_substeps, secant_floor=secant_floor, cell_step=cell_step)
     with LazyProgress("training") as progress:
-        s, history = train_on_sample(data if len(data) > 1 else data[0], cfg, progress)
+        s, history = train_on_sample(data if len(data) > 1 else data[0], cfg, progress,
+                                     init=None if init is None else modelfile.load(init))
     modelfile.save(s, out)
     r2 = {m["output"]: m["r2"] for m in s.meta["metrics"] if m["quantity"] == "state after"}
     typer.echo(f"wrote {out}: {len(history)} epochs in {s.meta['seconds']:.0f} s; test R² "

@@ -85,6 +85,10 @@ class ShadowedSolver:
     def __repr__(self) -> str:
         return f"ShadowedSolver({self.name!r}, gate={self.gate:g}, fallback={self.fallback.name!r})"
 
+    def check(self, params: Params) -> None:
+        """Refuse a material the surrogate was not trained for."""
+        self.surrogate.check(params)
+
     # -- state layout -----------------------------------------------------------------------
     def split(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Summary (..., 11), full DEM state (..., n_full) and lag (..., 2) of states."""
@@ -153,6 +157,7 @@ class ShadowedSolver:
 
     # -- solver interface ---------------------------------------------------------------------
     def step(self, params: Params, state: CellState, dl1, dl2) -> tuple[CellState, CellFlags]:
+        self.check(params)  # also where every cell goes to the DEM
         shape = state.shape
         v = np.asarray(state.values, float).reshape(-1, self.n_state)
         if v.shape[1] != self.n_state:

@@ -188,11 +188,12 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
     return Surrogate(form, arch, xs, ys, weights, meta, domain), history
 
 
-def train_on_sample(folder, config: TrainConfig, progress: Callable[[float], None] | None = None
-                    ) -> tuple[Surrogate, list[dict]]:
+def train_on_sample(folder, config: TrainConfig, progress: Callable[[float], None] | None = None,
+                    init: Surrogate | None = None) -> tuple[Surrogate, list[dict]]:
     """Train on a sample folder's train rows (or the union of several folders': a list), evaluate
     on its (their) test rows, and record the data's provenance, the material and the test
-    metrics in the model's metadata. Several folders must share the material and the cells."""
+    metrics in the model's metadata. Several folders must share the material and the cells.
+    ``init``: fine-tune that model (see :func:`train`); its material and cells must be the rows'."""
     from .evaluation import evaluate
     from .rows import params_of, read_sample
 
@@ -207,7 +208,11 @@ def train_on_sample(folder, config: TrainConfig, progress: Callable[[float], Non
     if len(parts) > 1:
         cols = union([p[0][0] for p in parts])
         test = union([p[1] for p in parts])
-    s, history = train(cols, params_of(info), config, progress, cell)
+    if init is not None and (init.meta.get("params", info["params"]) != info["params"]
+                             or getattr(init.formulation, "cell", cell) != cell):
+        raise InputError("the model to fine-tune was trained on other material parameters or cells "
+                         "than these samples'")
+    s, history = train(cols, params_of(info), config, progress, cell, init=init)
     prov = info["provenance"] if len(parts) == 1 else [p[0][1]["provenance"] for p in parts]
     s.meta.update(training_data=prov, params=info["params"],
                   metrics=evaluate(s, test, "sample test rows"), history_tail=history[-3:])
