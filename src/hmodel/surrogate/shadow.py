@@ -33,7 +33,7 @@ from ..cell import CellFlags, CellState
 from ..errors import InputError
 from ..params import Params
 from .state_cache import StateCache
-from .trust import check_members, disagreement, increment_fields, is_ensemble_trust, scores, threshold
+from .trust import disagreement, increment_fields, increment_scale, scores, threshold
 
 
 class ShadowedSolver:
@@ -61,13 +61,7 @@ class ShadowedSolver:
         self.model = surrogate.model
         self.gate, self.gate_threshold = gate, threshold(self.model, gate)
         #: An ensemble gate's scales of the increments (None: the distance gate, per state).
-        self._increment_scale: np.ndarray | None = None
-        if is_ensemble_trust(self.model):
-            check_members(surrogate.members)
-            self._increment_scale = np.asarray(self.model.meta["trust"]["increment_scale"])
-        elif len(surrogate.members) > 1:
-            raise InputError("an ensemble's gate needs its disagreement as trust score: add it with "
-                             "'hmodel surrogate trust MODEL+MODEL+... SAMPLE --out FILE'")
+        self._increment_scale = increment_scale(surrogate.members)
         self.name = surrogate.name
         self.stress_rtol = max(surrogate.stress_rtol, fallback.stress_rtol)
         self.n_summary, self.n_full = f.n_state, geometry.n_fields

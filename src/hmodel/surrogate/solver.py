@@ -115,7 +115,7 @@ class SurrogateSolver:
         return {**self.__dict__, "_cache": StateCache(), "_gated": None}
 
     def _set_gate(self, gate: float | None, fallback: CellSolver | None) -> None:
-        from .trust import check_members, is_ensemble_trust, threshold
+        from .trust import increment_scale, threshold
 
         if gate is None:
             raise InputError("a fallback solver needs a gate (--gate LEVEL, e.g. 0.99)")
@@ -130,12 +130,7 @@ class SurrogateSolver:
             raise InputError(f"the fallback solver {fallback.name!r} keeps other cell states than "
                              f"the surrogate's H-cells")
         self.gate_threshold = threshold(self.model, gate)
-        if is_ensemble_trust(self.model):
-            check_members(self.members)
-            self._increment_scale = np.asarray(self.model.meta["trust"]["increment_scale"])
-        elif len(self.members) > 1:
-            raise InputError("an ensemble's gate needs its disagreement as trust score: add it with "
-                             "'hmodel surrogate trust MODEL+MODEL+... SAMPLE --out FILE'")
+        self._increment_scale = increment_scale(self.members)
         self.fallback = fallback
 
     def fractions(self, params: Params, state: CellState) -> dict[str, np.ndarray]:

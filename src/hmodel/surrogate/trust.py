@@ -161,6 +161,19 @@ def disagreement(increments: list[np.ndarray], scale: np.ndarray) -> np.ndarray:
     return np.sqrt(np.mean(spread ** 2, axis=1))
 
 
+def increment_scale(members: list[Surrogate]) -> np.ndarray | None:
+    """The increments' scales of an ensemble gated on its disagreement (its members checked), or
+    None for one network gated on its distance to the data; an ensemble without its
+    disagreement as trust score is refused."""
+    if is_ensemble_trust(members[0]):
+        check_members(members)
+        return np.asarray(members[0].meta["trust"]["increment_scale"])
+    if len(members) > 1:
+        raise InputError("an ensemble's gate needs its disagreement as trust score: add it with "
+                         "'hmodel surrogate trust MODEL+MODEL+... SAMPLE --out FILE'")
+    return None
+
+
 def check_members(members: list[Surrogate]) -> None:
     """Refuse an ensemble other than the one its trust was measured on."""
     t = members[0].meta["trust"]
