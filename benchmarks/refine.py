@@ -171,18 +171,15 @@ def tuned_only(spec: str, sample: Path, rounds: int) -> dict[str, float]:
     training rows only, without any new row: how much of a round's change the fine-tuning
     alone makes."""
     from hmodel.surrogate import modelfile
-    from hmodel.surrogate.refine import measure
+    from hmodel.surrogate.refine import fine_tune, measure
     from hmodel.surrogate.rows import read_sample
-    from hmodel.surrogate.training import TrainConfig, train
 
     members = [modelfile.load(p) for p in spec.split("+")]
     cols, _ = read_sample(sample, "train")
     params, cfg, specs, refs = references()
     out = {}
     for r in range(1, rounds + 1):
-        members = [train(cols, params, TrainConfig(formulation="compliance", epochs=cfg.epochs, patience=cfg.patience,
-                                                   lr=cfg.lr, seed=cfg.seed + 1000 * r + k), init=m)[0]
-                   for k, m in enumerate(members)]
+        members, _ = fine_tune(members, cols, params, cfg, r)
         m = measure(members, params, specs, refs, cfg)
         out[f"ensemble fine-tuned {r} time(s) on its own rows only, no new row"] = m["q_dev_max"]
         for name in cfg.paths:

@@ -32,9 +32,9 @@ from hmodel.compare import run_path, standard_paths
 from hmodel.data.sampling import write_split
 from hmodel.data.store import Dataset
 from hmodel.surrogate.modelfile import load, save
-from hmodel.surrogate.refine import RefineConfig, measure, refine
+from hmodel.surrogate.refine import RefineConfig, fine_tune, measure, refine
 from hmodel.surrogate.rows import params_of, read_sample
-from hmodel.surrogate.training import TrainConfig, train, union
+from hmodel.surrogate.training import train, union
 from hmodel.surrogate.trust import fit_ensemble_trust
 
 #: The recipe as the shipped networks are stepped (see docs/dem.md, rate independence).
@@ -96,12 +96,7 @@ def main() -> None:
     base = union([read_sample(f, "train")[0] for f in samples])
     control, tuned = [], members
     for r in range(1, args.rounds + 1):
-        tuned = [train(base, params, TrainConfig(formulation="meso", epochs=cfg.epochs, patience=cfg.patience,
-                                                  lr=cfg.lr, seed=cfg.seed + 1000 * r + k,
-                                                  secant_floor=RECIPE.secant_floor, rollout=RECIPE.rollout,
-                                                  rollout_weight=RECIPE.rollout_weight,
-                                                  rollout_substeps=RECIPE.rollout_substeps),
-                           init=m, cell=HEX_SOLVER)[0] for k, m in enumerate(tuned)]
+        tuned, _ = fine_tune(tuned, base, params, cfg, r)
         control.append(measure(tuned, params, specs, refs, cfg)["q_dev_max"])
         print(f"control, round {r}: max |dq| / peak q {100 * control[-1]:.2f} %")
     print(f"{'round':>5}{'DEM rows in all':>17}{'gated states':>14}{'max |dq|/peak %':>17}{'control %':>11}")

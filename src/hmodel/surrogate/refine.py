@@ -168,12 +168,12 @@ def refine(model: "Surrogate | list[Surrogate]", sample: "str | Path | list", pa
     return members, rows
 
 
-def _fine_tune(members: list[Surrogate], cols: dict, held: dict, params: Params, config: RefineConfig,
-               r: int) -> tuple[list[Surrogate], int]:
-    """Every member fine-tuned on ``cols`` (round ``r``'s seeds), with its trust score refitted
-    as it was made (the distance reference, or the ensemble's disagreement on ``held``); and
-    the epochs run in all."""
-    trust, tuned, epochs = model_trust(members[0]), [], 0
+def fine_tune(members: list[Surrogate], cols: dict, params: Params, config: RefineConfig,
+              r: int) -> tuple[list[Surrogate], int]:
+    """Every member fine-tuned on ``cols`` as round ``r`` does it (its seeds; each member with
+    the loss it was trained with), and the epochs run in all. The controls of the benchmarks
+    call it on the start's own rows."""
+    tuned, epochs = [], 0
     for k, m in enumerate(members):
         made = m.meta.get("config", {})
         # the loss it was trained with: a meso network's secant weighting and its rollouts along
@@ -188,6 +188,15 @@ def _fine_tune(members: list[Surrogate], cols: dict, held: dict, params: Params,
         m.meta.update(params=params.to_dict(), refined={"round": r, "rows": len(cols["deps1"])})
         tuned.append(m)
         epochs += len(hist)
+    return tuned, epochs
+
+
+def _fine_tune(members: list[Surrogate], cols: dict, held: dict, params: Params, config: RefineConfig,
+               r: int) -> tuple[list[Surrogate], int]:
+    """:func:`fine_tune`, with the trust score refitted as it was made (the distance reference,
+    or the ensemble's disagreement on ``held``)."""
+    trust = model_trust(members[0])
+    tuned, epochs = fine_tune(members, cols, params, config, r)
     if trust.get("kind") == "ensemble":
         return fit_ensemble_trust(tuned, held)[0], epochs
     first, _ = fit_trust(tuned[0], cols, held, reference=trust["reference_rows"], k=trust["k"],

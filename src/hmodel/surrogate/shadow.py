@@ -33,7 +33,7 @@ from ..cell import CellFlags, CellState
 from ..errors import InputError
 from ..params import Params
 from .state_cache import StateCache
-from .trust import disagreement, increment_fields, increment_scale, scores, threshold
+from .trust import increment_disagreement, increment_scale, scores, threshold
 
 
 class ShadowedSolver:
@@ -118,23 +118,21 @@ class ShadowedSolver:
         hit = self._cache.get(summary)
         if hit is not None:
             return hit
-        gated = scores(self.model, self.formulation.features(summary)) > self.gate_threshold
-        self.counts["gated"] += int(gated.sum())
-        self.counts["gate_checked"] += len(gated)
+        gated = self._count(scores(self.model, self.formulation.features(summary)) > self.gate_threshold)
         self._cache.put(summary, gated)
         return gated
 
     def _gated_increments(self, params: Params, summary: np.ndarray, dl: np.ndarray) -> np.ndarray:
         """The ensemble's gate: cells whose members' increments under ``dl`` disagree beyond the
-        threshold (:func:`hmodel.surrogate.trust.disagreement`), counted per cell increment,
+        threshold (:func:`hmodel.surrogate.trust.increment_disagreement`), counted per cell increment,
         Newton trials included."""
         f = self.formulation
         outs, _ = self.surrogate.outputs(summary, f.features(summary))
         e = np.column_stack([-dl[:, 0] / params.l10, -dl[:, 1] / params.l20]) / f.m0
-        cols = list(increment_fields(f)[0])
-        inc = [f.advance(summary, f.head(o[:, :f.n_outputs], e), dl)[0][:, cols] - summary[:, cols]
-               for o in outs]
-        gated = disagreement(inc, self._increment_scale) > self.gate_threshold
+        afters = [f.advance(summary, f.head(o[:, :f.n_outputs], e), dl)[0] for o in outs]
+        return self._count(increment_disagreement(f, summary, afters, self._increment_scale) > self.gate_threshold)
+
+    def _count(self, gated: np.ndarray) -> np.ndarray:
         self.counts["gated"] += int(gated.sum())
         self.counts["gate_checked"] += len(gated)
         return gated

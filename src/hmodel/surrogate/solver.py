@@ -52,7 +52,7 @@ from .compliance import ComplianceFormulation as Compliance
 from .formulations import LEAK_REFUSED
 from .model import Surrogate
 from .state_cache import StateCache
-from .trust import disagreement, increment_fields, scores
+from .trust import increment_disagreement, scores
 
 #: Parameters a surrogate is specific to (it was trained on cells with these values).
 MATERIAL = ("kn", "kt_kn", "phi_g", "radius", "g2", "sliding_rhs", "volume")
@@ -147,9 +147,8 @@ class SurrogateSolver:
         beyond the threshold. Counted per cell increment, Newton trials included."""
         if self._increment_scale is None or self.gate_threshold is None:
             return None
-        cols = list(increment_fields(self.formulation)[0])
-        inc = [advance(v, dl, o)[0][:, cols] - v[:, cols] for o in outs]
-        gated = disagreement(inc, self._increment_scale) > self.gate_threshold
+        gated = increment_disagreement(self.formulation, v, [advance(v, dl, o)[0] for o in outs],
+                                       self._increment_scale) > self.gate_threshold
         self._record_gate(v, gated)
         self._gated = gated
         return gated

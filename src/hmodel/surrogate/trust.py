@@ -161,6 +161,13 @@ def disagreement(increments: list[np.ndarray], scale: np.ndarray) -> np.ndarray:
     return np.sqrt(np.mean(spread ** 2, axis=1))
 
 
+def increment_disagreement(formulation, v: np.ndarray, afters: list[np.ndarray], scale: np.ndarray) -> np.ndarray:
+    """Trust score of cell increments from states ``v`` (n, n_state): the :func:`disagreement`
+    of the members' states after them (K arrays like ``v``) on the compared fields."""
+    cols = list(increment_fields(formulation)[0])
+    return disagreement([a[:, cols] - v[:, cols] for a in afters], scale)
+
+
 def increment_scale(members: list[Surrogate]) -> np.ndarray | None:
     """The increments' scales of an ensemble gated on its disagreement (its members checked), or
     None for one network gated on its distance to the data; an ensemble without its
@@ -203,7 +210,7 @@ def fit_ensemble_trust(members: list[Surrogate], held_out: dict[str, np.ndarray]
     names = increment_fields(f)[1]
     y, before = (np.column_stack([held_out[k[:-5] if b else k] for k in names]) for b in (False, True))
     scale = increment_spread(y, before)
-    # each member's increment and the ensemble's (the members' outputs averaged, as the solver does)
+    # each member's increment, and the ensemble's as the solver makes it
     inc = [np.column_stack([f.decode(held_out, o)[k] for k in names]) - before for o in outs]
     mean = _ensemble_after(f, held_out, outs, names)
     s = disagreement(inc, scale)
