@@ -131,7 +131,7 @@ def test_shipped_surrogate_in_the_rev_reproduces_the_closed_form(step):
         assert st["status"] == "ok"
         for d in devs:
             assert d["q_max_dev_rel"] <= 0.01 and d["eps_v_max_dev"] <= 0.001, (spec.name, d)
-    assert solver.counts["outside"] == 0 and solver.counts["network_cells"] < solver.counts["cell_updates"]
+    assert solver.counts["outside"] == 0 and solver.counts["network_cells"] > 0
 
 
 @pytest.mark.parametrize("opening", ["rule", "classifier"])

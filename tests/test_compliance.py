@@ -88,3 +88,77 @@ def test_trained_compliance_model_round_trips_and_runs_in_the_rev(rows, tmp_path
     assert np.all(np.isfinite(res["sig11"]))
     # One network evaluation per state: Newton's trial increments reuse it.
     assert solver.counts["cell_updates"] > solver.counts["network_cells"]
+
+
+def test_flagged_cells_take_the_closed_form_in_the_kernel(rows):
+    """A response row whose flag is set (outside the training domain, or gated) is eq. 1.7's own
+    increment in the compiled kernel; unflagged rows apply their compliances."""
+    from hmodel.cell.closed_form import kernel_params
+    from hmodel.cell.compliance_kernel import advance_cells, pack_responses
+
+    p = Params()
+    f = make_formulation("compliance", p)
+    v = _packed(rows)
+    dl = np.column_stack(f.length_increments(rows))
+    wrong = exact_compliances(p, v) * 1.5  # compliances no cell would take
+    flag = np.arange(len(v)) % 2 == 0
+    out, flags = np.empty_like(v), np.empty((len(v), 5), dtype=np.bool_)
+    assert advance_cells(v, dl, pack_responses(wrong, flag), kernel_params(p), out, flags) == -1
+    ref, rflags = ClosedFormSolver().step(p, CellState(v[flag]), dl[flag, 0], dl[flag, 1])
+    np.testing.assert_array_equal(out[flag], ref.values)
+    np.testing.assert_array_equal(flags[flag], rflags.flags)
+    learned, _ = f.advance(v[~flag], dl[~flag], wrong[~flag])
+    np.testing.assert_array_equal(out[~flag], learned)
+
+
+@pytest.mark.parametrize("name", ["drained", "undrained", "unload-reload"])
+def test_compiled_compliance_rev_equals_the_generic_driver(name):
+    """The shipped compliance network in the compiled loading path (its compliances evaluated
+    once per increment, every Newton trial inside the kernel) against the generic driver, for
+    two points at other pressures. Strain control: the same numbers. Mixed control: the same
+    path to well within the trust bar (1 % of peak q): where cells break within an increment,
+    the event state is a Newton trial, and the learned compliances' small jumps between regimes
+    (``SurrogateSolver.stress_rtol``) let the two drivers' trials part at round-off."""
+    from hmodel.loading import Recorder, Segment, consolidate, run_segment
+    from hmodel.loading.compiled import supports
+    from hmodel.rev import Rev
+    from hmodel.surrogate.shipped import load_shipped
+
+    solver = SurrogateSolver(load_shipped())
+    rev = Rev(Params(n_theta=60), solver)
+    assert supports(rev) and rev.kernel.learned
+    s0 = consolidate(rev, [1e5, 3e5])
+    if name == "undrained":
+        segs = [Segment((False, False, False), np.array([[1.0, 0, 0], [1.0, 1.0, 0], [0, 0, 1.0]]),
+                        np.array([0.02, 0.0, 0.0]), 40, "shear")]
+    else:
+        segs = [Segment.components("ESE", np.column_stack([[e] * 2, s0.sig[:, 1], [0.0] * 2]), n, "shear")
+                for e, n in ((0.02, 40),) + (((-0.004, 8), (0.006, 12)) if name == "unload-reload" else ())]
+    runs = []
+    for compiled in (True, False):
+        rec, s = Recorder(), s0
+        for seg in segs:
+            s = run_segment(rev, s, seg, recorder=rec, compiled=compiled)
+        runs.append((s, rec.result()))
+    (sc, rc), (sg, rg) = runs
+    q = lambda r: (r["sig11"] - r["sig22"]) / 2  # noqa: E731
+    tol = 1e-12 if name == "undrained" else 1e-4
+    np.testing.assert_allclose(q(rc), q(rg), rtol=0, atol=tol * np.abs(q(rg)).max())
+    for col in ("eps22", "frac_sliding", "frac_open"):
+        np.testing.assert_allclose(rc[col], rg[col], rtol=0, atol=tol)
+    np.testing.assert_allclose(rc["sig22"], rg["sig22"], rtol=tol)
+    assert solver.counts["outside"] == 0 and np.all(q(rc)[-1] > q(rc)[0])
+
+
+def test_gated_solvers_take_the_generic_driver():
+    """A gate (whose fallback may be another solver, an ensemble's decided per trial increment,
+    its fraction recorded per increment) runs through the generic driver; without one, a single
+    network or an ensemble has the compiled increment."""
+    from hmodel.surrogate.shipped import load_shipped
+    from hmodel.surrogate.solver import gated_solver
+
+    p = Params()
+    assert SurrogateSolver(load_shipped()).kernel(p) is not None
+    assert gated_solver("surrogate:ensemble", None, None).kernel(p) is not None
+    assert gated_solver("surrogate:ensemble", 0.99, "closed-form").kernel(p) is None
+    assert gated_solver("surrogate", 0.99, "closed-form").kernel(p) is None

@@ -303,3 +303,35 @@ def test_secant_weights_turn_increment_errors_into_secant_errors():
         TrainConfig(formulation="meso", secant_floor=-1.0)
     with pytest.raises(InputError, match="meso"):
         TrainConfig(formulation="increment", secant_floor=1e-4)
+
+
+def test_forward_is_bitwise_the_same_on_any_number_of_threads():
+    """Inference runs every product on one BLAS thread and splits large batches into the same
+    blocks across threads: its outputs are bit for bit those of one block at a time on one
+    thread, whatever BLAS was allowed, and no product inside runs on more threads."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from hmodel.surrogate.model import BLOCK_ROWS, SPLIT_ROWS
+    from hmodel.surrogate.shipped import load_shipped
+
+    s = load_shipped()
+    lo, hi = s.input_range
+    X = lo + (hi - lo) * np.random.default_rng(0).uniform(size=(SPLIT_ROWS + BLOCK_ROWS // 2, len(lo)))
+    seen = []
+    inner = s._forward
+
+    def spy(*args):
+        seen.append(max((i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"), default=1))
+        return inner(*args)
+
+    for single in (False, True):
+        with threadpool_limits(1):  # reference: one block at a time on one thread
+            ref = np.concatenate([inner(X[i:i + BLOCK_ROWS], single, 0) for i in range(0, len(X), BLOCK_ROWS)])
+        s._forward = spy
+        for threads in (1, 2, 4):
+            with threadpool_limits(threads, user_api="blas"):
+                np.testing.assert_array_equal(s.forward(X, single=single), ref)  # split across threads
+                np.testing.assert_array_equal(s.forward(X[:360], single=single), ref[:360])  # one thread
+        del s._forward
+    assert seen and set(seen) == {1}
+    assert pickle.loads(pickle.dumps(s)).forward(X[:7]).tolist() == s.forward(X[:7]).tolist()

@@ -17,6 +17,15 @@ import numpy as np
 from ..params import Params
 from .state import CellFlags, CellState
 
+#: Index, in a learned kernel's packed parameters (after the closed form's seven), of the law
+#: its trials apply to the response rows: :data:`LAW_MESO` or :data:`LAW_COMPLIANCE`.
+P_LAW = 7
+#: A ``meso`` response (:func:`hmodel.cell.meso_kernel.meso_increment`), whose trials also
+#: give their exact stress slope.
+LAW_MESO = 1.0
+#: Learned compliances of eq. 1.7 (:func:`hmodel.cell.compliance_kernel.compliance_increment`).
+LAW_COMPLIANCE = 2.0
+
 
 @dataclass(frozen=True)
 class CellKernel:
@@ -27,13 +36,16 @@ class CellKernel:
     params : ndarray
         Packed parameters of the trial kernel: the closed form's
         (:func:`hmodel.cell.closed_form.kernel_params`) or, for a learned response, those
-        followed by its constants (:func:`hmodel.cell.meso_kernel.kernel_params`).
+        followed by the law (index :data:`P_LAW`) and its constants
+        (:func:`hmodel.cell.meso_kernel.kernel_params`; none for compliances).
     responses : callable or None
         None: every trial is the closed form's cell increment (eq. 1.7). Otherwise
         ``responses(values)`` maps cell states (n, n_fields) to the packed learned responses
         (n, R) that every trial increment from those states applies
-        (:func:`hmodel.cell.meso_kernel.meso_increment`): evaluated once per increment, it may
-        raise :class:`~hmodel.errors.SolverError` (cells outside a training domain).
+        (:func:`hmodel.cell.meso_kernel.meso_increment`,
+        :func:`hmodel.cell.compliance_kernel.compliance_increment`): evaluated once per
+        increment, it may raise :class:`~hmodel.errors.SolverError` (cells outside a training
+        domain).
     """
 
     params: np.ndarray
@@ -41,7 +53,8 @@ class CellKernel:
 
     @property
     def learned(self) -> bool:
-        """Whether trials apply a learned response (with an exact stress slope) or eq. 1.7."""
+        """Whether trials apply a learned response (the law at :data:`P_LAW` of ``params``) or
+        eq. 1.7."""
         return self.responses is not None
 
 

@@ -19,23 +19,25 @@ import math
 import numpy as np
 from numba import njit
 
+from ..cell.base import LAW_MESO, P_LAW
 from ..cell.closed_form import P_KN, P_R, P_TAN, kernel_params as cell_kernel_params
 from ..cell.mesostress import contact_vsigma, vsigma_local
 from ..params import Params
 
-# Indices of the meso constants in the packed parameters (after the closed form's 7).
-Q_E1, Q_E2, Q_L, Q_GAP, Q_REACH, Q_RN, Q_RT, Q_RAMP, Q_SCALES = range(7, 16)
+# Indices of the meso constants in the packed parameters (after the closed form's 7 and the law).
+Q_E1, Q_E2, Q_L, Q_GAP, Q_REACH, Q_RN, Q_RT, Q_RAMP, Q_SCALES = range(P_LAW + 1, P_LAW + 10)
 
 
 def kernel_params(formulation, params: Params) -> np.ndarray:
-    """The closed-form kernel's parameters, then the meso constants: 1/(l0 m0) along n and t
+    """The closed-form kernel's parameters, the law (:data:`~hmodel.cell.base.LAW_MESO`),
+    then the meso constants: 1/(l0 m0) along n and t
     (e = -dl/(l0 m0)), the number of learned fields L, the gap tolerance, the cage (reach, r_n,
     r_t, 1/(reach ramp)) and the learned fields' scales times m0."""
     reach, r_n, r_t = formulation._cage
     scales = formulation._scales() * formulation.m0
     m0 = formulation.m0
     return np.concatenate([cell_kernel_params(params), [
-        1.0 / (params.l10 * m0), 1.0 / (params.l20 * m0), len(scales), formulation.gap_tol, reach,
+        LAW_MESO, 1.0 / (params.l10 * m0), 1.0 / (params.l20 * m0), len(scales), formulation.gap_tol, reach,
         r_n, r_t, 1.0 / (reach * formulation.cage_ramp) if reach else 0.0], scales])
 
 

@@ -3,18 +3,20 @@
 :func:`hmodel.loading.control.solve_increment` drives any cell solver from Python; each round
 of Newton trials is a batched REV call, and for one material point at nθ = 360 the Python
 overhead exceeds the cell computation many times over. When the cell solver has a compiled
-increment (:meth:`hmodel.cell.CellSolver.kernel`: the closed form, a ``meso`` surrogate), a
+increment (:meth:`hmodel.cell.CellSolver.kernel`: the closed form, a ``meso`` or ``compliance``
+surrogate), a
 whole segment instead runs in one Numba kernel: per increment and per material point, the one
 Newton of :mod:`hmodel.loading.newton`, its trials evaluated here with localization (eq. 1.1),
 the cell increment and averaging (eq. 1.15) fused in one loop over directions (:func:`trial`).
 
-A learned cell response (``meso`` surrogates) sees the state only, so each increment starts
-with one evaluation of every cell of every point (:func:`cell_responses`, which may refuse
-cells outside a training domain), and every trial of the increment applies that response in
-:func:`hmodel.cell.meso_kernel.meso_increment`. Newton's first trial is then the point's
-previous increment (along a smooth path it is close to the answer), and where one stress row
-is controlled each trial also gives the exact stress slope along the free strain direction
-(:func:`trial_tangent`), in place of Broyden's secant there.
+A learned cell response (``meso`` and ``compliance`` surrogates) sees the state only, so each
+increment starts with one evaluation of every cell of every point (:func:`cell_responses`,
+which may refuse cells outside a training domain), and every trial of the increment applies
+that response, in :func:`hmodel.cell.meso_kernel.meso_increment` or
+:func:`hmodel.cell.compliance_kernel.compliance_increment` (the law packed in the kernel's
+parameters). Where one stress row is controlled, each trial of a meso response also gives the
+exact stress slope along the free strain direction (:func:`trial_tangent`), in place of
+Broyden's secant there.
 
 The kernel has the generic driver's event fallback (a stress target inside the jump of a cell
 event, see ``solve_increment``). An increment it still cannot converge is handed back to the
@@ -30,7 +32,9 @@ import types
 import numpy as np
 from numba import njit, prange
 
+from ..cell.base import LAW_COMPLIANCE, LAW_MESO, P_LAW
 from ..cell.closed_form import P_KN, P_R, cell_increment
+from ..cell.compliance_kernel import compliance_increment
 from ..cell.mesostress import vsigma_local
 from ..cell.meso_kernel import meso_increment
 from ..cell.state import CellFlags, CellState
@@ -99,8 +103,10 @@ def trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
     """REV step of one material point: cells ``values`` (n, n_fields) -> ``out``, stress -> ``sig``.
 
     Same operations, in the same order, as ``Rev.localize``, the cell solver and ``Rev.stress``:
-    the closed-form cell kernel, or with learned responses ``resp`` (n, R > 0) the meso
-    surrogate's trial (``meso_kernel.meso_increment``). Returns False when a cell increment failed.
+    the closed-form cell kernel, or with learned responses ``resp`` (n, R > 0) the law at
+    ``p[P_LAW]``: the meso surrogate's trial (``meso_kernel.meso_increment``) or learned
+    compliances (``compliance_kernel.compliance_increment``). Returns False when a cell increment
+    failed.
     """
     return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, False,
                        deps, sig)
@@ -128,7 +134,8 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
     d12 = 0.0
     dv = np.empty(2)
     ok = True
-    meso = resp.shape[1] > 0
+    law = p[P_LAW] if resp.shape[1] > 0 else 0.0
+    meso = law == LAW_MESO
     for i in range(values.shape[0]):
         dl1, dl2 = cell_dl(values, i, e11, e22, e12, cos2[i], sin2[i], sincos[i], mode, p[P_R])
         if meso:
@@ -144,7 +151,10 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
                 d22 += b22
                 d12 += b12
         else:
-            ok &= cell_increment(values[i], dl1, dl2, p, out[i], flags[i])
+            if law == LAW_COMPLIANCE:
+                ok &= compliance_increment(values[i], dl1, dl2, resp, i, p, out[i], flags[i])
+            else:
+                ok &= cell_increment(values[i], dl1, dl2, p, out[i], flags[i])
             vnn, vtt = vsigma_local(out[i], kn, two_r)
         a11, a22, a12 = weighted_global(vnn, vtt, wcos2[i], wsin2[i], wsincos[i])
         s11 += a11
@@ -223,9 +233,9 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, c,
     ``buf[best]`` (``W[BX]``, ``W[BSIG]``); or a failure. Slots 0-2 of ``buf`` hold the current,
     the best and the next trial (indices, not copies).
     """
-    # Learned cells with one stress row: each trial also gives the stress derivative along the
+    # Meso cells with one stress row: each trial also gives the stress derivative along the
     # strain direction u left free by the strain rows (exact within the cells' regimes)
-    u = free_direction(S, M) if resp.shape[1] > 0 else np.zeros(0)
+    u = free_direction(S, M) if resp.shape[1] > 0 and p[P_LAW] == LAW_MESO else np.zeros(0)
     exact = u.shape[0] > 0
     flag = np.zeros(1, dtype=np.bool_)
     sig_n = np.empty(3)

@@ -25,6 +25,10 @@ In the cell solver (:meth:`ComplianceFormulation.step_cells`) the network sees t
 it is evaluated once per state and reused for every trial increment of a Newton iteration
 (:class:`hmodel.surrogate.solver.SurrogateSolver` caches it), and every increment is an exact,
 compiled application of the learned compliances, of any size within its regime (no sub-steps).
+The REV's compiled loading path takes the compliances once per increment from
+:meth:`ComplianceFormulation.kernel` and applies them in every Newton trial, inside its kernel
+(:func:`hmodel.cell.compliance_kernel.compliance_increment`, the same per-cell code as
+:meth:`ComplianceFormulation.advance`).
 """
 
 from __future__ import annotations
@@ -34,13 +38,14 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..cell.closed_form import finish_increment, kernel_params, sliding_lambda, P_KN, P_KT, P_R, P_TAN
+from ..cell.base import LAW_COMPLIANCE, CellKernel
+from ..cell.closed_form import kernel_params, sliding_lambda
+from ..cell.compliance_kernel import MINUS, N_OUT, PLUS, STICK, advance_cells, pack_responses
 from ..cell.state import FIELDS, initial_lengths
 from ..params import Params
-from .formulations import HCellStates, MaterialScales
+from .formulations import HCellStates, MaterialScales, Networks
 
-N_OUT = 24
-STICK, PLUS, MINUS = 0, 6, 15  # offsets of B_stick, [B_slide+, b_slide+], [B_slide-, b_slide-]
+__all__ = ["ComplianceFormulation", "N_OUT", "STICK", "PLUS", "MINUS"]
 
 
 @dataclass(frozen=True)
@@ -128,19 +133,39 @@ class ComplianceFormulation(MaterialScales, HCellStates):
         ``dl`` (n, 2), with the network's compliances ``out`` (n, 24) for those states."""
         new = np.empty_like(values)
         flags = np.empty((len(values), 5), dtype=np.bool_)
-        advance_kernel(np.ascontiguousarray(values), np.ascontiguousarray(dl),
-                       np.ascontiguousarray(out), kernel_params(self.params), new, flags)
+        advance_cells(np.ascontiguousarray(values), np.ascontiguousarray(dl),
+                      np.ascontiguousarray(out), kernel_params(self.params), new, flags)
         return new, flags
+
+    def kernel(self, net: Networks, params: Params) -> CellKernel | None:
+        """The compiled increment: the learned compliances of the states (one network evaluation
+        per increment), which every Newton trial applies in
+        :func:`hmodel.cell.compliance_kernel.compliance_increment`; cells outside the training
+        domain take eq. 1.7 there. None with a gate (its fallback may be another solver, an
+        ensemble's is decided per trial increment, and the gated fraction is recorded per
+        increment): the generic driver then calls :meth:`step_cells`."""
+        if net.has_gate:
+            return None
+        return CellKernel(np.append(kernel_params(params), LAW_COMPLIANCE),
+                          lambda values: self.responses(net, values))
+
+    def responses(self, net: Networks, v: np.ndarray) -> np.ndarray:
+        """Packed response rows (n, 25) of cell states ``v`` (n, 8): the compliances (an
+        ensemble's mean) and the cells outside the training domain, which take the closed form
+        instead, counted (or the run stopped, ``on_outside="error"``) as :meth:`step_cells`
+        does."""
+        outs, mask = net.outputs(v, self.features(v))
+        net.counts["fallback_cells"] += net.count_outside(mask, _describe(v))
+        return pack_responses(_mean(outs), mask)
 
     def step_cells(self, net, params, v, e1, e2, dl):
         """One exact increment of cells ``v`` with the learned compliances of their states."""
         outs, mask = net.outputs(v, self.features(v))
-        new, flags = self.advance(v, dl, outs[0] if len(outs) == 1 else np.mean(outs, axis=0))
+        new, flags = self.advance(v, dl, _mean(outs))
         gated = net.gate_increments(v, dl, outs, self.advance)
         if gated is not None:  # an ensemble's gate: its members disagree on this increment
             mask = mask | gated
-        self.closed_form_outside(net, params, v, dl, mask, new, flags,
-                                 lambda i: ", ".join(f"{k}={v[i, j]:.4g}" for j, k in enumerate(FIELDS)))
+        self.closed_form_outside(net, params, v, dl, mask, new, flags, _describe(v))
         return new, flags
 
     def decode(self, c: dict[str, np.ndarray], out: np.ndarray) -> dict[str, np.ndarray]:
@@ -148,6 +173,16 @@ class ComplianceFormulation(MaterialScales, HCellStates):
         dl1, dl2 = self.length_increments(c)
         new, _ = self.advance(_packed(c), np.column_stack([dl1, dl2]), out)
         return {"alpha_next": new[:, 2], "N1_next": new[:, 3], "N2_next": new[:, 4], "T1_next": new[:, 5]}
+
+
+def _mean(outs: list[np.ndarray]) -> np.ndarray:
+    """The compliances of an ensemble's members averaged (one member's as they are)."""
+    return outs[0] if len(outs) == 1 else np.mean(outs, axis=0)
+
+
+def _describe(v: np.ndarray):
+    """Names the state of cell i of ``v``, for the out-of-domain error."""
+    return lambda i: ", ".join(f"{k}={v[i, j]:.4g}" for j, k in enumerate(FIELDS))
 
 
 def _packed(c: dict[str, np.ndarray]) -> np.ndarray:
@@ -164,31 +199,3 @@ def _lambda(values, regime, p):
     out = np.empty(len(values))
     _lambda_kernel(np.ascontiguousarray(values), np.asarray(regime, float), p, out)
     return out
-
-
-@njit(cache=True, error_model="numpy")
-def advance_kernel(values, dl, comp, p, out, flags):
-    """One increment of every cell with learned compliances ``comp`` (n, 24); see the module
-    docstring. Returns the index of the first non-finite cell, or -1."""
-    two_r = 2.0 * p[P_R]
-    bad = -1
-    for i in range(values.shape[0]):
-        v = values[i]
-        c = comp[i]
-        u1 = dl[i, 0] / two_r
-        u2 = dl[i, 1] / two_r
-        dd1 = two_r * (c[0] * u1 + c[1] * u2)
-        dd2 = two_r * (c[2] * u1 + c[3] * u2)
-        da = c[4] * u1 + c[5] * u2
-        t1 = v[5] + p[P_KT] * v[0] * da  # sticking trial, eqs. 1.8-1.9
-        sliding = abs(t1) >= p[P_TAN] * (v[3] - p[P_KN] * dd1)
-        xi = 1.0 if t1 >= 0.0 else -1.0
-        if sliding:
-            k = PLUS if xi > 0 else MINUS
-            lam = sliding_lambda(v, xi, p) / two_r
-            dd1 = two_r * (c[k] * u1 + c[k + 1] * u2 + c[k + 6] * lam)
-            dd2 = two_r * (c[k + 2] * u1 + c[k + 3] * u2 + c[k + 7] * lam)
-            da = c[k + 4] * u1 + c[k + 5] * u2 + c[k + 8] * lam
-        if not finish_increment(v, dl[i, 0], dl[i, 1], dd1, dd2, da, sliding, xi, p, out[i], flags[i]) and bad < 0:
-            bad = i
-    return bad

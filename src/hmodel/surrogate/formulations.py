@@ -60,6 +60,8 @@ class Networks(Protocol):
     counts: dict[str, int]
     #: How a strain-input network's cells open: ``rule`` or (experimental) ``classifier``.
     opening: str
+    #: Whether a gate sends cells to the fallback solver (and records their fraction).
+    has_gate: bool
 
     def forward(self, X: np.ndarray) -> np.ndarray:
         """The network's outputs for inputs X (n, n_inputs), in float64, not cached (one

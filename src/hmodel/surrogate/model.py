@@ -5,7 +5,10 @@ MLPs of report §2.4 this avoids a framework's per-call overhead, which dominate
 and keeps inference free of PyTorch. Training (``hmodel.surrogate.training``) uses PyTorch.
 (PyTorch's float32 linear layers were tried for inference and made whole ANN-REV runs slower,
 though a single large batch ran faster; see the documentation's notes.) The rows
-run in blocks whose activations stay in cache. ``forward(X, single=True)`` runs the layers in
+run in blocks whose activations stay in cache, on one BLAS thread: at these sizes a second
+thread saves little, and where another program holds a core the threads of one product wait for
+each other (:meth:`Surrogate.forward`); a large batch is split across the cores instead, one
+block per task. ``forward(X, single=True)`` runs the layers in
 float32, the precision the network was trained in (outputs within ~4e-7 of float64, at half the
 memory traffic); the solver uses it for the formulations that ask for it, ``meso`` only
 (``single_precision`` in :mod:`hmodel.surrogate.formulations`).
@@ -16,11 +19,13 @@ noise.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 from numba import njit
+from threadpoolctl import ThreadpoolController
 
 from ..errors import InputError
 from .formulations import Formulation
@@ -30,6 +35,9 @@ ACTIVATIONS = ("tanh", "relu", "silu", "gelu", "elu")
 #: Rows per block of the forward pass: 512 x 128 float32 activations stay in a core's L2 cache
 #: (larger blocks spill out of it and cost more per row).
 BLOCK_ROWS = 512
+#: Rows from which a forward pass is split across threads (each block on one core): below, the
+#: pass is a fraction of a millisecond, less than handing blocks to other threads costs.
+SPLIT_ROWS = 16 * BLOCK_ROWS
 
 
 def _act_inplace(name: str, x: np.ndarray) -> None:
@@ -135,14 +143,44 @@ class Surrogate:
         return [(np.ascontiguousarray(W.T * (half if k < last else 1.0), dtype),
                  np.asarray(b * (half if k < last else 1.0), dtype)) for k, (W, b) in enumerate(self.weights)]
 
+    def __getstate__(self) -> dict:
+        """A copy in another process finds that process's BLAS libraries itself."""
+        return {k: v for k, v in self.__dict__.items() if k != "_blas"}
+
+    @cached_property
+    def _blas(self) -> ThreadpoolController:
+        """The BLAS libraries of this process (threadpoolctl), whose thread count
+        :meth:`forward` sets around its products."""
+        return ThreadpoolController().select(user_api="blas")
+
     def forward(self, X: np.ndarray, single: bool = False, spare: int = 0) -> np.ndarray:
         """Network targets Y (n, n_outputs) for inputs X (n, n_inputs) in physical units; the
         layers in float32 with ``single`` (see the module docstring); with ``spare``, that many
-        more columns (uninitialized) after the outputs, for the caller. Every product is written
-        into one of two block buffers and the output scaled in place: fresh arrays of this size
-        are new pages from the OS each time, which costs more than the products at large batches."""
+        more columns (uninitialized) after the outputs, for the caller.
+
+        Every product runs on one BLAS thread. From :data:`SPLIT_ROWS` rows, the blocks of
+        :data:`BLOCK_ROWS` rows are shared among as many threads as BLAS was allowed (its
+        setting on entry: ``OPENBLAS_NUM_THREADS``, a caller's ``threadpool_limits``), each
+        taking the next block when done: a thread on a core that another program holds takes
+        fewer, where BLAS's own threads would split each product evenly and wait for the slowest.
+        The rows' results do not depend on the split (the blocks are the same)."""
+        X = np.asarray(X, float)
+        blas = self._blas
+        threads = max((lib.num_threads for lib in blas.lib_controllers), default=1)
+        with blas.limit(limits=1):
+            if len(X) < SPLIT_ROWS or threads < 2:
+                return self._forward(X, single, spare)
+            starts = range(0, len(X), BLOCK_ROWS)
+            with ThreadPoolExecutor(threads) as pool:
+                parts = list(pool.map(lambda i: self._forward(X[i:i + BLOCK_ROWS], single, spare), starts))
+            return np.concatenate(parts)
+
+    def _forward(self, X: np.ndarray, single: bool, spare: int) -> np.ndarray:
+        """:meth:`forward` in the calling thread. Every product is written into one of two block
+        buffers and the output scaled in place: fresh arrays of this size are new pages from
+        the OS each time, which costs more than the products at large batches."""
         *hidden, (W_out, b_out) = self._layers32 if single else self._layers64
-        z = self.x_scaler.transform(np.asarray(X, float)).astype(W_out.dtype, copy=False)
+        z = self.x_scaler.transform(X).astype(W_out.dtype, copy=False)
         out = np.empty((len(z), len(b_out)), z.dtype)
         width = max((W.shape[1] for W, _ in hidden), default=0)
         buffers = np.empty((3, min(BLOCK_ROWS, len(z)), width), z.dtype)

@@ -9,9 +9,11 @@ the formulation's (:mod:`hmodel.surrogate.formulations`): strain-input networks 
 ``increment``) with the zero-increment correction and eq. 1.2; the ``compliance`` network
 (:mod:`hmodel.surrogate.compliance`), which sees the state only, evaluated once per state and
 applied exactly to every trial increment of a Newton iteration; a ``meso`` network
-(:mod:`hmodel.surrogate.meso`), which also sees the state only, and whose response the REV's
-compiled loading path (:mod:`hmodel.loading.compiled`) takes once per increment from
-:meth:`SurrogateSolver.kernel` and applies in :func:`hmodel.cell.meso_kernel.meso_increment`.
+(:mod:`hmodel.surrogate.meso`), which also sees the state only. For both, the REV's compiled
+loading path (:mod:`hmodel.loading.compiled`) takes the response once per increment from
+:meth:`SurrogateSolver.kernel` and applies it in its Newton trials
+(:func:`hmodel.cell.meso_kernel.meso_increment`,
+:func:`hmodel.cell.compliance_kernel.compliance_increment`).
 The solver holds what is common: the material check, the networks' evaluation (cached per
 state, float32 or float64 as the formulation says), ensembles, counts and the sub-step bound.
 
@@ -195,10 +197,15 @@ class SurrogateSolver:
         opening angle only, the one the model was trained for)."""
         return self.formulation.initial_cells(params, alpha0)
 
+    @property
+    def has_gate(self) -> bool:
+        """Whether a gate sends cells to the fallback solver (and records their fraction)."""
+        return self.gate_threshold is not None
+
     def kernel(self, params: Params) -> CellKernel | None:
-        """The formulation's compiled increment (a ``meso`` network's learned response, applied
-        by every Newton trial in :func:`hmodel.cell.meso_kernel.meso_increment`), or None:
-        strain-input and compliance networks run through the generic driver."""
+        """The formulation's compiled increment (a ``meso`` network's learned response or a
+        ``compliance`` network's compliances, applied by every Newton trial inside the compiled
+        loading path), or None: strain-input networks run through the generic driver."""
         kernel = self.formulation.kernel(self, params)
         if kernel is not None:  # its trials never pass through step's check
             self.check(params)
