@@ -27,6 +27,21 @@ def test_lookup_is_by_value():
     assert c.get(v) is None and c.get(np.arange(12.0).reshape(4, 3)) == "a"
 
 
+def test_batches_that_differ_outside_the_hashed_rows_are_told_apart():
+    """The key hashes a sample of a large batch's rows; two batches that differ elsewhere share
+    a key but never each other's values."""
+    from hmodel.surrogate.state_cache import KEY_ROWS
+    c = StateCache()
+    v = np.arange(8.0 * 4 * KEY_ROWS).reshape(-1, 8)
+    w = v.copy()
+    w[1] += 0.5  # a row between the sampled ones
+    assert c._key(v) == c._key(w)
+    c.put(v, "v")
+    assert c.get(w) is None and c.get(v.copy()) == "v"
+    c.put(w, "w")
+    assert c.get(w.copy()) == "w" and c.get(v) is None  # the newer batch replaced the older
+
+
 def test_bounds_drop_the_least_recently_used():
     c = StateCache(max_entries=3)
     vs = [np.full((2, 2), float(k)) for k in range(4)]

@@ -154,13 +154,13 @@ class ComplianceFormulation(MaterialScales, HCellStates):
         ensemble's mean) and the cells outside the training domain, which take the closed form
         instead, counted (or the run stopped, ``on_outside="error"``) as :meth:`step_cells`
         does."""
-        outs, mask = net.outputs(v, self.features(v))
+        outs, mask = net.outputs(v)
         net.counts["fallback_cells"] += net.count_outside(mask, _describe(v))
         return pack_responses(_mean(outs), mask)
 
     def step_cells(self, net, params, v, e1, e2, dl):
         """One exact increment of cells ``v`` with the learned compliances of their states."""
-        outs, mask = net.outputs(v, self.features(v))
+        outs, mask = net.outputs(v)
         new, flags = self.advance(v, dl, _mean(outs))
         gated = net.gate_increments(v, dl, outs, self.advance)
         if gated is not None:  # an ensemble's gate: its members disagree on this increment

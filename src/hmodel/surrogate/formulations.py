@@ -72,9 +72,10 @@ class Networks(Protocol):
         """Rows of X outside the training domain (the solver's margin)."""
         ...
 
-    def outputs(self, v: np.ndarray, X: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
-        """Every member's outputs for states v whose inputs X depend on the state only, and the
-        out-of-domain mask; cached while the states do not change."""
+    def outputs(self, v: np.ndarray, X: np.ndarray | None = None) -> tuple[list[np.ndarray], np.ndarray]:
+        """Every member's outputs for states v whose inputs X depend on the state only (None:
+        the formulation's features of v, computed when v is new), and the out-of-domain mask;
+        cached while the states do not change."""
         ...
 
     def count_outside(self, mask: np.ndarray, describe: Callable[[int], str]) -> int:

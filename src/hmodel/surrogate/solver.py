@@ -252,15 +252,18 @@ class SurrogateSolver:
         """Rows of X outside the network's training domain by more than the margin."""
         return self.model.outside(X, self.margin)
 
-    def outputs(self, v: np.ndarray, X: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+    def outputs(self, v: np.ndarray, X: np.ndarray | None = None) -> tuple[list[np.ndarray], np.ndarray]:
         """Every member's network outputs and the out-of-domain mask for states ``v`` (inputs
-        X, from the state only); kept while the states do not change, so that the trial
+        X, from the state only; None: the formulation's features of ``v``, computed only when
+        the states are new); kept while the states do not change, so that the trial
         increments of one Newton iteration cost no inference."""
         hit = self._cache.get(v)
         if hit is not None:
             outs, mask, gated = hit
             self._gated = gated
             return outs, mask | gated
+        if X is None:
+            X = self.formulation.features(v)
         # A state equal to the one before it is evaluated once: the cells of an isotropic REV
         # are all alike until shear starts (a sizeable share of a drained test's network rows),
         # and finding them costs two comparisons per field.
