@@ -31,6 +31,7 @@ class SummaryOfClosedForm:
 
     name = "summary-of-closed-form"
     stress_rtol = 0.0
+    bytes_per_cell = 1024
 
     def __init__(self, form: MesoFormulation):
         self.form, self.cf = form, ClosedFormSolver()

@@ -18,12 +18,15 @@ def read_csv_rows(path: "str | os.PathLike", what: str) -> list[list[str]]:
     """The non-blank rows of a text CSV file; a one-line InputError naming ``what`` (e.g.
     "strain path") and the file when it cannot be read."""
     try:
-        with open(path, newline="") as fh:
-            rows = list(csv.reader(fh))
+        with open(path, newline="", encoding="utf-8") as fh:
+            reader = csv.reader(fh)
+            rows = list(reader)
     except OSError as e:
         raise InputError(f"cannot read {what} {str(path)!r}: {e.strerror}") from None
     except UnicodeDecodeError:
         raise InputError(f"{what} {str(path)!r} is not a text CSV file") from None
+    except csv.Error as e:  # a field over csv.field_size_limit(), a NUL byte, an open quote
+        raise InputError(f"{what} {str(path)!r}, line {reader.line_num}: {e}") from None
     return [r for r in rows if any(c.strip() for c in r)]
 
 
@@ -54,6 +57,49 @@ def read_strain_path(path: "str | os.PathLike") -> np.ndarray:
                 raise InputError(f"strain path {str(path)!r}, line {i + 2}: non-finite strain {cell.strip()!r}")
             out[i, j] = v
     return out
+
+
+def _existing_ancestor(path: Path) -> Path:
+    """``path`` itself or its nearest ancestor that exists (the current folder at the end)."""
+    path = Path(os.path.abspath(path))
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    return path
+
+
+def check_output_folder(out_dir: "str | os.PathLike") -> Path:
+    """Refuse, before any work, an output folder that cannot be written: ``out_dir`` is a file,
+    or the nearest existing folder of its path is not writable (tried by creating and removing
+    a temporary folder there, so that read-only mounts and immutable folders are seen as
+    such); nothing is left behind."""
+    out_dir = Path(out_dir)
+    if str(out_dir).strip() == "":
+        raise InputError("the output path is empty: give a folder")
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"output path {str(out_dir)!r} exists and is not a folder")
+    _check_writable(_existing_ancestor(out_dir), out_dir)
+    return out_dir
+
+
+def check_output_file(path: "str | os.PathLike") -> Path:
+    """Refuse, before any work, an output file that cannot be written: ``path`` is a folder,
+    or the nearest existing folder of its path is not writable; nothing is left behind."""
+    path = Path(path)
+    if str(path).strip() == "":
+        raise InputError("the output path is empty: give a file name")
+    if path.is_dir():
+        raise InputError(f"output file {str(path)!r} is a folder")
+    _check_writable(_existing_ancestor(path.parent), path)
+    return path
+
+
+def _check_writable(folder: Path, target: Path) -> None:
+    if not folder.is_dir():
+        raise InputError(f"cannot write {str(target)!r}: {str(folder)!r} is not a folder")
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".hmodel-check.", dir=folder))
+    except OSError as e:
+        raise InputError(f"cannot write {str(target)!r}: {e.strerror} in {str(folder)!r}") from None
 
 
 def write_rows(rows: list[dict], path: "str | os.PathLike") -> None:

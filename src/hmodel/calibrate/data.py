@@ -63,6 +63,9 @@ class Test:
             raise InputError(f"{label}: a test needs at least 2 rows, got {len(e)}")
         if np.any(np.diff(e) <= 0) or e[0] < 0:
             raise InputError(f"{label}: eps11 must be non-negative and increasing")
+        if e[-1] >= 1:  # a strain of 1 leaves the specimen no height
+            raise InputError(f"{label}: eps11 must stay below 1 (a strain, not a percentage), "
+                             f"reaches {e[-1]:g}")
         object.__setattr__(self, "eps11", e)
         object.__setattr__(self, "q", columns["q"])
         object.__setattr__(self, "eps_v", columns.get("eps_v"))

@@ -12,7 +12,7 @@ from scipy.optimize import least_squares
 from scipy.stats import qmc
 
 from ..cell import CellSolver
-from ..errors import InputError
+from ..errors import InputError, SolverError
 from ..params import Params
 from .data import Test
 from .bayes import Noise, Posterior, estimate_noise, sample
@@ -162,6 +162,9 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
         raise InputError("give at least one test to calibrate on (--data)")
     if not (isinstance(starts, int) and starts >= 1):
         raise InputError(f"the number of starts must be a positive integer, got {starts!r}")
+    for name, value in (("step", step), ("iso_step", iso_step)):
+        if not (math.isfinite(value) and value > 0):
+            raise InputError(f"the model's {name} must be a positive finite strain, got {value}")
     space = Space.make(fit, bounds, base)
     model = Model(tests, solver, step, iso_step)
     obj = _Objective(model, space)
@@ -178,6 +181,7 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
     m = len(best.fun)
     J = obj.jac(best.x)
     pred = obj.batch(best.x)[1]
+    _check_ran(obj, pred)
     stderr, corr, cond, weak = _uncertainty(space, best.x, best.fun, J, m)
     posterior = band = None
     if method == "bayes":
@@ -195,6 +199,21 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
                 for z0, r in zip(design, runs)],
         evaluations=obj.evaluations, failures=obj.failures, wall_s=time.perf_counter() - t0,
         prediction=pred, posterior=posterior, band=band)
+
+
+class CalibrationFailed(SolverError):
+    """No parameter set of a calibration could be run, or the best one failed: no result."""
+
+
+def _check_ran(obj: _Objective, best: Prediction) -> None:
+    """Refuse a calibration whose every evaluation failed, or whose best point failed (its
+    objective is the failure penalty, not a fit)."""
+    if obj.failures and len(obj.failures) >= obj.evaluations:
+        raise CalibrationFailed(f"every one of the {obj.evaluations} parameter sets evaluated failed "
+                                f"(the first: {obj.failures[0]['error']})")
+    if not best.ok[0]:
+        raise CalibrationFailed(f"the best parameter set failed ({len(obj.failures)} of "
+                                f"{obj.evaluations} failed; the best: {best.failed[0]})")
 
 
 def _band(model: Model, space: Space, posterior: Posterior, seed: int, obj: _Objective):

@@ -69,10 +69,15 @@ class CellSolver(Protocol):
     stress_rtol : float
         Newton's relative stress tolerance floor for REVs of these cells (0 for a solver whose
         response is exact to round-off; larger where cells are converged iteratively or jump).
+    bytes_per_cell : int
+        Working memory of one cell in a running REV [bytes], state, buffers and the solver's
+        own arrays together: the work-size guard (:mod:`hmodel.limits`) multiplies it by the
+        cells of a request before anything is allocated.
     """
 
     name: str
     stress_rtol: float
+    bytes_per_cell: int
 
     def initial(self, params: Params, shape: tuple[int, ...] = ()) -> CellState:
         """Unloaded cells of shape S = ``shape``, in this solver's state layout."""

@@ -162,6 +162,8 @@ class ClosedFormSolver:
     name = "closed-form"
     #: exact to round-off: Newton's own tolerance holds
     stress_rtol = 0.0
+    #: measured: about 570 B a cell (peak RSS of drained biaxial runs at nθ = 2·10⁴ and 2·10⁵)
+    bytes_per_cell = 1024
 
     @classmethod
     def from_spec(cls, spec: str = "closed-form") -> "ClosedFormSolver":

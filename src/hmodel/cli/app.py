@@ -1,12 +1,17 @@
 """``hmodel`` command line. Its contract: docs/cli.md ("Output and error contract").
 
-Every error is printed as one line ``hmodel: error: ...``: exit status 1 for a problem with
-the inputs or the computation, 2 for a malformed command line (unknown option, a value that is
-not a number, a missing argument). Outputs are written only once a run has succeeded.
+Every error of the user's input or of the environment is printed as one line
+``hmodel: error: ...``: exit status 1 for a problem with the inputs, the computation or the
+machine (an :class:`~hmodel.errors.HModelError`, an ``OSError``, a ``MemoryError``), 2 for a
+malformed command line (unknown option, a value that is not a number or out of its range, a
+missing argument). Anything else is a bug in hmodel: it keeps its traceback. With
+``HMODEL_DEBUG=1`` every error shows its full traceback. Outputs are written only once a run
+has succeeded.
 """
 
 from __future__ import annotations
 
+import os
 import sys
 from typing import Annotated, Optional
 
@@ -59,14 +64,30 @@ def _one_line(message: str) -> str:
     return " ".join(str(message).split())
 
 
+def _environment_message(e: BaseException) -> str:
+    """One line for an error of the machine rather than of hmodel (a full disk, a folder that
+    vanished, memory exhausted despite the size guard)."""
+    if isinstance(e, MemoryError):
+        return "out of memory (the work-size guard's estimate was short: lower HMODEL_MEMORY_LIMIT)"
+    return f"{e.strerror or e}" + (f": {e.filename!r}" if e.filename else "")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``hmodel`` console script; returns the exit status."""
+    debug = os.environ.get("HMODEL_DEBUG", "") not in ("", "0")
     try:
         code = app(args=argv, prog_name="hmodel", standalone_mode=False)
     except SystemExit as e:
         return e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
     except HModelError as e:
+        if debug:
+            raise
         print(f"hmodel: error: {_one_line(e)}", file=sys.stderr)
+        return 1
+    except (OSError, MemoryError) as e:
+        if debug:
+            raise
+        print(f"hmodel: error: {_one_line(_environment_message(e))}", file=sys.stderr)
         return 1
     except _ClickException as e:
         if type(e).__name__ == "NoArgsIsHelpError":  # bare group: show its help

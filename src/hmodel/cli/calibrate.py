@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -15,6 +16,7 @@ from ..calibrate.report import write
 from ..errors import InputError
 from ..params import Params
 from ..solvers import get_solver
+from .options import out_folder
 from .progress import LazyProgress
 
 
@@ -46,14 +48,19 @@ def calibrate(
     step: Annotated[float, typer.Option(help="Axial strain increment of the model's tests.")] = 1e-3,
     iso_step: Annotated[float, typer.Option(help="Strain increment of the model's consolidation.")] = ISO_STEP,
     solver: Annotated[str, typer.Option(help="Cell solver: closed-form, surrogate[:FILE], dem:...")] = "closed-form",
-    out: Annotated[Path, typer.Option(help="Output folder.")] = Path("results/calibration"),
+    out: out_folder("Output folder.") = Path("results/calibration"),
 ) -> None:
     """Fit the H-model to measured biaxial tests (least squares from several starts, or Bayesian)."""
     tests = [parse_data_spec(d) for d in data]
     base = Params.parse_assignments(param)
     names = [n.strip() for n in fit_.split(",") if n.strip()]
-    if not (step > 0 and iso_step > 0):
-        raise InputError("--step and --iso-step must be positive")
+    fixed = {item.partition("=")[0].strip() for item in param or []}
+    both = [n for n in names if n in fixed]
+    if both:
+        raise InputError(f"{both[0]} is both fitted (--fit) and fixed (--param {both[0]}=...): drop one")
+    for name, value in (("--step", step), ("--iso-step", iso_step)):
+        if not (math.isfinite(value) and value > 0):
+            raise InputError(f"{name} must be a positive finite strain, got {value}")
     with LazyProgress("calibration (parameter sets run)") as progress:
         cal = fit(tests, names, _bounds(bounds), base, method, get_solver(solver), starts, seed, step,
                   iso_step, walkers=walkers, steps=steps, noise=Noise.parse(noise) if noise else None,

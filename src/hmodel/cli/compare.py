@@ -12,6 +12,7 @@ from ..errors import InputError
 from ..io import write_outputs, write_rows
 from ..params import Params
 from .progress import LazyProgress
+from .options import out_folder
 from .run import FallbackOpt, GateOpt, ParamOpt
 
 
@@ -21,7 +22,7 @@ def compare(
     reference: Annotated[str, typer.Option("--reference", help="Reference solver: closed-form, or "
                                                                "dem:MESOSTRUCTURE (YADE cells, e.g. "
                                                                "dem:hexagon-center).")] = "closed-form",
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for deviations.csv and figures.")] = Path("results/compare"),
+    out: out_folder("Folder for deviations.csv and figures.") = Path("results/compare"),
     paths: Annotated[Optional[str], typer.Option(help="Comma-separated subset of: isotropic, drained, "
                                                       "undrained, unload-reload, oedometric, rotation.")] = None,
     axial_strain: Annotated[float, typer.Option(help="Axial strain of the biaxial paths.")] = 0.1,

@@ -13,6 +13,7 @@ from ..errors import InputError
 from ..io import write_outputs
 from ..params import Params
 from .progress import LazyProgress
+from .options import out_folder
 from .run import ParamOpt
 
 app = typer.Typer(no_args_is_help=True, help="Generate, sample and inspect H-cell databases.")
@@ -53,7 +54,7 @@ def generate(
     dataset: Annotated[int, typer.Argument(help="1: monotonic paths from the initial state; "
                                                 "2: increments from their states; 3: increments from "
                                                 "the states of a REV's cells (--rev-paths).")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Dataset folder (Parquet shards + manifest.json).")],
+    out: out_folder("Dataset folder (Parquet shards + manifest.json)."),
     directions: Annotated[int, typer.Option(help="Path directions theta over the --theta range, inclusive.")] = 91,
     theta: Annotated[str, typer.Option(help="Range MIN:MAX [deg] of the path directions in the (eps1, eps2) "
                                             "plane; 0:360 adds paths in extension.")] = "0:90",
@@ -101,7 +102,7 @@ def generate(
 @app.command("sample")
 def sample(
     source: Annotated[Path, typer.Argument(help="Dataset folder.")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for train.parquet, test.parquet, manifest.json.")],
+    out: out_folder("Folder for train.parquet, test.parquet, manifest.json."),
     train: Annotated[int, typer.Option(help="Rows of the training subset.")] = 60_000,
     test: Annotated[int, typer.Option(help="Rows of the test subset.")] = 10_000,
     method: Annotated[str, typer.Option(help="random, grid or lhs (Latin hypercube).")] = "random",
@@ -129,8 +130,7 @@ def info(
     source: Annotated[Path, typer.Argument(help="Dataset folder.")],
     rules: Annotated[Optional[str], typer.Option(help="Cleaning rules to count, comma-separated "
                                                        "(default: all).")] = None,
-    out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Folder for cleaning.csv and the "
-                                                                    "figures (default: SOURCE/info).")] = None,
+    out: out_folder("Folder for cleaning.csv and the figures (default: SOURCE/info).", optional=True) = None,
 ) -> None:
     """Rows, options, rows removed by each cleaning rule; report Figs. 2.1 and 2.2."""
     from rich.console import Console

@@ -13,6 +13,7 @@ from ..errors import InputError
 from ..io import write_outputs, write_rows
 from ..params import Params
 from .progress import LazyProgress
+from .options import out_folder
 from .run import ParamOpt
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
@@ -38,7 +39,7 @@ def validate_cmd(
                                                  "comma-separated.")] = "0,45,90,-30",
     probes: Annotated[int, typer.Option(help="Probe directions per start state (0: none).")] = 8,
     param: ParamOpt = None,
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for the CSV table and PNG figures.")] = Path("results/dem-validate"),
+    out: out_folder("Folder for the CSV table and PNG figures.") = Path("results/dem-validate"),
 ) -> None:
     """The DEM standard cell against the closed form on monotonic paths and single-increment
     probes; writes deviations.csv, paths.csv, validation.png and cell.png."""
@@ -90,7 +91,7 @@ def draw_cmd(
     theta: Annotated[float, typer.Option(help="Direction of that strain in the (ε1, ε2) plane [deg].")] = 0.0,
     steps: Annotated[int, typer.Option(help="Increments.")] = 10,
     param: ParamOpt = None,
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for cell.png.")] = Path("results/dem-draw"),
+    out: out_folder("Folder for cell.png.") = Path("results/dem-draw"),
 ) -> None:
     """Load a cell with the DEM and draw it: grains, and contacts by their normal force."""
     import numpy as np
@@ -144,7 +145,7 @@ def sample_cmd(
     seed: Annotated[int, typer.Option(help="Seed of the radii and initial positions.")] = 0,
     damping: Annotated[float, typer.Option(help="Cundall's non-viscous damping.")] = 0.2,
     timeout: Annotated[float, typer.Option(help="Wall-clock limit of one test's YADE run [s].")] = 3600.0,
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for the CSVs, sample.json and sample.png.")] = Path("results/dem-sample"),
+    out: out_folder("Folder for the CSVs, sample.json and sample.png.") = Path("results/dem-sample"),
 ) -> None:
     """A DEM sample to calibrate on: a periodic 2D assembly of polydisperse disks in YADE,
     consolidated to p0 and sheared (drained or undrained biaxial test); writes KIND_P0kPa.csv

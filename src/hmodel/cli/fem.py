@@ -13,6 +13,7 @@ from ..params import Params
 from ..solvers import get_solver
 from ..units import parse_pressure
 from .progress import LazyProgress
+from .options import out_folder
 from .run import ParamOpt, SolverOpt
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
@@ -25,8 +26,8 @@ StepsOpt = Annotated[int, typer.Option("--steps", help="Nominal load steps (a fa
 SchedulerOpt = Annotated[Optional[str], typer.Option(
     help="Dask scheduler address (tcp://HOST:8786): the Gauss points' material updates run on its "
          "workers, one chunk of points each (worth it for DEM cells); same results as locally.")]
-OutOpt = Annotated[Path, typer.Option("--out", "-o", help="Output folder (result.csv, fields_*.vtu, "
-                                                          "fields.pvd, fields.png, curve.png, meta.json).")]
+OutOpt = out_folder("Output folder (result.csv, fields_*.vtu, fields.pvd, fields.png, curve.png, "
+                    "meta.json).")
 
 
 def _finish(res, out: Path) -> None:

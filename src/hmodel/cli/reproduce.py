@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from .options import out_folder
 from .progress import LazyProgress
 
 
@@ -14,7 +15,7 @@ def reproduce(
     quick: Annotated[bool, typer.Option("--quick", help="Reduced study (≈ 1 minute): the shipped surrogate "
                                                         "and a small database; without it, the report-scale "
                                                         "database and a surrogate trained on it (≈ 10 min).")] = False,
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for report.html, figures and tables.")] = Path("results"),
+    out: out_folder("Folder for report.html, figures and tables.") = Path("results"),
     solver: Annotated[str, typer.Option(help="Surrogate compared with the closed form in --quick: "
                                              "surrogate (shipped), surrogate:NAME or surrogate:MODEL_FILE.")] = "surrogate",
 ) -> None:

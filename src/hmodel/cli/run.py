@@ -16,6 +16,7 @@ from ..params import UNITS, Params, parse_point_assignments
 from ..plotting import plot_result
 from ..solvers import get_solver
 from ..units import parse_pressures
+from .options import out_folder
 from .progress import LazyProgress
 
 app = typer.Typer(no_args_is_help=True, help="Run a loading path or a loading program at the material point.")
@@ -26,7 +27,7 @@ ParamOpt = Annotated[Optional[list[str]], typer.Option(
          "material point per value, broadcast against --p0 (n_theta, radius, volume are shared). "
          "Names: " + ", ".join(
         f"{k} [{u}]" for k, u in UNITS.items()))]
-OutOpt = Annotated[Path, typer.Option("--out", "-o", help="Output folder (result.csv, result.png).")]
+OutOpt = out_folder("Output folder (result.csv, result.png).")
 SolverOpt = Annotated[str, typer.Option("--solver", help="Cell solver: closed-form, surrogate (the shipped model), surrogate:MODEL_FILE or "
                                                         "dem:MESOSTRUCTURE (YADE cells: dem:standard, dem:hexagon-center, "
                                                         "dem:hexagon-unequal).")]

@@ -14,6 +14,7 @@ from ..io import write_outputs
 from ..params import Params
 from ..units import parse_pressure
 from .progress import LazyProgress
+from .options import out_folder
 from .run import ParamOpt
 
 
@@ -39,7 +40,7 @@ def stability(
                                                          "not only the (ε11, ε22) plane.")] = False,
     every: Annotated[int, typer.Option(help="Probe every k-th increment of the path (every "
                                              "increment near the bifurcation domain).")] = 10,
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for CSV tables and PNG figures.")] = Path("results/stability"),
+    out: out_folder("Folder for CSV tables and PNG figures.") = Path("results/stability"),
 ) -> None:
     """Where the material can stop sustaining load: d²W of the loading increments, its minimum
     over probe directions at every k-th state, envelopes at --at, the bifurcation-domain entry

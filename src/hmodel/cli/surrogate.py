@@ -11,6 +11,7 @@ import typer
 from ..errors import InputError
 from ..io import write_outputs, write_rows
 from .progress import LazyProgress
+from .options import out_file, out_folder
 from .run import ParamOpt
 
 app = typer.Typer(no_args_is_help=True, help="Train, evaluate and compare neural surrogates of the H-cell.")
@@ -55,7 +56,7 @@ def _config(**kw):
 def train_cmd(
     data: Annotated[list[Path], typer.Argument(help="Sample folder(s) (hmodel data sample): trains on "
                                                     "train.parquet (of all of them together).")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Model file to write (.safetensors).")],
+    out: out_file("Model file to write (.safetensors)."),
     formulation: Formulation = "increment", normalization: Normalization = "zscore",
     width: Width = 8, depth: Depth = 3, activation: Activation = "tanh", loss: Loss = "mse",
     epochs: Epochs = 300, batch_size: BatchSize = 1024, lr: Lr = 3e-3, patience: Patience = 30,
@@ -94,7 +95,7 @@ def distill_cmd(
     teacher: Annotated[Path, typer.Argument(help="The meso model file to distil (the teacher).")],
     data: Annotated[list[Path], typer.Argument(help="The teacher's sample folder(s): their train rows' "
                                                     "states, their test rows for the metrics.")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Model file to write (.safetensors).")],
+    out: out_file("Model file to write (.safetensors)."),
     width: Width = 64, depth: Depth = 3,
     activation: Annotated[Optional[str], typer.Option(help="tanh, relu, silu, gelu or elu (default: "
                                                            "the teacher's).")] = None,
@@ -136,8 +137,8 @@ def evaluate_cmd(
                                               "increment.")],
     data: Annotated[list[Path], typer.Option("--data", help="Sample folder (its test rows) or dataset "
                                                             "folder; repeatable.")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for metrics.csv and parity plots.")],
-    rows: Annotated[Optional[int], typer.Option(help="Rows drawn from a dataset folder (default 100000).")] = 100_000,
+    out: out_folder("Folder for metrics.csv and parity plots."),
+    rows: Annotated[Optional[int], typer.Option(min=1, help="Rows drawn from a dataset folder (default 100000).")] = 100_000,
     seed: Seed = 0,
 ) -> None:
     """Metrics (MAE, RMSE, R², max |error|) on the state after and on the increments, and
@@ -171,10 +172,10 @@ def trust_cmd(
     sample: Annotated[str, typer.Argument(help="Sample folder of the model's training rows (its train "
                                                "rows give the reference, its test rows the measure); "
                                                "several, comma-separated, for a model trained on several.")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Model file written with its trust reference.")],
-    reference: Annotated[int, typer.Option(help="Training rows kept as the reference.")] = 4096,
-    k: Annotated[int, typer.Option("--k", help="Nearest reference rows the score averages over.")] = 8,
-    rows: Annotated[Optional[int], typer.Option(help="Held-out rows measured (default: all).")] = None,
+    out: out_file("Model file written with its trust reference."),
+    reference: Annotated[int, typer.Option(min=1, help="Training rows kept as the reference.")] = 4096,
+    k: Annotated[int, typer.Option("--k", min=1, help="Nearest reference rows the score averages over.")] = 8,
+    rows: Annotated[Optional[int], typer.Option(min=1, help="Held-out rows measured (default: all).")] = None,
     seed: Seed = 0,
 ) -> None:
     """Add a trust score to a model (distance of a cell's inputs to its training rows, for
@@ -191,7 +192,9 @@ def trust_cmd(
         raise InputError(f"--out must name a .safetensors file, got {str(out)!r}")
     paths = model_paths(model)
     members = [modelfile.load(p) for p in paths]
-    folders = [Path(f) for f in sample.split(",") if f]
+    folders = [Path(f) for f in sample.split(",") if f.strip()]
+    if not folders:
+        raise InputError("give the sample folder of the model's training rows (SAMPLE is empty)")
     held = union([read_rows(f, "test")[0] for f in folders])
     if rows is not None and rows < len(held["deps1"]):
         keep = np.sort(np.random.default_rng(seed).choice(len(held["deps1"]), rows, replace=False))
@@ -216,12 +219,11 @@ def trust_cmd(
 @app.command("sweep")
 def sweep_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset 2 folder.")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for sweep.csv and sweep.png; an "
-                                                         "interrupted sweep into it resumes.")],
+    out: out_folder("Folder for sweep.csv and sweep.png; an interrupted sweep into it resumes."),
     depths: Annotated[str, typer.Option(help="Hidden layers, comma-separated.")] = "3,5,7,9,11,13,15,17",
     losses: Annotated[str, typer.Option(help="Losses, comma-separated.")] = "mae,mse",
     sizes: Annotated[str, typer.Option(help="Training-set sizes, comma-separated.")] = "6000,60000,600000",
-    test: Annotated[int, typer.Option(help="Held-out test rows shared by all runs.")] = 100_000,
+    test: Annotated[int, typer.Option(min=1, help="Held-out test rows shared by all runs.")] = 100_000,
     formulation: Formulation = "report",
     normalization: Annotated[str, typer.Option(help="minmax, zscore, robust, maxabs or unit; "
                                                     "comma-separated for several.")] = "minmax",
@@ -260,6 +262,7 @@ def sweep_cmd(
         _config(loss=name)
     for name in names(normalization):
         _config(normalization=name)
+    depth_list, size_list = ints(depths, "depths"), ints(sizes, "sizes")
     ds = Dataset.open(data)
     tests = {"d1": read_rows(dataset1, "test", test, seed)[0]} if dataset1 is not None else {}
     config = {"data": str(data), "dataset1": str(dataset1) if dataset1 else None, "base": base.__dict__,
@@ -283,10 +286,15 @@ def sweep_cmd(
 
     if done:
         typer.echo(f"resuming: {len(done)} finished run(s) of {partial}")
-    with LazyProgress("sweep") as progress:
-        rows = run_sweep(ds, base, ints(depths, "depths"), loss_list, ints(sizes, "sizes"), test,
-                         seed, progress, normalizations=names(normalization), inputs=names(inputs),
-                         tests=tests, done=[r for r in done if all(k in r for k in KEYS)], on_row=keep)
+    try:
+        with LazyProgress("sweep") as progress:
+            rows = run_sweep(ds, base, depth_list, loss_list, size_list, test, seed, progress,
+                             normalizations=names(normalization), inputs=names(inputs), tests=tests,
+                             done=[r for r in done if all(k in r for k in KEYS)], on_row=keep)
+    except BaseException:
+        if len(partial.read_text().splitlines()) <= 1:  # no run finished: nothing to resume
+            partial.unlink(missing_ok=True)
+        raise
     write_outputs(out, {"sweep.csv": lambda p: write_rows(rows, p),
                         "sweep.png": lambda p: plot_sweep(rows, p),
                         "config.json": lambda p: p.write_text(json.dumps(config, indent=1))})
@@ -301,9 +309,8 @@ def refine_cmd(
                                               "its disagreement (hmodel surrogate trust A+B+...).")],
     data: Annotated[str, typer.Option("--data", help="Sample folder of the model's training rows "
                                                      "(fine-tuning keeps them); several, comma-separated.")],
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for the rounds (rows, models), "
-                                                         "rounds.csv, rounds.png and model.safetensors; "
-                                                         "an interrupted run into it resumes.")],
+    out: out_folder("Folder for the rounds (rows, models), rounds.csv, rounds.png and "
+                    "model.safetensors; an interrupted run into it resumes."),
     solver: Annotated[str, typer.Option("--solver", help="Exact cell solver of the new rows: "
                                                          "closed-form or dem:standard (H-cell networks), "
                                                          "or a richer cell's dem:MESO (its meso network).")] = "closed-form",

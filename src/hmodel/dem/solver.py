@@ -74,6 +74,9 @@ class DEMSolver:
         #: Newton's stress tolerance for this solver (the loading drivers use the larger of
         #: theirs and this): the DEM state is converged to ``options.tol``, not to round-off.
         self.stress_rtol = 1e-7
+        #: the Python side of a cell (its state and the rows sent to YADE); the YADE scenes
+        #: hold a batch of cells at a time (``max_cells``)
+        self.bytes_per_cell = 4096
         self._server: YadeServer | None = None
         #: (params, unique rows, new states, flags) of the last request, see :meth:`_solve`.
         self._last: tuple | None = None

@@ -23,6 +23,8 @@ ELEMENTS = {
     "q8": (ElementQuadS2, 4, False, "8-node serendipity quadrilateral, 3x3 Gauss points"),
     "t6": (ElementTriP2, 2, True, "6-node quadratic triangle, 3 Gauss points"),
 }
+#: Gauss points per rectangle of the grid (t6: two triangles of 3).
+GAUSS_PER_RECTANGLE = {"q4": 4, "q8": 9, "t6": 6}
 
 
 def parse_pair(text: str, name: str, integer: bool) -> tuple:
@@ -62,6 +64,11 @@ class Domain:
                 raise InputError(f"mesh size {n} must be a positive integer, got {v!r}")
         if not (np.isfinite(self.width) and np.isfinite(self.height) and self.width > 0 and self.height > 0):
             raise InputError(f"domain size must be positive, got {self.width} x {self.height}")
+
+    @property
+    def n_gauss(self) -> int:
+        """Gauss points of the mesh (known before it is built)."""
+        return self.nx * self.ny * GAUSS_PER_RECTANGLE[self.element]
 
     def mesh(self):
         """The scikit-fem mesh (quadrilaterals, or each split into two triangles)."""

@@ -5,6 +5,13 @@ A program's stress targets (``q = "0.25 * p0"``) and stopping criteria
 (:mod:`ast`) reads them into a tree; only numbers, pressures with units (``150kPa``), known
 names, ``+ - * /``, unary minus, ``abs(...)`` and, for a criterion, one comparison are
 accepted, and the tree is evaluated by walking it: nothing of the text is ever executed.
+
+An expression is at most :data:`MAX_LENGTH` characters and :data:`MAX_DEPTH` levels deep, so
+that neither the parser nor the walk can run out of stack. Every part of it that uses no name
+(``1/0``, ``2 * 150kPa``) is evaluated when it is read and must be a finite number; the rest is
+evaluated in floating point, where a division by zero gives ±inf or NaN rather than an exception
+(a stress target that is not finite is refused where it is used; a criterion that is NaN is not
+met).
 """
 
 from __future__ import annotations
@@ -24,6 +31,10 @@ _BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
 _COMPARE = {ast.Lt: ("<", np.less), ast.LtE: ("<=", np.less_equal), ast.Gt: (">", np.greater),
             ast.GtE: (">=", np.greater_equal)}
 _UNITS = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6, "GPa": 1e9}
+#: Longest expression text [characters].
+MAX_LENGTH = 500
+#: Deepest nesting of an expression's tree (operators, parentheses, unary minus).
+MAX_DEPTH = 40
 # "150kPa" -> "(150*kPa)": units become names, bound to their factors when evaluated
 _WITH_UNIT = re.compile(r"(\d(?:[\d.]*(?:[eE][-+]?\d+)?)?)\s*(Pa|kPa|MPa|GPa)\b")
 
@@ -31,10 +42,45 @@ _WITH_UNIT = re.compile(r"(\d(?:[\d.]*(?:[eE][-+]?\d+)?)?)\s*(Pa|kPa|MPa|GPa)\b"
 def _parse(text: str, what: str) -> ast.AST:
     if not isinstance(text, str) or not text.strip():
         raise InputError(f"{what} must be a non-empty text, got {text!r}")
+    if len(text) > MAX_LENGTH:
+        raise InputError(f"{what} is {len(text)} characters long; an expression has at most {MAX_LENGTH}")
     try:
-        return ast.parse(_WITH_UNIT.sub(r"(\1*\2)", text.strip()), mode="eval").body
-    except SyntaxError:
+        tree = ast.parse(_WITH_UNIT.sub(r"(\1*\2)", text.strip()), mode="eval").body
+    except (SyntaxError, ValueError):  # ValueError: a null byte
         raise InputError(f"{what} {text!r} is not an expression of numbers and known names") from None
+    except (RecursionError, MemoryError):
+        raise InputError(f"{what} is nested too deeply (at most {MAX_DEPTH} levels)") from None
+    if _depth(tree) > MAX_DEPTH:
+        raise InputError(f"{what} is nested too deeply (at most {MAX_DEPTH} levels)")
+    return tree
+
+
+def _depth(tree: ast.AST) -> int:
+    """Levels of ``tree``, counted without recursion."""
+    deepest, todo = 0, [(tree, 1)]
+    while todo:
+        node, d = todo.pop()
+        deepest = max(deepest, d)
+        todo.extend((child, d + 1) for child in ast.iter_child_nodes(node)
+                    if not isinstance(child, (ast.expr_context, ast.operator, ast.unaryop, ast.cmpop)))
+    return deepest
+
+
+def _check_constants(node: ast.AST, used: set[str], what: str, text: str) -> None:
+    """Every largest part of ``node`` that uses no name must evaluate to a finite number."""
+    if not (used & _free_names(node)):
+        v = _value(node, {})
+        if not np.isfinite(v):
+            raise InputError(f"{what} {text!r}: {ast.unparse(node)} is not a finite number"
+                             + (" (division by zero)" if v != v or abs(v) == np.inf else ""))
+        return
+    for child in ast.iter_child_nodes(node):
+        if isinstance(child, ast.expr) and not (isinstance(child, ast.Name) and child.id == "abs"):
+            _check_constants(child, used, what, text)
+
+
+def _free_names(node: ast.AST) -> set[str]:
+    return {n.id for n in ast.walk(node) if isinstance(n, ast.Name) and n.id not in _UNITS}
 
 
 def _names(node: ast.AST, known: set[str], what: str, text: str) -> set[str]:
@@ -67,8 +113,11 @@ def _names(node: ast.AST, known: set[str], what: str, text: str) -> set[str]:
 
 
 def _value(node: ast.AST, env: Mapping[str, object]):
-    if isinstance(node, ast.Constant):
-        return float(node.value)
+    if isinstance(node, ast.Constant):  # a NumPy float: x / 0 is inf or NaN, not an exception
+        try:
+            return np.float64(node.value)
+        except OverflowError:  # an integer of hundreds of digits
+            return np.float64(np.inf)
     if isinstance(node, ast.Name):
         return _UNITS[node.id] if node.id in _UNITS else env[node.id]
     if isinstance(node, ast.UnaryOp):
@@ -94,10 +143,20 @@ class Expression:
         tree = _parse(text, what)
         if isinstance(tree, ast.Compare):
             raise InputError(f"{what} {text!r} must be a value, not a comparison")
-        return cls(text, tree, frozenset(_names(tree, set(known), what, text)))
+        return cls.checked(text, tree, known, what)
+
+    @classmethod
+    def checked(cls, text: str, tree: ast.AST, known, what: str, whole: str | None = None) -> "Expression":
+        """An expression of ``tree`` whose nodes are of the accepted kinds and whose constant
+        parts are finite (``whole``: the text that errors quote, when ``tree`` is part of it)."""
+        quoted = whole or text
+        names = _names(tree, set(known), what, quoted)
+        with np.errstate(all="ignore"):
+            _check_constants(tree, names, what, quoted)
+        return cls(text, tree, frozenset(names))
 
     def __call__(self, env: Mapping[str, object]):
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(all="ignore"):
             return _value(self.tree, env)
 
 
@@ -120,7 +179,7 @@ class Criterion:
         known = set(columns) | set(constants)
         sides = []
         for node in (tree.left, tree.comparators[0]):
-            sides.append(Expression(ast.unparse(node), node, frozenset(_names(node, known, what, text))))
+            sides.append(Expression.checked(ast.unparse(node), node, known, what, text))
         if not (sides[0].names | sides[1].names) & set(columns):
             raise InputError(f"{what} {text!r} compares no column of the result (columns: "
                              f"{', '.join(columns)})")

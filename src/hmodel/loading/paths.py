@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError, SolverError
+from ..limits import check_count, steps_for
 from ..rev import Rev, RevState
 from .compiled import CompiledSegment, isotropic_steps, supports
 from .control import Control, Tangent, solve_increment
@@ -174,8 +175,8 @@ def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_S
     p0 = _as_points(p0, "p0")
     if np.any(p0 <= 0):
         raise InputError(f"p0 must be positive, got {p0.tolist()}")
-    if not step > 0:
-        raise InputError(f"isotropic strain step must be positive, got {step}")
+    if not (step > 0 and math.isfinite(step)):
+        raise InputError(f"isotropic strain step must be a positive finite number, got {step}")
     state = state if state is not None else rev.initial(len(p0))
     if len(p0) not in (1, state.n_points):
         raise InputError(f"{len(p0)} pressures for {state.n_points} material points")
@@ -248,12 +249,14 @@ def _consolidate_generic(rev, state, p0, step, recorder, progress, max_steps):
     return state
 
 
-def _n_steps(total: float, step: float, name: str) -> int:
+def strain_steps(total: float, step: float, name: str) -> int:
+    """Increments of at most ``step`` covering the strain ``total`` of ``name``, within the
+    increments limit (:func:`hmodel.limits.max_increments`)."""
     if not math.isfinite(total) or total <= 0:
         raise InputError(f"{name} must be a positive finite strain, got {total}")
-    if not step > 0:
-        raise InputError(f"strain step must be positive, got {step}")
-    return max(1, math.ceil(total / step - 1e-9))
+    if not (step > 0 and math.isfinite(step)):
+        raise InputError(f"strain step must be a positive finite number, got {step}")
+    return steps_for(total, step, f"{name} {total:g} in steps of {step:g}")
 
 
 def biaxial(rev: Rev, state: RevState, axial_strain: float, undrained: bool = False,
@@ -266,7 +269,7 @@ def biaxial(rev: Rev, state: RevState, axial_strain: float, undrained: bool = Fa
     eps12 is held (rigid platens). ``failures``: see :func:`run_segment`.
     """
     sig22 = None if lateral_stress is None else _as_points(lateral_stress, "lateral stress")
-    seg = biaxial_segment(state, axial_strain, _n_steps(axial_strain, step, "axial strain"),
+    seg = biaxial_segment(state, axial_strain, strain_steps(axial_strain, step, "axial strain"),
                           undrained, sig22)
     return run_segment(rev, state, seg, recorder, progress, failures=failures)
 
@@ -287,7 +290,7 @@ def oedometric(rev: Rev, state: RevState, axial_strain: float, step: float = AXI
                recorder: Recorder | None = None, progress: Progress = None) -> RevState:
     """Oedometric compression: deps22 = deps12 = 0."""
     seg = Segment.components("EEE", [axial_strain, 0.0, 0.0],
-                             _n_steps(axial_strain, step, "axial strain"), "oedometric")
+                             strain_steps(axial_strain, step, "axial strain"), "oedometric")
     return run_segment(rev, state, seg, recorder, progress)
 
 
@@ -296,7 +299,7 @@ def constant_p(rev: Rev, state: RevState, axial_strain: float, step: float = AXI
     """Axial compression at constant mean stress p = (sig11 + sig22)/2 (its current value)."""
     M = np.array([[1.0, 0, 0], [0.5, 0.5, 0], [0, 0, 1.0]])
     values = np.stack(np.broadcast_arrays(axial_strain, state.p, 0.0), axis=1)
-    seg = Segment((False, True, False), M, values, _n_steps(axial_strain, step, "axial strain"),
+    seg = Segment((False, True, False), M, values, strain_steps(axial_strain, step, "axial strain"),
                   "constant-p")
     return run_segment(rev, state, seg, recorder, progress)
 
@@ -309,7 +312,7 @@ def proportional(rev: Rev, state: RevState, direction, magnitude: float,
     if d.shape != (3,) or not np.all(np.isfinite(d)) or not np.any(d):
         raise InputError(f"strain direction must be 3 finite numbers, not all zero, got {direction!r}")
     seg = Segment.components("EEE", magnitude * d / np.linalg.norm(d),
-                             _n_steps(magnitude, step, "strain magnitude"), "proportional")
+                             strain_steps(magnitude, step, "strain magnitude"), "proportional")
     return run_segment(rev, state, seg, recorder, progress)
 
 
@@ -327,9 +330,12 @@ def strain_path(rev: Rev, eps: np.ndarray, state: RevState | None = None,
         raise InputError("strain path must be finite numbers in rows of (eps11, eps22, eps12)")
     state = state if state is not None else rev.initial(1)
     prev = state.eps[0].copy()
-    for i, row in enumerate(eps):
+    changes = np.abs(np.diff(np.vstack([prev, eps]), axis=0)).max(axis=1)
+    subs = [1 if not max_step else steps_for(c, max_step, f"strain path row {i + 1}")
+            for i, c in enumerate(changes)]
+    check_count(sum(subs), "increments of the strain path")
+    for i, (row, n) in enumerate(zip(eps, subs)):
         d = row - prev
-        n = 1 if not max_step else max(1, math.ceil(np.abs(d).max() / max_step - 1e-9))
         for _ in range(n):
             state = rev.step(state, (d / n)[None, :])
         state = RevState(state.cells, state.flags, np.broadcast_to(row, state.eps.shape).copy(),

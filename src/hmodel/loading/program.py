@@ -31,6 +31,7 @@ import numpy as np
 
 from ..cell import CellSolver
 from ..errors import InputError, SolverError
+from ..limits import check_count, steps_for
 from ..params import Params
 from ..rev import Rev, RevState
 from .control import Tangent
@@ -88,12 +89,20 @@ class Stage:
             if v == "hold":
                 v = float(row @ state.sig[0])
             elif isinstance(v, Expression):
-                if "p0" in v.names and p0 is None:
-                    raise InputError(f"stage {self.name!r}: {n} = {v.text!r} uses p0, but no iso stage "
-                                     f"comes before it")
-                v = float(v({"p0": p0}))
+                v = self.target(n, v, p0)
             values.append(float(v))
         return Segment(S, M, np.array(values), self.n_steps(), self.name)
+
+    def target(self, row: str, expression: Expression, p0: float | None) -> float:
+        """The stress target of ``row`` at ``p0``: a finite number, or an InputError."""
+        if "p0" in expression.names and p0 is None:
+            raise InputError(f"stage {self.name!r}: {row} = {expression.text!r} uses p0, but no iso "
+                             f"stage comes before it")
+        v = float(expression({"p0": p0}))
+        if not math.isfinite(v):
+            raise InputError(f"stage {self.name!r}: {row} = {expression.text!r} is not a finite "
+                             f"stress at p0 = {p0:g} Pa")
+        return v
 
     def n_steps(self) -> int:
         """``steps``, or the largest strain change over ``max_increment`` (default
@@ -103,7 +112,7 @@ class Stage:
         change = max([abs(v) for n, v in self.rows.items() if not ROWS[n][0]] + [0.0])
         if change == 0:
             return DEFAULT_STEPS
-        return max(1, math.ceil(change / (self.max_increment or AXIAL_STEP) - 1e-9))
+        return steps_for(change, self.max_increment or AXIAL_STEP, f"stage {self.name!r}: increments")
 
 
 @dataclass(frozen=True)
@@ -132,9 +141,12 @@ class Program:
         """Read a program file (see ``docs/programs.md``)."""
         path = Path(path)
         try:
-            data = tomllib.loads(path.read_text())
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
         except OSError as e:
             raise InputError(f"cannot read program {str(path)!r}: {e.strerror}") from None
+        except UnicodeDecodeError as e:
+            raise InputError(f"program {str(path)!r} is not UTF-8 text (byte {e.start}: "
+                             f"{e.object[e.start:e.start + 1]!r})") from None
         except tomllib.TOMLDecodeError as e:
             raise InputError(f"program {str(path)!r} is not valid TOML: {e}") from None
         return cls.from_dict(data, default_name=path.stem)
@@ -156,8 +168,10 @@ class Program:
             blocks.append(_block(item, i) if "stages" in item or "repeat" in item
                           else Block(_label(item, i), (_stage(item, _label(item, i)),)))
         _p0_after_iso(blocks)
-        return cls(str(data.get("name", default_name)), tuple(blocks),
-                   {str(k): str(v) for k, v in params.items()})
+        program = cls(str(data.get("name", default_name)), tuple(blocks),
+                      {str(k): str(v) for k, v in params.items()})
+        check_count(program.n_increments, "increments of the program")
+        return program
 
     def with_params(self, assignments: Sequence[str] | None) -> Params:
         """The program's ``[params]`` overridden by ``NAME=VALUE`` assignments (``-p``)."""
@@ -306,16 +320,22 @@ class _Run:
 # ---------------------------------------------------------------------- parsing helpers
 
 def _p0_after_iso(blocks: list[Block]) -> None:
-    """Refuse a stage whose targets or criteria use p0 before any iso stage has set it."""
+    """Refuse a stage whose targets or criteria use p0 before any iso stage has set it, and a
+    stress target that is not finite at the p0 of the iso stage before it (``p0 / 0``)."""
+    p0 = None
     for block in blocks:
         for stage in block.stages:
             if stage.iso is not None:
-                return
+                p0 = stage.iso
+                continue
             uses = [v.text for v in stage.rows.values() if isinstance(v, Expression) and "p0" in v.names]
             uses += [c.text for c in (stage.until, block.until) if c is not None and "p0" in c.names]
-            if uses:
+            if uses and p0 is None:
                 raise InputError(f"stage {stage.name!r}: {uses[0]!r} uses p0, but no iso stage comes "
                                  f"before it")
+            for name, v in stage.rows.items():
+                if isinstance(v, Expression):
+                    stage.target(name, v, p0)
 
 
 def _keys(table: Mapping, allowed: set[str], where: str) -> None:
@@ -365,7 +385,7 @@ def _stage(item: Mapping, name: str) -> Stage:
     preset = item.get("preset")
     steps = item.get("steps")
     if steps is not None:
-        steps = _positive_int(steps, f"{where}: steps")
+        steps = check_count(_positive_int(steps, f"{where}: steps"), f"{where}: steps")
     max_inc = item.get("max_increment")
     if max_inc is not None and (isinstance(max_inc, bool) or not isinstance(max_inc, (int, float))
                                 or not (math.isfinite(max_inc) and max_inc > 0)):

@@ -43,6 +43,7 @@ def run_biaxial(params: Params | Sequence[Params], p0, axial_strain: float, *, u
 
     With ``drop_failed``, a point whose Newton fails is dropped and the others go on; the
     result's ``meta["failed"]`` maps each dropped point to the reason (its rows stop there)."""
+    paths.strain_steps(axial_strain, step, "axial strain")  # refused before any work
     rev = Rev(params, solver)
     p0 = np.atleast_1d(np.asarray(p0, float))
     rec = Recorder(_meta(params, rev, "undrained biaxial" if undrained else "drained biaxial",

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..cell import CellFlags, CellKernel, CellSolver, CellState, ClosedFormSolver, meso_volume
 from ..errors import InputError, SolverError
+from ..limits import check_memory
 from ..params import Params, check_batch
 from .directions import Directions
 from .kernels import LOC_BOX, LOC_CELL, LOC_VIRTUAL, average, localize
@@ -131,6 +132,7 @@ class Rev:
         self.sets = check_batch(params)
         self.params = params = self.sets[0]
         self.solver = solver
+        self.check_size(len(self.sets))
         self.directions = d = Directions.from_params(params)
         self._trig = (d.cos2, d.sin2, d.sincos)
         #: direction weights of eq. 1.17 per set (K, n_theta): the fabric is a material property
@@ -171,9 +173,19 @@ class Rev:
     def n_theta(self) -> int:
         return self.params.n_theta
 
+    def check_size(self, n_points: int, what: str = "") -> None:
+        """Refuse (:class:`~hmodel.limits.WorkTooLarge`) ``n_points`` material points whose
+        cells would not fit in the memory budget of :mod:`hmodel.limits`; ``what`` names the
+        request (default: the REV's points and directions)."""
+        cells = float(n_points) * float(self.params.n_theta)
+        check_memory(cells * self.solver.bytes_per_cell,
+                     what or f"a REV of {n_points:,} material point{'s' if n_points != 1 else ''} × "
+                             f"{self.params.n_theta:.4g} directions ({self.solver.name} cells)")
+
     def initial(self, n_points: int = 1) -> RevState:
         """B unloaded material points; with K > 1 parameter sets, the K points (B = K or 1)."""
         K = self.n_sets
+        self.check_size(max(n_points, K))
         if K == 1:
             shape = (n_points, self.n_theta)
             return RevState(self.solver.initial(self.params, shape), CellFlags.none(shape),

@@ -75,9 +75,16 @@ def save(s: Surrogate, path: "str | os.PathLike") -> Path:
     header = {"hmodel": meta_json, "checksum": _digest(tensors, meta_json)}
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".part")
-    save_file(tensors, str(tmp), metadata=header)
-    os.chmod(tmp, 0o644)  # a model file is data anyone may read
-    os.replace(tmp, path)
+    try:
+        save_file(tensors, str(tmp), metadata=header)
+        os.chmod(tmp, 0o644)  # a model file is data anyone may read
+        os.replace(tmp, path)
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        raise InputError(f"cannot write model file {str(path)!r}: {e.strerror or e}") from None
+    except BaseException:  # an interrupted or failed write leaves no .part behind
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 

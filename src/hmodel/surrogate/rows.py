@@ -49,6 +49,8 @@ def read_rows(path: "str | Path", part: str = "test", n: int | None = None,
               seed: int = 0) -> tuple[dict[str, np.ndarray], dict]:
     """Rows from a sample folder (its ``part``) or from a dataset folder (``n`` random rows
     kept by the default cleaning rules, or all of them)."""
+    if n is not None and not (isinstance(n, (int, np.integer)) and n >= 1):
+        raise InputError(f"the number of rows must be a positive integer, got {n!r}")
     path = Path(path)
     if (path / "manifest.json").is_file():
         try:

@@ -1,0 +1,46 @@
+"""Output options shared by the commands: refused before any work when they cannot be written.
+
+``--out ""`` is a malformed command line (exit 2); an output that exists as the wrong kind
+(a file for a folder, a folder for a file) or lies where nothing can be written is refused
+with exit 1 (:func:`hmodel.io.check_output_folder`, :func:`hmodel.io.check_output_file`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from ..io import check_output_file, check_output_folder
+
+
+def _path(value) -> Path:
+    if not str(value).strip():
+        raise typer.BadParameter("the path is empty")
+    return Path(value)
+
+
+def _folder(ctx: typer.Context, value: Path | None) -> Path | None:
+    if value is None or ctx.resilient_parsing:
+        return value
+    return check_output_folder(value)
+
+
+def _file(ctx: typer.Context, value: Path | None) -> Path | None:
+    if value is None or ctx.resilient_parsing:
+        return value
+    return check_output_file(value)
+
+
+def out_folder(help: str, optional: bool = False):
+    """The ``--out``/``-o`` option of a command that writes a folder (``optional``: None when
+    not given)."""
+    return Annotated[Optional[Path] if optional else Path, typer.Option("--out", "-o", help=help, parser=_path, callback=_folder,
+                                        metavar="<path>")]
+
+
+def out_file(help: str):
+    """The ``--out``/``-o`` option of a command that writes one file."""
+    return Annotated[Path, typer.Option("--out", "-o", help=help, parser=_path, callback=_file,
+                                        metavar="<path>")]
