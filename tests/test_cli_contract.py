@@ -19,7 +19,7 @@ from hmodel.cell.closed_form import ClosedFormSolver
 from hmodel.cli.app import main
 from hmodel.data import DatasetSpec, generate
 from hmodel.errors import SolverError
-from hmodel.limits import WorkTooLarge, check_count, check_memory, human_bytes, parse_bytes
+from hmodel.limits import WorkTooLarge, check_count, check_disk, check_memory, human_bytes, parse_bytes
 from hmodel.params import Params
 from hmodel.surrogate.shipped import model_path
 
@@ -93,6 +93,8 @@ CASES = [
     ("judgement: empty out", ["run", "iso", *FAST, "--out", ""], 2, "the path is empty"),
     ("judgement: program steps 1e9", ["run", "program", "billion_steps.toml", "--out", "o", *FAST], 1,
      "exceeds the limit"),
+    ("database of 1e14 rows", ["data", "generate", "2", "--directions", "1000000000", "--out", "o"], 1,
+     "of disk"),
     ("judgement: fem steps 1e20", ["fem", "biaxial", "--steps", "100000000000000000000", "--out", "o"], 1,
      "exceeds the limit"),
 ]
@@ -202,6 +204,16 @@ def test_sizes_parse_and_print():
     for bad in ("", "lots", "-1GB", "1XB", "inf"):
         with pytest.raises(Exception, match="HMODEL_MEMORY_LIMIT"):
             parse_bytes(bad)
+
+
+def test_disk_guard_against_the_free_space(tmp_path):
+    import shutil
+
+    free = shutil.disk_usage(tmp_path).free
+    check_disk(free // 2, tmp_path / "not" / "yet", "half the free space")
+    with pytest.raises(WorkTooLarge, match="of disk, and .* free"):
+        check_disk(2 * free, tmp_path / "not" / "yet", "twice the free space")
+    assert not (tmp_path / "not").exists()
 
 
 def test_count_guard_and_its_override():

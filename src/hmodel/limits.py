@@ -7,6 +7,7 @@ Two limits, each overridable by an environment variable:
   working memory (cells × bytes per cell, Gauss points, recorded rows) must stay within it;
   by default half the memory the system reports available (``MemAvailable`` of
   ``/proc/meminfo``), so that a run never reaches the out-of-memory killer.
+- **disk**: a database's estimated size must fit in the free space of its folder's disk.
 - **increments** (``HMODEL_MAX_INCREMENTS``, default :data:`MAX_INCREMENTS`): the loading
   increments (or load steps) one run may take; more cannot finish in a working day, nor be
   recorded (every increment is a row of the result table).
@@ -26,6 +27,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import shutil
 from collections.abc import Mapping
 
 from .errors import InputError
@@ -94,6 +96,18 @@ def check_memory(nbytes: float, what: str, env: Mapping[str, str] | None = None)
     if not nbytes <= limit:  # also refuses NaN and overflowed estimates
         raise WorkTooLarge(f"{what} needs about {human_bytes(nbytes)} of memory, over the limit of "
                            f"{human_bytes(limit)} ({source})")
+
+
+def check_disk(nbytes: float, folder: "str | os.PathLike", what: str) -> None:
+    """Refuse (:class:`WorkTooLarge`) writing about ``nbytes`` under ``folder`` when the disk
+    holding it (its nearest existing ancestor) has less free space."""
+    path = os.path.abspath(folder)
+    while not os.path.exists(path) and path != os.path.dirname(path):
+        path = os.path.dirname(path)
+    free = shutil.disk_usage(path).free
+    if not nbytes <= free:
+        raise WorkTooLarge(f"{what} needs about {human_bytes(nbytes)} of disk, and {str(path)!r} has "
+                           f"{human_bytes(free)} free")
 
 
 def max_increments(env: Mapping[str, str] | None = None) -> int:

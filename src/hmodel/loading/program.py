@@ -383,6 +383,8 @@ def _block(item: Mapping, i: int) -> Block:
 def _stage(item: Mapping, name: str) -> Stage:
     where = f"stage {name!r}"
     preset = item.get("preset")
+    if preset is not None and not isinstance(preset, str):
+        raise InputError(f"{where}: preset must be a name, got {preset!r}")
     steps = item.get("steps")
     if steps is not None:
         steps = check_count(_positive_int(steps, f"{where}: steps"), f"{where}: steps")
