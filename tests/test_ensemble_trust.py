@@ -66,7 +66,8 @@ def test_the_ensemble_averages_compliances_and_ranks_its_errors(ensemble):
     inc = [np.column_stack([m.predict(held)[k] for k in names]) - before for m in members]
     s = disagreement(inc, np.asarray(t["increment_scale"]))
     levels, q = t["quantiles"]["levels"], t["quantiles"]["scores"]
-    assert np.quantile(s, 0.9) == pytest.approx(np.interp(0.9, levels, q), rel=1e-9) and f.name == "compliance"
+    # (stored from the networks' float32 inference, recomputed here through predict's float64)
+    assert np.quantile(s, 0.9) == pytest.approx(np.interp(0.9, levels, q), rel=1e-6) and f.name == "compliance"
 
 
 def test_a_gate_that_holds_every_cell_is_the_closed_form(ensemble):

@@ -59,6 +59,10 @@ class ComplianceFormulation(MaterialScales, HCellStates):
     #: Members' compliances average (an ensemble: within a contact regime the increment is
     #: linear in them), and their spread can be the gate's trust score.
     ensembles = True
+    #: float32 inference, the precision the network was trained in: the network sees the state
+    #: only, so no Newton tangent differentiates its round-off; the comparison grid (every path
+    #: at increments of 2e-4 to 2e-3, both loading drivers) is unchanged to 0.001 % of peak q.
+    single_precision = True
 
     def to_dict(self) -> dict:
         return {"name": self.name, "params": self.params.to_dict()}

@@ -194,8 +194,8 @@ class HCellStates:
     """The cell-solver side that the formulations of H-cells share (``report``, ``increment``,
     ``compliance``): the H-cell's 8 fields, whose stress is eq. 1.12, one network in float64
     (the strain-input networks' Newton tangents are finite differences of their outputs, which
-    float32 round-off turns into noise; the shipped compliance network stalled on unload-reload
-    in float32), no compiled kernel, and the closed form for cells outside the training domain."""
+    float32 round-off turns into noise; ``compliance`` overrides it), no compiled kernel, and the
+    closed form for cells outside the training domain."""
 
     n_state = len(FIELDS)
     single_precision = False
