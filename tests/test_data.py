@@ -426,3 +426,18 @@ def test_data_cli(d2, tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and word in err[0], err
     assert not (tmp_path / "b").exists()
+
+
+def _threads_here() -> tuple[int, int]:
+    import numba
+    from threadpoolctl import threadpool_info
+    blas = max((i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"), default=1)
+    return blas, numba.get_num_threads()
+
+
+def test_worker_processes_run_one_thread_each():
+    """Worker processes share the cores: BLAS and Numba run one thread in each (threads within
+    processes would oversubscribe the machine)."""
+    from hmodel.data.workers import run_tasks
+    out = dict(run_tasks(_threads_here, [()] * 2, [0, 1], workers=2))
+    assert out == {0: (1, 1), 1: (1, 1)}

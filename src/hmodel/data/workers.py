@@ -28,10 +28,22 @@ def run_tasks(fn: Callable, args: Sequence[tuple], keys: Sequence, *, workers: i
         yield from _processes(fn, args, keys, workers, in_flight or 2 * workers)
 
 
+def one_thread_each() -> None:
+    """Run this process's BLAS products and Numba kernels on one thread: worker processes
+    already share the cores, and threads within each would oversubscribe them (a surrogate's
+    batch split among threads, a parallel kernel's thread team, in every worker at once)."""
+    import numba
+    import scipy.linalg  # noqa: F401  (SciPy's own BLAS: a limit holds for the libraries loaded)
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)
+    numba.set_num_threads(1)
+
+
 def _processes(fn, args, keys, workers, in_flight) -> Iterator[tuple]:
     # spawn: workers start clean (no inherited threads or locks), and import hmodel themselves.
     ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=one_thread_each) as pool:
         pending = {}
         queue = list(zip(keys, args))[::-1]
         while queue or pending:
