@@ -169,6 +169,9 @@ def test_compare_and_reproduce_commands(tmp_path, capsys, monkeypatch):
     html = (tmp_path / "r" / "report.html").read_text()
     for part in ("Fig. 1.7", "Training database", "Surrogate accuracy", "against the closed form", "Timings"):
         assert part in html
+    # the speed column says what ran, on how many threads, and how busy the machine was
+    assert "load average" in html and "surrogate: compiled kernel on 1 Numba thread, network on 1 BLAS thread" in html
+    assert "closed form: compiled kernel on" in (tmp_path / "r" / "deviations.csv").read_text()
     n_ok = sum(1 for line in (tmp_path / "r" / "deviations.csv").read_text().splitlines()[1:]
                if ",ok," in line)
     assert html.count("data:image/png;base64") >= 2 + (1 if n_ok else 0)

@@ -49,6 +49,34 @@ def _img(path: Path) -> str:
     return f'<figure><img src="data:image/png;base64,{data}" style="max-width:100%"><figcaption>{html.escape(path.name)}</figcaption></figure>'
 
 
+def _threads(params: Params, solver, n_points: int) -> str:
+    """What a timed comparison run ran, for the report's speed column: the loading path, the
+    Numba threads of its kernel (one per material point, at most Numba's) and the BLAS threads
+    of the network's forward pass."""
+    import numba
+
+    from .cell import ClosedFormSolver
+    from .loading.compiled import supports
+    from .rev import Rev
+    from .surrogate.model import SPLIT_ROWS
+
+    def path(s) -> str:
+        if not supports(Rev(params, s)):
+            return "generic driver, 1 thread"
+        n = min(n_points, numba.get_num_threads())
+        return f"compiled kernel on {n} Numba thread{'s' if n > 1 else ''}"
+    rows = n_points * params.n_theta
+    net = "1 BLAS thread" if rows < SPLIT_ROWS else "its blocks shared among the BLAS threads allowed"
+    return f"closed form: {path(ClosedFormSolver())}; surrogate: {path(solver)}, network on {net}"
+
+
+def _conditions() -> str:
+    """The machine the times were taken on, and how busy other programs kept it."""
+    return (f"Times of this machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f} "
+            f"(1 min) when the comparison started; programs running beside it take cores from "
+            f"these runs.")
+
+
 def _table(rows: list[dict], digits: int = 4) -> str:
     if not rows:
         return "<p>(no rows)</p>"
@@ -153,11 +181,13 @@ def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
     # 4. Macro comparison and timings.
     dev_rows = []
     specs = standard_paths(plan.axial)
+    conditions = _conditions()
     for i, path_spec in enumerate(specs):
         ref, res, devs, st = compare_path(params, path_spec, solver, plan.step, 1e-4)
         base = {"path": path_spec.name, "in report": path_spec.in_report, "status": st["status"]}
         times = {"closed form [s]": st["seconds_reference"], "surrogate [s]": st["seconds_other"],
-                 "speed ratio": st["seconds_reference"] / st["seconds_other"]}
+                 "speed ratio": st["seconds_reference"] / st["seconds_other"],
+                 "ran": _threads(params, solver, len(path_spec.p0))}
         if res is None:
             dev_rows.append({**base, "p0 [kPa]": ", ".join(f"{p / 1e3:g}" for p in path_spec.p0), **times})
         for d in devs:
@@ -191,7 +221,10 @@ def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
                 "<h2>3. Surrogate accuracy on new rows</h2>",
                 f"<p>{'Trained here: ' + html.escape(str(DEFAULT_TRAINING)) if plan.train_rows else 'The shipped model.'}"
                 f" Held-out rows of the database above.</p>", _table(metrics), _img(figs["parity.png"]),
-                "<h2>4. ANN-based H-model against the closed form</h2>", _table(dev_rows, 3)]
+                "<h2>4. ANN-based H-model against the closed form</h2>",
+                f"<p>{html.escape(conditions)} Speed ratio: closed form's time over the "
+                f"surrogate's; each row's <i>ran</i> says on which path and threads.</p>",
+                _table(dev_rows, 3)]
         body += [_img(figs[f"compare-{s.name}.png"]) for s in specs if f"compare-{s.name}.png" in figs]
         if t21:
             from .surrogate.sweep import beside_report
