@@ -204,6 +204,7 @@ def test_output_path_that_is_a_file_is_refused(tmp_path, capsys):
     assert (tmp_path / "o").read_text() == "mine"
 
 
+@pytest.mark.slow
 def test_console_script_as_installed(tmp_path):
     exe = shutil.which("hmodel") or str(Path(sys.executable).with_name("hmodel"))
     if not Path(exe).exists():

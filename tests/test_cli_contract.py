@@ -328,6 +328,7 @@ def test_random_bytes_as_a_program(tmp_path_factory, capsys, bounded, data):
 @_RANDOM
 @given(stages=st.lists(_stage, min_size=0, max_size=3),
        params=st.dictionaries(st.sampled_from(["alpha0", "phi_g", "n_theta", "kn", "bogus"]), _values, max_size=2))
+@pytest.mark.slow
 def test_random_toml_programs(tmp_path_factory, capsys, bounded, stages, params):
     folder = tmp_path_factory.mktemp("toml")
     (folder / "p.toml").write_text(_toml([{"preset": "iso", "p": "200kPa"}] + stages, params))

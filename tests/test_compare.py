@@ -134,6 +134,7 @@ def test_shipped_surrogate_in_the_rev_reproduces_the_closed_form(step):
     assert solver.counts["outside"] == 0 and solver.counts["network_cells"] > 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("opening", ["rule", "classifier"])
 def test_surrogate_runs_are_finished_or_reported_as_failed(opening):
     """The report-scale 'increment' model is poor under shear, so only the isotropic path (every
@@ -157,6 +158,7 @@ def test_surrogate_runs_are_finished_or_reported_as_failed(opening):
     assert solver.counts["cell_updates"] > 0
 
 
+@pytest.mark.slow
 def test_compare_and_reproduce_commands(tmp_path, capsys, monkeypatch):
     assert main(["compare", "--solver", "surrogate", "--paths", "drained,oedometric", "--axial-strain",
                  "0.005", "--param", "n_theta=18", "--out", str(tmp_path / "c")]) == 0
@@ -209,6 +211,7 @@ def test_compare_against_another_reference(tmp_path):
         assert qa > 0 and qb == pytest.approx(qa, rel=0.05)
 
 
+@pytest.mark.slow
 def test_full_reproduce_trains_its_own_surrogate(tmp_path, monkeypatch):
     import hmodel.reproduce as rp
     import hmodel.surrogate.shipped as sh

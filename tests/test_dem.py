@@ -16,10 +16,9 @@ from hmodel.cell.state import CellState
 from hmodel.cli.app import main
 from hmodel.dem.scene import DEMOptions, hcell_state, simulate
 from hmodel.dem.stress import boundary_form, skew_ratio, vsigma
-from hmodel.dem.yade import DEMError, EquilibriumError, YadeNotFound, available
+from hmodel.dem.yade import DEMError, EquilibriumError, YadeNotFound
 from hmodel.params import Params
 
-needs_yade = pytest.mark.skipif(not available(), reason="YADE is not installed (apt-get install -y yade)")
 
 # The DEM keeps grain 2 in equilibrium; with T1 < 0 on the Coulomb cone that is the closed
 # form's `equilibrium` closure (the report's lambda differs from it only when xi = -1).
@@ -31,7 +30,7 @@ def _increments(cell, theta_deg, step, n):
     return np.tile([-cell.l1 * step * math.cos(th), -cell.l2 * step * math.sin(th)], (n, 1))
 
 
-@needs_yade
+@pytest.mark.yade
 def test_standard_cell_follows_closed_form_on_two_paths():
     """θ = 0: elastic, T1 > 0; θ = 90°: contact 1 slides with T1 < 0 (ξ = -1). DEM states and
     single-increment probes within 2 % of each quantity's range of the refined closed form,
@@ -50,7 +49,7 @@ def test_standard_cell_follows_closed_form_on_two_paths():
     assert np.allclose(sliding, math.tan(PARAMS.phi_g), rtol=5e-3)  # on the Coulomb cone
 
 
-@needs_yade
+@pytest.mark.yade
 def test_love_weber_stress_of_standard_and_richer_cells():
     """Σ f⊗b over contacts equals Σ F_p⊗x_p over grains (boundary form), is symmetric for the
     mirror-symmetric cells, and equals eq. 1.12 with V of eq. 1.20 for the standard cell."""
@@ -108,7 +107,7 @@ def test_crashing_yade_is_a_one_line_error(tmp_path, monkeypatch, capsys):
     assert "YADE crashed (exit status 1): Segmentation fault in the engine" in err
 
 
-@needs_yade
+@pytest.mark.yade
 def test_no_equilibrium_is_a_one_line_error(tmp_path, monkeypatch, capsys):
     import hmodel.dem.validate as val
 
@@ -122,7 +121,7 @@ def test_no_equilibrium_is_a_one_line_error(tmp_path, monkeypatch, capsys):
     assert isinstance(e.value, DEMError) and "\n" not in str(e.value)
 
 
-@needs_yade
+@pytest.mark.yade
 @pytest.mark.parametrize("mesostructure", ["standard", "hexagon-center"])
 def test_draw_writes_the_loaded_cell_as_png(tmp_path, capsys, mesostructure):
     import struct

@@ -7,17 +7,14 @@ import pytest
 
 from hmodel.data import DatasetSpec, generate
 from hmodel.data.sampling import write_split
-from hmodel.dem.yade import available
 from hmodel.loading import run_biaxial
 from hmodel.params import Params
+from hmodel.solvers import get_solver
 from hmodel.surrogate.distill import DistillConfig, _TeacherRollouts, distill
 from hmodel.surrogate.modelfile import load, save
 from hmodel.surrogate.rows import read_sample
-from hmodel.solvers import get_solver
 from hmodel.surrogate.solver import SurrogateSolver
 from hmodel.surrogate.training import TrainConfig, torch_network, train_on_sample
-
-needs_yade = pytest.mark.skipif(not available(), reason="YADE is not installed (apt-get install -y yade)")
 
 PARAMS = Params(sliding_rhs="equilibrium", n_theta=6)
 
@@ -37,7 +34,7 @@ def _side_by_side(ann: SurrogateSolver, dem: str, rtol: float = 0.1) -> None:
     assert abs(iso_ann - iso_dem) <= rtol * abs(iso_dem)
 
 
-@needs_yade
+@pytest.mark.yade
 def test_surrogate_trained_on_dem_rows_runs_in_the_rev_next_to_the_dem(tmp_path):
     """Single DEM increments (REV_DATASET recipe, tiny) train the compliance formulation; the
     model file records its DEM provenance and the material; the ANN-REV and the DEM-REV run
@@ -65,7 +62,7 @@ def test_surrogate_trained_on_dem_rows_runs_in_the_rev_next_to_the_dem(tmp_path)
     assert ann.counts["network_cells"] > 0
 
 
-@needs_yade
+@pytest.mark.yade
 def test_meso_surrogate_of_the_hexagon_center_cell_runs_next_to_its_dem_rev(tmp_path):
     """The richer cell: DEM rows with their extra state -> sample -> meso formulation -> the
     ANN-REV (summary states, Love-Weber stress from the model) beside the DEM-REV on a short

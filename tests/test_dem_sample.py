@@ -12,12 +12,14 @@ import numpy as np
 import pytest
 
 from hmodel.cli.app import main
-from hmodel.dem.sample import (SampleSettings, SampleState, initial_packing, mean_diameter,
-                               file_stem)
-from hmodel.dem.yade import available
+from hmodel.dem.sample import (
+    SampleSettings,
+    SampleState,
+    file_stem,
+    initial_packing,
+    mean_diameter,
+)
 from hmodel.errors import InputError
-
-needs_yade = pytest.mark.skipif(not available(), reason="YADE is not installed (apt-get install -y yade)")
 
 SMALL = ["--disks", "200", "--axial-strain", "0.01", "--rows", "10", "--p0", "100kPa"]
 
@@ -49,7 +51,8 @@ def sample_dir(tmp_path_factory):
     return out, walls
 
 
-@needs_yade
+@pytest.mark.slow
+@pytest.mark.yade
 def test_drained_test_holds_the_lateral_stress_and_builds_up_q(sample_dir):
     out, walls = sample_dir
     assert walls["drained"] < 60.0, walls
@@ -76,7 +79,7 @@ def test_drained_test_holds_the_lateral_stress_and_builds_up_q(sample_dir):
     assert rec["wall_s"] > 0 and rec["shear_steps"] > 0 and rec["csv"] == "drained_100kPa.csv"
 
 
-@needs_yade
+@pytest.mark.yade
 def test_undrained_test_keeps_the_area(sample_dir):
     out, walls = sample_dir
     header, data = _read_csv(out / "undrained_100kPa.csv")
@@ -91,7 +94,7 @@ def test_undrained_test_keeps_the_area(sample_dir):
     assert a["porosity"] == pytest.approx(b["porosity"], rel=1e-9)
 
 
-@needs_yade
+@pytest.mark.yade
 def test_stresses_are_love_weber_per_unit_area_and_the_figure_is_drawn(sample_dir):
     """The CSV's stresses are (1/A) Σ f⊗l over the exported contacts (compression positive),
     A the periodic cell's area: hmodel's 2D convention (hmodel.dem.stress)."""
@@ -115,7 +118,7 @@ def test_stresses_are_love_weber_per_unit_area_and_the_figure_is_drawn(sample_di
     assert min(image.shape[:2]) >= 300 and np.ptp(image[..., :3]) > 0.5
 
 
-@needs_yade
+@pytest.mark.yade
 def test_an_existing_csv_is_not_run_again(sample_dir, monkeypatch, capsys):
     out, _ = sample_dir
     before = {p.name: p.read_bytes() for p in out.iterdir()}
@@ -126,7 +129,7 @@ def test_an_existing_csv_is_not_run_again(sample_dir, monkeypatch, capsys):
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
-@needs_yade
+@pytest.mark.yade
 def test_a_folder_of_another_sample_is_refused(sample_dir, capsys):
     out, _ = sample_dir
     before = sorted(p.name for p in out.iterdir())
@@ -136,7 +139,8 @@ def test_a_folder_of_another_sample_is_refused(sample_dir, capsys):
     assert sorted(p.name for p in out.iterdir()) == before
 
 
-@needs_yade
+@pytest.mark.slow
+@pytest.mark.yade
 def test_target_porosity_lowers_the_compaction_friction(tmp_path, capsys):
     out = tmp_path / "loose"
     code, _, err, _ = _run(["--disks", "200", "--axial-strain", "0.002", "--rows", "2",

@@ -10,12 +10,11 @@ import pytest
 
 from hmodel.solvers import get_solver
 from hmodel.cli.app import main
-from hmodel.dem.yade import DEMError, available
+from hmodel.dem.yade import DEMError
 from hmodel.loading import run_biaxial
 from hmodel.params import Params
 from hmodel.rev import Rev
 
-needs_yade = pytest.mark.skipif(not available(), reason="YADE is not installed (apt-get install -y yade)")
 
 # The DEM keeps the grains in equilibrium: the closed form's `equilibrium` sliding closure.
 PARAMS = Params(sliding_rhs="equilibrium", n_theta=6)
@@ -34,7 +33,7 @@ def test_spec_options_are_the_mesostructures_or_numerics():
         get_solver("dem:hexagon-center:foo=1")
 
 
-@needs_yade
+@pytest.mark.yade
 def test_drained_biaxial_through_the_rev_matches_closed_form():
     """Consolidation to 200 kPa then 0.4 % drained axial strain: the DEM-REV stress-strain
     curve lies within 0.5 % of the closed form's range (per-step difference of the two)."""
@@ -49,7 +48,7 @@ def test_drained_biaxial_through_the_rev_matches_closed_form():
     assert abs(np.asarray(dem["sig22"])[-1] - 2e5) <= 1e-5 * 2e5  # the drained condition holds
 
 
-@needs_yade
+@pytest.mark.yade
 def test_step_is_pure_and_batch_independent():
     solver = get_solver("dem:standard")
     s0 = solver.initial(PARAMS, (3,))
@@ -76,7 +75,7 @@ def test_step_is_pure_and_batch_independent():
     assert np.allclose(split.values, a.values, rtol=1e-9, atol=1e-9) and np.array_equal(fs.flags, fa.flags)
 
 
-@needs_yade
+@pytest.mark.yade
 def test_richer_cell_through_the_rev_gives_symmetric_stress():
     """A hexagon with a centre grain: 21 extra fields, the REV takes its Love-Weber stress
     from the solver. Under equal strains the stress is isotropic, under axial strain sig12 = 0
@@ -101,7 +100,7 @@ def _generate(tmp_path, name, *extra):
                  "--workers", "1", "--solver", "dem", *extra])
 
 
-@needs_yade
+@pytest.mark.yade
 def test_data_generate_with_dem(tmp_path):
     import pyarrow.parquet as pq
 

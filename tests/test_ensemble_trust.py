@@ -52,7 +52,10 @@ def test_the_ensemble_averages_compliances_and_ranks_its_errors(ensemble):
     root, members, table = ensemble
     t = members[0].meta["trust"]
     assert t["kind"] == "ensemble" and len(t["members"]) == 3 and members[0].trust_reference is None
-    assert -1.0 <= table[0]["spearman"] <= 1.0 and table[-1]["top_fraction"] == 0.1  # measured: benchmarks
+    # it ranks the held-out errors: a score unrelated to them has Spearman ~0 and its least
+    # trusted 10 % hold ~10 % of the error (measured here: 0.68 and 31 %)
+    assert table[-1]["top_fraction"] == 0.1
+    assert table[0]["spearman"] > 0.3 and table[-1]["share_of_error"] > 0.2
     # identical members: the ensemble is that network, and it agrees with itself everywhere
     spec = [s for s in standard_paths(0.01) if s.name == "drained"][0]
     one, _ = run_path(PARAMS, spec, SurrogateSolver(members[1]), 2e-3, 1e-3)

@@ -11,6 +11,7 @@ from hmodel.fem import biaxial
 FAST = Params(n_theta=36)
 
 
+@pytest.mark.slow
 def test_dask_scheduler_gives_the_local_results():
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
@@ -24,6 +25,7 @@ def test_dask_scheduler_gives_the_local_results():
     np.testing.assert_array_equal(remote.snapshots[-1].sig, local.snapshots[-1].sig)
 
 
+@pytest.mark.slow
 def test_unreachable_scheduler_is_an_input_error():
     pytest.importorskip("distributed")
     from hmodel.errors import InputError

@@ -124,12 +124,9 @@ def test_a_model_without_trust_cannot_be_refined(start, tmp_path):
         refine(bare, start / "sample", Params(n_theta=12), RefineConfig(paths=("drained",)), tmp_path / "r")
 
 
+@pytest.mark.yade
 def test_dem_cells_answer_the_gate(start, tmp_path):
     """With YADE, the exact rows come from DEM H-cells (dem:standard), recorded as such."""
-    from hmodel.dem.yade import available
-
-    if not available():
-        pytest.skip("YADE is not installed")
     out = tmp_path / "r"
     from hmodel.cli.app import main
     assert main(["surrogate", "refine", str(start / "m.safetensors"), "--data", str(start / "sample"),
@@ -141,17 +138,16 @@ def test_dem_cells_answer_the_gate(start, tmp_path):
     assert summary["rows_added"] == 12 and summary["fallback_cells"] > 0
 
 
+@pytest.mark.slow
+@pytest.mark.yade
 def test_a_richer_cells_rows_are_dem_increments_from_its_gated_cells(tmp_path):
     """With YADE, a meso ensemble of the hexagon-center cell gated to its DEM cell: the new rows
     carry the full DEM state, and each is the DEM cell's own increment from its start state,
     stepped here by hand."""
     from hmodel.cli.app import main
     from hmodel.dem.solver import DEMSolver
-    from hmodel.dem.yade import available
     from hmodel.surrogate.trust import fit_ensemble_trust
 
-    if not available():
-        pytest.skip("YADE is not installed")
     dem = "dem:hexagon-center:tol=1e-7,max_iter=100000"
     params = Params(sliding_rhs="equilibrium")
     spec = DatasetSpec(kind=2, n_directions=4, theta_min=-60, theta_max=150, alpha0_min=45, alpha0_max=45,

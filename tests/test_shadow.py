@@ -15,7 +15,6 @@ from hmodel import Params
 from hmodel.cell import CellState
 from hmodel.cli.app import main
 from hmodel.dem.solver import DEMSolver
-from hmodel.dem.yade import available
 from hmodel.errors import InputError
 from hmodel.loading import run_biaxial
 from hmodel.loading.paths import consolidate
@@ -26,7 +25,6 @@ from hmodel.surrogate.shadow import ShadowedSolver
 from hmodel.surrogate.shipped import load_shipped
 from hmodel.surrogate.solver import gated_solver
 
-needs_yade = pytest.mark.skipif(not available(), reason="YADE is not installed (apt-get install -y yade)")
 PARAMS = Params(sliding_rhs="equilibrium", n_theta=12)
 DEM = "dem:hexagon-center:tol=1e-7,max_iter=100000"
 
@@ -60,7 +58,7 @@ def test_a_model_without_trust_is_refused_in_one_line(tmp_path, capsys):
     assert len(err) == 1 and "trust" in err[0] and not out.exists()
 
 
-@needs_yade
+@pytest.mark.yade
 def test_every_cell_gated_is_the_dem_rev():
     """With every cell above the gate, each increment is the DEM cell's from its exact state:
     the gated REV is the DEM-REV, to the DEM's convergence."""
@@ -75,7 +73,7 @@ def test_every_cell_gated_is_the_dem_rev():
     assert solver.counts["gated"] == solver.counts["gate_checked"] > 0
 
 
-@needs_yade
+@pytest.mark.yade
 def test_a_shadow_catches_up_along_its_lag():
     """Nothing gated: the summary's lengths are the shadow's plus the lag, and catching up is
     the DEM cell driven along the lag in equal sub-steps, stepped here by hand."""
@@ -95,7 +93,7 @@ def test_a_shadow_catches_up_along_its_lag():
     np.testing.assert_allclose(caught[:, 6:8], summary[:, 6:8], rtol=0, atol=1e-12 * PARAMS.l10)
 
 
-@needs_yade
+@pytest.mark.yade
 def test_the_command_line_reports_the_gated_fraction(tmp_path, capsys):
     out = tmp_path / "run"
     assert main(["run", "biaxial", "--p0", "100kPa", "-p", "sliding_rhs=equilibrium", "-p", "n_theta=12",

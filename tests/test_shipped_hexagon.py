@@ -10,13 +10,11 @@ import pytest
 
 from hmodel import Params
 from hmodel.cli.app import main
-from hmodel.dem.yade import available
 from hmodel.loading import run_biaxial
 from hmodel.solvers import get_solver
 from hmodel.surrogate.shipped import load_shipped, model_paths, shipped_path
 from hmodel.surrogate.trust import check_members
 
-needs_yade = pytest.mark.skipif(not available(), reason="YADE is not installed (apt-get install -y yade)")
 PARAMS = Params(sliding_rhs="equilibrium", n_theta=12)
 DEM = "dem:hexagon-center:tol=1e-7,max_iter=100000"
 
@@ -52,7 +50,8 @@ def test_another_material_is_refused(tmp_path, capsys):
     assert not (tmp_path / "x").exists()
 
 
-@needs_yade
+@pytest.mark.slow
+@pytest.mark.yade
 def test_compare_against_the_dem_rev_it_learned(tmp_path):
     """The documented comparison from the command line, on a short undrained path: within 2 %
     of the DEM-REV's peak q (the issue's accuracy target for the richer cell)."""

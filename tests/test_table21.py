@@ -99,6 +99,7 @@ def test_sweep_scores_both_datasets_and_resumes(data, tmp_path, monkeypatch, cap
     assert "published input convention" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_reproduce_shows_the_table_beside_the_report(tmp_path):
     """The full reproduce's Table 2.1 step, at a tiny scale: both conventions, both test sets,
     and the report's Fig. 2.7 numbers beside our Model 1."""
