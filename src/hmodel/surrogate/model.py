@@ -170,15 +170,18 @@ class Surrogate:
         with blas.limit(limits=1):
             if len(X) < SPLIT_ROWS or threads < 2:
                 return self._forward(X, single, spare)
-            starts = range(0, len(X), BLOCK_ROWS)
-            with ThreadPoolExecutor(threads) as pool:
-                parts = list(pool.map(lambda i: self._forward(X[i:i + BLOCK_ROWS], single, spare), starts))
-            return np.concatenate(parts)
+            result = np.empty((len(X), len(self.weights[-1][1]) + spare))
+            with ThreadPoolExecutor(threads) as pool:  # each block writes its rows of the result
+                list(pool.map(lambda i: self._forward(X[i:i + BLOCK_ROWS], single, spare,
+                                                      result[i:i + BLOCK_ROWS]),
+                              range(0, len(X), BLOCK_ROWS)))
+            return result
 
-    def _forward(self, X: np.ndarray, single: bool, spare: int) -> np.ndarray:
-        """:meth:`forward` in the calling thread. Every product is written into one of two block
-        buffers and the output scaled in place: fresh arrays of this size are new pages from
-        the OS each time, which costs more than the products at large batches."""
+    def _forward(self, X: np.ndarray, single: bool, spare: int, result: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`forward` in the calling thread, into ``result`` (n, n_outputs + spare) when
+        given. Every product is written into one of two block buffers and the output scaled in
+        place: fresh arrays of this size are new pages from the OS each time, which costs more
+        than the products at large batches."""
         *hidden, (W_out, b_out) = self._layers32 if single else self._layers64
         z = self.x_scaler.transform(X).astype(W_out.dtype, copy=False)
         out = np.empty((len(z), len(b_out)), z.dtype)
@@ -200,13 +203,13 @@ class Surrogate:
             np.matmul(h, W_out, out=out[i:i + BLOCK_ROWS])
         if single:  # bias and scaling in float64, one compiled pass instead of four NumPy
             # passes over the outputs
-            wide = np.empty((len(z), len(b_out) + spare))
+            wide = np.empty((len(z), len(b_out) + spare)) if result is None else result
             _scaled_back(out, self.weights[-1][1], self.y_scaler.scale, self.y_scaler.offset, wide)
             return wide
         out += b_out
         out = self.y_scaler.inverse(out, out=out)
-        if spare:
-            wide = np.empty((len(z), len(b_out) + spare))
+        if spare or result is not None:
+            wide = np.empty((len(z), len(b_out) + spare)) if result is None else result
             wide[:, :len(b_out)] = out
             return wide
         return out
