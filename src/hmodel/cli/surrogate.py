@@ -32,7 +32,8 @@ Lr = Annotated[float, typer.Option(help="Initial learning rate (Adam; halved on 
 Patience = Annotated[int, typer.Option(help="Epochs without validation improvement before stopping.")]
 Seed = Annotated[int, typer.Option(help="Seed of the split, the initialization and the batches.")]
 Device = Annotated[str, typer.Option(help="auto (a GPU when there is one), cpu or cuda.")]
-MaxMinutes = Annotated[Optional[float], typer.Option(help="Stop training after this wall time.")]
+MaxMinutes = Annotated[Optional[float], typer.Option(help="Also stop after this wall time, for exploring: a run it cuts short "
+                                                          "depends on the machine's load and cannot be rebuilt; budget recipes in --epochs.")]
 Mechanisms = Annotated[int, typer.Option(help="meso: kinks of the learned incremental response.")]
 Rollout = Annotated[int, typer.Option(help="meso of a richer cell: also train on rollouts of this many "
                                            "steps along the data's paths (0: single increments only).")]

@@ -21,20 +21,24 @@ teacher and the distillation's settings.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from ..errors import InputError
+from .fit_loop import FitConfig, device, fit
 from .model import Architecture, Surrogate
-from .training import _device, _Rollout, best_weights, build_network, secant_weights, torch_network
 from .torch_support import require_torch
+from .training import _Rollout, best_weights, build_network, secant_weights, torch_network
 
 
 @dataclass(frozen=True)
-class DistillConfig:
+class DistillConfig(FitConfig):
+    """A distillation's settings: the fit's (:class:`~hmodel.surrogate.fit_loop.FitConfig`;
+    the learning rate halved after ``patience`` epochs without improvement, the fit ended once
+    it falls below ``min_lr``), the student's network and the loss's terms."""
+
     width: int = 64
     depth: int = 3
     #: the teacher's activation when None
@@ -48,29 +52,22 @@ class DistillConfig:
     rollout: int = 4
     rollout_weight: float = 0.5
     epochs: int = 3000
-    batch_size: int = 1024
-    lr: float = 3e-3
-    #: epochs without validation improvement before the learning rate is halved
-    patience: int = 30
     #: training ends once the learning rate falls below this
     min_lr: float = 1e-5
     val_fraction: float = 0.1
-    seed: int = 0
     device: str = "cpu"
-    max_minutes: float | None = None
 
     def __post_init__(self) -> None:
         if self.activation is not None:
             Architecture(self.width, self.depth, self.activation)
-        for name in ("width", "depth", "epochs", "batch_size", "patience"):
+        for name in ("width", "depth"):
             if getattr(self, name) < 1:
                 raise InputError(f"{name} must be at least 1, got {getattr(self, name)}")
+        super().__post_init__()
         if self.strains < 0 or not self.raw_weight >= 0 or self.rollout < 0 or not self.rollout_weight >= 0:
             raise InputError("strains, raw_weight, rollout and rollout_weight must be positive or zero")
-        if not self.lr > 0 or not self.min_lr > 0:
-            raise InputError(f"lr and min_lr must be positive, got {self.lr}, {self.min_lr}")
-        if not 0 < self.val_fraction < 1:
-            raise InputError(f"val_fraction must lie in (0, 1), got {self.val_fraction}")
+        if not self.min_lr > 0:
+            raise InputError(f"min_lr must be positive, got {self.min_lr}")
 
 
 def distill(teacher: Surrogate, columns: dict[str, np.ndarray], config: DistillConfig = DistillConfig(),
@@ -90,7 +87,7 @@ def distill(teacher: Surrogate, columns: dict[str, np.ndarray], config: DistillC
     n = len(X)
     if n < 10:
         raise InputError(f"need at least 10 rows to distil on, got {n}")
-    dev = _device(config.device)
+    dev = device(config.device)
     as64 = lambda a: torch.as_tensor(a, dtype=torch.float64, device=dev)  # noqa: E731
     Z = torch.as_tensor(teacher.x_scaler.transform(X), dtype=torch.float32, device=dev)
     T = as64(teacher.forward(X))  # the teacher's outputs in float64
@@ -123,43 +120,25 @@ def distill(teacher: Surrogate, columns: dict[str, np.ndarray], config: DistillC
     net = build_network(arch, X.shape[1], form.n_outputs).to(dev)
     roll = (_TeacherRollouts(teacher, columns, config, rng, net)
             if config.rollout and config.rollout_weight and form.richer else None)
-    opt = torch.optim.Adam(net.parameters(), lr=config.lr)
-    sched = torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=0.5, patience=config.patience)
     n_batches = math.ceil(len(tr) / config.batch_size)
-    best, best_state, history, t0 = math.inf, None, [], time.perf_counter()
-    for epoch in range(config.epochs):
-        net.train()
+
+    def batches():
         order = tr[torch.randperm(len(tr), generator=gen).to(dev)]
-        total = 0.0
         for i in range(0, len(order), config.batch_size):
             rows = order[i:i + config.batch_size]
             e, at = strains(rows)
-            opt.zero_grad(set_to_none=True)
             batch = loss(rows, e, at, raw=True)
             if roll is not None:
                 batch = batch + config.rollout_weight * roll.train_batch(i // config.batch_size, n_batches)
-            batch.backward()
-            opt.step()
-            total += float(batch.detach()) * len(rows)
-        net.eval()
-        with torch.no_grad():  # the validation loss: increments and rollouts, not the raw outputs
-            v = float(loss(val, val_e, val_at, raw=False))
-            if roll is not None:
-                v += config.rollout_weight * roll.validation()
-        sched.step(v)
-        history.append({"epoch": epoch + 1, "train_loss": total / len(tr), "val_loss": v,
-                        "lr": opt.param_groups[0]["lr"], "seconds": time.perf_counter() - t0})
-        if v < best:
-            best = v
-            best_state = {k: t.detach().clone() for k, t in net.state_dict().items()}
-        if progress is not None:
-            progress((epoch + 1) / config.epochs)
-        if not math.isfinite(v):
-            raise InputError(f"distillation diverged at epoch {epoch + 1}; lower --lr")
-        if opt.param_groups[0]["lr"] < config.min_lr:
-            break
-        if config.max_minutes is not None and time.perf_counter() - t0 > 60 * config.max_minutes:
-            break
+            yield batch, len(rows)
+
+    def validation() -> float:  # increments and rollouts, not the raw outputs
+        v = float(loss(val, val_e, val_at, raw=False))
+        return v + config.rollout_weight * roll.validation() if roll is not None else v
+
+    best_state, best, history = fit(net, batches, validation, len(tr), config, progress=progress,
+                                    plateau_patience=config.patience, min_lr=config.min_lr,
+                                    what="distillation")
     weights = best_weights(net, best_state)
     meta = {k: v for k, v in teacher.meta.items() if k in ("params", "training_data")}
     meta.update(distilled={"teacher": {k: teacher.meta.get(k) for k in
@@ -195,7 +174,7 @@ class _TeacherRollouts(_Rollout):
 
     def __init__(self, teacher: Surrogate, columns, config: DistillConfig, rng, net):
         torch = require_torch("distillation")
-        super().__init__(teacher.formulation, columns, config, rng, teacher.x_scaler, net)
+        super().__init__(teacher.formulation, columns, config, rng, teacher.x_scaler, net, config.rollout)
         t_net = torch_network(teacher)
         with torch.no_grad():
             for part in (self.train, self.val):

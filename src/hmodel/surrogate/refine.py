@@ -31,7 +31,7 @@ import json
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -53,6 +53,8 @@ from .solver import SurrogateSolver
 from .training import TrainConfig, train, union
 from .trust import fingerprint, fit_ensemble_trust, fit_trust
 
+#: The training settings a fine-tuning keeps from the model's own (the loss it was trained with).
+LOSS_SETTINGS = ("loss", "secant_floor", "rollout", "rollout_weight", "rollout_substeps")
 PATHS = ("drained", "undrained", "unload-reload")
 
 
@@ -179,11 +181,9 @@ def fine_tune(members: list[Surrogate], cols: dict, params: Params, config: Refi
         # the loss it was trained with: a meso network's secant weighting and its rollouts along
         # the training rows' paths (without them, fine-tuning on single increments undid what
         # the rollouts taught: a hexagon-center ensemble went from 2.2 % to 8-18 % of peak q)
-        cfg = TrainConfig(formulation=m.formulation.name, epochs=config.epochs, patience=config.patience,
-                          lr=config.lr, seed=config.seed + 1000 * r + k, loss=made.get("loss", "mse"),
-                          secant_floor=made.get("secant_floor", 0.0), rollout=made.get("rollout", 0),
-                          rollout_weight=made.get("rollout_weight", 1.0),
-                          rollout_substeps=made.get("rollout_substeps", 1))
+        cfg = replace(TrainConfig(formulation=m.formulation.name), epochs=config.epochs,
+                      patience=config.patience, lr=config.lr, seed=config.seed + 1000 * r + k,
+                      **{name: made[name] for name in LOSS_SETTINGS if name in made})
         m, hist = train(cols, params, cfg, init=m, cell=getattr(m.formulation, "cell", "closed-form"))
         m.meta.update(params=params.to_dict(), refined={"round": r, "rows": len(cols["deps1"])})
         tuned.append(m)

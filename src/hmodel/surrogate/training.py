@@ -4,7 +4,6 @@ learning-rate schedule, fixed seeds; CPU by default, a GPU when one is there."""
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 
@@ -12,6 +11,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..params import Params
+from .fit_loop import FitConfig, device, fit
 from .kinds import make_formulation
 from .model import Architecture, Surrogate
 from .scalers import Affine, fit_scaler
@@ -21,21 +21,17 @@ LOSSES = ("mse", "mae")
 
 
 @dataclass(frozen=True)
-class TrainConfig:
+class TrainConfig(FitConfig):
+    """A training's settings: the fit's (:class:`~hmodel.surrogate.fit_loop.FitConfig`; early
+    stopping after ``patience`` epochs without improvement), the formulation and network, and
+    the ``meso`` formulation's own."""
+
     formulation: str = "increment"
     normalization: str = "zscore"
     width: int = 8
     depth: int = 3
     activation: str = "tanh"
     loss: str = "mse"
-    epochs: int = 300
-    batch_size: int = 1024
-    lr: float = 3e-3
-    patience: int = 30
-    val_fraction: float = 0.2
-    seed: int = 0
-    device: str = "auto"
-    max_minutes: float | None = None
     #: ``meso`` formulation: kinks of the incremental response (see :mod:`hmodel.surrogate.meso`).
     mechanisms: int = 4
     #: Rollout training (``meso`` of a richer cell): windows of this many steps along the data's
@@ -44,9 +40,9 @@ class TrainConfig:
     #: single-increment errors pile up; this charges the network for the pile-up.
     rollout: int = 0
     rollout_weight: float = 1.0
-    #: Experimental, tried and not kept (see the documentation's notes, "Tried and not kept"):
-    #: network steps per data step of a rollout window (a REV at a finer increment than the
-    #: data's; 1: the data's steps).
+    #: Network steps per data step of a rollout window (a REV at a finer increment than the
+    #: data's; 1: the data's steps): with ``cell_step``, the network learns steps of the size a
+    #: REV will take (the shipped hexagon-center networks use 4).
     rollout_substeps: int = 1
     #: ``meso``: weigh each row's error as an error of the secant dz/|de| instead of dz/m0, for
     #: increments down to this strain (smaller ones weigh as this): the loss on dz/m0 leaves the
@@ -60,13 +56,9 @@ class TrainConfig:
         Architecture(self.width, self.depth, self.activation)
         if self.loss not in LOSSES:
             raise InputError(f"unknown loss {self.loss!r} (known: {', '.join(LOSSES)})")
-        if not 0 < self.val_fraction < 1:
-            raise InputError(f"val_fraction must lie in (0, 1), got {self.val_fraction}")
-        for name in ("epochs", "batch_size", "patience", "rollout_substeps"):
-            if getattr(self, name) < 1:
-                raise InputError(f"{name} must be at least 1, got {getattr(self, name)}")
-        if not self.lr > 0:
-            raise InputError(f"lr must be positive, got {self.lr}")
+        super().__post_init__()
+        if self.rollout_substeps < 1:
+            raise InputError(f"rollout_substeps must be at least 1, got {self.rollout_substeps}")
         if self.mechanisms < 0 or self.rollout < 0 or not self.rollout_weight >= 0:
             raise InputError("mechanisms, rollout and rollout_weight must be positive or zero")
         if self.rollout and self.formulation != "meso":
@@ -77,16 +69,6 @@ class TrainConfig:
             raise InputError("secant weighting needs --formulation meso")
         if self.cell_step is not None and self.formulation != "meso":
             raise InputError("--cell-step needs --formulation meso")
-
-
-def _device(name: str):
-    torch = require_torch()
-    if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    try:
-        return torch.device(name)
-    except RuntimeError:
-        raise InputError(f"unknown device {name!r}") from None
 
 
 def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = TrainConfig(),
@@ -122,7 +104,7 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
     n_val = max(1, int(round(config.val_fraction * n)))
     val, tr = perm[:n_val], perm[n_val:]
     xs = fit_scaler(config.normalization, X[tr]) if init is None else init.x_scaler
-    dev = _device(config.device)
+    dev = device(config.device)
     to = lambda a: torch.as_tensor(a, dtype=torch.float32, device=dev)  # noqa: E731
     if A is None:
         ys = (fit_target_scaler(config.normalization, Y[tr], W[tr], form.logit_column)
@@ -138,48 +120,28 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
 
     arch = Architecture(config.width, config.depth, config.activation)
     net = (build_network(arch, X.shape[1], n_out) if init is None else torch_network(init)).to(dev)
-    opt = torch.optim.Adam(net.parameters(), lr=config.lr)
-    sched = torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=0.5, patience=max(1, config.patience // 3))
     loss_fn = _loss(config.loss, form.logit_column)
-    roll = _Rollout(form, columns, config, rng, xs, net) if config.rollout else None
+    roll = (_Rollout(form, columns, config, rng, xs, net, config.rollout, config.rollout_substeps)
+            if config.rollout else None)
     n_batches = math.ceil(len(Xt) / config.batch_size)
     gen = torch.Generator(device="cpu").manual_seed(config.seed)
-    best, best_state, stale, history = math.inf, None, 0, []
-    t0 = time.perf_counter()
-    for epoch in range(config.epochs):
-        net.train()
+
+    def batches():
         order = torch.randperm(len(Xt), generator=gen).to(dev)
-        total = 0.0
         for i in range(0, len(Xt), config.batch_size):
             idx = order[i:i + config.batch_size]
-            opt.zero_grad(set_to_none=True)
             loss = loss_fn(form.head(net(Xt[idx]), None if At is None else At[idx], Yt[idx]), Yt[idx], Wt[idx])
             if roll is not None:
                 loss = loss + config.rollout_weight * roll.train_batch(i // config.batch_size, n_batches)
-            loss.backward()
-            opt.step()
-            total += float(loss.detach()) * len(idx)
-        net.eval()
-        with torch.no_grad():
-            v = float(loss_fn(form.head(net(Xv), Av, Yv), Yv, Wv))
-            if roll is not None:
-                v += config.rollout_weight * roll.validation()
-        sched.step(v)
-        history.append({"epoch": epoch + 1, "train_loss": total / len(Xt), "val_loss": v,
-                        "lr": opt.param_groups[0]["lr"], "seconds": time.perf_counter() - t0})
-        if v < best:
-            best, stale = v, 0
-            best_state = {k: t.detach().clone() for k, t in net.state_dict().items()}
-        else:
-            stale += 1
-        if progress is not None:
-            progress((epoch + 1) / config.epochs)
-        if not math.isfinite(v):
-            raise InputError(f"training diverged at epoch {epoch + 1} (validation loss {v}); lower --lr")
-        if stale >= config.patience:
-            break
-        if config.max_minutes is not None and time.perf_counter() - t0 > 60 * config.max_minutes:
-            break
+            yield loss, len(idx)
+
+    def validation() -> float:
+        v = float(loss_fn(form.head(net(Xv), Av, Yv), Yv, Wv))
+        return v + config.rollout_weight * roll.validation() if roll is not None else v
+
+    best_state, best, history = fit(net, batches, validation, len(Xt), config, progress=progress,
+                                    plateau_patience=max(1, config.patience // 3),
+                                    stop_patience=config.patience)
     weights = best_weights(net, best_state)
     meta = {"config": asdict(config), "epochs_run": len(history), "best_val_loss": best,
             "train_rows": int(len(tr)), "val_rows": int(len(val)),
@@ -236,12 +198,12 @@ class _Rollout:
     """Windows along the data's paths (:meth:`MesoFormulation.windows`), split like the rows,
     and their rollout errors for the training loop."""
 
-    def __init__(self, form, columns, config: TrainConfig, rng, xs, net):
+    def __init__(self, form, columns, config: FitConfig, rng, xs, net, window: int, substeps: int = 1):
         torch = require_torch()
         if not getattr(form, "richer", False):
             raise InputError("rollout training needs the meso formulation of a richer cell (DEM data "
                              "whose V sigma is learned)")
-        w = form.windows(columns, config.rollout)
+        w = form.windows(columns, window)
         if len(w["z0"]) < 2:
             raise InputError("rollout training needs data along paths (a Dataset 2 sample with its "
                              "start states)")
@@ -253,7 +215,7 @@ class _Rollout:
         self.train = {k: as64(a[perm[n_val:]]) for k, a in w.items()}
         off, scale = as64(xs.offset), as64(xs.scale)
         self.scale_inputs = lambda X: (X - off) / scale  # noqa: E731
-        self.form, self.net, self.substeps = form, net, getattr(config, "rollout_substeps", 1)
+        self.form, self.net, self.substeps = form, net, substeps
         self.gen = torch.Generator().manual_seed(config.seed)
         self.order = torch.randperm(len(perm) - n_val, generator=self.gen)
 
