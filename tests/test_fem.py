@@ -11,11 +11,42 @@ from hmodel import Params
 from hmodel.cli.app import main
 from hmodel.fem import NewtonSettings, biaxial, footing, material_point_curve
 from hmodel.fem.assembly import internal_force, strain_hm
-from hmodel.fem.material import HModelMaterial, LinearElastic
+from hmodel.fem.material import HModelMaterial, Trial
 from hmodel.fem.mesh import dofs_where, gauss_points
 from hmodel.fem.newton import Problem, run_steps
 from hmodel.loading import consolidate
 from hmodel.rev import Rev
+
+
+class LinearElastic:
+    """Isotropic linear elasticity (plane strain) with Lamé constants: the patch test's law (any
+    material with ``trial``/``commit``/``checkpoint``/``restore`` runs in the FEM Newton)."""
+
+    def __init__(self, n_points: int, lam: float, mu: float, sig0: np.ndarray | None = None):
+        self.D = np.array([[lam + 2 * mu, lam, 0.0], [lam, lam + 2 * mu, 0.0], [0.0, 0.0, 2 * mu]])
+        self.sig0 = np.zeros((n_points, 3)) if sig0 is None else np.array(sig0, float)
+        self.eps = np.zeros((n_points, 3))
+
+    @property
+    def n_points(self) -> int:
+        return self.eps.shape[0]
+
+    @property
+    def sig(self) -> np.ndarray:
+        return self.sig0 + self.eps @ self.D.T
+
+    def trial(self, deps: np.ndarray) -> Trial:
+        return Trial(deps, self.sig0 + (self.eps + deps) @ self.D.T, np.broadcast_to(self.D, (len(deps), 3, 3)))
+
+    def commit(self, trial: Trial) -> None:
+        self.eps = self.eps + trial.deps
+
+    def checkpoint(self) -> np.ndarray:
+        return self.eps
+
+    def restore(self, eps: np.ndarray) -> None:
+        self.eps = eps
+
 
 FAST = Params(n_theta=36)
 SMOOTH = Params(n_theta=36, sliding_rhs="equilibrium")  # no cell events: a unique response

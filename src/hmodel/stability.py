@@ -96,12 +96,6 @@ class Envelope:
         w = self.normalized
         return float(np.nanmin(w)) if np.isfinite(w).any() else float("nan")
 
-    @property
-    def unstable(self) -> np.ndarray:
-        """Directions of the instability cone (d²W ≤ 0), or where no response exists."""
-        w = self.work
-        return ~(w > 0)
-
 
 def strain_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1e-5,
                     shear: bool = False, point: int = 0) -> Envelope:
@@ -272,7 +266,6 @@ def along_program(program, params, every: int = 10, n_probes: int = 72,
     seen = {"min": 1.0, "k": None, "eps": None, "sig": None, "mag": None, "entered": False}
     probed: dict[tuple, tuple[float, float]] = {}
     envs: dict = {}
-    stage_at: dict = {}
 
     def chunk(state: RevState, k: int) -> int:
         e = state.eps[0]
