@@ -3,7 +3,8 @@
 Every path is a sequence of increments, each solved by :func:`solve_increment` (mixed control)
 or applied directly (pure strain control). Default increments are converged: halving them
 changes the peak stress ratio and the volumetric strain at 10 % axial strain by less than
-0.1 % (``tests/test_convergence.py``).
+0.1 % (``test_default_step_is_converged`` and ``test_first_order_convergence_rate`` in
+``tests/test_loading.py``).
 
 A ``progress`` callable, when given, receives the completed fraction of the path (0..1).
 """

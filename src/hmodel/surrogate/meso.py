@@ -58,19 +58,8 @@ alike), adding that error to the loss. Measured on the hexagon-center cell (benc
 docs/dem.md): single-cell rollouts along the data's paths and cells driven along a DEM-REV's own
 drained histories drift far less; it costs some accuracy of the first increments from rest.
 
-Tried first and measured worse on closed-form REV paths (12 directions, 3 % axial strain, % of
-peak q): learning N1, N2 and Vs without the geometric gate (open cells' forces drift and grow
-from nothing); for the hexagon-center cell, Vs_nt learned or Vs split into eq. 1.12 plus a
-learned inner part (rollouts along single-cell paths 3-50 % off instead of <= 1 % in
-compression); the increment's direction as an input with one tangent (5-15 %); its magnitude
-too (small steps half as stiff); N from the geometry alone, N = kn (2r - d) (exact for the
-closed form, but a DEM cell's d1 from eq. 1.2 differs from its mean contact distance by more
-than the 1e-4 r an overlap is made of). On the hexagon-center DEM-REV (benchmarks/dem_ann.py,
-one network, seed 0): thresholds c_k^2 times the cell's meso-pressure (V sigma_nn + V sigma_tt)
-/ (F 2r m0), so that the elastic range grows with the forces as a linear contact's Coulomb
-margin does: undrained 200 kPa 0.23-0.41 % instead of 0.87-1.68 %, but drained 200 kPa 2.2 %
-instead of 1.9 %, drained 100 kPa 2.4-2.9 %, one drained path stopped (cells outside the
-training domain at 2-3 %), validation loss 0.0034 instead of 0.0019.
+What was tried before this form and measured worse is in the notes of the documentation
+(2026-11-26, the hexagon-center ANN-REV).
 
 Training rows come from any cell solver: a richer DEM cell's extra state columns give its
 Love-Weber stress; for H-cells (``closed-form``, ``dem:standard``) it is eq. 1.12 of the fields

@@ -179,8 +179,8 @@ def fine_tune(members: list[Surrogate], cols: dict, params: Params, config: Refi
     for k, m in enumerate(members):
         made = m.meta.get("config", {})
         # the loss it was trained with: a meso network's secant weighting and its rollouts along
-        # the training rows' paths (without them, fine-tuning on single increments undid what
-        # the rollouts taught: a hexagon-center ensemble went from 2.2 % to 8-18 % of peak q)
+        # the training rows' paths, or fine-tuning on single increments undoes what the
+        # rollouts taught (docs/notes, 2026-12-02, the richer cell)
         cfg = replace(TrainConfig(formulation=m.formulation.name), epochs=config.epochs,
                       patience=config.patience, lr=config.lr, seed=config.seed + 1000 * r + k,
                       **{name: made[name] for name in LOSS_SETTINGS if name in made})

@@ -43,10 +43,9 @@ class ShadowedSolver:
     (cell states, once per increment), ``fallback_cells`` (cell increments the DEM solved,
     Newton trials included) and ``dem_increments`` (with the replay's sub-steps)."""
 
-    #: Largest cell strain of one DEM sub-step when a shadow catches up with its lag. On the
-    #: hexagon-center cell's compared paths, 4e-3 and 1e-3 gave the gated REVs the same error
-    #: against the DEM-REV to within 0.1 % of peak q, 4e-3 for a third fewer DEM cell
-    #: increments (benchmarks/gate_dem.py at gates 0.5 and 0.9).
+    #: Largest cell strain of one DEM sub-step when a shadow catches up with its lag: as
+    #: accurate as smaller sub-steps for fewer DEM calls (measured: docs/notes, 2026-12-02,
+    #: the richer cell).
     replay_strain = 4e-3
 
     def __init__(self, surrogate, fallback, gate: float):
