@@ -210,11 +210,18 @@ def provenance(path: Path, d: dict, scripts: set[str]) -> str:
 
 # --------------------------------------------------------------------------- layouts
 
-def _results(d):  # engine.json, stability.json
+#: Fields of a measure/value/target file that say under which conditions it ran (ann_load.json).
+CONDITIONS = ("load_condition", "load_average_before", "numba_threads", "numba_threading_layer",
+              "blas", "threads_in_forward")
+
+
+def _results(d):  # engine.json, stability.json, ann_load.json
     def value(r):
         v, m = r.get("value"), str(r.get("measure", ""))
         return f"{v:.3g} s" if isinstance(v, float) and "[s]" in m else num(v, 3)
-    return table(d["results"], [("measure", "measure"), (value, "value"), ("target", "target")])
+    out = table(d["results"], [("measure", "measure"), (value, "value"), ("target", "target")])
+    conditions = {k: d[k] for k in CONDITIONS if k in d}
+    return out + ("\nConditions:\n\n" + settings(conditions) if conditions else "")
 
 
 def _data(d):
