@@ -59,7 +59,7 @@ def read_strain_path(path: "str | os.PathLike") -> np.ndarray:
     return out
 
 
-def _existing_ancestor(path: Path) -> Path:
+def existing_ancestor(path: "str | os.PathLike") -> Path:
     """``path`` itself or its nearest ancestor that exists (the current folder at the end)."""
     path = Path(os.path.abspath(path))
     while not path.exists() and path != path.parent:
@@ -77,7 +77,7 @@ def check_output_folder(out_dir: "str | os.PathLike") -> Path:
         raise InputError("the output path is empty: give a folder")
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"output path {str(out_dir)!r} exists and is not a folder")
-    _check_writable(_existing_ancestor(out_dir), out_dir)
+    _check_writable(existing_ancestor(out_dir), out_dir)
     return out_dir
 
 
@@ -89,7 +89,7 @@ def check_output_file(path: "str | os.PathLike") -> Path:
         raise InputError("the output path is empty: give a file name")
     if path.is_dir():
         raise InputError(f"output file {str(path)!r} is a folder")
-    _check_writable(_existing_ancestor(path.parent), path)
+    _check_writable(existing_ancestor(path.parent), path)
     return path
 
 

@@ -31,6 +31,7 @@ import shutil
 from collections.abc import Mapping
 
 from .errors import InputError
+from .io import existing_ancestor
 
 #: Default largest number of increments of one run (``HMODEL_MAX_INCREMENTS``).
 MAX_INCREMENTS = 10**7
@@ -101,9 +102,7 @@ def check_memory(nbytes: float, what: str, env: Mapping[str, str] | None = None)
 def check_disk(nbytes: float, folder: "str | os.PathLike", what: str) -> None:
     """Refuse (:class:`WorkTooLarge`) writing about ``nbytes`` under ``folder`` when the disk
     holding it (its nearest existing ancestor) has less free space."""
-    path = os.path.abspath(folder)
-    while not os.path.exists(path) and path != os.path.dirname(path):
-        path = os.path.dirname(path)
+    path = existing_ancestor(folder)
     free = shutil.disk_usage(path).free
     if not nbytes <= free:
         raise WorkTooLarge(f"{what} needs about {human_bytes(nbytes)} of disk, and {str(path)!r} has "
