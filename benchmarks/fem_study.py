@@ -30,7 +30,7 @@ import numpy as np  # noqa: E402
 
 from hmodel import Params  # noqa: E402
 from hmodel.fem import biaxial, footing, material_point_curve  # noqa: E402
-from hmodel.fem.bands import band_inclination, concentration, peak_angles, theory_angles  # noqa: E402
+from hmodel.fem.bands import concentration, peak_angles, shear_band, theory_angles  # noqa: E402
 from hmodel.fem.outputs import deviatoric_strain  # noqa: E402
 
 FIG = Path(__file__).resolve().parent.parent / "docs" / "figures"
@@ -104,10 +104,9 @@ def band(out: dict) -> None:
         inc = deviatoric_strain(last.eps - snaps[ipk].eps)  # after the peak
         x, dx = res.gauss_x, res.gauss_dx
         far = (x[0] - zone[0]) ** 2 + (x[1] - zone[1]) ** 2 > (2 * zone[2]) ** 2
-        upper = far & (x[1] > zone[1])
-        conc = concentration(inc, dx)
-        # a band only where the increment field has localized (twice its average somewhere)
-        angle = band_inclination(x, inc, dx, top=0.2, mask=upper) if conc > 2 else float("nan")
+        band = shear_band(res, zone)  # the same band the CLI reports
+        conc = band["concentration"]
+        angle = band["angle_deg"] if band["angle_deg"] is not None else float("nan")
         # onset: first step whose deviatoric strain increment is twice its average somewhere
         onset = float("nan")
         for k in range(1, len(res.snapshots)):

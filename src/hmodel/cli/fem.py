@@ -36,6 +36,11 @@ def _finish(res, out: Path) -> None:
     write_result(res, out)
     typer.echo(f"wrote {out / 'result.csv'} ({len(res) - 1} load steps, "
                f"{res.meta['gauss_points']} Gauss points, {res.meta['seconds']:.1f} s) and fields, figures")
+    band = res.meta.get("band") or {}
+    if band.get("angle_deg") is not None:
+        theory = ", ".join(f"{k.capitalize()} {band[k]:.1f}°" for k in ("coulomb", "roscoe", "arthur") if k in band)
+        typer.echo(f"shear band at {band['angle_deg']:.1f}° from the horizontal"
+                   + (f" ({theory})" if theory else "") + f", after the peak at step {band['peak_step']}")
     if res.stopped:
         typer.echo(f"hmodel: warning: the run stopped early: {res.stopped}", err=True)
 

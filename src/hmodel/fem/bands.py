@@ -13,6 +13,13 @@ import math
 
 import numpy as np
 
+from .outputs import deviatoric_strain
+from .result import FemResult, material_point_curve
+
+#: A band is reported where the deviatoric strain increment after the peak reaches this many
+#: times its volume average somewhere (1 for a homogeneous field).
+LOCALIZED = 2.0
+
 
 def peak_angles(curve: dict) -> tuple[float, float]:
     """(φ, ψ) [deg] at the peak of q of a material-point curve
@@ -55,3 +62,35 @@ def band_inclination(x: np.ndarray, values: np.ndarray, dx: np.ndarray, top: flo
     vals, vecs = np.linalg.eigh(cov)
     v = vecs[:, np.argmax(vals)]
     return float(np.degrees(np.arctan2(abs(v[1]), abs(v[0]))))
+
+
+def shear_band(res: FemResult, zone: tuple[float, float, float] | None = None, top: float = 0.2) -> dict:
+    """The shear band of a biaxial run after its peak of q: the inclination [deg] from the
+    horizontal of :func:`band_inclination` on the deviatoric strain increment between the first
+    saved state at or after the peak and the last one (``angle_deg``; None where the field has
+    not localized: its :func:`concentration` below :data:`LOCALIZED`), that concentration, the
+    steps it spans, and with a material-point reference, its peak angles (:func:`peak_angles`)
+    and the classical predictions (:func:`theory_angles`). With an imperfection ``zone``
+    (x, y, R), the Gauss points within 2R of it are left out and the branch above it kept (a
+    band from an edge imperfection and its mirror form a cross)."""
+    q = res.column("q")
+    peak = int(np.argmax(q))
+    after = [s for s in res.snapshots if s.step >= peak]
+    out: dict = {"angle_deg": None, "concentration": None, "peak_step": peak,
+                 "from_step": after[0].step if after else None, "to_step": res.snapshots[-1].step}
+    if len(after) >= 2:
+        inc = deviatoric_strain(after[-1].eps - after[0].eps)
+        x, dx = res.gauss_x, res.gauss_dx
+        mask = None
+        if zone is not None:
+            far = (x[0] - zone[0]) ** 2 + (x[1] - zone[1]) ** 2 > (2 * zone[2]) ** 2
+            mask = far & (x[1] > zone[1])
+        conc = concentration(inc, dx)
+        out["concentration"] = conc
+        if conc > LOCALIZED and (mask is None or mask.sum() >= 2):
+            out["angle_deg"] = band_inclination(x, inc, dx, top=top, mask=mask)
+    if res.reference is not None:
+        phi, psi = peak_angles(material_point_curve(res.reference))
+        out.update(phi_peak=phi, psi_peak=psi, **theory_angles(phi, psi))
+    return out
+

@@ -21,6 +21,7 @@ from ..params import Params, parse_point_assignments
 from ..rev import Rev
 from ..stability import second_order_work
 from .assembly import volume_average
+from .bands import shear_band
 from .material import DaskStep, HModelMaterial
 from .mesh import Domain, dofs_where, gauss_points
 from .newton import NewtonSettings, Problem, StepResult, run_steps
@@ -115,7 +116,7 @@ class _Recorder:
 
 
 def _material(params: Params, imperfection, domain, gx, solver, p0,
-              scheduler: str | None = None) -> tuple[HModelMaterial, Rev, np.ndarray]:
+              scheduler: str | None = None) -> tuple[HModelMaterial, Rev, np.ndarray, tuple | None]:
     sets_params = [params]
     zone = None
     if imperfection is not None:
@@ -123,7 +124,7 @@ def _material(params: Params, imperfection, domain, gx, solver, p0,
         sets_params.append(weak)
     sets = _zone_sets(domain, gx, zone)
     rev = Rev(sets_params if len(sets_params) > 1 else params, solver)
-    return HModelMaterial(rev, sets, p0, DaskStep(scheduler, rev) if scheduler else None), rev, sets
+    return HModelMaterial(rev, sets, p0, DaskStep(scheduler, rev) if scheduler else None), rev, sets, zone
 
 
 def _check_common(p0: float, n_steps: int) -> None:
@@ -208,7 +209,7 @@ def biaxial(params: Params | None = None, p0: float = 2e5, axial_strain: float =
     _check_size(domain, params, solver)
     basis = domain.basis()
     gx, dx = gauss_points(basis)
-    material, rev, sets = _material(params, imperfection, domain, gx, solver, p0, scheduler)
+    material, rev, sets, zone = _material(params, imperfection, domain, gx, solver, p0, scheduler)
     W, H = domain.width, domain.height
     tol = 1e-9 * max(W, H)
     bottom = dofs_where(basis, 1, lambda x: x[1] < tol)
@@ -256,6 +257,7 @@ def biaxial(params: Params | None = None, p0: float = 2e5, axial_strain: float =
         from ..loading import run_biaxial
         res.reference = run_biaxial(params, p0, axial_strain, undrained=undrained, solver=rev.solver,
                                     step=axial_strain / n_steps)
+    res.meta["band"] = shear_band(res, zone)
     return res
 
 
@@ -291,7 +293,7 @@ def footing(params: Params | None = None, p0: float = 1e5, settlement: float = 0
                          f"mesh nodes (element width {L / domain.nx:g} m): choose --mesh accordingly")
     basis = domain.basis()
     gx, dx = gauss_points(basis)
-    material, rev, _ = _material(params, None, domain, gx, solver, p0, scheduler)
+    material, rev, _, _ = _material(params, None, domain, gx, solver, p0, scheduler)
     tol = 1e-9 * max(L, H)
     under = lambda x: (x[1] > H - tol) & (np.abs(x[0] - L / 2) <= width / 2 + tol)  # noqa: E731
     foot_y = dofs_where(basis, 1, under)
