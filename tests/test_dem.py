@@ -14,9 +14,9 @@ from hmodel.cell import mesostructure as meso
 from hmodel.cell.mesostress import meso_volume, meso_vsigma
 from hmodel.cell.state import CellState
 from hmodel.cli.app import main
-from hmodel.dem.scene import DEMOptions, hcell_state, simulate
+from hmodel.dem.scene import DEMOptions, hcell_state, scene_settings, simulate
 from hmodel.dem.stress import boundary_form, skew_ratio, vsigma
-from hmodel.dem.yade import DEMError, EquilibriumError, YadeNotFound
+from hmodel.dem.yade import DEMError, EquilibriumError, YadeNotFound, YadeServer
 from hmodel.params import Params
 
 
@@ -119,6 +119,29 @@ def test_no_equilibrium_is_a_one_line_error(tmp_path, monkeypatch, capsys):
     with pytest.raises(EquilibriumError) as e:
         real([(meso.standard(), np.full((2, 2), -1e-3))], PARAMS, capped)
     assert isinstance(e.value, DEMError) and "\n" not in str(e.value)
+
+
+@pytest.mark.yade
+def test_a_failing_request_is_a_one_line_error_and_the_process_goes_on(tmp_path, monkeypatch):
+    """The one transport: an unknown task, or a request the YADE side cannot read, is answered
+    with a one-line DEMError; the same process then answers a good request, and its folder goes
+    with it."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    with YadeServer() as yade:
+        with pytest.raises(DEMError, match=r"^DEM: unknown task 'draw' \(known: runs, increment, biaxial\)$"):
+            yade.request("draw", {})
+        with pytest.raises(DEMError, match=r"^DEM: KeyError: 'cells'$"):
+            yade.request("runs", {})
+        pid = yade._proc.pid
+        std = meso.standard()
+        ok = yade.request("runs", {**scene_settings(PARAMS, std.radii.max(), DEMOptions()),
+                                   "cells": [{"radii": std.radii.tolist(), "pos": std.positions.tolist(),
+                                              "drive": list(std.drive), "l": [std.l1, std.l2],
+                                              "half_width": std.half_width, "increments": [[-1e-3, 0.0]]}]})
+        assert yade._proc.pid == pid and yade.calls == 3 and ok["status"] == "ok"  # one process answered all
+        assert len(ok["cells"][0]) == 2 and ok["cells"][0][1]["unbalanced"] <= DEMOptions().tol
+        assert len(os.listdir(tmp_path)) == 1
+    assert os.listdir(tmp_path) == []
 
 
 @pytest.mark.yade

@@ -1,10 +1,11 @@
-"""Many independent DEM cells in one YADE scene: input, run, results.
+"""Many independent DEM cells in one YADE scene: settings, input, run, results.
 
 :func:`simulate` takes a list of (mesostructure, increments) pairs, one per cell, builds one
 scene holding every cell (side by side, never touching), drives each cell by its own
-increments of (l1, l2) and returns one :class:`CellRun` per cell. The YADE side is
-:mod:`hmodel.dem.yade_script` (read its docstring for the scene, the contact law, the driving
-and the quasi-static criterion).
+increments of (l1, l2) and returns one :class:`CellRun` per cell: the task ``runs`` of YADE
+(:mod:`hmodel.dem.yade`). :func:`scene_settings` are the scene's material and numerics, the same
+for the DEM cell solver's task ``increment``; read :mod:`hmodel.dem.yade.scripts.cell_scene` for
+the scene, the contact law, the driving and the quasi-static criterion.
 
 Units: lengths in m (the unit of the grain radius), forces in N (kn in N/m).
 """
@@ -13,17 +14,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
 from ..params import Params
 from ..cell.mesostructure import TYPE1, TYPE1_SIGN, TYPE2, Mesostructure
-from .yade import run_script
-
-SCRIPT = Path(__file__).with_name("yade_script.py")
-COMMON = Path(__file__).with_name("yade_common.py")
+from .yade import run
 
 #: Columns of a contact row: local grain indices, normal force (compression positive),
 #: tangential component f.(e_y, -e_x), force on j by i (x, y), branch vector x_j - x_i.
@@ -137,6 +134,20 @@ def hcell_state(run: CellRun) -> np.ndarray:
     return out
 
 
+def scene_settings(params: Params, r_ref: float, options: DEMOptions) -> dict:
+    """The scene's material and numerics, as YADE's cell tasks read them.
+
+    Every contact has stiffnesses kn and kt_kn kn and friction angle phi_g [rad]; every grain has
+    the mass of a sphere of radius ``r_ref`` [m] (the largest grain) and density 1: the
+    quasi-static result does not depend on it, the time step does. Cells lie ``2 r_ref`` apart.
+    """
+    return {"kn": params.kn, "kt_kn": params.kt_kn, "phi_g": params.phi_g, "r_ref": r_ref,
+            "density": 1.0, "mass": 4.0 / 3.0 * math.pi * r_ref ** 3, "gap": 2.0 * r_ref,
+            "tol": options.tol, "max_iter": options.max_iter, "substeps": options.substeps,
+            "damping": options.damping, "dt_safety": options.dt_safety,
+            "check_every": options.check_every, "detect_margin": options.detect_margin}
+
+
 def simulate(cells: list[tuple[Mesostructure, np.ndarray]], params: Params,
              options: DEMOptions | None = None) -> tuple[list[CellRun], dict]:
     """Run every cell under its own increments in one YADE scene.
@@ -158,26 +169,16 @@ def simulate(cells: list[tuple[Mesostructure, np.ndarray]], params: Params,
     options = options or DEMOptions()
     if not cells:
         raise InputError("no DEM cell to simulate")
-    r_ref = max(float(np.max(m.radii)) for m, _ in cells)
-    spec = {
-        "kn": params.kn, "kt_kn": params.kt_kn, "phi_g": params.phi_g, "r_ref": r_ref,
-        # one mass for every grain (that of a sphere of radius r_ref and density 1): the
-        # quasi-static result does not depend on it, the time step does.
-        "density": 1.0, "mass": 4.0 / 3.0 * math.pi * r_ref ** 3,
-        "gap": 2.0 * r_ref, "tol": options.tol, "max_iter": options.max_iter,
-        "substeps": options.substeps, "damping": options.damping, "dt_safety": options.dt_safety,
-        "check_every": options.check_every, "detect_margin": options.detect_margin,
-        "cells": [],
-    }
+    spec = scene_settings(params, max(float(np.max(m.radii)) for m, _ in cells), options)
+    spec["cells"] = []
     for m, inc in cells:
         inc = np.asarray(inc, float).reshape(-1, 2)
         if not np.all(np.isfinite(inc)):
             raise InputError("DEM increments must be finite")
         spec["cells"].append({"radii": m.radii.tolist(), "pos": m.positions.tolist(),
-                              "drive": list(m.drive), "l1": m.l1, "l2": m.l2,
+                              "drive": list(m.drive), "l": [m.l1, m.l2],
                               "half_width": m.half_width, "increments": inc.tolist()})
-    result = run_script(SCRIPT.read_text(), spec, timeout=options.timeout,
-                        files={COMMON.name: COMMON.read_text()})
+    result = run("runs", spec, timeout=options.timeout)
     runs = []
     for (m, inc), rec in zip(cells, result["cells"]):
         n = len(np.reshape(inc, (-1, 2))) + 1

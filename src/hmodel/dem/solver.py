@@ -3,10 +3,11 @@
 ``get_solver("dem:MESOSTRUCTURE")`` (``dem:standard``, ``dem:hexagon-center``,
 ``dem:hexagon-unequal``; options after a second colon, e.g. ``dem:hexagon-unequal:ratio=0.6``,
 where numerical settings of :class:`~hmodel.dem.scene.DEMOptions` may be given too, e.g.
-``dem:hexagon-center:tol=1e-7,max_iter=50000``) returns a :class:`DEMSolver`. :meth:`DEMSolver.step` writes every cell of the batch, with its
-state, into one request to the persistent YADE process of :mod:`hmodel.dem.server`, which
-rebuilds the cells (positions and tangential contact forces from the state), applies the
-increment and relaxes them to the quasi-static criterion. The answer depends on the state and
+``dem:hexagon-center:tol=1e-7,max_iter=50000``) returns a :class:`DEMSolver`.
+:meth:`DEMSolver.step` writes every cell of the batch, with its state, into one request (task
+``increment``) to the YADE process the solver keeps (:mod:`hmodel.dem.yade`), which rebuilds the
+cells (positions and tangential contact forces from the state), applies the increment and
+relaxes them to the quasi-static criterion. The answer depends on the state and
 the increment only (each cell is frozen as soon as it is balanced), so ``step`` is pure, as
 the Newton iterations of the loading drivers need; identical (state, increment) rows of a
 batch are sent once, and rows the previous request solved are not sent again (the material
@@ -25,7 +26,6 @@ contact open; ``contact14`` grains 1-4 in contact; ``contact26`` grains 2-6 or 3
 from __future__ import annotations
 
 import math
-import os
 import weakref
 from dataclasses import replace
 
@@ -36,9 +36,8 @@ from ..cell.mesostructure import TYPE1, TYPE2, option_names
 from ..cell.state import FLAGS, CellFlags, CellState
 from ..errors import InputError, SolverError
 from ..params import Params
-from .scene import DEMOptions
-from .server import YadeServer
-from .yade import find_yade
+from .scene import DEMOptions, scene_settings
+from .yade import YadeServer, find_yade
 
 #: Defaults of the solver: a tight quasi-static criterion, so that the stress is a smooth
 #: enough function of the increment for Newton's finite-difference tangents.
@@ -89,11 +88,10 @@ class DEMSolver:
         workers) or when ``$HMODEL_YADE`` names another executable; ended with the solver."""
         exe = find_yade()
         s = self._server
-        if s is None or s._pid not in (0, os.getpid()) or s.exe != exe:
-            if s is not None and s._pid == os.getpid():
-                s.close()
-            s = self._server = YadeServer()
-            s.exe = exe
+        if s is None or not s.serves(exe):
+            if s is not None:
+                s.close()  # ends the process only where it was started
+            s = self._server = YadeServer(exe)
             weakref.finalize(self, s.close)
         return s
 
@@ -170,12 +168,7 @@ class DEMSolver:
         proto = geo.cell(params, params.alpha0)
         _, closed = geo.normal_forces(params, pos)
         o = self.options
-        r_ref = float(np.max(r))
-        req = {"kn": params.kn, "kt_kn": params.kt_kn, "phi_g": params.phi_g, "r_ref": r_ref,
-               "density": 1.0, "mass": 4.0 / 3.0 * math.pi * r_ref ** 3, "gap": 2.0 * r_ref,
-               "tol": o.tol, "max_iter": o.max_iter, "substeps": o.substeps, "damping": o.damping,
-               "dt_safety": o.dt_safety, "check_every": o.check_every,
-               "detect_margin": o.detect_margin}
+        req = scene_settings(params, float(np.max(r)), o)
         cells = []
         for k in range(len(values)):
             half = float(np.max(np.abs(pos[k, :, 0]) + r))
@@ -187,7 +180,8 @@ class DEMSolver:
                           "half_height": height, "increment": dl[k].tolist(), "shear": shear})
         done = []
         for k in range(0, len(cells), o.max_cells):
-            done += self.yade().request({**req, "cells": cells[k:k + o.max_cells]}, timeout=o.timeout)["cells"]
+            done += self.yade().request("increment", {**req, "cells": cells[k:k + o.max_cells]},
+                                        timeout=o.timeout)["cells"]
         n = len(values)
         new_pos = np.array([c["pos"] for c in done], float).reshape(n, geo.n_grains, 2)
         new_ft = np.zeros((n, len(geo.pairs)))

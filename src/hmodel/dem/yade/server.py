@@ -1,10 +1,17 @@
-"""A persistent YADE process answering one-increment requests (:mod:`hmodel.dem.yade_server`).
+"""A YADE process answering requests, one JSON line each way: the one transport to YADE.
 
-Starting YADE costs far more than answering a request of a few dozen cells, so each DEM cell
-solver keeps one process, started on first use and ended with the solver or at exit. A
-process that dies, answers nothing within the timeout or reports a failure gives a
-:class:`~hmodel.dem.yade.DEMError` with a one-line message (the process is then restarted on
-the next request). After ``fork`` (multiprocessing workers) the child starts its own.
+:class:`YadeServer` starts ``yade -n -j1 -x serve.py MARK`` in a temporary folder holding the
+YADE-side scripts (:mod:`hmodel.dem.yade.scripts`, copied as text), sends one request per line
+on its stdin and reads the answer, the line of its stdout that starts with ``MARK`` (YADE's
+own output is skipped). A request names its ``task`` (``runs``, ``increment``, ``biaxial``);
+every task rebuilds its scene, so an answer depends on its request only.
+
+The DEM cell solver keeps one server for its many small requests (starting YADE costs far more
+than answering a few dozen cells); :func:`run` answers one request in a process of its own
+(a validation, a drawing, a biaxial test of a sample). A process that dies, answers nothing
+within the timeout or reports a failure gives a :class:`~hmodel.dem.yade.errors.DEMError` with a
+one-line message (the process is then restarted on the next request); its folder is removed
+whatever happens. After ``fork`` (multiprocessing workers) the child starts its own process.
 """
 
 from __future__ import annotations
@@ -18,24 +25,57 @@ import tempfile
 import time
 from pathlib import Path
 
-from .yade import DEMError, EquilibriumError, _last_line, find_yade
+from .errors import DEMError, EquilibriumError
+from .executable import find_yade
 
-SCRIPT = Path(__file__).with_name("yade_server.py")
-COMMON = Path(__file__).with_name("yade_common.py")
+#: The YADE-side scripts, copied side by side into the process's folder.
+SCRIPTS = Path(__file__).with_name("scripts")
+#: The script YADE executes; the others are imported by it.
+ENTRY = "serve.py"
+#: Prefix of the answer lines (given to the script on its command line).
 MARK = "@@HMODEL-DEM@@ "
 
 
-class YadeServer:
-    """One YADE process; :meth:`request` sends a JSON object and returns the answer."""
+def _last_line(text: str) -> str:
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    return lines[-1] if lines else "no message"
 
-    def __init__(self) -> None:
+
+class YadeServer:
+    """One YADE process; :meth:`request` sends a task and returns the answer.
+
+    Parameters
+    ----------
+    exe : str
+        The YADE executable; default :func:`~hmodel.dem.yade.executable.find_yade` at start.
+
+    Attributes
+    ----------
+    calls : int
+        Requests answered.
+    wall_s : float
+        Wall time of those requests, process starts included [s].
+    """
+
+    def __init__(self, exe: str = "") -> None:
+        self.exe = exe
         self._proc: subprocess.Popen | None = None
-        self.exe = ""
         self._pid = 0
         self._tmp: str | None = None
-        self._buf = b""
+        self._buf = bytearray()
         self.calls = 0
         self.wall_s = 0.0
+
+    def __enter__(self) -> "YadeServer":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def serves(self, exe: str) -> bool:
+        """Whether this server can take requests here for ``exe``: not yet started or started by
+        this process (not inherited through ``fork``), for that executable."""
+        return self._pid in (0, os.getpid()) and self.exe == exe
 
     def _alive(self) -> bool:
         return self._proc is not None and self._pid == os.getpid() and self._proc.poll() is None
@@ -49,12 +89,13 @@ class YadeServer:
     def _start(self, timeout: float) -> None:
         exe = self.exe or find_yade()
         self._tmp = tempfile.mkdtemp(prefix="hmodel-dem-server-")
-        (Path(self._tmp) / "server.py").write_text(SCRIPT.read_text())
-        (Path(self._tmp) / COMMON.name).write_text(COMMON.read_text())
+        for script in SCRIPTS.glob("*.py"):
+            if script.name != "__init__.py":
+                (Path(self._tmp) / script.name).write_text(script.read_text())
         err = open(Path(self._tmp) / "stderr.txt", "w")
         env = dict(os.environ, OMP_NUM_THREADS="1")
         try:
-            self._proc = subprocess.Popen([exe, "-n", "-j1", "-x", "server.py"], cwd=self._tmp,
+            self._proc = subprocess.Popen([exe, "-n", "-j1", "-x", ENTRY, MARK], cwd=self._tmp,
                                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=err,
                                           env=env)
         except OSError as e:
@@ -63,48 +104,64 @@ class YadeServer:
         finally:
             err.close()
         self._pid = os.getpid()
-        self._buf = b""
+        self._buf = bytearray()
         self._read(timeout)  # the "ready" line
 
+    def _crashed(self) -> DEMError:
+        code = self._proc.wait()
+        tail = self._stderr_tail()
+        self.close()
+        return DEMError(f"YADE crashed (exit status {code}): {tail}")
+
+    def _line(self) -> str | None:
+        """The next answer line already read, or None (other complete lines are dropped)."""
+        mark = MARK.encode()
+        while (end := self._buf.find(b"\n")) >= 0:
+            line = bytes(self._buf[:end])
+            del self._buf[:end + 1]
+            if line.startswith(mark):
+                return line[len(mark):].decode(errors="replace")
+        return None
+
     def _read(self, timeout: float) -> dict:
-        """The next answer line (YADE's own output is skipped)."""
-        proc = self._proc
-        fd = proc.stdout.fileno()
+        """The next answer (YADE's own output is skipped)."""
+        fd = self._proc.stdout.fileno()
         deadline = time.monotonic() + timeout
         with selectors.DefaultSelector() as sel:
             sel.register(fd, selectors.EVENT_READ)
-            while True:
-                while b"\n" in self._buf:
-                    line, self._buf = self._buf.split(b"\n", 1)
-                    text = line.decode(errors="replace")
-                    if text.startswith(MARK):
-                        return json.loads(text[len(MARK):])
-                left = deadline - time.monotonic()
-                if left <= 0 or not sel.select(left):
-                    self.close()
-                    raise DEMError(f"YADE timed out after {timeout:g} s")
-                chunk = os.read(fd, 1 << 20)
-                if not chunk:
-                    code = proc.wait()
-                    tail = self._stderr_tail()
-                    self.close()
-                    raise DEMError(f"YADE crashed (exit status {code}): {tail}")
+            while (line := self._line()) is None:
+                # a long answer arrives in many chunks: only the last one can end its line
+                while b"\n" not in (chunk := self._chunk(sel, deadline, timeout)):
+                    self._buf += chunk
                 self._buf += chunk
+        return json.loads(line)
 
-    def request(self, payload: dict, timeout: float = 600.0) -> dict:
-        """Send one request; raise DEMError / EquilibriumError on failure."""
+    def _chunk(self, sel: selectors.BaseSelector, deadline: float, timeout: float) -> bytes:
+        left = deadline - time.monotonic()
+        if left <= 0 or not sel.select(left):
+            self.close()
+            raise DEMError(f"YADE timed out after {timeout:g} s")
+        chunk = os.read(self._proc.stdout.fileno(), 1 << 20)
+        if not chunk:
+            raise self._crashed()
+        return chunk
+
+    def request(self, task: str, payload: dict, timeout: float = 600.0) -> dict:
+        """Send ``payload`` as a request of ``task``; return the answer.
+
+        Raises
+        ------
+        YadeNotFound, DEMError, EquilibriumError
+        """
         t0 = time.perf_counter()
         if not self._alive():
             self._proc = None
             self._start(timeout)
         try:
-            self._proc.stdin.write((json.dumps(payload) + "\n").encode())
+            self._proc.stdin.write((json.dumps({**payload, "task": task}) + "\n").encode())
             self._proc.stdin.flush()
         except (BrokenPipeError, OSError):
-            code = self._proc.wait()
-            tail = self._stderr_tail()
-            self.close()
-            raise DEMError(f"YADE crashed (exit status {code}): {tail}") from None
+            raise self._crashed() from None
         result = self._read(timeout)
         self.calls += 1
         self.wall_s += time.perf_counter() - t0
@@ -134,3 +191,14 @@ class YadeServer:
         if self._tmp is not None and self._pid in (0, os.getpid()):
             shutil.rmtree(self._tmp, ignore_errors=True)
         self._tmp = None
+
+
+def run(task: str, payload: dict, timeout: float = 600.0) -> dict:
+    """Answer one request of ``task`` in a YADE process of its own, ended once it has answered.
+
+    Raises
+    ------
+    YadeNotFound, DEMError, EquilibriumError
+    """
+    with YadeServer(find_yade()) as yade:
+        return yade.request(task, payload, timeout)

@@ -1,15 +1,12 @@
-"""The script YADE runs for one biaxial test of a DEM sample (``yade -n -j1 -x yade_sample.py
-INPUT.json OUTPUT.json``), driven by :mod:`hmodel.dem.sample`.
-
-Executed by YADE's own Python: standard library only, YADE imported inside :func:`main` (so
-importing this module from hmodel never needs YADE).
+"""Task ``biaxial`` (YADE side, see :mod:`hmodel.dem.yade.scripts`): one biaxial test of a DEM
+sample, requested by :func:`hmodel.dem.sample.run.run_test`.
 
 Scene. A periodic cell (``O.periodic``) of size Lx x Ly x Lz holding disks: spheres in the
 plane z = Lz/2 whose z translation and x, y rotations are blocked (``blockedDOFs = "zXY"``),
 so they move in the plane and spin about z; Lz = 8 r_max, so a disk never meets its own image
 along z and the cell's z size never changes. Mass per unit thickness ``density`` pi r^2
 (a disk of unit thickness), rotational inertia m r^2 / 2. Contacts: linear springs kn,
-ks = kt_kn kn for every pair (MatchMakers), Coulomb friction
+ks = kt_kn kn for every pair (:func:`~hmodel.dem.yade.scripts.common.stiffness`), Coulomb friction
 (Law2_ScGeom_FrictPhys_CundallStrack), Cundall's non-viscous damping ``damping``.
 
 Stress. 2D Love-Weber stress per unit area of the cell, compression positive:
@@ -40,17 +37,19 @@ stiffness of ``utils.getStressAndTangent``, an upper bound of the sample's), cli
    constant to round-off). A row is recorded at every ``axial_strain / rows`` of axial strain
    (a whole number of steps each).
 
-Output (JSON): rows ``[eps11, eps22, s11, s22, s12, unbalanced, contacts]``, the consolidated
+Answer: rows ``[eps11, eps22, s11, s22, s12, unbalanced, contacts]``, the consolidated
 and final states (radii, positions wrapped into the cell, cell size, contacts
 ``[i, j, fn, ft, lx, ly]`` with l the branch vector from i to j, fn compression positive),
 time step, step counts, wall times, YADE version.
 """
 
-import json
 import math
-import os
-import sys
 import time
+
+try:  # pytest collecting the package's doctests
+    from .common import steps, stiffness
+except ImportError:  # in YADE: the scripts lie side by side in the working directory
+    from common import steps, stiffness
 
 
 def _state(O, utils, ids, radii):
@@ -79,140 +78,130 @@ def _state(O, utils, ids, radii):
     return {"cell": [lx, ly], "pos": pos, "radii": list(radii), "contacts": rows}
 
 
-def main(argv):
-    from yade import O, utils  # noqa: F401  (YADE's own Python only)
-    from yade import Matrix3
-    from yade.wrapper import (FrictMat, ForceResetter, InsertionSortCollider, Bo1_Sphere_Aabb,
-                              InteractionLoop, Ig2_Sphere_Sphere_ScGeom,
-                              Ip2_FrictMat_FrictMat_FrictPhys, Law2_ScGeom_FrictPhys_CundallStrack,
-                              NewtonIntegrator, MatchMaker)
-    try:
-        from yade import config
-        version = str(config.version)
-    except Exception:  # pragma: no cover - YADE without config.version
-        version = "unknown"
+class _Test:
+    """The scene of one request and its stress, servo and strain-rate control."""
 
-    t0 = time.time()
-    with open(argv[0]) as fh:
-        spec = json.load(fh)
-    radii = spec["radii"]
-    r_max, r_min = max(radii), min(radii)
-    kn, kt_kn = spec["kn"], spec["kt_kn"]
-    p0, rho = spec["p0"], spec["density"]
-    lx0, ly0 = spec["cell"]
-    lz = 8.0 * r_max
-    O.periodic = True
-    O.cell.hSize = Matrix3(lx0, 0, 0, 0, ly0, 0, 0, 0, lz)
-    mat = O.materials.append(FrictMat(young=kn / r_max, poisson=kt_kn, density=rho,
-                                      frictionAngle=spec["phi_compact"]))
-    ids = []
-    for (x, y), r in zip(spec["pos"], radii):
-        b = utils.sphere((x, y, 0.5 * lz), r, material=mat)
-        b.state.blockedDOFs = "zXY"
-        m = rho * math.pi * r * r
-        b.state.mass = m
-        b.state.inertia = (0.5 * m * r * r,) * 3
-        ids.append(O.bodies.append(b))
-    ip2 = Ip2_FrictMat_FrictMat_FrictPhys(kn=MatchMaker(algo="val", val=kn),
-                                          ks=MatchMaker(algo="val", val=kt_kn * kn))
-    O.engines = [ForceResetter(),
-                 InsertionSortCollider([Bo1_Sphere_Aabb()], verletDist=0.1 * r_min),
-                 InteractionLoop([Ig2_Sphere_Sphere_ScGeom()], [ip2],
-                                 [Law2_ScGeom_FrictPhys_CundallStrack()]),
-                 NewtonIntegrator(damping=spec["damping"], gravity=(0, 0, 0))]
-    m_min = rho * math.pi * r_min * r_min
-    O.dt = spec["dt_safety"] * math.sqrt(m_min / kn)
-    dt = O.dt
-    period = spec["period"]
-    gain = spec["gain"]
+    def __init__(self, spec):
+        from yade import O, utils
+        from yade import Matrix3
+        import yade.wrapper as w
 
-    def area():
-        h = O.cell.hSize
+        self.O, self.utils, self.Matrix3, self.spec = O, utils, Matrix3, spec
+        O.reset()
+        radii = spec["radii"]
+        r_max, r_min = max(radii), min(radii)
+        kn, rho = spec["kn"], spec["density"]
+        lx0, ly0 = spec["cell"]
+        lz = 8.0 * r_max
+        O.periodic = True
+        O.cell.hSize = Matrix3(lx0, 0, 0, 0, ly0, 0, 0, 0, lz)
+        mat = O.materials.append(w.FrictMat(young=kn / r_max, poisson=spec["kt_kn"], density=rho,
+                                            frictionAngle=spec["phi_compact"]))
+        self.ids = []
+        for (x, y), r in zip(spec["pos"], radii):
+            b = utils.sphere((x, y, 0.5 * lz), r, material=mat)
+            b.state.blockedDOFs = "zXY"
+            m = rho * math.pi * r * r
+            b.state.mass = m
+            b.state.inertia = (0.5 * m * r * r,) * 3
+            self.ids.append(O.bodies.append(b))
+        O.engines = [w.ForceResetter(),
+                     w.InsertionSortCollider([w.Bo1_Sphere_Aabb()], verletDist=0.1 * r_min),
+                     w.InteractionLoop([w.Ig2_Sphere_Sphere_ScGeom()], [stiffness(w, kn, spec["kt_kn"])],
+                                       [w.Law2_ScGeom_FrictPhys_CundallStrack()]),
+                     w.NewtonIntegrator(damping=spec["damping"], gravity=(0, 0, 0))]
+        m_min = rho * math.pi * r_min * r_min
+        O.dt = spec["dt_safety"] * math.sqrt(m_min / kn)
+        self.dt = O.dt
+        self.solid = sum(math.pi * r * r for r in radii)
+
+    def area(self):
+        h = self.O.cell.hSize
         return h[0, 0] * h[1, 1]
 
-    def stress():
+    def porosity(self):
+        return 1.0 - self.solid / self.area()
+
+    def stress(self):
         """(s11, s22, s12, C1111, C2222): 2D stress (compression positive), affine stiffness."""
-        a = area()
-        s, c = utils.getStressAndTangent(a * 1.0, False)
+        a = self.area()
+        s, c = self.utils.getStressAndTangent(a * 1.0, False)
         return -s[0, 0], -s[1, 1], -0.5 * (s[0, 1] + s[1, 0]), c[0, 0], c[1, 1]
 
-    def servo_rate(sig, goal, stiff, rate_max):
+    def servo_rate(self, sig, goal, stiff, rate_max):
         """Compression-positive strain rate moving sig towards goal."""
         if stiff <= 0:
             rate = rate_max
         else:
-            rate = gain * (goal - sig) / (stiff * period * dt)
+            rate = self.spec["gain"] * (goal - sig) / (stiff * self.spec["period"] * self.dt)
         return max(-rate_max, min(rate_max, rate))
 
-    def set_rates(r11, r22):
-        O.cell.velGrad = Matrix3(-r11, 0, 0, 0, -r22, 0, 0, 0, 0)
+    def set_rates(self, r11, r22):
+        self.O.cell.velGrad = self.Matrix3(-r11, 0, 0, 0, -r22, 0, 0, 0, 0)
 
-    def run(n):
-        # O.step() in a loop: O.run(n, True) adds a fixed wait to every call (tens of ms)
-        for _ in range(n):
-            O.step()
+    def state(self):
+        return _state(self.O, self.utils, self.ids, self.spec["radii"])
 
-    solid = sum(math.pi * r * r for r in radii)
-
-    def porosity():
-        return 1.0 - solid / area()
-
-    # 1. consolidation (and, with a target porosity, friction lowered step by step)
-    status, message = "ok", ""
-    rate_c = spec["rate_compact"]
-    target = spec.get("porosity")
-    tan_phi = math.tan(spec["phi_compact"])
-    reductions = 0
-    steps = 0
-    next_check = 0
-    s11 = s22 = 0.0
-    t_c = time.time()
-    while True:
-        s11, s22, s12, c11, c22 = stress()
-        if steps >= next_check:
-            next_check += spec["check"]
-            err = max(abs(s11 - p0), abs(s22 - p0)) / p0
-            unb = utils.unbalancedForce()
-            if err <= spec["tol_stress"] and unb <= spec["tol_unbalanced"]:
-                n = porosity()
-                if target is None or n <= target:
-                    if target is not None and reductions == 0:
+    def consolidate(self):
+        """Both directions servoed to p0 (and, with a target porosity, the friction lowered step
+        by step); returns (status, message, record)."""
+        O, utils, spec = self.O, self.utils, self.spec
+        p0, period = spec["p0"], spec["period"]
+        status, message = "ok", ""
+        rate_c = spec["rate_compact"]
+        target = spec.get("porosity")
+        tan_phi = math.tan(spec["phi_compact"])
+        reductions = 0
+        done = 0
+        next_check = 0
+        s11 = s22 = 0.0
+        t_c = time.time()
+        while True:
+            s11, s22, s12, c11, c22 = self.stress()
+            if done >= next_check:
+                next_check += spec["check"]
+                err = max(abs(s11 - p0), abs(s22 - p0)) / p0
+                unb = utils.unbalancedForce()
+                if err <= spec["tol_stress"] and unb <= spec["tol_unbalanced"]:
+                    n = self.porosity()
+                    if target is None or n <= target:
+                        if target is not None and reductions == 0:
+                            status = "error"
+                            message = (f"target porosity {target:g} is above the porosity "
+                                       f"{n:.4g} of the sample compacted with friction "
+                                       f"{math.degrees(spec['phi_compact']):g} deg, the loosest "
+                                       f"this compaction gives: raise --compaction-friction")
+                        break
+                    if tan_phi == 0.0:
                         status = "error"
-                        message = (f"target porosity {target:g} is above the porosity "
-                                   f"{n:.4g} of the sample compacted with friction "
-                                   f"{math.degrees(spec['phi_compact']):g} deg, the loosest "
-                                   f"this compaction gives: raise --compaction-friction")
+                        message = (f"target porosity {target:g} not reached: the frictionless "
+                                   f"sample's porosity is {n:.4g}")
+                        break
+                    # target porosity: lower the friction and settle again
+                    tan_phi = 0.9 * tan_phi if tan_phi > 0.01 else 0.0
+                    utils.setContactFriction(math.atan(tan_phi))
+                    reductions += 1
+                if done >= spec["max_steps"]:
+                    status = "no-equilibrium"
+                    what = ("no contact yet" if O.interactions.countReal() == 0 else
+                            f"stress error {err:.3g}, unbalanced force ratio {unb:.3g}")
+                    message = (f"consolidation to p0 = {p0:g} not reached within {done} steps "
+                               f"({what})")
                     break
-                if tan_phi == 0.0:
-                    status = "error"
-                    message = (f"target porosity {target:g} not reached: the frictionless "
-                               f"sample's porosity is {n:.4g}")
-                    break
-                # target porosity: lower the friction and settle again
-                tan_phi = 0.9 * tan_phi if tan_phi > 0.01 else 0.0
-                utils.setContactFriction(math.atan(tan_phi))
-                reductions += 1
-            if steps >= spec["max_steps"]:
-                status = "no-equilibrium"
-                what = ("no contact yet" if O.interactions.countReal() == 0 else
-                        f"stress error {err:.3g}, unbalanced force ratio {unb:.3g}")
-                message = (f"consolidation to p0 = {p0:g} not reached within {steps} steps "
-                           f"({what})")
-                break
-        set_rates(servo_rate(s11, p0, c11, rate_c), servo_rate(s22, p0, c22, rate_c))
-        run(period)
-        steps += period
-    set_rates(0.0, 0.0)
-    consolidation = {"steps": steps, "wall_s": time.time() - t_c,
-                     "unbalanced": utils.unbalancedForce(), "stress": [s11, s22],
-                     "friction_deg": math.degrees(math.atan(tan_phi)),
-                     "friction_reductions": reductions}
-    consolidated = _state(O, utils, ids, radii)
-    result = {"status": status, "message": message, "dt": dt, "yade_version": version,
-              "consolidation": consolidation, "consolidated": consolidated, "rows": []}
-    if status == "ok":
+            self.set_rates(self.servo_rate(s11, p0, c11, rate_c), self.servo_rate(s22, p0, c22, rate_c))
+            steps(O, period)
+            done += period
+        self.set_rates(0.0, 0.0)
+        return status, message, {"steps": done, "wall_s": time.time() - t_c,
+                                 "unbalanced": utils.unbalancedForce(), "stress": [s11, s22],
+                                 "friction_deg": math.degrees(math.atan(tan_phi)),
+                                 "friction_reductions": reductions}
+
+    def shear(self):
+        """The drained or undrained shear at the axial strain rate; returns (rows, record)."""
+        O, utils, spec, dt = self.O, self.utils, self.spec, self.dt
+        p0, period, gain = spec["p0"], spec["period"], spec["gain"]
         utils.setContactFriction(spec["phi_g"])
-        # 2. shear
         t_s = time.time()
         rate = spec["strain_rate"]
         lx_c, ly_c = O.cell.hSize[0, 0], O.cell.hSize[1, 1]
@@ -222,7 +211,7 @@ def main(argv):
 
         def record():
             h = O.cell.hSize
-            s11, s22, s12, _, _ = stress()
+            s11, s22, s12, _, _ = self.stress()
             rows.append([math.log(lx_c / h[0, 0]), math.log(ly_c / h[1, 1]), s11, s22, s12,
                          utils.unbalancedForce(), O.interactions.countReal()])
 
@@ -230,31 +219,37 @@ def main(argv):
         drained = spec["kind"] == "drained"
         rate_lat = spec["lateral_rate_factor"] * rate
         done = 0
-        integral = [0.0]
+        integral = 0.0
         for k in range(1, n_rows + 1):
             end = int(round(k * n_total / n_rows))
             while done < end:
                 if drained:
-                    s11, s22, s12, c11, c22 = stress()
+                    s11, s22, s12, c11, c22 = self.stress()
                     u = (p0 - s22) / (c22 * period * dt) if c22 > 0 else 0.0
-                    integral[0] = max(-rate_lat, min(rate_lat, integral[0] + spec["gain_i"] * u))
-                    set_rates(rate, max(-rate_lat, min(rate_lat, gain * u + integral[0])))
+                    integral = max(-rate_lat, min(rate_lat, integral + spec["gain_i"] * u))
+                    self.set_rates(rate, max(-rate_lat, min(rate_lat, gain * u + integral)))
                 else:
-                    set_rates(rate, -rate / (1.0 - rate * dt))  # (1 - r dt)(1 + r' dt) = 1
+                    self.set_rates(rate, -rate / (1.0 - rate * dt))  # (1 - r dt)(1 + r' dt) = 1
                 n = min(period, end - done)
-                run(n)
+                steps(O, n)
                 done += n
             record()
-        shear_steps = done
-        set_rates(0.0, 0.0)
-        result.update(rows=rows, final=_state(O, utils, ids, radii),
-                      shear={"steps": shear_steps, "wall_s": time.time() - t_s,
-                             "strain_rate": rate})
-    result["wall_s"] = time.time() - t0
-    with open(argv[1] + ".part", "w") as fh:
-        json.dump(result, fh)
-    os.replace(argv[1] + ".part", argv[1])
+        self.set_rates(0.0, 0.0)
+        return rows, {"steps": done, "wall_s": time.time() - t_s, "strain_rate": rate}
 
 
-if __name__ == "__main__":
-    main(sys.argv[1:])
+def run(spec):
+    """The answer to one request (see the module docstring)."""
+    try:
+        from yade import config
+        version = str(config.version)
+    except Exception:  # pragma: no cover - YADE without config.version
+        version = "unknown"
+    test = _Test(spec)
+    status, message, consolidation = test.consolidate()
+    result = {"status": status, "message": message, "dt": test.dt, "yade_version": version,
+              "consolidation": consolidation, "consolidated": test.state(), "rows": []}
+    if status == "ok":
+        rows, shear = test.shear()
+        result.update(rows=rows, final=test.state(), shear=shear)
+    return result

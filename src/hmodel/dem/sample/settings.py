@@ -1,0 +1,183 @@
+"""The settings of a DEM sample and its tests (everything but a test's kind and p0), and the
+strain rate and inertial number they set.
+
+Units: lengths in m, kn in N/m, pressures in N/m (Pa for unit thickness), angles in degrees.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+from ...errors import InputError
+
+KINDS = ("drained", "undrained")
+DISTRIBUTIONS = ("uniform", "equal-area")
+
+
+@dataclass(frozen=True)
+class SampleSettings:
+    """Everything that defines a sample and its tests, except the tests' kind and p0.
+
+    Attributes
+    ----------
+    disks : int
+        Number of disks.
+    radius : float
+        Mean of r_min and r_max [m].
+    radius_ratio : float
+        r_max / r_min (1: monodisperse).
+    distribution : str
+        ``uniform`` (radius uniform in [r_min, r_max]) or ``equal-area`` (density proportional
+        to r^-2: every radius interval holds the same solid area).
+    kn : float
+        Normal contact stiffness [N/m].
+    kt_kn : float
+        kt / kn.
+    phi_g : float
+        Contact friction angle during the test [deg].
+    compaction_friction : float or None
+        Contact friction angle during the consolidation [deg]; None: 0 (the densest sample),
+        or phi_g when ``porosity`` is given.
+    porosity : float or None
+        Target porosity: the consolidation starts with ``compaction_friction`` and lowers the
+        friction (tan phi x 0.9 per step, each followed by a new equilibrium at p0) until the
+        porosity is at most this.
+    density : float
+        Grain density [kg/m^3] (disks of unit thickness).
+    axial_strain : float
+        Axial strain of the test (logarithmic).
+    rows : int
+        Rows of the CSV after its first (eps11 = 0): one every axial_strain / rows.
+    inertial_number : float
+        Sets the axial strain rate, strain_rate = I / (d_mean sqrt(density / p0)).
+    strain_rate : float or None
+        The axial strain rate [1/s], instead of ``inertial_number``.
+    seed : int
+        Seed of the radii and initial positions.
+    damping : float
+        Cundall's non-viscous damping of NewtonIntegrator.
+    dt_safety : float
+        Time step = dt_safety sqrt(m_min / kn).
+    tol_stress, tol_unbalanced : float
+        The consolidation ends when |s_ii - p0| <= tol_stress p0 and the unbalanced-force ratio
+        is at most tol_unbalanced.
+    compaction_inertial_number : float
+        The largest strain rate of the consolidation, as an inertial number at p0.
+    period : int
+        Time steps between two servo updates.
+    check : int
+        Time steps between two checks of the consolidation's criterion.
+    gain, gain_i : float
+        Proportional and integral gains of the servo (dimensionless, relative to the affine
+        stiffness).
+    lateral_rate_factor : float
+        The drained lateral strain rate is at most this times the axial one.
+    max_steps : int
+        Time steps allowed for the consolidation.
+    timeout : float
+        Wall-clock limit of one test's YADE run [s].
+    """
+
+    disks: int = 2000
+    radius: float = 1.0
+    radius_ratio: float = 2.0
+    distribution: str = "uniform"
+    kn: float = 2.0e8
+    kt_kn: float = 0.5
+    phi_g: float = 30.0
+    compaction_friction: float | None = None
+    porosity: float | None = None
+    density: float = 2650.0
+    axial_strain: float = 0.1
+    rows: int = 100
+    inertial_number: float = 1e-4
+    strain_rate: float | None = None
+    seed: int = 0
+    damping: float = 0.2
+    dt_safety: float = 0.3
+    tol_stress: float = 1e-3
+    tol_unbalanced: float = 1e-3
+    compaction_inertial_number: float = 1e-2
+    period: int = 5
+    check: int = 50
+    gain: float = 0.5
+    gain_i: float = 0.1
+    lateral_rate_factor: float = 10.0
+    max_steps: int = 5_000_000
+    timeout: float = 3600.0
+
+    def __post_init__(self) -> None:
+        def finite(name):
+            v = getattr(self, name)
+            return v is not None and isinstance(v, (int, float)) and math.isfinite(v)
+
+        for name in ("radius", "radius_ratio", "kn", "kt_kn", "density", "axial_strain",
+                     "inertial_number", "tol_stress", "tol_unbalanced",
+                     "compaction_inertial_number", "gain", "lateral_rate_factor", "timeout"):
+            if not (finite(name) and getattr(self, name) > 0):
+                raise InputError(f"{option_name(name)} must be a positive number, got {getattr(self, name)}")
+        if self.disks < 20:
+            raise InputError(f"--disks must be at least 20, got {self.disks}")
+        if self.radius_ratio < 1:
+            raise InputError(f"--radius-ratio must be >= 1 (r_max / r_min), got {self.radius_ratio}")
+        if self.distribution not in DISTRIBUTIONS:
+            raise InputError(f"--distribution must be one of {', '.join(DISTRIBUTIONS)}, "
+                             f"got {self.distribution!r}")
+        if not (finite("phi_g") and 0 < self.phi_g < 90):
+            raise InputError(f"--phi-g must lie in (0, 90) degrees, got {self.phi_g}")
+        if self.compaction_friction is not None and not (
+                finite("compaction_friction") and 0 <= self.compaction_friction < 90):
+            raise InputError(f"--compaction-friction must lie in [0, 90) degrees, got "
+                             f"{self.compaction_friction}")
+        if self.porosity is not None and not (finite("porosity") and 0 < self.porosity < 1):
+            raise InputError(f"--porosity must lie in (0, 1), got {self.porosity}")
+        if self.porosity is not None and self.compaction_friction == 0:
+            raise InputError("--porosity lowers the friction from --compaction-friction, which "
+                             "must then be above 0")
+        if self.axial_strain >= 1:
+            raise InputError(f"--axial-strain must be below 1, got {self.axial_strain}")
+        if self.seed < 0:
+            raise InputError(f"--seed must be >= 0, got {self.seed}")
+        if self.rows < 1:
+            raise InputError(f"--rows must be a positive integer, got {self.rows}")
+        if self.strain_rate is not None and not (finite("strain_rate") and self.strain_rate > 0):
+            raise InputError(f"--strain-rate must be a positive number, got {self.strain_rate}")
+        if not (0 <= self.damping < 1 and 0 < self.dt_safety <= 1 and 0 < self.gain_i
+                and self.period >= 1 and self.check >= 1 and self.max_steps >= 1):
+            raise InputError(f"invalid numerical settings of the DEM sample: {self}")
+
+    @property
+    def r_min(self) -> float:
+        return 2.0 * self.radius / (1.0 + self.radius_ratio)
+
+    @property
+    def r_max(self) -> float:
+        return self.radius_ratio * self.r_min
+
+    @property
+    def friction_compact(self) -> float:
+        """Friction angle of the consolidation [deg]."""
+        if self.compaction_friction is not None:
+            return self.compaction_friction
+        return self.phi_g if self.porosity is not None else 0.0
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def option_name(name: str) -> str:
+    """The command-line option of a setting: ``radius_ratio`` -> ``--radius-ratio``."""
+    return "--" + name.replace("_", "-")
+
+
+def strain_rate(settings: SampleSettings, p0: float, d_mean: float) -> float:
+    """Axial strain rate of a test at p0 [1/s]."""
+    if settings.strain_rate is not None:
+        return settings.strain_rate
+    return settings.inertial_number / (d_mean * math.sqrt(settings.density / p0))
+
+
+def inertial_number(rate: float, d_mean: float, density: float, p: float) -> float:
+    """I = rate d_mean sqrt(density / p)."""
+    return rate * d_mean * math.sqrt(density / p) if p > 0 else math.inf
