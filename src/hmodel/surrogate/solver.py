@@ -53,7 +53,7 @@ from ..params import Params
 from .compliance import ComplianceFormulation as Compliance
 from .formulations import LEAK_REFUSED
 from .model import Surrogate
-from .state_cache import StateCache
+from .state_cache import StateCache, distinct_rows
 from .trust import increment_disagreement, scores
 
 #: Parameters a surrogate is specific to (it was trained on cells with these values).
@@ -267,12 +267,12 @@ class SurrogateSolver:
             return outs, mask | gated
         if X is None:
             X = self.formulation.features(v)
-        # A state equal to the one before it is evaluated once: the cells of an isotropic REV
-        # are all alike until shear starts (a sizeable share of a drained test's network rows),
-        # and finding them costs two comparisons per field.
-        first = np.ones(len(v), bool)
-        first[1:] = np.any(v[1:] != v[:-1], axis=1)
-        Xu = X if first.all() else X[first]
+        # Equal states are evaluated once: until shear starts, the cells of an isotropic REV
+        # hold a handful of distinct states (their directions' cos^2 + sin^2 round to a few
+        # values, scattered over the directions): a drained test's consolidation then costs
+        # 3.6k network rows instead of 83k.
+        rows = distinct_rows(v)
+        Xu = X if rows is None else X[rows[0]]
         self.counts["network_cells"] += len(Xu)
         f = self.formulation
         # spare columns serve one network's outputs as they are (an ensemble's are combined)
@@ -281,8 +281,8 @@ class SurrogateSolver:
         mask = np.any([m.outside(Xu, self.margin) for m in self.members], axis=0)
         state_gate = self.gate_threshold is not None and self._increment_scale is None
         gated = scores(self.model, Xu) > self.gate_threshold if state_gate else np.zeros(len(Xu), bool)
-        if not first.all():
-            row = np.cumsum(first) - 1
+        if rows is not None:
+            row = rows[1]
             outs, mask, gated = [o[row] for o in outs], mask[row], gated[row]
         if state_gate:
             self._record_gate(v, gated)

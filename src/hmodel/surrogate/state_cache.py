@@ -27,6 +27,34 @@ MIN_ENTRIES = 2
 KEY_ROWS = 1024
 
 
+def distinct_rows(v: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The rows of ``v`` (n, m) that hold each distinct value once, and for every row the index
+    of its value among them (``v[first][inverse]`` equals ``v``); None where all rows differ.
+
+    Rows are grouped by a weighted sum of their fields, sorted, and every row is compared field
+    by field with the first of its group: one that differs (its sum rounded to another's) is a
+    value of its own. Sorting a batch's sums costs less than a network pass over its rows."""
+    n, m = v.shape
+    if n < 2:
+        return None
+    key = v @ (1.0 + 0.6180339887498949 * np.arange(m))  # fields weighed apart
+    order = np.argsort(key, kind="stable")
+    k = key[order]
+    new = np.empty(n, bool)
+    new[0] = True
+    np.not_equal(k[1:], k[:-1], out=new[1:])
+    if new.all():
+        return None
+    inverse = np.empty(n, np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    first = order[new]
+    odd = np.flatnonzero(np.any(v[first][inverse] != v, axis=1))
+    if len(odd):
+        inverse[odd] = len(first) + np.arange(len(odd))
+        first = np.concatenate([first, odd])
+    return first, inverse
+
+
 def _nbytes(value: Any) -> int:
     if isinstance(value, np.ndarray):
         return value.nbytes
