@@ -86,8 +86,8 @@ def test_trained_compliance_model_round_trips_and_runs_in_the_rev(rows, tmp_path
     spec = next(x for x in standard_paths(0.01) if x.name == "oedometric")
     res, _ = run_path(Params(n_theta=12), spec, solver, 1e-3, 1e-4)
     assert np.all(np.isfinite(res["sig11"]))
-    # One network evaluation per state: Newton's trial increments reuse it.
-    assert solver.counts["cell_updates"] > solver.counts["network_cells"]
+    # One network evaluation per state and increment, at most: Newton's trials reuse it.
+    assert 0 < solver.counts["network_cells"] <= 12 * len(res["sig11"])
 
 
 def test_flagged_cells_take_the_closed_form_in_the_kernel(rows):

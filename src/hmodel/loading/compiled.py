@@ -399,13 +399,15 @@ def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin
     return k_end
 
 
-def _iso_steps(values, flags, eps, sig, geo, p, mode, volume0, sets, step, p0, rec, done, failed):
+def _iso_steps(values, flags, eps, sig, geo, p, mode, volume0, sets, step, p0, rec, done, failed,
+               resp):
     """Up to ``rec.shape[0]`` isotropic strain increments (step, step, 0) of every point not
     ``done``, each committed while the mean stress stays below the point's ``p0``; the first
     that would reach it is not, and marks the point ``done``. ``rec[j, b]`` receives the state
     after the point's j-th committed increment (:func:`_record`), NaN where there is none.
     A point whose cell increment fails is marked ``failed`` (and done), its state unchanged.
-    Closed-form cells only (a learned response would need its network between increments)."""
+    Learned responses ``resp`` (B, n, R > 0) belong to the states they were evaluated at: one
+    increment per call then (the caller evaluates the network between calls)."""
     B, n = values.shape[0], values.shape[1]
     for b in prange(B):
         rec[:, b, :] = np.nan
@@ -417,13 +419,13 @@ def _iso_steps(values, flags, eps, sig, geo, p, mode, volume0, sets, step, p0, r
         oflags = np.empty_like(flg)
         gk = geo[sets[b]].copy()
         pk = p[sets[b]].copy()
-        resp = np.empty((n, 0))
+        rb = resp[b].copy()
         x = np.array([step, step, 0.0])
         e = eps[b].copy()
         sg = sig[b].copy()
         s = np.empty(3)
         for j in range(rec.shape[0]):
-            if not trial(vals, e, x, gk, pk, mode, volume0[sets[b]], out, oflags, s, resp):
+            if not trial(vals, e, x, gk, pk, mode, volume0[sets[b]], out, oflags, s, rb):
                 failed[b] = True
                 done[b] = True
                 break
@@ -467,18 +469,20 @@ def isotropic_steps(rev: Rev, state: RevState, step: float, p0: np.ndarray, n_ma
     (the compiled form of the loop in :func:`hmodel.loading.paths.consolidate`).
 
     Returns the new state, whether each point is done (reached p0 or failed; ``failed`` (B,)
-    is updated in place) and the records (n_max, B, 10) of the committed increments (NaN
-    where a point made none)."""
+    is updated in place) and the records (n, B, 10) of the committed increments (NaN where a
+    point made none): n = n_max, or 1 for learned cells, whose responses are evaluated here for
+    the states of this one increment."""
     values = np.array(state.cells.values, dtype=float, order="C")
     flags = np.array(state.flags.flags, dtype=np.bool_, order="C")
     eps = np.array(state.eps, dtype=float, order="C")
     sig = np.array(state.sig, dtype=float, order="C")
     geo, p = batch_inputs(rev)
     done = np.ascontiguousarray(state.p >= p0) | failed
-    rec = np.empty((n_max, state.n_points, 10))
+    resp = cell_responses(rev, values, state.sets)
+    rec = np.empty((1 if rev.kernel.learned else n_max, state.n_points, 10))
     _run_iso_steps(values, flags, eps, sig, geo, p, rev.mode, rev.volumes0,
                    state.set_index.astype(np.int64), float(step), np.ascontiguousarray(p0, float),
-                   rec, done, failed)
+                   rec, done, failed, resp)
     return RevState(CellState(values), CellFlags(flags), eps, sig, state.sets), done, rec
 
 

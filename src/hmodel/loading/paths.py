@@ -171,7 +171,8 @@ def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_S
     Each material point b stops at its own ``p0[b]`` [Pa]; the last increment is solved
     (mixed control on p, with deps11 = deps22) so that p = p0 exactly (``failures`` and
     ``compiled``: see :func:`run_segment`; the compiled form runs every point's increments in
-    one kernel call, closed-form cells only).
+    one kernel call, or, for learned cells, one increment per call with the network evaluated
+    between calls).
     """
     p0 = _as_points(p0, "p0")
     if np.any(p0 <= 0):
@@ -183,7 +184,7 @@ def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_S
         raise InputError(f"{len(p0)} pressures for {state.n_points} material points")
     p0 = np.broadcast_to(p0, state.n_points).copy()  # one pressure for every parameter set
     if compiled is None:
-        compiled = supports(rev) and not rev.kernel.learned
+        compiled = supports(rev)
     if compiled:
         state = _consolidate_compiled(rev, state, p0, step, recorder, progress, max_steps, failures)
     else:
@@ -211,7 +212,7 @@ def _consolidate_compiled(rev, state, p0, step, recorder, progress, max_steps, f
         state, done, rec = isotropic_steps(rev, state, step, p0, _CHUNK, failed)
         if recorder is not None:
             recorder.record_block(rec[:, :, :3], rec[:, :, 3:6], rec[:, :, 6:], "consolidation")
-        n += _CHUNK
+        n += len(rec)
         if progress is not None:
             progress(float(np.clip(np.min(np.where(failed, 1.0, state.p / p0)), 0, 1)))
         for b in np.flatnonzero(failed):
