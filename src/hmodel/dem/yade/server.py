@@ -77,6 +77,11 @@ class YadeServer:
         this process (not inherited through ``fork``), for that executable."""
         return self._pid in (0, os.getpid()) and self.exe == exe
 
+    @property
+    def pid(self) -> int | None:
+        """The YADE process's id while it runs for this process, else None."""
+        return self._proc.pid if self._alive() else None
+
     def _alive(self) -> bool:
         return self._proc is not None and self._pid == os.getpid() and self._proc.poll() is None
 
@@ -130,7 +135,8 @@ class YadeServer:
         with selectors.DefaultSelector() as sel:
             sel.register(fd, selectors.EVENT_READ)
             while (line := self._line()) is None:
-                # a long answer arrives in many chunks: only the last one can end its line
+                # an answer of megabytes arrives in many chunks: the buffer is searched only once
+                # a chunk holds a line end, not after every chunk (quadratic in the answer)
                 while b"\n" not in (chunk := self._chunk(sel, deadline, timeout)):
                     self._buf += chunk
                 self._buf += chunk
