@@ -10,7 +10,6 @@ from hmodel.surrogate.modelfile import load
 from hmodel.surrogate.rows import read_sample
 from hmodel.surrogate.shipped import model_path
 from test_cli import run_cli
-from test_meso import tiny_model  # noqa: F401  (the module-scoped fixture)
 
 
 def _increment_gap(student, teacher, cols, seed=1):
@@ -24,7 +23,7 @@ def _increment_gap(student, teacher, cols, seed=1):
     return float(np.sqrt(np.mean(d * d)))
 
 
-def test_a_student_learns_its_teachers_increments(tiny_model):  # noqa: F811
+def test_a_student_learns_its_teachers_increments(tiny_model):
     teacher, tmp = tiny_model
     cols, _ = read_sample(tmp / "sample", "train")
     test, _ = read_sample(tmp / "sample", "test")
@@ -52,7 +51,7 @@ def test_only_meso_teachers_and_sound_settings():
         DistillConfig(raw_weight=-1.0)
 
 
-def test_cli_distill_writes_a_student(tiny_model, tmp_path, capsys):  # noqa: F811
+def test_cli_distill_writes_a_student(tiny_model, tmp_path, capsys):
     teacher, tmp = tiny_model
     out = tmp_path / "student.safetensors"
     args = ["surrogate", "distill", str(tmp / "meso.safetensors"), str(tmp / "sample"), "--width", "8",

@@ -144,20 +144,6 @@ def test_richer_cells_learn_the_meso_stress_h_cells_take_eq_1_12():
     assert new[0, 0] > 2 * PARAMS.radius and new[0, 3] == 0.0 and new[0, 5] == 0.0
 
 
-@pytest.fixture(scope="module")
-def tiny_model(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("meso")
-    spec = DatasetSpec(kind=2, n_directions=8, theta_min=-60.0, theta_max=150.0, alpha0_min=45.0,
-                       alpha0_max=45.0, max_strain=0.02, step=0.001, start_every=0.002,
-                       magnitude=0.002, magnitude_min=0.0, n_increments=12, substeps=1)
-    ds = generate(spec, Params(sliding_rhs="equilibrium"), tmp / "data")
-    write_split(ds, tmp / "sample", 700, 150)
-    cfg = TrainConfig(formulation="meso", width=32, depth=2, activation="silu", epochs=80,
-                      patience=80, device="cpu")
-    model, _ = train_on_sample(tmp / "sample", cfg)
-    return load(save(model, tmp / "meso.safetensors")), tmp
-
-
 def test_tiny_meso_model_round_trip_metrics_and_rev(tiny_model):
     model, tmp = tiny_model
     assert model.formulation.name == "meso" and model.formulation.cell == "closed-form"

@@ -8,8 +8,6 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from hmodel import Params
-from hmodel.cell import CellState
 from hmodel.compare import run_path, standard_paths
 from hmodel.loading import Recorder, Segment, consolidate, run_segment
 from hmodel.loading.compiled import supports
@@ -17,7 +15,7 @@ from hmodel.rev import Rev
 from hmodel.surrogate.meso import MesoFormulation
 from hmodel.cell.meso_kernel import kernel_params, meso_increment, pack_outputs, pack_responses
 from hmodel.surrogate.solver import SurrogateSolver
-from test_meso import PARAMS, _cells, tiny_model  # noqa: F401  (the module-scoped fixture)
+from test_meso import PARAMS, _cells
 
 
 def _kernel_against_numpy(form, v, response, e):
@@ -91,7 +89,7 @@ SEGMENTS = {
 
 
 @pytest.mark.parametrize("name", sorted(SEGMENTS))
-def test_compiled_meso_rev_equals_the_generic_driver(tiny_model, name):  # noqa: F811
+def test_compiled_meso_rev_equals_the_generic_driver(tiny_model, name):
     model, _ = tiny_model
     solver = SurrogateSolver(model, on_outside="fallback")
     rev = Rev(PARAMS, solver)
@@ -108,7 +106,7 @@ def test_compiled_meso_rev_equals_the_generic_driver(tiny_model, name):  # noqa:
     assert np.all(sc.sig[:, 0] > s0.sig[:, 0])
 
 
-def test_compiled_meso_rev_checks_the_training_domain(tiny_model):  # noqa: F811
+def test_compiled_meso_rev_checks_the_training_domain(tiny_model):
     """Each increment's states go through the network once, with the domain check of the
     generic path: ``on_outside="error"`` stops a path that leaves it."""
     from hmodel import SolverError
@@ -120,7 +118,7 @@ def test_compiled_meso_rev_checks_the_training_domain(tiny_model):  # noqa: F811
     assert solver.counts["outside"] > 0
 
 
-def test_trials_are_counted_and_the_previous_increment_starts_newton(tiny_model):  # noqa: F811
+def test_trials_are_counted_and_the_previous_increment_starts_newton(tiny_model):
     """A strain-controlled increment takes one trial; a drained one starts from the point's
     previous increment, which after the first increment meets the strain rows exactly."""
     from hmodel.loading.compiled import CompiledSegment
@@ -145,7 +143,7 @@ def test_trials_are_counted_and_the_previous_increment_starts_newton(tiny_model)
             assert np.all(np.abs(runner.guess[:, 1]) < np.abs(last[:, 1]))
 
 
-def test_trial_slope_is_the_derivative_of_the_trial_stress(tiny_model):  # noqa: F811
+def test_trial_slope_is_the_derivative_of_the_trial_stress(tiny_model):
     """The stress derivative a meso trial gives along a strain direction equals the central
     finite difference of the trial stress (where both step sizes agree: no regime changes in
     between), on a sheared REV's cells in every direction."""
