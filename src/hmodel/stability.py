@@ -19,8 +19,10 @@ q on an undrained path, the peak of σ11 on a drained one).
 
 from __future__ import annotations
 
+import csv
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from numba import njit
@@ -364,6 +366,53 @@ def _first_persistent(values: np.ndarray, persist: int = 5) -> int | None:
         if np.all(v[i:i + persist] <= 0):
             return int(i)
     return None
+
+
+def table_writers(ps: PathStability) -> dict:
+    """The CSV tables of a path's stability, as writers ``name -> write(path)`` for
+    :func:`hmodel.io.write_outputs`: ``path.csv`` (the loading increments' normalized d²W),
+    ``probes.csv`` (the probes' minimum per probed state), ``summary.csv`` (bifurcation-domain
+    entry and loss of controllability) and, with envelopes, ``envelopes.csv``."""
+
+    def write_path(p: Path) -> None:
+        sh = ps.result
+        sh = type(sh)({k: v[sh["stage"] != "consolidation"] for k, v in sh.columns.items()}, sh.meta)
+        with open(p, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["step", "stage", "axial_strain", "eps11", "eps22", "sig11", "sig22", "q", "p",
+                        "d2W_loading_normalized"])
+            for i in range(len(ps.shear_strain)):
+                w.writerow([sh["step"][i], sh["stage"][i], ps.shear_strain[i], sh["eps11"][i],
+                            sh["eps22"][i], sh["sig11"][i], sh["sig22"][i], sh["q"][i], sh["p"][i],
+                            ps.loading_w[i]])
+
+    def write_checks(p: Path) -> None:
+        with open(p, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["step", "axial_strain", "probe_magnitude", "min_d2W_normalized"])
+            w.writerows(zip(ps.check_step, ps.check_strain, ps.check_magnitude, ps.check_min_w))
+
+    def write_envelopes(p: Path) -> None:
+        with open(p, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["axial_strain", "probe", "kind", "deps11", "deps22", "deps12", "dsig11",
+                        "dsig22", "dsig12", "d2W", "d2W_normalized"])
+            for strain, envs in sorted(ps.envelopes.items()):
+                for env in envs:
+                    for k in range(len(env.deps)):
+                        w.writerow([strain, k, env.kind, *env.deps[k], *env.dsig[k], env.work[k],
+                                    env.normalized[k]])
+
+    def write_summary(p: Path) -> None:
+        p.write_text("quantity,axial_strain,step,found_by\n"
+                     f"bifurcation_domain_entry,{ps.bifurcation},{ps.bifurcation_step},{ps.bifurcation_by}\n"
+                     f"loss_of_controllability,{ps.controllability},{ps.controllability_step},{ps.controllability_by}\n")
+
+
+    files = {"path.csv": write_path, "probes.csv": write_checks, "summary.csv": write_summary}
+    if ps.envelopes:
+        files["envelopes.csv"] = write_envelopes
+    return files
 
 
 def plot_envelopes(envelopes: dict, path, title: str) -> None:

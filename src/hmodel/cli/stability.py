@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import math
 from pathlib import Path
 from typing import Annotated, Optional
@@ -46,7 +45,7 @@ def stability(
     over probe directions at every k-th state, envelopes at --at, the bifurcation-domain entry
     and the loss of controllability."""
     from ..loading import Program
-    from ..stability import along_biaxial, along_program, plot_envelopes, plot_path
+    from ..stability import along_biaxial, along_program, plot_envelopes, plot_path, table_writers
 
     if magnitude is not None and not (math.isfinite(magnitude) and magnitude > 0):
         raise InputError(f"--magnitude must be positive, got {magnitude}")
@@ -71,46 +70,10 @@ def stability(
                                progress=progress, loading_probe=loading_probe)
     test = "undrained" if undrained else "drained"
 
-    def write_path(p: Path) -> None:
-        sh = ps.result
-        sh = type(sh)({k: v[sh["stage"] != "consolidation"] for k, v in sh.columns.items()}, sh.meta)
-        with open(p, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["step", "stage", "axial_strain", "eps11", "eps22", "sig11", "sig22", "q", "p",
-                        "d2W_loading_normalized"])
-            for i in range(len(ps.shear_strain)):
-                w.writerow([sh["step"][i], sh["stage"][i], ps.shear_strain[i], sh["eps11"][i],
-                            sh["eps22"][i], sh["sig11"][i], sh["sig22"][i], sh["q"][i], sh["p"][i],
-                            ps.loading_w[i]])
-
-    def write_checks(p: Path) -> None:
-        with open(p, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["step", "axial_strain", "probe_magnitude", "min_d2W_normalized"])
-            w.writerows(zip(ps.check_step, ps.check_strain, ps.check_magnitude, ps.check_min_w))
-
-    def write_envelopes(p: Path) -> None:
-        with open(p, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["axial_strain", "probe", "kind", "deps11", "deps22", "deps12", "dsig11",
-                        "dsig22", "dsig12", "d2W", "d2W_normalized"])
-            for strain, envs in sorted(ps.envelopes.items()):
-                for env in envs:
-                    for k in range(len(env.deps)):
-                        w.writerow([strain, k, env.kind, *env.deps[k], *env.dsig[k], env.work[k],
-                                    env.normalized[k]])
-
-    def write_summary(p: Path) -> None:
-        p.write_text("quantity,axial_strain,step,found_by\n"
-                     f"bifurcation_domain_entry,{ps.bifurcation},{ps.bifurcation_step},{ps.bifurcation_by}\n"
-                     f"loss_of_controllability,{ps.controllability},{ps.controllability_step},{ps.controllability_by}\n")
-
     title = (f"program {prog.name}" if prog is not None
              else f"{test} biaxial, p0 = {pressure / 1e3:g} kPa")
-    files = {"path.csv": write_path, "probes.csv": write_checks, "summary.csv": write_summary,
-             "d2W-path.png": lambda p: plot_path(ps, p, title)}
+    files = {**table_writers(ps), "d2W-path.png": lambda p: plot_path(ps, p, title)}
     if ps.envelopes:
-        files["envelopes.csv"] = write_envelopes
         files["envelopes.png"] = lambda p: plot_envelopes(ps.envelopes, p, title)
     write_outputs(out, files)
     fmt = lambda v: "none" if not math.isfinite(v) else f"{100 * v:.3f} %"  # noqa: E731
