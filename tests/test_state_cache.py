@@ -44,7 +44,8 @@ def test_batches_that_differ_outside_the_hashed_rows_are_told_apart():
 
 def test_distinct_rows_are_exact():
     """Equal rows share one representative, wherever they are; rows that differ in their last
-    bit (whose weighted sums may round alike) never do."""
+    bit (whose weighted sums may round alike) never do; a batch whose sampled rows all differ
+    is left as it is."""
     from hmodel.surrogate.state_cache import distinct_rows
     rng = np.random.default_rng(1)
     base = rng.normal(size=(5, 8))

@@ -4,10 +4,10 @@
 of Newton trials is a batched REV call, and for one material point at nθ = 360 the Python
 overhead exceeds the cell computation many times over. When the cell solver has a compiled
 increment (:meth:`hmodel.cell.CellSolver.kernel`: the closed form, a ``meso`` or ``compliance``
-surrogate), a
-whole segment instead runs in one Numba kernel: per increment and per material point, the one
-Newton of :mod:`hmodel.loading.newton`, its trials evaluated here with localization (eq. 1.1),
-the cell increment and averaging (eq. 1.15) fused in one loop over directions (:func:`trial`).
+surrogate), a whole segment instead runs in one Numba kernel: per increment and per material
+point, the one Newton of :mod:`hmodel.loading.newton`, its trials evaluated here with
+localization (eq. 1.1), the cell increment and averaging (eq. 1.15) fused in one loop over
+directions (:func:`trial`).
 
 A learned cell response (``meso`` and ``compliance`` surrogates) sees the state only, so each
 increment starts with one evaluation of every cell of every point (:func:`cell_responses`,
