@@ -269,8 +269,8 @@ class SurrogateSolver:
             X = self.formulation.features(v)
         # Equal states are evaluated once: until shear starts, the cells of an isotropic REV
         # hold a handful of distinct states (their directions' cos^2 + sin^2 round to a few
-        # values, scattered over the directions): a drained test's consolidation then costs
-        # 3.6k network rows instead of 83k.
+        # values, scattered over the directions), so a consolidation sends a few rows per
+        # material point through the network instead of every cell.
         rows = distinct_rows(v)
         Xu = X if rows is None else X[rows[0]]
         self.counts["network_cells"] += len(Xu)
