@@ -134,7 +134,7 @@ def references():
     from hmodel import Params
     from hmodel.compare import run_path
     from hmodel.loading import standard_paths
-    from hmodel.surrogate.refine import RefineConfig
+    from hmodel.studies.refine import RefineConfig
 
     params, cfg = Params(), RefineConfig(paths=tuple(PATHS.split(",")))
     specs = [s for s in standard_paths(cfg.axial) if s.name in cfg.paths]
@@ -146,7 +146,7 @@ def spread(model_path: Path, sample: Path, n: int) -> dict[str, float]:
     """What the same measure gives without active learning: the start model trained on, on its
     own rows only, and the recipe retrained on the same rows with other seeds."""
     from hmodel.surrogate import modelfile
-    from hmodel.surrogate.refine import measure
+    from hmodel.studies.refine import measure
     from hmodel.surrogate.rows import read_sample
     from hmodel.surrogate.training import TrainConfig, train
 
@@ -171,7 +171,7 @@ def tuned_only(spec: str, sample: Path, rounds: int) -> dict[str, float]:
     training rows only, without any new row: how much of a round's change the fine-tuning
     alone makes."""
     from hmodel.surrogate import modelfile
-    from hmodel.surrogate.refine import fine_tune, measure
+    from hmodel.studies.refine import fine_tune, measure
     from hmodel.surrogate.rows import read_sample
 
     members = [modelfile.load(p) for p in spec.split("+")]

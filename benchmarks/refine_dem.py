@@ -32,7 +32,7 @@ from hmodel.compare import run_path, standard_paths
 from hmodel.data.sampling import write_split
 from hmodel.data.store import Dataset
 from hmodel.surrogate.modelfile import load, save
-from hmodel.surrogate.refine import RefineConfig, fine_tune, measure, refine
+from hmodel.studies.refine import RefineConfig, fine_tune, measure, refine
 from hmodel.surrogate.rows import params_of, read_sample
 from hmodel.surrogate.training import train, union
 from hmodel.surrogate.trust import fit_ensemble_trust

@@ -27,7 +27,7 @@ from pathlib import Path
 
 from timing import record, write_table
 
-from hmodel.surrogate.sweep import beside_report
+from hmodel.studies.sweep import beside_report
 
 NORMALIZATIONS = "minmax,zscore,robust,maxabs,unit"
 

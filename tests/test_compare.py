@@ -165,7 +165,7 @@ def test_compare_and_reproduce_commands(tmp_path, capsys, monkeypatch):
     assert "after a warm-up run" in capsys.readouterr().out
     text = (tmp_path / "c" / "deviations.csv").read_text()
     assert "drained" in text and "oedometric" in text and "speed_ratio" in text
-    import hmodel.reproduce as rp
+    import hmodel.studies.reproduce as rp
     monkeypatch.setattr(rp, "QUICK", rp.Plan(True, 18, 0.004, 1e-3, 3, "45:45:1"))
     assert main(["reproduce", "--quick", "--out", str(tmp_path / "r")]) == 0
     html = (tmp_path / "r" / "report.html").read_text()
@@ -213,7 +213,7 @@ def test_compare_against_another_reference(tmp_path):
 
 @pytest.mark.slow
 def test_full_reproduce_trains_its_own_surrogate(tmp_path, monkeypatch):
-    import hmodel.reproduce as rp
+    import hmodel.studies.reproduce as rp
     import hmodel.surrogate.shipped as sh
     monkeypatch.setattr(rp, "FULL", rp.Plan(False, 12, 0.003, 1e-3, 3, "45:45:1", 4000))
     monkeypatch.setattr(sh, "DEFAULT_TRAINING", sh.TrainConfig(formulation="compliance", width=8, depth=2,

@@ -63,7 +63,7 @@ def test_training_without_torch_stops_with_one_line(tmp_path):
         from hmodel.cli.app import main
         from hmodel.errors import InputError
         from hmodel.params import Params
-        from hmodel.reproduce import reproduce
+        from hmodel.studies.reproduce import reproduce
         from hmodel.surrogate.distill import distill_on_sample
         from hmodel.surrogate.shipped import load_shipped
         from hmodel.surrogate.training import TrainConfig, train, train_on_sample

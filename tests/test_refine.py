@@ -13,7 +13,7 @@ from hmodel.cell.closed_form import ClosedFormSolver
 from hmodel.data import DatasetSpec, generate
 from hmodel.data.sampling import write_split
 from hmodel.surrogate import modelfile
-from hmodel.surrogate.refine import RefineConfig, refine
+from hmodel.studies.refine import RefineConfig, refine
 from hmodel.surrogate.rows import params_of, read_sample
 from hmodel.surrogate.training import TrainConfig, train
 from hmodel.surrogate.trust import fit_trust, scores, threshold
@@ -78,7 +78,7 @@ def test_rounds_add_exact_rows_from_gated_states(start, tmp_path):
 
 
 def test_an_interrupted_run_resumes_at_its_round(start, tmp_path, monkeypatch):
-    from hmodel.surrogate import refine as mod
+    from hmodel.studies import refine as mod
 
     out, calls, real = tmp_path / "r", [], mod.train
 

@@ -67,7 +67,7 @@ def test_a_leaked_model_cannot_step_cells(data):
 
 def test_sweep_scores_both_datasets_and_resumes(data, tmp_path, monkeypatch, capsys):
     from hmodel.cli.app import main
-    from hmodel.surrogate import sweep
+    from hmodel.studies import sweep
 
     ds, d1 = data
     args = ["surrogate", "sweep", str(ds), "--depths", "1", "--losses", "mae,mse", "--sizes", "300",
@@ -103,8 +103,8 @@ def test_sweep_scores_both_datasets_and_resumes(data, tmp_path, monkeypatch, cap
 def test_reproduce_shows_the_table_beside_the_report(tmp_path):
     """The full reproduce's Table 2.1 step, at a tiny scale: both conventions, both test sets,
     and the report's Fig. 2.7 numbers beside our Model 1."""
-    from hmodel.reproduce import FULL, table21
-    from hmodel.surrogate.sweep import REPORT_FIG_2_7
+    from hmodel.studies.reproduce import FULL, table21
+    from hmodel.studies.sweep import REPORT_FIG_2_7
 
     assert FULL.table21_sizes == (6_000, 60_000, 600_000)  # the report's sizes in the full run
     d2 = DatasetSpec(kind=2, n_directions=13, alpha0_min=40, alpha0_max=60, alpha0_step=5, max_strain=0.1,

@@ -1,4 +1,4 @@
-"""``hmodel reproduce [--quick]``: the project's main job (see :mod:`hmodel.reproduce`)."""
+"""``hmodel reproduce [--quick]``: the project's main job (see :mod:`hmodel.studies.reproduce`)."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ def reproduce(
 ) -> None:
     """Engine curves (Fig. 1.7), a database, the surrogate's accuracy, the macro comparison and
     timings, written as a self-contained HTML report."""
-    from ..reproduce import reproduce as run
+    from ..studies.reproduce import reproduce as run
 
     with LazyProgress("reproducing the study") as progress:
         report = run(out, quick, solver, progress)

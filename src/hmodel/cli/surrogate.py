@@ -241,7 +241,7 @@ def sweep_cmd(
     convention), one results table and plot, with the report's pooled scores (§2.5)."""
     from ..data import Dataset
     from ..surrogate.rows import read_rows
-    from ..surrogate.sweep import KEYS, plot_sweep, run_sweep
+    from ..studies.sweep import KEYS, plot_sweep, run_sweep
     from ..surrogate.torch_support import require_torch
 
     require_torch()
@@ -334,7 +334,7 @@ def refine_cmd(
     the exact solver, fine-tune, repeat; error and exact rows per round."""
     from ..params import Params
     from ..surrogate import modelfile
-    from ..surrogate.refine import RefineConfig, plot_rounds, refine
+    from ..studies.refine import RefineConfig, plot_rounds, refine
     from ..surrogate.shipped import model_paths
     from ..surrogate.torch_support import require_torch
 

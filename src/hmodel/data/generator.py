@@ -336,7 +336,7 @@ def increment_rows(spec: DatasetSpec, params: Params, solver, start: np.ndarray,
     ``substeps``) applied by ``solver`` to start states (P, L, n_fields): P cells of initial
     lengths ``l0`` = (l10, l20) (P,) each, at L states each, labelled by ``paths``, ``alpha0``,
     ``theta`` (P,) and ``strain`` (L,, the ``start_strain`` column). Used by the generator and
-    by active learning (:mod:`hmodel.surrogate.refine`), whose start states are a REV's."""
+    by active learning (:mod:`hmodel.studies.refine`), whose start states are a REV's."""
     P, L, nf = start.shape
     J = spec.n_increments
     phi = spec.increment_angles

@@ -47,11 +47,11 @@ from ..io import write_outputs
 from ..loading import standard_paths
 from ..params import Params
 from ..solvers import get_solver
-from . import modelfile
-from .model import Surrogate
-from .solver import SurrogateSolver
-from .training import TrainConfig, train, union
-from .trust import fingerprint, fit_ensemble_trust, fit_trust
+from ..surrogate import modelfile
+from ..surrogate.model import Surrogate
+from ..surrogate.solver import SurrogateSolver
+from ..surrogate.training import TrainConfig, train, union
+from ..surrogate.trust import fingerprint, fit_ensemble_trust, fit_trust
 
 #: The training settings a fine-tuning keeps from the model's own (the loss it was trained with).
 LOSS_SETTINGS = ("loss", "secant_floor", "rollout", "rollout_weight", "rollout_substeps")
@@ -103,7 +103,7 @@ def refine(model: "Surrogate | list[Surrogate]", sample: "str | Path | list", pa
     """Active learning from ``model`` (one network, or an ensemble whose trust is its
     disagreement: every member is fine-tuned) and its training ``sample`` folder (or folders); returns the
     last round's members and one summary row per round (round 0: the starting model)."""
-    from .rows import read_sample
+    from ..surrogate.rows import read_sample
 
     out = Path(out)
     samples = [Path(f) for f in (sample if isinstance(sample, (list, tuple)) else [sample])]
@@ -223,7 +223,7 @@ def _gated(members: list[Surrogate], exact, gate: float):
     its DEM cells carried along (:class:`~hmodel.surrogate.shadow.ShadowedSolver`), any other
     with the exact solver on the same state."""
     if getattr(members[0].formulation, "richer", False):
-        from .shadow import ShadowedSolver
+        from ..surrogate.shadow import ShadowedSolver
 
         return ShadowedSolver(SurrogateSolver(members), exact, gate)
     return SurrogateSolver(members, gate=gate, fallback=exact)
@@ -322,7 +322,7 @@ def _write_rows(folder: Path, cols: dict[str, np.ndarray], params: Params, confi
 
 
 def _read_rows(folder: Path) -> tuple[dict, dict]:
-    from .rows import read_sample
+    from ..surrogate.rows import read_sample
 
     return read_sample(folder, "train")[0], read_sample(folder, "test")[0]
 

@@ -22,8 +22,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from . import __version__
-from .params import Params
+from .. import __version__
+from ..params import Params
 
 
 @dataclass(frozen=True)
@@ -55,10 +55,10 @@ def _threads(params: Params, solver, n_points: int) -> str:
     of the network's forward pass."""
     import numba
 
-    from .cell import ClosedFormSolver
-    from .loading.compiled import supports
-    from .rev import Rev
-    from .surrogate.model import SPLIT_ROWS
+    from ..cell import ClosedFormSolver
+    from ..loading.compiled import supports
+    from ..rev import Rev
+    from ..surrogate.model import SPLIT_ROWS
 
     def path(s) -> str:
         if not supports(Rev(params, s)):
@@ -89,15 +89,15 @@ def _table(rows: list[dict], digits: int = 4) -> str:
 
 def table21(work: Path, sizes: tuple[int, ...], minutes: float, depths=None, d1_spec=None, d2_spec=None,
             n_test: int = 100_000) -> tuple[list[dict], dict]:
-    """The Table 2.1 sweep (:mod:`hmodel.surrogate.sweep`) on a report-scale Dataset 2 (the
+    """The Table 2.1 sweep (:mod:`hmodel.studies.sweep`) on a report-scale Dataset 2 (the
     generator's defaults unless ``d2_spec``), scored on it and on Dataset 1, in both input
     conventions; returns its rows and the writers of ``table-2-1.csv``, ``fig-2-7.csv`` and
     ``table-2-1.png``."""
-    from .data import Dataset, DatasetSpec, generate
-    from .io import write_rows
-    from .surrogate.rows import read_rows
-    from .surrogate.sweep import DEPTHS, beside_report, plot_sweep, run_sweep
-    from .surrogate.training import TrainConfig
+    from ..data import Dataset, DatasetSpec, generate
+    from ..io import write_rows
+    from ..surrogate.rows import read_rows
+    from .sweep import DEPTHS, beside_report, plot_sweep, run_sweep
+    from ..surrogate.training import TrainConfig
 
     d1 = generate(d1_spec or DatasetSpec(kind=1), Params(), work / "d1", workers=os.cpu_count() or 1)
     d2 = generate(d2_spec or DatasetSpec(kind=2), Params(), work / "d2", workers=os.cpu_count() or 1)
@@ -114,19 +114,19 @@ def table21(work: Path, sizes: tuple[int, ...], minutes: float, depths=None, d1_
 def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
               progress: Callable[[float], None] | None = None) -> Path:
     """Run the study into ``out`` (a fresh folder is written atomically); returns report.html."""
-    from .solvers import get_solver
-    from .compare import compare_path, plot_overlay, warm_up
-    from .data import generate
-    from .io import write_outputs, write_rows
-    from .loading import run_biaxial, standard_paths
-    from .plotting import plot_result
-    from .data.sampling import write_split
-    from .surrogate import save
-    from .surrogate.evaluation import evaluate, parity_plot
-    from .surrogate.rows import read_rows
-    from .surrogate.shipped import DEFAULT_TRAINING, REV_DATASET
-    from .surrogate.torch_support import require_torch
-    from .surrogate.training import train_on_sample
+    from ..solvers import get_solver
+    from ..compare import compare_path, plot_overlay, warm_up
+    from ..data import generate
+    from ..io import write_outputs, write_rows
+    from ..loading import run_biaxial, standard_paths
+    from ..plotting import plot_result
+    from ..data.sampling import write_split
+    from ..surrogate import save
+    from ..surrogate.evaluation import evaluate, parity_plot
+    from ..surrogate.rows import read_rows
+    from ..surrogate.shipped import DEFAULT_TRAINING, REV_DATASET
+    from ..surrogate.torch_support import require_torch
+    from ..surrogate.training import train_on_sample
 
     plan = QUICK if quick else FULL
     if plan.train_rows:
@@ -227,7 +227,7 @@ def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
                 _table(dev_rows, 3)]
         body += [_img(figs[f"compare-{s.name}.png"]) for s in specs if f"compare-{s.name}.png" in figs]
         if t21:
-            from .surrogate.sweep import beside_report
+            from .sweep import beside_report
             body += ["<h2>5. Table 2.1 beside the report's</h2>",
                      "<p>Model 1 (3 tanh layers of 8 nodes, 60k rows of Dataset 2, min-max) scored as the "
                      "report's Fig. 2.7, with the inputs as the model runs them (forces before the "

@@ -25,10 +25,10 @@ from ..data import Dataset
 from ..data.sampling import sample_split
 from ..errors import InputError
 from ..params import Params
-from .evaluation import evaluate, truth_and_prediction
-from .metrics import pooled_metrics
-from .torch_support import require_torch
-from .training import TrainConfig, train
+from ..surrogate.evaluation import evaluate, truth_and_prediction
+from ..surrogate.metrics import pooled_metrics
+from ..surrogate.torch_support import require_torch
+from ..surrogate.training import TrainConfig, train
 
 DEPTHS = (3, 5, 7, 9, 11, 13, 15, 17)
 SIZES = (6_000, 60_000, 600_000)

@@ -7,7 +7,7 @@ inputs X and targets Y, and maps predictions back to the state after the increme
 - ``report`` (report §2.3): X = (δε1, δε2, α, l1, l2, N1, N2, T1), Y = (α′, N1′, N2′, T1′).
 - ``report-leak``: the input convention of the report's published code, whose force inputs are
   the forces *after* the increment (N1′, N2′, T1′), three of the four answers. Kept to measure
-  how much that leak flatters the report's accuracy tables (:mod:`hmodel.surrogate.sweep`); it
+  how much that leak flatters the report's accuracy tables (:mod:`hmodel.studies.sweep`); it
   cannot step cells, since it needs the answer to make its inputs.
 - ``increment`` (ours): dimensionless inputs (lengths over 2r, forces over kn·2r) and targets
   that are the *increments* α′ − α, (N1′ − N1)/(kn·2r), (N2′ − N2)/(kn·2r), the mobilized

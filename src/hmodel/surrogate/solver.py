@@ -110,7 +110,7 @@ class SurrogateSolver:
         self._gated: np.ndarray | None = None  # the gate's mask of the states last evaluated
         self._accepted: set[tuple] = set()  # materials (MATERIAL fields) already checked
         #: When a list: every batch of states the gate sends to the fallback is appended to it
-        #: (active learning collects them, :mod:`hmodel.surrogate.refine`).
+        #: (active learning collects them, :mod:`hmodel.studies.refine`).
         self.gated_states: list[np.ndarray] | None = None
         #: Largest cell strain increment of one network step (inf: any, where the network sees
         #: the state only).
