@@ -17,7 +17,9 @@ inputs X and targets Y, and maps predictions back to the state after the increme
   of the regression loss. Predictions are mapped back with N′ = max(N + ΔN, 0), all forces zero
   where the logit is positive, and T1′ = clip(s, −1, 1)·tan φg·N1′, so that |T1′| ≤ tan φg N1′
   holds by construction (eq. 1.3), whatever the network outputs. Learning increments keeps the
-  network from having to copy its inputs, where all the variance lies.
+  network from having to copy its inputs, where all the variance lies. The logit serves the
+  offline predictions (:meth:`hmodel.surrogate.model.Surrogate.predict`, the metrics); as a cell
+  solver, a cell opens by eq. 1.7's rule on the continued force increments instead.
 - ``compliance`` (ours, :mod:`hmodel.surrogate.compliance`): the network sees the state only and
   outputs the compliance of eq. 1.7 in each contact regime; the contact law is applied exactly.
 - ``meso`` (ours, :mod:`hmodel.surrogate.meso`): richer DEM cells through a summary state (the
@@ -58,8 +60,6 @@ class Networks(Protocol):
 
     #: Counters of the solver (``network_cells``: rows a network evaluated, ...).
     counts: dict[str, int]
-    #: How a strain-input network's cells open: ``rule`` or (experimental) ``classifier``.
-    opening: str
     #: Whether a gate sends cells to the fallback solver (and records their fraction).
     has_gate: bool
 
@@ -279,10 +279,9 @@ class StrainFormulation(HCellStates, ABC):
         new = np.column_stack([b1, b2, a, pred["N1_next"], pred["N2_next"], pred["T1_next"], l1, l2])
         two_r = 2.0 * params.radius
         opened = (pred["N1_next"] == 0) & (pred["N2_next"] == 0)
-        if net.opening == "rule":  # separated grains carry no force (docs/model.md step 3)
-            opened |= (b1 > two_r) | (b2 > two_r)
-            for k in (3, 4, 5):
-                new[opened, k] = 0.0
+        opened |= (b1 > two_r) | (b2 > two_r)  # separated grains carry no force (docs/model.md step 3)
+        for k in (3, 4, 5):
+            new[opened, k] = 0.0
         flags = np.column_stack([
             (np.abs(pred["T1_next"]) >= params.tan_phi * pred["N1_next"] * (1 - 1e-9)) & ~opened,
             opened, opened, l1 <= two_r, l2 <= two_r])
@@ -295,7 +294,7 @@ class StrainFormulation(HCellStates, ABC):
         X0 = X.copy()
         X0[:, :2] = 0.0
         Y, Y0 = net.forward(X), net.forward(X0)
-        return self.decode(cols, self._corrected(cols, Y, Y0, net.opening))
+        return self.decode(cols, self._corrected(cols, Y, Y0))
 
     @abstractmethod
     def inputs(self, c: dict[str, np.ndarray]) -> np.ndarray:
@@ -311,9 +310,8 @@ class StrainFormulation(HCellStates, ABC):
         """Predicted state after the increment from predictions Y and the state before."""
 
     @abstractmethod
-    def _corrected(self, cols, Y, Y0, opening: str) -> np.ndarray:
-        """Predictions Y less the answer Y0 to a zero increment, as :meth:`decode` reads them
-        (``opening``: the solver's rule for strain-input cells that open)."""
+    def _corrected(self, cols, Y, Y0) -> np.ndarray:
+        """Predictions Y less the answer Y0 to a zero increment, as :meth:`decode` reads them."""
 
 
 @dataclass(frozen=True)
@@ -338,7 +336,7 @@ class ReportFormulation(StrainFormulation):
         """Predicted state after the increment: the predictions themselves."""
         return {k: Y[:, j] for j, k in enumerate(OUTPUTS)}
 
-    def _corrected(self, cols, Y, Y0, opening):
+    def _corrected(self, cols, Y, Y0):
         before = np.column_stack([cols[k] for k in ("alpha", "N1", "N2", "T1")])
         return before + Y - Y0
 
@@ -399,14 +397,14 @@ class IncrementFormulation(StrainFormulation):
         return {"alpha_next": c["alpha"] + Y[:, 0], "N1_next": n1, "N2_next": n2,
                 "T1_next": np.clip(Y[:, 3], -1.0, 1.0) * self.tan_phi * n1}
 
-    def _corrected(self, cols, Y, Y0, opening):
+    def _corrected(self, cols, Y, Y0):
         s_in = self.mobilized_friction(cols["N1"], cols["T1"])
         Y = Y.copy()
         Y[:, :3] -= Y0[:, :3]
         Y[:, 3] = s_in + Y[:, 3] - Y0[:, 3]
-        if opening == "rule":
-            # Opening decided as eq. 1.7's closed form does, on the continued force increments
-            # (regressed on closed cells only): a force that would turn negative opens the cell.
-            trial1, trial2 = cols["N1"] + self.force_scale * Y[:, 1], cols["N2"] + self.force_scale * Y[:, 2]
-            Y[:, 4] = np.where((trial1 < 0) | (trial2 < 0), 1.0, -1.0)
+        # Opening decided as eq. 1.7's closed form does, on the continued force increments
+        # (regressed on closed cells only): a force that would turn negative opens the cell. The
+        # rule takes the logit's column, so that decode reads both the same way.
+        trial1, trial2 = cols["N1"] + self.force_scale * Y[:, 1], cols["N2"] + self.force_scale * Y[:, 2]
+        Y[:, 4] = np.where((trial1 < 0) | (trial2 < 0), 1.0, -1.0)
         return Y

@@ -65,10 +65,10 @@ class SurrogateSolver:
     ensemble), delegating to its formulation what depends on it; the solver's networks are the
     formulation's :class:`~hmodel.surrogate.formulations.Networks`.
 
-    ``opening`` (strain-input formulations only): ``rule`` (the default), a cell opens where
-    eq. 1.7's closed form would, on the continued force increments, and separated grains carry
-    no force; ``classifier`` is experimental (tried and not kept): the network alone decides
-    (the ``increment`` network's opening logit); see the notes of 2026-12-01 in the docs.
+    A cell of a strain-input formulation opens where eq. 1.7's closed form would, on the
+    continued force increments, and separated grains carry no force (the ``increment``
+    network's opening logit, which lost to this rule, is not consulted: docs/notes/
+    2026-12-01-engine-shape.md).
     """
 
     name = "surrogate"
@@ -84,14 +84,12 @@ class SurrogateSolver:
     max_substeps = 100
 
     def __init__(self, model: Surrogate | Sequence[Surrogate], on_outside: str = "fallback",
-                 margin: float = 0.0, opening: str = "rule", gate: float | None = None,
+                 margin: float = 0.0, gate: float | None = None,
                  fallback: CellSolver | None = None):
         if on_outside not in ("fallback", "error"):
             raise InputError(f"on_outside must be fallback or error, got {on_outside!r}")
-        if opening not in ("rule", "classifier"):
-            raise InputError(f"opening must be rule or classifier, got {opening!r}")
         self.members = _members(model)
-        self.model, self.on_outside, self.margin, self.opening = self.members[0], on_outside, margin, opening
+        self.model, self.on_outside, self.margin = self.members[0], on_outside, margin
         self.formulation = self.model.formulation
         if getattr(self.formulation, "needs_answer", False):
             raise InputError(LEAK_REFUSED)
@@ -366,7 +364,7 @@ def gated_solver(spec: "str | CellSolver", gate: float | None = None,
         from .shadow import ShadowedSolver
 
         return ShadowedSolver(solver, exact, gate)
-    return SurrogateSolver(solver.members, solver.on_outside, solver.margin, solver.opening,
+    return SurrogateSolver(solver.members, solver.on_outside, solver.margin,
                            gate=gate, fallback=exact)
 
 
