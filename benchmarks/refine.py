@@ -145,10 +145,10 @@ def references():
 def spread(model_path: Path, sample: Path, n: int) -> dict[str, float]:
     """What the same measure gives without active learning: the start model trained on, on its
     own rows only, and the recipe retrained on the same rows with other seeds."""
-    from hmodel.surrogate import modelfile
     from hmodel.studies.refine import measure
-    from hmodel.surrogate.rows import read_sample
+    from hmodel.surrogate import modelfile
     from hmodel.surrogate.training import TrainConfig, train
+    from hmodel.surrogate.training_rows import read_sample
 
     m0 = modelfile.load(model_path)
     cols, _ = read_sample(sample, "train")
@@ -170,9 +170,9 @@ def tuned_only(spec: str, sample: Path, rounds: int) -> dict[str, float]:
     """The ensemble fine-tuned as the rounds do (same epochs, learning rate and seeds) on its own
     training rows only, without any new row: how much of a round's change the fine-tuning
     alone makes."""
-    from hmodel.surrogate import modelfile
     from hmodel.studies.refine import fine_tune, measure
-    from hmodel.surrogate.rows import read_sample
+    from hmodel.surrogate import modelfile
+    from hmodel.surrogate.training_rows import read_sample
 
     members = [modelfile.load(p) for p in spec.split("+")]
     cols, _ = read_sample(sample, "train")

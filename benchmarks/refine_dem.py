@@ -31,10 +31,10 @@ from dem_ann import HEX_SOLVER, HEX_TRAINING, PARAMS
 from hmodel.compare import run_path, standard_paths
 from hmodel.data.sampling import write_split
 from hmodel.data.store import Dataset
-from hmodel.surrogate.modelfile import load, save
 from hmodel.studies.refine import RefineConfig, fine_tune, measure, refine
-from hmodel.surrogate.rows import params_of, read_sample
+from hmodel.surrogate.modelfile import load, save
 from hmodel.surrogate.training import train, union
+from hmodel.surrogate.training_rows import params_of, read_sample
 from hmodel.surrogate.trust import fit_ensemble_trust
 
 #: The recipe as the shipped networks are stepped (see docs/dem.md, rate independence).

@@ -12,9 +12,9 @@ from hmodel.params import Params
 from hmodel.solvers import get_solver
 from hmodel.surrogate.distill import DistillConfig, _TeacherRollouts, distill
 from hmodel.surrogate.modelfile import load, save
-from hmodel.surrogate.rows import read_sample
 from hmodel.surrogate.solver import SurrogateSolver
 from hmodel.surrogate.training import TrainConfig, torch_network, train_on_sample
+from hmodel.surrogate.training_rows import read_sample
 
 PARAMS = Params(sliding_rhs="equilibrium", n_theta=6)
 

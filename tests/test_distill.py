@@ -7,8 +7,8 @@ import pytest
 from hmodel.errors import InputError
 from hmodel.surrogate.distill import DistillConfig, distill, distill_on_sample
 from hmodel.surrogate.modelfile import load
-from hmodel.surrogate.rows import read_sample
 from hmodel.surrogate.shipped import model_path
+from hmodel.surrogate.training_rows import read_sample
 from test_cli import run_cli
 
 

@@ -13,9 +13,9 @@ from hmodel.data import DatasetSpec, generate
 from hmodel.data.sampling import write_split
 from hmodel.loading import standard_paths
 from hmodel.surrogate import modelfile
-from hmodel.surrogate.rows import params_of, read_sample
 from hmodel.surrogate.solver import SurrogateSolver
 from hmodel.surrogate.training import TrainConfig, train
+from hmodel.surrogate.training_rows import params_of, read_sample
 from hmodel.surrogate.trust import disagreement, fit_ensemble_trust
 
 SPEC = DatasetSpec(kind=2, n_directions=7, theta_min=-60, theta_max=150, alpha0_min=40, alpha0_max=50,

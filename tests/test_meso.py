@@ -15,12 +15,12 @@ from hmodel.compare import deviations, run_path, standard_paths
 from hmodel.data import DatasetSpec, generate
 from hmodel.data.sampling import write_split
 from hmodel.errors import InputError
-from hmodel.surrogate.kinds import make_formulation
+from hmodel.surrogate.formulation_registry import make_formulation
 from hmodel.surrogate.meso import STATE_FIELDS, MesoFormulation
 from hmodel.surrogate.modelfile import load, save
-from hmodel.surrogate.rows import read_sample
 from hmodel.surrogate.solver import SurrogateSolver
 from hmodel.surrogate.training import TrainConfig, train_on_sample
+from hmodel.surrogate.training_rows import read_sample
 
 PARAMS = Params(sliding_rhs="equilibrium", n_theta=12)
 

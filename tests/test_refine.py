@@ -12,10 +12,10 @@ from hmodel.cell import CellState
 from hmodel.cell.closed_form import ClosedFormSolver
 from hmodel.data import DatasetSpec, generate
 from hmodel.data.sampling import write_split
-from hmodel.surrogate import modelfile
 from hmodel.studies.refine import RefineConfig, refine
-from hmodel.surrogate.rows import params_of, read_sample
+from hmodel.surrogate import modelfile
 from hmodel.surrogate.training import TrainConfig, train
+from hmodel.surrogate.training_rows import params_of, read_sample
 from hmodel.surrogate.trust import fit_trust, scores, threshold
 
 SPEC = DatasetSpec(kind=2, n_directions=7, theta_min=-60, theta_max=150, alpha0_min=40, alpha0_max=50,

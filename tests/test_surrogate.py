@@ -33,14 +33,14 @@ def sample(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def model(sample):
-    from hmodel.surrogate.rows import params_of, read_sample
+    from hmodel.surrogate.training_rows import params_of, read_sample
     cols, info = read_sample(sample, "train")
     s, hist = train(cols, params_of(info), TrainConfig(width=16, depth=2, epochs=40, seed=1))
     return s, hist, cols
 
 
 def test_tiny_network_overfits_tiny_dataset(sample):
-    from hmodel.surrogate.rows import params_of, read_sample
+    from hmodel.surrogate.training_rows import params_of, read_sample
     cols, info = read_sample(sample, "train")
     tiny = {k: v[:64] for k, v in cols.items()}
     s, hist = train(tiny, params_of(info), TrainConfig(formulation="report", width=32, depth=2,
@@ -223,7 +223,7 @@ def test_resigned_model_file_with_inconsistent_metadata_is_refused(model, tmp_pa
     assert not (tmp_path / "o").exists()
 
 def test_training_is_reproducible(sample):
-    from hmodel.surrogate.rows import params_of, read_sample
+    from hmodel.surrogate.training_rows import params_of, read_sample
     cols, info = read_sample(sample, "train")
     cfg = TrainConfig(width=8, depth=2, epochs=5, seed=4)
     a, _ = train(cols, params_of(info), cfg)

@@ -10,8 +10,8 @@ import typer
 
 from ..errors import InputError
 from ..io import write_outputs, write_rows
-from .progress import LazyProgress
 from .options import out_file, out_folder
+from .progress import LazyProgress
 from .run import ParamOpt
 
 app = typer.Typer(no_args_is_help=True, help="Train, evaluate and compare neural surrogates of the H-cell.")
@@ -146,8 +146,8 @@ def evaluate_cmd(
     parity plots (report Figs. 2.4-2.6), for every --data."""
     from ..surrogate import modelfile
     from ..surrogate.evaluation import evaluate, parity_plot
-    from ..surrogate.rows import read_rows
     from ..surrogate.shipped import model_path
+    from ..surrogate.training_rows import read_rows
 
     s = modelfile.load(model_path(model))
     table, writers = [], {}
@@ -184,9 +184,9 @@ def trust_cmd(
     import numpy as np
 
     from ..surrogate import modelfile
-    from ..surrogate.rows import read_rows
     from ..surrogate.shipped import model_paths
     from ..surrogate.training import union
+    from ..surrogate.training_rows import read_rows
     from ..surrogate.trust import fit_ensemble_trust, fit_trust
 
     if out.suffix != ".safetensors":
@@ -240,9 +240,9 @@ def sweep_cmd(
     """Report Table 2.1: every depth × loss × training-set size (× normalization × input
     convention), one results table and plot, with the report's pooled scores (§2.5)."""
     from ..data import Dataset
-    from ..surrogate.rows import read_rows
     from ..studies.sweep import KEYS, plot_sweep, run_sweep
     from ..surrogate.torch_support import require_torch
+    from ..surrogate.training_rows import read_rows
 
     require_torch()
 
@@ -333,8 +333,8 @@ def refine_cmd(
     """Active learning: run REV paths with the gate on, solve the gated cells' increments with
     the exact solver, fine-tune, repeat; error and exact rows per round."""
     from ..params import Params
-    from ..surrogate import modelfile
     from ..studies.refine import RefineConfig, plot_rounds, refine
+    from ..surrogate import modelfile
     from ..surrogate.shipped import model_paths
     from ..surrogate.torch_support import require_torch
 

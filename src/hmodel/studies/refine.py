@@ -103,7 +103,7 @@ def refine(model: "Surrogate | list[Surrogate]", sample: "str | Path | list", pa
     """Active learning from ``model`` (one network, or an ensemble whose trust is its
     disagreement: every member is fine-tuned) and its training ``sample`` folder (or folders); returns the
     last round's members and one summary row per round (round 0: the starting model)."""
-    from ..surrogate.rows import read_sample
+    from ..surrogate.training_rows import read_sample
 
     out = Path(out)
     samples = [Path(f) for f in (sample if isinstance(sample, (list, tuple)) else [sample])]
@@ -322,7 +322,7 @@ def _write_rows(folder: Path, cols: dict[str, np.ndarray], params: Params, confi
 
 
 def _read_rows(folder: Path) -> tuple[dict, dict]:
-    from ..surrogate.rows import read_sample
+    from ..surrogate.training_rows import read_sample
 
     return read_sample(folder, "train")[0], read_sample(folder, "test")[0]
 

@@ -95,9 +95,9 @@ def table21(work: Path, sizes: tuple[int, ...], minutes: float, depths=None, d1_
     ``table-2-1.png``."""
     from ..data import Dataset, DatasetSpec, generate
     from ..io import write_rows
-    from ..surrogate.rows import read_rows
-    from .sweep import DEPTHS, beside_report, plot_sweep, run_sweep
     from ..surrogate.training import TrainConfig
+    from ..surrogate.training_rows import read_rows
+    from .sweep import DEPTHS, beside_report, plot_sweep, run_sweep
 
     d1 = generate(d1_spec or DatasetSpec(kind=1), Params(), work / "d1", workers=os.cpu_count() or 1)
     d2 = generate(d2_spec or DatasetSpec(kind=2), Params(), work / "d2", workers=os.cpu_count() or 1)
@@ -123,10 +123,10 @@ def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
     from ..data.sampling import write_split
     from ..surrogate import save
     from ..surrogate.evaluation import evaluate, parity_plot
-    from ..surrogate.rows import read_rows
     from ..surrogate.shipped import DEFAULT_TRAINING, REV_DATASET
     from ..surrogate.torch_support import require_torch
     from ..surrogate.training import train_on_sample
+    from ..surrogate.training_rows import read_rows
 
     plan = QUICK if quick else FULL
     if plan.train_rows:

@@ -156,8 +156,8 @@ def distill_on_sample(teacher: Surrogate, folder, config: DistillConfig = Distil
     teacher's training samples), with the test metrics of the folders' test rows in the
     student's metadata (as ``train_on_sample``)."""
     from .evaluation import evaluate
-    from .rows import read_sample
     from .training import union
+    from .training_rows import read_sample
 
     require_torch("distillation")  # before reading the data
     folders = list(folder) if isinstance(folder, (list, tuple)) else [folder]

@@ -101,7 +101,7 @@ class Formulation(Protocol):
     Attributes
     ----------
     name : str
-        ``report``, ``increment``, ``compliance`` or ``meso`` (:mod:`hmodel.surrogate.kinds`).
+        ``report``, ``increment``, ``compliance`` or ``meso`` (:mod:`hmodel.surrogate.formulation_registry`).
     n_state : int
         Fields of a cell state (the H-cell's 8, or the ``meso`` summary's 11).
     single_precision : bool

@@ -12,7 +12,7 @@ import numpy as np
 from ..errors import InputError
 from ..params import Params
 from .fit_loop import FitConfig, device, fit
-from .kinds import make_formulation
+from .formulation_registry import make_formulation
 from .model import Architecture, Surrogate
 from .scalers import Affine, fit_scaler
 from .torch_support import require_torch
@@ -157,7 +157,7 @@ def train_on_sample(folder, config: TrainConfig, progress: Callable[[float], Non
     metrics in the model's metadata. Several folders must share the material and the cells.
     ``init``: fine-tune that model (see :func:`train`); its material and cells must be the rows'."""
     from .evaluation import evaluate
-    from .rows import params_of, read_sample
+    from .training_rows import params_of, read_sample
 
     require_torch()  # before reading the data
     folders = list(folder) if isinstance(folder, (list, tuple)) else [folder]

@@ -1,7 +1,7 @@
-"""The surrogate formulations by name: ``report``, ``increment`` and ``report-leak`` (:mod:`.formulations`),
-``compliance`` (:mod:`.compliance`) and ``meso`` (:mod:`.meso`), made for a material or
-rebuilt from a model file's metadata. (Apart from the formulations themselves, which build on
-:mod:`.formulations`: no module imports back.)
+"""The registry of surrogate formulations, by name: ``report``, ``increment`` and
+``report-leak`` (:mod:`.formulations`), ``compliance`` (:mod:`.compliance`) and ``meso``
+(:mod:`.meso`), made for a material or rebuilt from a model file's metadata. (Apart from the
+formulations themselves, which build on :mod:`.formulations`: no module imports back.)
 """
 
 from __future__ import annotations
