@@ -218,9 +218,3 @@ class DEMSolver:
     def fractions(self, params: Params, state: CellState) -> dict[str, np.ndarray]:
         """None beyond the flags."""
         return {}
-
-    def with_options(self, **changes) -> "DEMSolver":
-        """A copy with other :class:`DEMOptions`."""
-        copy = DEMSolver(self.name)
-        copy.options = replace(self.options, **changes)
-        return copy
