@@ -95,6 +95,8 @@ CASES = [
      "exceeds the limit"),
     ("database of 1e14 rows", ["data", "generate", "2", "--directions", "1000000000", "--out", "o"], 1,
      "of disk"),
+    ("stability with 1e8 probes", ["stability", "--probes", "100000000", *FAST, "--out", "o"], 1,
+     "of memory, over the limit"),
     ("judgement: fem steps 1e20", ["fem", "biaxial", "--steps", "100000000000000000000", "--out", "o"], 1,
      "exceeds the limit"),
 ]
@@ -146,6 +148,14 @@ def test_sweep_refused_leaves_no_partial_file(tmp_path, capsys, dataset):
     code, err, added = run_case(["surrogate", "sweep", dataset, "--depths", "abc", "--out", "o/w4"],
                                 tmp_path, capsys)
     assert code == 1 and "--depths" in err and not added, (err, added)
+
+
+def test_training_a_network_too_large_for_the_memory(tmp_path, capsys, tiny_model):
+    """A 100 x 10^8 network used to be a PyTorch allocation traceback."""
+    sample = tiny_model[1] / "sample"
+    code, err, added = run_case(["surrogate", "train", sample, "--width", "100000000", "--depth", "100",
+                                 "--out", "o/m.safetensors"], tmp_path, capsys)
+    assert code == 1 and "network needs about" in err and err.count("\n") == 1 and not added, err
 
 
 def test_a_genuine_bug_keeps_its_traceback(monkeypatch):
@@ -214,6 +224,18 @@ def test_disk_guard_against_the_free_space(tmp_path):
     with pytest.raises(WorkTooLarge, match="of disk, and .* free"):
         check_disk(2 * free, tmp_path / "not" / "yet", "twice the free space")
     assert not (tmp_path / "not").exists()
+
+
+def test_training_memory_counts_the_networks_parameters():
+    """The estimate's parameter count is the torch network's own (an independent count)."""
+    pytest.importorskip("torch")
+    from hmodel.surrogate.model import Architecture
+    from hmodel.surrogate.training import build_network, training_bytes
+
+    arch = Architecture(64, 3, "silu")
+    n = sum(p.numel() for p in build_network(arch, 4, 24).parameters())
+    assert training_bytes(arch, 4, 24, batch_size=0) == 16 * n  # float32, four copies
+    assert training_bytes(arch, 4, 24, batch_size=1024) == 16 * n + 4 * 2 * 1024 * 64 * 3
 
 
 def test_count_guard_and_its_override():

@@ -265,6 +265,8 @@ def along_program(program, params, every: int = 10, n_probes: int = 72,
         raise InputError(f"--every must be a positive integer, got {every!r}")
     at_steps = dict(at_steps or {})
     rev = Rev(params, solver)
+    # every probe of a state is a material point of one batched call
+    rev.check_size(n_probes, f"{n_probes:,} probes of {params.n_theta:.4g} directions")
     seen = {"min": 1.0, "k": None, "eps": None, "sig": None, "mag": None, "entered": False}
     probed: dict[tuple, tuple[float, float]] = {}
     envs: dict = {}

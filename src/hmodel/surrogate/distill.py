@@ -27,10 +27,11 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..errors import InputError
+from ..limits import check_memory
 from .fit_loop import FitConfig, device, fit
 from .model import Architecture, Surrogate
 from .torch_support import require_torch
-from .training import _Rollout, best_weights, build_network, secant_weights, torch_network
+from .training import _Rollout, best_weights, build_network, secant_weights, torch_network, training_bytes
 
 
 @dataclass(frozen=True)
@@ -117,6 +118,8 @@ def distill(teacher: Surrogate, columns: dict[str, np.ndarray], config: DistillC
     n_val = max(1, int(round(config.val_fraction * n)))
     val, tr = perm[:n_val], perm[n_val:]
     val_e, val_at = strains(val)
+    check_memory(training_bytes(arch, X.shape[1], form.n_outputs, config.batch_size * (1 + config.strains)),
+                 f"a {arch.depth} x {arch.width} student")
     net = build_network(arch, X.shape[1], form.n_outputs).to(dev)
     roll = (_TeacherRollouts(teacher, columns, config, rng, net)
             if config.rollout and config.rollout_weight and form.richer else None)

@@ -10,6 +10,7 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from ..errors import InputError
+from ..limits import check_memory
 from ..params import Params
 from .fit_loop import FitConfig, device, fit
 from .formulation_registry import make_formulation
@@ -119,6 +120,8 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
     Xv, Yv, Wv = to(xs.transform(X[val])), to(Y[val]), to(W[val])
 
     arch = Architecture(config.width, config.depth, config.activation)
+    check_memory(training_bytes(arch, X.shape[1], n_out, config.batch_size),
+                 f"a {config.depth} x {config.width} network")
     net = (build_network(arch, X.shape[1], n_out) if init is None else torch_network(init)).to(dev)
     loss_fn = _loss(config.loss, form.logit_column)
     roll = (_Rollout(form, columns, config, rng, xs, net, config.rollout, config.rollout_substeps)
@@ -179,6 +182,14 @@ def train_on_sample(folder, config: TrainConfig, progress: Callable[[float], Non
     s.meta.update(training_data=prov, params=info["params"],
                   metrics=evaluate(s, test, "sample test rows"), history_tail=history[-3:])
     return s, history
+
+
+def training_bytes(arch: Architecture, n_in: int, n_out: int, batch_size: int) -> float:
+    """Memory a training of ``arch`` holds [bytes], float32: the weights four times (the weights,
+    their gradients, Adam's two moments) and a batch's activations, kept for the backward pass."""
+    w = float(arch.width)
+    n_params = (n_in + 1) * w + (arch.depth - 1) * (w + 1) * w + (w + 1) * n_out
+    return 4.0 * (4 * n_params + 2 * batch_size * w * arch.depth)
 
 
 def union(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
