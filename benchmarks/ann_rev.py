@@ -20,7 +20,7 @@ import os
 import platform
 from pathlib import Path
 
-from timing import best_of
+from timing import best_of, provenance
 
 from hmodel import Params
 from hmodel.compare import deviations, run_path, standard_paths
@@ -60,7 +60,7 @@ def main() -> None:
         print(f"{r['path']:<14}{r['step']:>7.0e}{r['p0_kPa']:>8.0f}{r['q_max_dev_pct_of_peak']:>10.3f}"
               f"{r['q_rms_dev_pct_of_peak']:>10.3f}{r['eps_v_max_dev_pct_strain']:>15.5f}"
               f"{r['seconds_closed_form']:>10.3f}{r['seconds_surrogate']:>8.3f}{r['surrogate_over_closed_form']:>7.1f}")
-    args.out.write_text(json.dumps({"machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
+    args.out.write_text(json.dumps({**provenance(__file__), "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
                                     "n_theta": 360, "rows": rows}, indent=1))
     print(f"wrote {args.out}")
 

@@ -43,7 +43,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from timing import best_of
+from timing import best_of, provenance
 
 from hmodel import Params
 from hmodel.compare import deviations, run_path, standard_paths
@@ -326,7 +326,7 @@ def main() -> None:
     for r in members_info:
         print(f"{'student' if r['distilled'] else 'member'} {r['architecture']} seed {r['seed']}: {r['epochs']} "
               f"epochs in {r['training_s']:.0f} s, validation loss {r['best_val_loss']:.3g}")
-    out.write_text(json.dumps({
+    out.write_text(json.dumps({**provenance(__file__),
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count()},
         "mesostructure": args.mesostructure, "solver": solver, "datasets": [s.to_dict() for s in specs],
         "training": config.__dict__, "build": info, "student": student_info, "members": members_info, "axial_strains": args.axial, "step": args.step,

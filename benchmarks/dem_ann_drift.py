@@ -36,6 +36,7 @@ from hmodel.rev.rev import Rev
 from hmodel.surrogate.meso import STATE_FIELDS
 from hmodel.surrogate.modelfile import load
 from hmodel.surrogate.solver import SurrogateSolver
+from timing import provenance
 
 WORK = Path("/tmp/hmodel-dem-ann-hexagon-center")
 
@@ -106,7 +107,7 @@ def main() -> None:
     print(f"{'history':<26}{'theta':>8}{'max dVs %':>11}")
     for r in rows:
         print(f"{r['history']:<26}{r['theta_deg']:>8.1f}{r['max_dev_pct']:>11.2f}")
-    args.out.write_text(json.dumps({"model": str(args.model), "data": str(args.data), "rows": rows}, indent=1))
+    args.out.write_text(json.dumps({**provenance(__file__), "model": str(args.model), "data": str(args.data), "rows": rows}, indent=1))
     print(f"wrote {args.out}")
 
 

@@ -34,7 +34,7 @@ from pathlib import Path
 import numba
 import numpy as np
 from threadpoolctl import threadpool_limits
-from timing import best_of
+from timing import best_of, provenance
 
 from hmodel import Params
 from hmodel.cell import CellState
@@ -170,7 +170,7 @@ def main() -> None:
         cells = cell_rows(models, [int(n) for n in args.cells.split(",")], args.repeat, teacher)
         revs = rev_rows(models, [int(b) for b in args.points.split(",")], args.n_theta, args.axial, args.repeat,
                         teacher)
-    args.out.write_text(json.dumps({
+    args.out.write_text(json.dumps({**provenance(__file__),
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count()}, "model": args.model, "members": len(models),
         "teacher": args.teacher,
         "solver": SOLVER, "threads": 1, "cell": cells, "rev": revs}, indent=1))

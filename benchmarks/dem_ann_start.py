@@ -26,6 +26,7 @@ from hmodel.dem.solver import DEMSolver
 from hmodel.surrogate.modelfile import load
 from hmodel.surrogate.shipped import model_paths
 from hmodel.surrogate.solver import SurrogateSolver
+from timing import provenance
 
 SOLVER = "dem:hexagon-center:tol=1e-7,max_iter=100000"
 PARAMS = Params(sliding_rhs="equilibrium", n_theta=12)
@@ -105,7 +106,7 @@ def main() -> None:
                                        for p0, d in zip(P0, dev)}})
         print(f"REV increment {step:g}, to 1 % axial: max |dq| / peak q " + ", ".join(
             f"{p0 / 1e3:g} kPa {100 * d['q_max_dev_rel']:.2f} %" for p0, d in zip(P0, dev)))
-    args.out.write_text(json.dumps({"model": args.model, "solver": SOLVER, "n_theta": PARAMS.n_theta,
+    args.out.write_text(json.dumps({**provenance(__file__), "model": args.model, "solver": SOLVER, "n_theta": PARAMS.n_theta,
                                     "step": args.step, "rows": rows, "first_step_linearity": kinks,
                                     "step_sensitivity": steps}, indent=1))
     print(f"wrote {args.out}")

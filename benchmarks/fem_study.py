@@ -32,6 +32,7 @@ from hmodel import Params  # noqa: E402
 from hmodel.fem import biaxial, footing, material_point_curve  # noqa: E402
 from hmodel.fem.bands import concentration, peak_angles, shear_band, theory_angles  # noqa: E402
 from hmodel.fem.outputs import deviatoric_strain  # noqa: E402
+from timing import provenance  # noqa: E402
 
 FIG = Path(__file__).resolve().parent.parent / "docs" / "figures"
 
@@ -171,7 +172,7 @@ def main() -> None:
     for key, fn in (("a", homogeneous), ("b", band), ("c", footings)):
         if key in args.parts:
             fn(out)
-            args.out.write_text(json.dumps(out, indent=1, default=float) + "\n")
+            args.out.write_text(json.dumps({**provenance(__file__), **out}, indent=1, default=float) + "\n")
     print(json.dumps(out, indent=1, default=float))
 
 

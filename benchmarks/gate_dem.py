@@ -27,6 +27,7 @@ from hmodel import Params
 from hmodel.compare import deviations, run_path, standard_paths
 from hmodel.dem.solver import DEMSolver
 from hmodel.surrogate.solver import gated_solver, load_solver
+from timing import provenance
 
 SOLVER = "dem:hexagon-center:tol=1e-7,max_iter=100000"
 PARAMS = Params(sliding_rhs="equilibrium")
@@ -91,7 +92,7 @@ def main() -> None:
                           f"{row['gated_pct']:>9.2f}{row['dem_share_pct']:>25.2f}{t_ann:>8.1f}{t_dem:>8.1f}",
                           flush=True)
                 fallback.yade().close()
-    args.out.write_text(json.dumps({"model": args.model, "solver": SOLVER, "axial_pct": 100 * args.axial,
+    args.out.write_text(json.dumps({**provenance(__file__), "model": args.model, "solver": SOLVER, "axial_pct": 100 * args.axial,
                                     "step": args.step, "rows": rows}, indent=1))
     print(f"wrote {args.out}")
 

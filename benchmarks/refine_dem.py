@@ -36,6 +36,7 @@ from hmodel.surrogate.modelfile import load, save
 from hmodel.surrogate.training import train, union
 from hmodel.surrogate.training_rows import params_of, read_sample
 from hmodel.surrogate.trust import fit_ensemble_trust
+from timing import provenance
 
 #: The recipe as the shipped networks are stepped (see docs/dem.md, rate independence).
 RECIPE = replace(HEX_TRAINING, rollout=2, rollout_substeps=4, cell_step=2.5e-4, max_minutes=10.0)
@@ -104,7 +105,7 @@ def main() -> None:
         c = control[r["round"] - 1] if r["round"] else rounds[0]["q_dev_max"]
         print(f"{r['round']:>5}{r['exact_rows']:>17,}{r.get('gated_states', 0):>14,}{100 * r['q_dev_max']:>17.2f}"
               f"{100 * c:>11.2f}")
-    args.out.write_text(json.dumps({
+    args.out.write_text(json.dumps({**provenance(__file__),
         "solver": HEX_SOLVER, "fraction": args.fraction, "members": args.members, "gate": args.gate,
         "start_train_rows": len(base["deps1"]), "trust_ranking": ranking, "full_recipe": str(args.full),
         "full_recipe_q_dev_max": target["q_dev_max"], "rounds": rounds, "control_q_dev_max": control,

@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import shutil
 import tempfile
 import time
@@ -25,6 +24,7 @@ from hmodel.data import Dataset, DatasetSpec, generate
 from hmodel.data.sampling import sample_split
 from hmodel.surrogate.evaluation import evaluate
 from hmodel.surrogate.training import TrainConfig, train
+from timing import provenance
 
 SHIPPED = dict(formulation="increment", normalization="zscore", width=64, depth=4,
                activation="silu", batch_size=2048, lr=3e-3, epochs=2000, patience=30)
@@ -67,7 +67,7 @@ def main() -> None:
         for m in r["metrics"]:
             print(f"{'':<22} {m['quantity']:<12} {m['output']:<11} {m['r2']:>10.6f} {m['mae']:>10.3g} "
                   f"{m['max_abs']:>10.3g}")
-    args.out.write_text(json.dumps({"python": platform.python_version(), "cpus": os.cpu_count(),
+    args.out.write_text(json.dumps({**provenance(__file__),
                                     "results": results}, indent=1) + "\n")
     print(f"written {args.out}")
 

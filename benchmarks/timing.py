@@ -23,19 +23,24 @@ def best_of(fn, repeat: int) -> float:
     return min(times)
 
 
-def record(script: str, repeat: int, rows, **extra) -> dict:
-    """The JSON record of one run of ``script`` (its ``__file__``): date, command line, hmodel
-    and Python versions, machine, CPU count, ``repeat``, the ``extra`` fields, then ``rows``
-    ((measure, value, target) triples) as ``results``."""
+def provenance(script: str) -> dict:
+    """Where a result comes from, for the head of every benchmark's JSON: the date, the command
+    line that ran ``script`` (its ``__file__``), hmodel and Python versions, machine, CPUs."""
     from hmodel import __version__
 
     return {
         "date": datetime.date.today().isoformat(),
         "command": " ".join(["python", f"benchmarks/{Path(script).name}", *sys.argv[1:]]),
         "hmodel": __version__, "python": platform.python_version(), "machine": platform.machine(),
-        "processor": platform.processor(), "cpus": os.cpu_count(), "repeat": repeat, **extra,
-        "results": [{"measure": n, "value": v, "target": t} for n, v, t in rows],
+        "processor": platform.processor(), "cpus": os.cpu_count(),
     }
+
+
+def record(script: str, repeat: int, rows, **extra) -> dict:
+    """The JSON record of one run of ``script``: its :func:`provenance`, ``repeat``, the
+    ``extra`` fields, then ``rows`` ((measure, value, target) triples) as ``results``."""
+    return {**provenance(script), "repeat": repeat, **extra,
+            "results": [{"measure": n, "value": v, "target": t} for n, v, t in rows]}
 
 
 def write_table(rows, out: Path, rec: dict, value_width: int = 10) -> None:

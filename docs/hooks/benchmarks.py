@@ -26,7 +26,9 @@ log = logging.getLogger("mkdocs.hooks.benchmarks")
 PAGE = "benchmarks.md"
 MARKER = re.compile(r"<!--\s*benchmark:\s*([\w.*-]+)\s*-->")
 
-#: The command line that produced a known file, when the JSON does not record it.
+#: The command line that produced a known file, for the files written before every benchmark
+#: recorded its own (``benchmarks/timing.py``: ``provenance``); an entry goes when its file is
+#: retaken.
 COMMANDS = {
     "engine": "python benchmarks/engine.py",
     "stability": "python benchmarks/stability.py",
