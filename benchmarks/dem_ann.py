@@ -253,7 +253,7 @@ def compare(models: list, solver: str, n_thetas, axials, step: float, iso_step: 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mesostructure", choices=list(CASES), default="hexagon-center")
-    ap.add_argument("--work", type=Path, default=None, help="default /tmp/hmodel-dem-ann-NAME")
+    ap.add_argument("--work", type=Path, required=True, help="folder of the datasets, samples and models (reused with --reuse)")
     ap.add_argument("--n-theta", default="12,36")
     ap.add_argument("--axial", default="0.02,0.03", help="axial strains of the biaxial paths")
     ap.add_argument("--step", type=float, default=1e-3)
@@ -280,7 +280,7 @@ def main() -> None:
         specs = specs + (HEX_PRESTRAINED,)
     if args.low_pressure:
         specs = specs + HEX_LOW
-    work = args.work or Path(f"/tmp/hmodel-dem-ann-{args.mesostructure}")
+    work = args.work
     out = args.out or Path(__file__).with_name(
         ("dem_ann" if args.mesostructure == "hexagon-center" else f"dem_ann_{args.mesostructure}")
         + ("_prestrained" if args.prestrained else "") + ("_low" if args.low_pressure else "") + ".json")

@@ -38,8 +38,6 @@ from hmodel.surrogate.modelfile import load
 from hmodel.surrogate.solver import SurrogateSolver
 from timing import provenance
 
-WORK = Path("/tmp/hmodel-dem-ann-hexagon-center")
-
 
 def data_paths(model, ds: Dataset, every: int = 6) -> list[dict]:
     """Drift along the dataset's own proportional paths."""
@@ -95,8 +93,8 @@ def rev_cells(model, solver: str, p0: float, n_theta: int, axial: float = 0.03) 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--model", type=Path, default=WORK / "model-0.safetensors")
-    ap.add_argument("--data", type=Path, default=WORK / "data-0")
+    ap.add_argument("--model", type=Path, required=True, help="e.g. WORK/model-0.safetensors of dem_ann.py")
+    ap.add_argument("--data", type=Path, required=True, help="e.g. WORK/data-0 of dem_ann.py")
     ap.add_argument("--p0", type=float, default=1e5)
     ap.add_argument("--n-theta", type=int, default=12)
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("dem_ann_drift.json"))

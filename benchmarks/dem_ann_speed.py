@@ -151,8 +151,8 @@ def cell_rows(models, sizes, repeat: int, teacher=()) -> list[dict]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--model", default="/tmp/hmodel-dem-ann-hexagon-center/student-64x3.safetensors",
-                    help="a model file, or an ensemble A+B+... (default: dem_ann.py's distilled student)")
+    ap.add_argument("--model", required=True,
+                    help="a model file, or an ensemble A+B+... (e.g. WORK/student-64x3.safetensors of dem_ann.py)")
     ap.add_argument("--teacher", default=None, help="also time this model (the student's teacher)")
     ap.add_argument("--points", default="1,4,16")
     ap.add_argument("--n-theta", type=int, default=36)

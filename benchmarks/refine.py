@@ -43,7 +43,7 @@ def sh(*args: str) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--work", type=Path, default=Path("/tmp/hmodel-refine"))
+    ap.add_argument("--work", type=Path, required=True, help="folder of the rounds (reused when there)")
     ap.add_argument("--fraction", type=float, default=0.01)
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--states", type=int, default=250)

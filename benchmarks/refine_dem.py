@@ -68,7 +68,7 @@ def start(work: Path, fraction: float, members: int) -> tuple[list, list[Path]]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--work", type=Path, default=Path("/tmp/hexship"))
+    ap.add_argument("--work", type=Path, required=True, help="dem_ann.py's work folder of the shipped network")
     ap.add_argument("--full", type=Path, required=True, help="the full recipe's network")
     ap.add_argument("--fraction", type=float, default=0.1)
     ap.add_argument("--members", type=int, default=2)

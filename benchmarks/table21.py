@@ -72,7 +72,7 @@ def read(path: Path) -> list[dict]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--work", type=Path, default=Path("/tmp/hmodel-table21"))
+    ap.add_argument("--work", type=Path, required=True, help="folder of the four sweeps (read when there)")
     ap.add_argument("--max-minutes", type=float, default=3.0)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("table21.json"))
