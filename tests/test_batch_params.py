@@ -7,9 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from hmodel import InputError, Params, SolverError
+from hmodel import InputError, Params
 from hmodel.cell import ClosedFormSolver
 from hmodel.cli.app import main
+from hmodel.errors import PointFailure
 from hmodel.loading import run_biaxial
 from hmodel.params import check_batch, parse_point_assignments
 from hmodel.rev import Rev
@@ -109,7 +110,7 @@ LOOSE = Params(n_theta=360, kn=1288574896.34696, kt_kn=1.386663280819077,
 def test_a_failed_point_is_dropped_and_the_others_go_on(solver):
     good = LOOSE.with_(alpha0=math.radians(45))
     kw = dict(axial_strain=0.04, step=1e-3, iso_step=1e-4, solver=solver)
-    with pytest.raises(SolverError) as err:
+    with pytest.raises(PointFailure) as err:
         run_biaxial([good, LOOSE], [1e5], **kw)
     assert err.value.points.tolist() == [1]  # the engine names the failed point
     batch = run_biaxial([good, LOOSE], [1e5], drop_failed=True, **kw)

@@ -9,7 +9,7 @@ import pytest
 from hmodel import Params
 from hmodel.cell import CellState
 from hmodel.cell.closed_form import ClosedFormSolver
-from hmodel.errors import SolverError
+from hmodel.errors import PointFailure, SolverError
 from hmodel.loading.compiled import CompiledSegment
 from hmodel.loading.control import Control, Tangent, solve_increment
 from hmodel.loading.newton import NewtonSettings, _bound
@@ -72,7 +72,7 @@ def test_newton_on_a_nearly_singular_sample_stops_with_one_line_and_bounded_tria
     # respond; only the macro volume V0 det(I - eps) would lower the stress, by a 50 % extension)
     control = Control.components("ESE", np.column_stack([np.full(2, 1e-3), 0.5 * state.sig[:, 1],
                                                           np.zeros(2)]))
-    with pytest.raises(SolverError, match="diverged") as err:
+    with pytest.raises(PointFailure, match="diverged") as err:
         solve_increment(rev, state, control, Tangent())
     assert "\n" not in str(err.value)
     assert err.value.points.tolist() == [0, 1]  # the failed points, named for the caller

@@ -38,7 +38,7 @@ from ..cell.compliance_kernel import compliance_increment
 from ..cell.mesostress import vsigma_local
 from ..cell.meso_kernel import meso_increment
 from ..cell.state import CellFlags, CellState
-from ..errors import SolverError
+from ..errors import PointFailure
 from ..rev import Rev, RevState
 from ..rev.kernels import cell_dl, weighted_global
 from .control import Control, Tangent, solve_increment
@@ -577,10 +577,10 @@ class CompiledSegment:
         while True:
             try:
                 return self._hand_back_points(k, idx, rec_row)
-            except SolverError as e:
-                points = getattr(e, "points", None)
-                if self.failures is None or points is None:
+            except PointFailure as e:
+                if self.failures is None:
                     raise
+                points = e.points
                 for b in points:
                     self.failures[int(b)] = " ".join(str(e).split())
                     self.dropped[b] = True
@@ -599,10 +599,8 @@ class CompiledSegment:
                           self.guess[idx].copy() if self.guess.shape[1] else None)
         try:
             out = solve_increment(self.rev, sub, Control(self.S, self.M, values), tangent, self.settings)
-        except SolverError as e:  # name the failed points in this segment's batch
-            if getattr(e, "points", None) is not None:
-                e.points = idx[e.points]
-            raise
+        except PointFailure as e:  # name the failed points in this segment's batch
+            raise e.renumber(idx)
         if self.guess.shape[1]:
             self.guess[idx] = tangent.previous
         self.values[idx], self.flags[idx] = out.cells.values, out.flags.flags

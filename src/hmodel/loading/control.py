@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SolverError
+from ..errors import PointFailure, SolverError
 from ..rev import Rev, RevState
 from .newton import (ASK_TANGENT, ASK_TRIAL, CAP, CONVERGED, DIVERGED, NW, STALLED, XN, NewtonSettings,
                      begin, told_tangent, told_trial)
@@ -120,10 +120,8 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
         try:
             done, reached = _newton(rev, state.select(pending), part, Kp, hp, c, settings,
                                     guess[pending] if event == 0 else None)
-        except SolverError as e:  # name the failed points in this call's batch
-            if getattr(e, "points", None) is not None:
-                e.points = pending[e.points]
-            raise
+        except PointFailure as e:  # name the failed points in this call's batch
+            raise e.renumber(pending)
         K[pending], has_K[pending] = Kp, hp
         out = out.scatter(pending, reached)
         if done.all():
@@ -136,7 +134,7 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
     tangent.K = K
     res = np.abs(out.sig @ control.matrix[control.stress_rows].T
                  - control.values[:, control.stress_rows])
-    raise _failed(
+    raise PointFailure(
         f"mixed-control Newton did not converge at strain {np.round(out.eps[pending], 8).tolist()}: "
         f"stress residual {float(res.max()):.3g} Pa after {settings.max_events} cell events", pending)
 
@@ -196,19 +194,12 @@ def _newton(rev: Rev, state: RevState, control: Control, K: np.ndarray, has_K: n
         b = failed[0]
         at = np.round(state.eps[b], 8).tolist()
         if acts[b] == DIVERGED:
-            raise _failed(
+            raise PointFailure(
                 f"mixed-control Newton diverged at strain {at}: every trial beyond the "
                 f"strain-increment limit {W[b, CAP]:.3g} missed the stress targets (singular or "
                 f"sign-flipped tangent)", failed)
-        raise _failed(f"singular tangent under mixed control at strain {at}", failed)
+        raise PointFailure(f"singular tangent under mixed control at strain {at}", failed)
     done = acts == CONVERGED
     return done, current.where(done, best)
 
 
-def _failed(message: str, points: np.ndarray) -> SolverError:
-    """A SolverError that names the material points that failed (``points``: their indices in
-    the batch), so that a caller running many independent points (a calibration) can drop
-    them and go on with the others."""
-    e = SolverError(message)
-    e.points = np.asarray(points, np.int64)
-    return e

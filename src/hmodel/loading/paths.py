@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError, SolverError
+from ..errors import InputError, PointFailure, SolverError
 from ..limits import check_count, steps_for
 from ..rev import Rev, RevState
 from .compiled import CompiledSegment, isotropic_steps, supports
@@ -125,11 +125,8 @@ def _increment_dropping(rev: Rev, state: RevState, control: Control, tangent: Ta
         try:
             sub = solve_increment(rev, state.select(idx), Control(control.stress_rows, control.matrix,
                                                                   control.values[idx]), sub_t, settings)
-        except SolverError as e:
-            points = getattr(e, "points", None)
-            if points is None:
-                raise
-            for b in idx[points]:
+        except PointFailure as e:
+            for b in idx[e.points]:
                 failures[int(b)] = " ".join(str(e).split())
                 live[b] = False
             continue
