@@ -25,11 +25,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from numba import njit
 
 from .errors import InputError
-from .loading.compiled import (NOT_CONVERGED, cell_responses_of, fd_tangent, kernel_inputs, solve_point,
-                               supports, trial)
+from .loading.probes import strain_responses, stress_responses, supports
 from .loading.newton import NewtonSettings
 from .rev import Rev, RevState
 
@@ -69,14 +67,6 @@ def second_order_work(deps: np.ndarray, dsig: np.ndarray) -> tuple[np.ndarray, n
         return w, w / (tensor_norm(deps) * tensor_norm(dsig))
 
 
-@njit(cache=True, error_model="numpy")
-def _strain_probe_kernel(values, eps, probes, geo, p, mode, volume0, sig, resp):
-    out = np.empty_like(values)
-    flags = np.empty((values.shape[0], 5), dtype=np.bool_)
-    for k in range(probes.shape[0]):
-        trial(values, eps, probes[k], geo, p, mode, volume0, out, flags, sig[k], resp)
-
-
 @dataclass(frozen=True)
 class Envelope:
     """Probes from one state: increments applied and responses, both (n, 3), and d²W."""
@@ -106,36 +96,10 @@ def strain_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1
     probes = magnitude * probe_directions(n, shear)
     one = state.select(slice(point, point + 1))
     if supports(rev):
-        k = int(one.set_index[0])
-        geo, p = kernel_inputs(rev, k)
-        sig = np.empty((n, 3))
-        values = np.ascontiguousarray(one.cells.values[0])
-        _strain_probe_kernel(values, one.eps[0], np.ascontiguousarray(probes), geo, p, rev.mode,
-                             rev.volumes0[k], sig, cell_responses_of(rev.kernels[k], values))
+        sig = strain_responses(rev, one, probes)
     else:
         sig = rev.step(one.select(np.zeros(n, dtype=np.int64)), probes).sig
     return Envelope("strain", probes, sig - one.sig[0])
-
-
-@njit(cache=True, error_model="numpy")
-def _stress_probe_kernel(values, flags, eps, sig, K, targets, geo, p, mode, volume0, c, deps_out,
-                         resp):
-    n, m = values.shape
-    buf = np.empty((4, n, m))
-    bufflags = np.empty((4, n, 5), dtype=np.bool_)
-    S = np.ones(3, dtype=np.bool_)
-    M = np.eye(3)
-    for k in range(targets.shape[0]):
-        v = values.copy()
-        f = flags.copy()
-        e = eps.copy()
-        s = sig.copy()
-        Kk = K.copy()
-        has = np.ones(1, dtype=np.bool_)
-        status = solve_point(v, f, e, s, Kk, has, S, M, targets[k], geo, p, mode, volume0, c, 0,
-                             buf, bufflags, resp, np.empty(0), np.zeros(1, dtype=np.int64))
-        for j in range(3):
-            deps_out[k, j] = np.nan if status == NOT_CONVERGED else e[j] - eps[j]
 
 
 def stress_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1e-3,
@@ -147,18 +111,7 @@ def stress_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1
         raise InputError("stress probes need a compiled cell solver (the closed form or a meso surrogate)")
     one = state.select(slice(point, point + 1))
     dsig = magnitude * float(one.p[0]) * probe_directions(n)
-    k = int(one.set_index[0])
-    geo, p = kernel_inputs(rev, k)
-    values = np.ascontiguousarray(one.cells.values[0])
-    flags = np.ascontiguousarray(one.flags.flags[0])
-    K = np.empty((3, 3))
-    resp = cell_responses_of(rev.kernels[k], values)
-    fd_tangent(values, one.eps[0], np.zeros(3), geo, p, rev.mode, rev.volumes0[k], SETTINGS.fd_step,
-               np.empty_like(values), np.empty_like(flags), K, resp)
-    deps = np.empty((n, 3))
-    _stress_probe_kernel(values, flags, one.eps[0].copy(), one.sig[0].copy(), K,
-                         np.ascontiguousarray(one.sig[0] + dsig), geo, p, rev.mode,
-                         rev.volumes0[k], SETTINGS.packed(), deps, resp)
+    deps = stress_responses(rev, one, one.sig[0] + dsig, SETTINGS)
     return Envelope("stress", deps, dsig)
 
 

@@ -1,0 +1,80 @@
+"""Responses of one material point to many independent increments from the same state, in the
+compiled kernel: the public face of the compiled point for stability analyses
+(:mod:`hmodel.stability`).
+
+:func:`strain_responses` applies each strain increment to the point's cells (one trial each,
+eq. 1.7 or the solver's learned response); :func:`stress_responses` solves, for each stress
+target, the strain increment that reaches it (the loading paths' mixed-control Newton with all
+three rows stress-controlled; NaN where it does not converge). Both leave the state as it was.
+They need a solver with a compiled kernel (:func:`supports`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..rev import Rev, RevState
+from .compiled import NOT_CONVERGED, cell_responses_of, fd_tangent, kernel_inputs, solve_point, supports, trial
+from .newton import NewtonSettings
+
+__all__ = ["strain_responses", "stress_responses", "supports"]
+
+
+@njit(cache=True, error_model="numpy")
+def _strain_kernel(values, eps, probes, geo, p, mode, volume0, sig, resp):
+    out = np.empty_like(values)
+    flags = np.empty((values.shape[0], 5), dtype=np.bool_)
+    for k in range(probes.shape[0]):
+        trial(values, eps, probes[k], geo, p, mode, volume0, out, flags, sig[k], resp)
+
+
+@njit(cache=True, error_model="numpy")
+def _stress_kernel(values, flags, eps, sig, K, targets, geo, p, mode, volume0, c, deps_out, resp):
+    n, m = values.shape
+    buf = np.empty((4, n, m))
+    bufflags = np.empty((4, n, 5), dtype=np.bool_)
+    S = np.ones(3, dtype=np.bool_)
+    M = np.eye(3)
+    for k in range(targets.shape[0]):
+        v = values.copy()
+        f = flags.copy()
+        e = eps.copy()
+        s = sig.copy()
+        Kk = K.copy()
+        has = np.ones(1, dtype=np.bool_)
+        status = solve_point(v, f, e, s, Kk, has, S, M, targets[k], geo, p, mode, volume0, c, 0,
+                             buf, bufflags, resp, np.empty(0), np.zeros(1, dtype=np.int64))
+        for j in range(3):
+            deps_out[k, j] = np.nan if status == NOT_CONVERGED else e[j] - eps[j]
+
+
+def strain_responses(rev: Rev, one: RevState, deps: np.ndarray) -> np.ndarray:
+    """Stresses (n, 3) after each strain increment ``deps`` (n, 3) from the single material
+    point ``one``."""
+    k = int(one.set_index[0])
+    geo, p = kernel_inputs(rev, k)
+    sig = np.empty((len(deps), 3))
+    values = np.ascontiguousarray(one.cells.values[0])
+    _strain_kernel(values, one.eps[0], np.ascontiguousarray(deps), geo, p, rev.mode,
+                   rev.volumes0[k], sig, cell_responses_of(rev.kernels[k], values))
+    return sig
+
+
+def stress_responses(rev: Rev, one: RevState, targets: np.ndarray,
+                     settings: NewtonSettings = NewtonSettings()) -> np.ndarray:
+    """Strain increments (n, 3) that reach each stress ``targets`` (n, 3) from the single
+    material point ``one`` (NaN rows where Newton does not converge), starting every solve
+    from the point's finite-difference tangent."""
+    k = int(one.set_index[0])
+    geo, p = kernel_inputs(rev, k)
+    values = np.ascontiguousarray(one.cells.values[0])
+    flags = np.ascontiguousarray(one.flags.flags[0])
+    K = np.empty((3, 3))
+    resp = cell_responses_of(rev.kernels[k], values)
+    fd_tangent(values, one.eps[0], np.zeros(3), geo, p, rev.mode, rev.volumes0[k], settings.fd_step,
+               np.empty_like(values), np.empty_like(flags), K, resp)
+    deps = np.empty((len(targets), 3))
+    _stress_kernel(values, flags, one.eps[0].copy(), one.sig[0].copy(), K, np.ascontiguousarray(targets),
+                   geo, p, rev.mode, rev.volumes0[k], settings.packed(), deps, resp)
+    return deps
