@@ -408,7 +408,7 @@ def _iso_steps(values, flags, eps, sig, geo, p, mode, volume0, sets, step, p0, r
     A point whose cell increment fails is marked ``failed`` (and done), its state unchanged.
     Learned responses ``resp`` (B, n, R > 0) belong to the states they were evaluated at: one
     increment per call then (the caller evaluates the network between calls)."""
-    B, n = values.shape[0], values.shape[1]
+    B = values.shape[0]
     for b in prange(B):
         rec[:, b, :] = np.nan
         if done[b]:
@@ -593,12 +593,11 @@ class CompiledSegment:
         """Increment k of the points ``idx`` through ``solve_increment``."""
         sub = RevState(CellState(self.values[idx]), CellFlags(self.flags[idx]), self.eps[idx],
                        self.sig[idx], None if self._sets is None else self._sets[idx])
-        values = np.where(self.S, self.start[idx] + (self.end[idx] - self.start[idx])
-                          * (k / self.n_steps), self.end[idx] / self.n_steps)
+        control = Control.of_step(self.S, self.M, self.start[idx], self.end[idx], k, self.n_steps)
         tangent = Tangent(self.K[idx].copy() if self.has_K[idx].all() else None,
                           self.guess[idx].copy() if self.guess.shape[1] else None)
         try:
-            out = solve_increment(self.rev, sub, Control(self.S, self.M, values), tangent, self.settings)
+            out = solve_increment(self.rev, sub, control, tangent, self.settings)
         except PointFailure as e:  # name the failed points in this segment's batch
             raise e.renumber(idx)
         if self.guess.shape[1]:

@@ -50,6 +50,21 @@ class Control:
         return cls(np.zeros(3, bool), np.eye(3), deps)
 
     @classmethod
+    def of_step(cls, stress_rows, matrix, start: np.ndarray, end: np.ndarray, k: int,
+                n_steps: int) -> "Control":
+        """Increment ``k`` (1..n_steps) of a segment of ``n_steps`` equal ones: stress rows
+        targeted on the straight line from ``start`` to ``end`` (B, 3), strain rows each taking
+        ``end / n_steps`` of their total change.
+
+        >>> c = Control.of_step([False, True, False], np.eye(3), np.array([[0.0, 1e5, 0.0]]),
+        ...                     np.array([[1e-3, 2e5, 0.0]]), 1, 4)
+        >>> c.values.tolist()
+        [[0.00025, 125000.0, 0.0]]
+        """
+        S = np.asarray(stress_rows, bool)
+        return cls(S, matrix, np.where(S, start + (end - start) * (k / n_steps), end / n_steps))
+
+    @classmethod
     def components(cls, kinds: str, values: np.ndarray) -> "Control":
         """Per-component control, ``kinds`` like ``"ESE"``: E = strain increment, S = stress target.
 

@@ -88,11 +88,11 @@ def run_segment(rev: Rev, state: RevState, seg: Segment, recorder: Recorder | No
         return _run_compiled(rev, state, seg, S, M, start, end, recorder, progress, tangent,
                              record_every, settings, failures)
     for k in range(1, seg.n_steps + 1):
-        values = np.where(S, start + (end - start) * (k / seg.n_steps), end / seg.n_steps)
+        control = Control.of_step(S, M, start, end, k, seg.n_steps)
         if failures is None:
-            state = solve_increment(rev, state, Control(S, M, values), tangent, settings)
+            state = solve_increment(rev, state, control, tangent, settings)
         else:
-            state = _increment_dropping(rev, state, Control(S, M, values), tangent, settings,
+            state = _increment_dropping(rev, state, control, tangent, settings,
                                         failures)
         if recorder is not None and (k % record_every == 0 or k == seg.n_steps):
             recorder.record(state, seg.stage, _alive(B, failures))

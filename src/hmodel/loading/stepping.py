@@ -70,10 +70,8 @@ class _GenericSegment:
         S = np.array(self.seg.stress_rows)
         rec = np.empty((k_end - k_begin, self._state.n_points, 10))
         for k in range(k_begin, k_end):
-            values = np.where(S, self.start + (self.end - self.start) * (k / self.seg.n_steps),
-                              self.end / self.seg.n_steps)
-            self._state = solve_increment(self.rev, self._state, Control(S, self.seg.matrix, values),
-                                          self.tangent, self.settings)
+            control = Control.of_step(S, self.seg.matrix, self.start, self.end, k, self.seg.n_steps)
+            self._state = solve_increment(self.rev, self._state, control, self.tangent, self.settings)
             fr = self._state.fractions()
             rec[k - k_begin] = np.column_stack([self._state.eps, self._state.sig,
                                                 *[fr[c] for c in FRACTIONS]])
