@@ -16,7 +16,8 @@ from hmodel.surrogate import modelfile
 from hmodel.surrogate.solver import SurrogateSolver
 from hmodel.surrogate.training import TrainConfig, train
 from hmodel.surrogate.training_rows import params_of, read_sample
-from hmodel.surrogate.trust import disagreement, fit_ensemble_trust
+from hmodel.surrogate.gate import DisagreementGate, disagreement
+from hmodel.surrogate.trust import fit_ensemble_trust
 
 SPEC = DatasetSpec(kind=2, n_directions=7, theta_min=-60, theta_max=150, alpha0_min=40, alpha0_max=50,
                    alpha0_step=5, max_strain=0.04, step=0.001, start_every=0.004, magnitude=0.002,
@@ -78,7 +79,8 @@ def test_a_gate_that_holds_every_cell_is_the_closed_form(ensemble):
     spec = [s for s in standard_paths(0.01) if s.name == "drained"][0]
     ref, _ = run_path(PARAMS, spec, "closed-form", 2e-3, 1e-3)
     gated = SurrogateSolver(members, gate=0.5, fallback=ClosedFormSolver())
-    gated.gate_threshold = -1.0  # below any spread: every cell to the closed form
+    assert isinstance(gated.gate, DisagreementGate) and gated.gate.per_increment
+    gated.gate.threshold = -1.0  # below any spread: every cell to the closed form
     res, _ = run_path(PARAMS, spec, gated, 2e-3, 1e-3)
     assert gated.counts["gated"] == gated.counts["gate_checked"] > 0
     assert gated.fractions(PARAMS, gated.initial(PARAMS, (12,))) == {}  # decided per increment
@@ -124,7 +126,7 @@ def test_the_shipped_ensemble_gates_on_its_disagreement():
     from hmodel.solvers import get_solver
     from hmodel.surrogate.shipped import load_shipped
     from hmodel.surrogate.solver import gated_solver
-    from hmodel.surrogate.trust import fingerprint
+    from hmodel.surrogate.gate import fingerprint
 
     ens = get_solver("surrogate:ensemble")
     assert len(ens.members) == 3 and ens.model.meta["trust"]["kind"] == "ensemble"

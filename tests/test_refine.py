@@ -16,7 +16,8 @@ from hmodel.studies.refine import RefineConfig, refine
 from hmodel.surrogate import modelfile
 from hmodel.surrogate.training import TrainConfig, train
 from hmodel.surrogate.training_rows import params_of, read_sample
-from hmodel.surrogate.trust import fit_trust, scores, threshold
+from hmodel.surrogate.gate import scores, threshold
+from hmodel.surrogate.trust import fit_trust
 
 SPEC = DatasetSpec(kind=2, n_directions=7, theta_min=-60, theta_max=150, alpha0_min=40, alpha0_max=50,
                    alpha0_step=5, max_strain=0.04, step=0.001, start_every=0.004, magnitude=0.002,

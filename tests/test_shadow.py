@@ -63,7 +63,7 @@ def test_every_cell_gated_is_the_dem_rev():
     """With every cell above the gate, each increment is the DEM cell's from its exact state:
     the gated REV is the DEM-REV, to the DEM's convergence."""
     solver = gated_solver("surrogate:hexagon-center", 0.5, DEM)
-    solver.gate_threshold = -math.inf
+    solver.gate.threshold = -math.inf
     params = Params(sliding_rhs="equilibrium", n_theta=6)
     res = run_biaxial(params, [1e5], 0.004, solver=solver, step=1e-3, iso_step=2e-4)
     ref = run_biaxial(params, [1e5], 0.004, solver=get_solver(DEM), step=1e-3, iso_step=2e-4)
@@ -78,7 +78,7 @@ def test_a_shadow_catches_up_along_its_lag():
     """Nothing gated: the summary's lengths are the shadow's plus the lag, and catching up is
     the DEM cell driven along the lag in equal sub-steps, stepped here by hand."""
     solver = gated_solver("surrogate:hexagon-center", 0.5, DEM)
-    solver.gate_threshold = math.inf
+    solver.gate.threshold = math.inf
     state = consolidate(Rev(PARAMS, solver), [1e5], step=2e-4)
     v = state.cells.values.reshape(-1, solver.n_state)
     summary, full, lag = solver.split(v)
@@ -108,7 +108,7 @@ def test_the_command_line_reports_the_gated_fraction(tmp_path, capsys):
 
 def test_a_run_of_another_material_is_refused_even_where_every_cell_is_gated():
     solver = gated_solver("surrogate:hexagon-center", 0.5, DEM)
-    solver.gate_threshold = -math.inf
+    solver.gate.threshold = -math.inf
     other = Params(sliding_rhs="equilibrium", phi_g=math.radians(25.0))
     with pytest.raises(InputError, match="phi_g"):
         solver.step(other, solver.initial(other, (2,)), np.zeros(2), np.zeros(2))

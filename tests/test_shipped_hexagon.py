@@ -13,7 +13,7 @@ from hmodel.cli.app import main
 from hmodel.loading import run_biaxial
 from hmodel.solvers import get_solver
 from hmodel.surrogate.shipped import load_shipped, model_paths, shipped_path
-from hmodel.surrogate.trust import check_members
+from hmodel.surrogate.gate import check_members
 
 PARAMS = Params(sliding_rhs="equilibrium", n_theta=12)
 DEM = "dem:hexagon-center:tol=1e-7,max_iter=100000"

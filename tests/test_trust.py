@@ -13,7 +13,8 @@ from hmodel.loading import run_biaxial
 from hmodel.surrogate import modelfile
 from hmodel.surrogate.shipped import load_shipped
 from hmodel.surrogate.solver import SurrogateSolver, gated_solver
-from hmodel.surrogate.trust import LEVELS, TOP, ranking, scores, threshold
+from hmodel.surrogate.gate import DistanceGate, scores, threshold
+from hmodel.surrogate.trust import LEVELS, TOP, ranking
 
 SMALL = Params(n_theta=36)
 
@@ -85,6 +86,8 @@ def test_a_gate_that_holds_no_cell_changes_nothing(monkeypatch):
     gated = run_biaxial(SMALL, [2e5], 0.01, solver=solver)
     np.testing.assert_array_equal(gated["q"], plain["q"])
     assert np.all(gated["gated"] == 0.0) and solver.counts["gated"] == 0
+    assert isinstance(solver.gate, DistanceGate) and not solver.gate.per_increment
+    assert solver.gate.summary() == f"gate 0.99: 0 of {solver.counts['gate_checked']:,} cell states (0 %)"
     assert solver.counts["gate_checked"] > 0 and "gated" not in plain.columns
 
 

@@ -49,9 +49,10 @@ from ..params import Params
 from ..solvers import get_solver
 from ..surrogate import modelfile
 from ..surrogate.model import Surrogate
-from ..surrogate.solver import SurrogateSolver
+from ..surrogate.solver import SurrogateSolver, gated_solver
 from ..surrogate.training import TrainConfig, train, union
-from ..surrogate.trust import fingerprint, fit_ensemble_trust, fit_trust
+from ..surrogate.gate import fingerprint
+from ..surrogate.trust import fit_ensemble_trust, fit_trust
 
 #: The training settings a fine-tuning keeps from the model's own (the loss it was trained with).
 LOSS_SETTINGS = ("loss", "secant_floor", "rollout", "rollout_weight", "rollout_substeps")
@@ -109,7 +110,7 @@ def refine(model: "Surrogate | list[Surrogate]", sample: "str | Path | list", pa
     samples = [Path(f) for f in (sample if isinstance(sample, (list, tuple)) else [sample])]
     members = list(model) if isinstance(model, (list, tuple)) else [model]
     exact = _exact_solver(config.exact)
-    probe = _gated(members, exact, config.gate)  # refuses what cannot gate
+    probe = gated_solver(SurrogateSolver(members), config.gate, exact)  # refuses what cannot gate
     probe.check(params)
     model_trust(members[0])
     parts = [read_sample(f, "train") for f in samples]
@@ -218,17 +219,6 @@ def model_trust(model: Surrogate) -> dict:
     return trust
 
 
-def _gated(members: list[Surrogate], exact, gate: float):
-    """The members gated at ``gate`` to the exact solver: a richer cell's ``meso`` network with
-    its DEM cells carried along (:class:`~hmodel.surrogate.shadow.ShadowedSolver`), any other
-    with the exact solver on the same state."""
-    if getattr(members[0].formulation, "richer", False):
-        from ..surrogate.shadow import ShadowedSolver
-
-        return ShadowedSolver(SurrogateSolver(members), exact, gate)
-    return SurrogateSolver(members, gate=gate, fallback=exact)
-
-
 def _exact_solver(spec: str):
     solver = get_solver(spec)
     if solver.name.startswith("dem:"):
@@ -259,7 +249,7 @@ def measure(members, params, specs, references, config) -> dict:
 
 def _collect(members, exact, params, specs, config) -> tuple[np.ndarray, dict]:
     """The distinct states the gate sent to the exact solver on every path, and the gate's counts."""
-    solver = _gated(members, exact, config.gate)
+    solver = gated_solver(SurrogateSolver(members), config.gate, exact)
     solver.gated_states = []
     for spec in specs:
         try:

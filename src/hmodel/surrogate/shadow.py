@@ -33,7 +33,7 @@ from ..cell import CellFlags, CellState
 from ..errors import InputError
 from ..params import Params
 from .state_cache import StateCache
-from .trust import increment_disagreement, increment_scale, scores, threshold
+from .gate import gate_for
 
 
 class ShadowedSolver:
@@ -60,9 +60,9 @@ class ShadowedSolver:
                              f"surrogate's ({f.cell})")
         self.surrogate, self.fallback, self.formulation = surrogate, fallback, f
         self.model = surrogate.model
-        self.gate, self.gate_threshold = gate, threshold(self.model, gate)
-        #: An ensemble gate's scales of the increments (None: the distance gate, per state).
-        self._increment_scale = increment_scale(surrogate.members)
+        #: The gate (:mod:`hmodel.surrogate.gate`): a distance gate, decided per state, or an
+        #: ensemble's disagreement, decided per increment; it counts in the surrogate's counts.
+        self.gate = gate_for(surrogate.members, gate, surrogate.counts)
         self.name = surrogate.name
         self.stress_rtol = max(surrogate.stress_rtol, fallback.stress_rtol)
         # every cell carries both solvers' states
@@ -80,7 +80,7 @@ class ShadowedSolver:
         return {**self.__dict__, "_cache": StateCache(), "_caught": StateCache(), "_made": StateCache()}
 
     def __repr__(self) -> str:
-        return f"ShadowedSolver({self.name!r}, gate={self.gate:g}, fallback={self.fallback.name!r})"
+        return f"ShadowedSolver({self.name!r}, gate={self.gate.level:g}, fallback={self.fallback.name!r})"
 
     def check(self, params: Params) -> None:
         """Refuse a material the surrogate was not trained for."""
@@ -114,41 +114,41 @@ class ShadowedSolver:
         return None
 
     # -- the gate -----------------------------------------------------------------------------
-    def _gated(self, summary: np.ndarray) -> np.ndarray:
-        """The gate's mask of summary states, counted once per batch of states."""
+    def _gated(self, params: Params, summary: np.ndarray, dl: np.ndarray) -> np.ndarray:
+        """The gate's decision on cell increments ``dl`` from summary states: per increment,
+        Newton trials included, from the members' states after it (an ensemble's disagreement);
+        or once per batch of states (the distance gate)."""
+        if self.gate.per_increment:
+            return self.gate.decide(summary, self._afters(params, summary, dl))
+        return self._gated_states(summary)
+
+    def _gated_states(self, summary: np.ndarray) -> np.ndarray:
+        """The distance gate's mask of summary states, counted once per batch of states."""
         hit = self._cache.get(summary)
         if hit is not None:
             return hit
-        gated = self._count(scores(self.model, self.formulation.features(summary)) > self.gate_threshold)
+        gated = self.gate.decide(summary)
         self._cache.put(summary, gated)
         return gated
 
-    def _gated_increments(self, params: Params, summary: np.ndarray, dl: np.ndarray) -> np.ndarray:
-        """The ensemble's gate: cells whose members' increments under ``dl`` disagree beyond the
-        threshold (:func:`hmodel.surrogate.trust.increment_disagreement`), counted per cell increment,
-        Newton trials included."""
+    def _afters(self, params: Params, summary: np.ndarray, dl: np.ndarray) -> list[np.ndarray]:
+        """Every member's summary states after the length increments ``dl``."""
         f = self.formulation
         outs, _ = self.surrogate.outputs(summary, f.features(summary))
         e = np.column_stack([-dl[:, 0] / params.l10, -dl[:, 1] / params.l20]) / f.m0
-        afters = [f.advance(summary, f.head(o[:, :f.n_outputs], e), dl)[0] for o in outs]
-        return self._count(increment_disagreement(f, summary, afters, self._increment_scale) > self.gate_threshold)
-
-    def _count(self, gated: np.ndarray) -> np.ndarray:
-        self.counts["gated"] += int(gated.sum())
-        self.counts["gate_checked"] += len(gated)
-        return gated
+        return [f.advance(summary, f.head(o[:, :f.n_outputs], e), dl)[0] for o in outs]
 
     def fractions(self, params: Params, state: CellState) -> dict[str, np.ndarray]:
         """``gated``: with the distance gate, the cells whose next increment the DEM solves;
         with an ensemble's (decided per increment), the cells the DEM solved in the increment
         that made ``state`` (none for a state no increment of this solver made)."""
-        if self._increment_scale is not None:
+        if self.gate.per_increment:
             v = np.ascontiguousarray(np.asarray(state.values, float).reshape(-1, self.n_state))
             made = self._made.get(v)
             return {"gated": (np.zeros(len(v), bool) if made is None else made).reshape(state.shape)}
         v = np.asarray(state.values, float)
         summary = v.reshape(-1, self.n_state)[:, :self.n_summary]
-        return {"gated": self._gated(np.ascontiguousarray(summary)).reshape(state.shape)}
+        return {"gated": self._gated_states(np.ascontiguousarray(summary)).reshape(state.shape)}
 
     # -- solver interface ---------------------------------------------------------------------
     def step(self, params: Params, state: CellState, dl1, dl2) -> tuple[CellState, CellFlags]:
@@ -160,8 +160,7 @@ class ShadowedSolver:
         dl = np.column_stack([np.broadcast_to(dl1, shape).reshape(-1), np.broadcast_to(dl2, shape).reshape(-1)])
         summary, full, lag = self.split(v)
         summary = np.ascontiguousarray(summary)
-        gated = (self._gated(summary) if self._increment_scale is None
-                 else self._gated_increments(params, summary, dl))
+        gated = self._gated(params, summary, dl)
         new, flags = v.copy(), np.zeros((len(v), 5), bool)
         net = ~gated
         if net.any():
@@ -176,7 +175,7 @@ class ShadowedSolver:
             self.counts["dem_increments"] += len(caught)
             new[gated] = self._join(st.values)
             flags[gated] = fl.flags
-        if self._increment_scale is not None:  # for fractions(): which cells made this state in DEM
+        if self.gate.per_increment:  # for fractions(): which cells made this state in DEM
             self._made.put(new, gated)
         return CellState(new.reshape(*shape, self.n_state)), CellFlags(flags.reshape(*shape, 5))
 

@@ -22,11 +22,13 @@ solver (``on_outside="fallback"``; a ``meso`` cell, which has none, is extrapola
 the run (``"error"``); ``counts`` reports how many.
 
 With a gate (``gate=0.99, fallback=ClosedFormSolver()``; ``--gate 0.99 --fallback
-closed-form``), the cells whose trust score (:mod:`hmodel.surrogate.trust`: distance to the
-training data) exceeds that quantile of the held-out rows' scores are solved by the fallback
-solver in the same increment, in one batched call; ``counts["gated"]`` and
-``counts["gate_checked"]`` count them per evaluated state (once per increment), and the REV
-records their fraction (``gated`` in result.csv, via :meth:`fractions`).
+closed-form``), the cells whose trust score exceeds that quantile of the held-out rows' scores
+are solved by the fallback solver in the same increment, in one batched call. The solver's
+``gate`` is the gate object the model's stored trust describes (:mod:`hmodel.surrogate.gate`):
+a :class:`~hmodel.surrogate.gate.DistanceGate` (distance to the training data) is decided per
+evaluated state (once per increment), its decisions counted in ``counts["gated"]`` and
+``counts["gate_checked"]``, and the REV records their fraction (``gated`` in result.csv, via
+:meth:`fractions`).
 
 An ensemble (``SurrogateSolver([m1, m2, ...])``, ``--solver surrogate:A+B+C``) of ``meso`` or
 ``compliance`` models of one formulation (networks trained alike, e.g. with other seeds)
@@ -34,7 +36,8 @@ averages the members' increments dz (``meso``) or compliances (``compliance``) b
 back: independent training errors of the members partly cancel (see the DEM cells page of the
 documentation), at the cost of one network per member. A cell is outside the training domain
 when it is outside any member's. The gate of an ensemble whose trust is its disagreement
-(:func:`hmodel.surrogate.trust.fit_ensemble_trust`) scores each cell increment by the spread of
+(:func:`hmodel.surrogate.trust.fit_ensemble_trust`), a
+:class:`~hmodel.surrogate.gate.DisagreementGate`, scores each cell increment by the spread of
 the members' increments (each member's compliances applied to it), so it is decided per
 increment, Newton trials included, and counted so.
 """
@@ -54,7 +57,7 @@ from .compliance import ComplianceFormulation as Compliance
 from .formulations import LEAK_REFUSED
 from .model import Surrogate
 from .state_cache import StateCache, distinct_rows
-from .trust import increment_disagreement, scores
+from .gate import Gate, gate_for
 
 #: Parameters a surrogate is specific to (it was trained on cells with these values).
 MATERIAL = ("kn", "kt_kn", "phi_g", "radius", "g2", "sliding_rhs", "volume")
@@ -96,10 +99,8 @@ class SurrogateSolver:
         self.fallback = self.closed_form = ClosedFormSolver()
         self.counts = {"cell_updates": 0, "network_cells": 0, "outside": 0, "substeps": 0,
                        "gated": 0, "gate_checked": 0, "fallback_cells": 0}
-        #: trust-score threshold of the gate (None: no gate), and the gate's quantile level
-        self.gate, self.gate_threshold = gate, None
-        #: An ensemble gate's scales of the increments (None: no such gate).
-        self._increment_scale: np.ndarray | None = None
+        #: The gate (:mod:`hmodel.surrogate.gate`) that sends cells to the fallback, or None.
+        self.gate: Gate | None = None
         if gate is not None or fallback is not None:
             self._set_gate(gate, fallback)
         # network outputs, outside and gate masks of the batches of states seen last: every
@@ -118,8 +119,6 @@ class SurrogateSolver:
         return {**self.__dict__, "_cache": StateCache(), "_gated": None}
 
     def _set_gate(self, gate: float | None, fallback: CellSolver | None) -> None:
-        from .trust import increment_scale, threshold
-
         if gate is None:
             raise InputError("a fallback solver needs a gate (--gate LEVEL, e.g. 0.99)")
         if fallback is None:
@@ -132,36 +131,32 @@ class SurrogateSolver:
         if fallback.initial(Params()).values.shape[-1] != self.n_state:
             raise InputError(f"the fallback solver {fallback.name!r} keeps other cell states than "
                              f"the surrogate's H-cells")
-        self.gate_threshold = threshold(self.model, gate)
-        self._increment_scale = increment_scale(self.members)
+        self.gate = gate_for(self.members, gate, self.counts)
         self.fallback = fallback
 
     def fractions(self, params: Params, state: CellState) -> dict[str, np.ndarray]:
         """With a gate: ``gated``, the cells whose next increment the fallback solves."""
-        if self.gate_threshold is None or self._increment_scale is not None:
+        if self.gate is None or self.gate.per_increment:
             return {}  # an ensemble's gate depends on the increment, not known at a state
         v = np.asarray(state.values, float).reshape(-1, self.n_state)
-        return {"gated": (scores(self.model, self.formulation.features(v)) > self.gate_threshold
-                          ).reshape(state.shape)}
+        return {"gated": self.gate.mask(v).reshape(state.shape)}
 
     def gate_increments(self, v: np.ndarray, dl: np.ndarray, outs: list[np.ndarray], advance) -> np.ndarray | None:
         """The ensemble's gate (None where the gate is not an ensemble's): cells whose members'
         increments under length increments ``dl`` (``advance(v, dl, outs[k])`` each) disagree
         beyond the threshold. Counted per cell increment, Newton trials included."""
-        if self._increment_scale is None or self.gate_threshold is None:
+        if self.gate is None or not self.gate.per_increment:
             return None
-        gated = increment_disagreement(self.formulation, v, [advance(v, dl, o)[0] for o in outs],
-                                       self._increment_scale) > self.gate_threshold
-        self._record_gate(v, gated)
+        gated = self._record_gate(v, self.gate.mask(v, [advance(v, dl, o)[0] for o in outs]))
         self._gated = gated
         return gated
 
-    def _record_gate(self, v: np.ndarray, gated: np.ndarray) -> None:
+    def _record_gate(self, v: np.ndarray, gated: np.ndarray) -> np.ndarray:
         """Count the gate's decisions on cells ``v`` and keep the gated states when asked to."""
-        self.counts["gated"] += int(gated.sum())
-        self.counts["gate_checked"] += len(gated)
+        self.gate.count(gated)
         if self.gated_states is not None and gated.any():
             self.gated_states.append(v[gated].copy())
+        return gated
 
     def check(self, params: Params) -> None:
         """Refuse a material the surrogate was not trained for."""
@@ -201,7 +196,7 @@ class SurrogateSolver:
     @property
     def has_gate(self) -> bool:
         """Whether a gate sends cells to the fallback solver (and records their fraction)."""
-        return self.gate_threshold is not None
+        return self.gate is not None
 
     def kernel(self, params: Params) -> CellKernel | None:
         """The formulation's compiled increment (a ``meso`` network's learned response or a
@@ -277,8 +272,9 @@ class SurrogateSolver:
         spare = f.spare_columns if len(self.members) == 1 else 0
         outs = [m.forward(Xu, single=f.single_precision, spare=spare) for m in self.members]
         mask = np.any([m.outside(Xu, self.margin) for m in self.members], axis=0)
-        state_gate = self.gate_threshold is not None and self._increment_scale is None
-        gated = scores(self.model, Xu) > self.gate_threshold if state_gate else np.zeros(len(Xu), bool)
+        # a gate on the state is decided here, once per state, on the distinct rows
+        state_gate = self.gate is not None and not self.gate.per_increment
+        gated = self.gate.inputs_mask(Xu) if state_gate else np.zeros(len(Xu), bool)
         if rows is not None:
             row = rows[1]
             outs, mask, gated = [o[row] for o in outs], mask[row], gated[row]
@@ -370,11 +366,7 @@ def gated_solver(spec: "str | CellSolver", gate: float | None = None,
 
 def gate_summary(solver) -> str:
     """One line: how many learned cell states the gate sent to the fallback solver."""
-    n, m = solver.counts["gated"], solver.counts["gate_checked"]
-    what = ("cell increments (Newton trials included)" if getattr(solver, "_increment_scale", None) is not None
-            else "cell states")
-    line = (f"gate {solver.gate:g}: {n:,} of {m:,} {what} ({100 * n / max(m, 1):.3g} %) "
-            f"solved by {solver.fallback.name}")
+    line = f"{solver.gate.summary()} solved by {solver.fallback.name}"
     if "dem_increments" in solver.counts:
         line += f" ({solver.counts['dem_increments']:,} DEM cell increments with the catch-ups)"
     return line

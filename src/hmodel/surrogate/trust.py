@@ -7,7 +7,7 @@ reference sample of the training rows; the larger, the less the network has seen
 cells. The reference sample (a few thousand rows) and the distribution of the score over held-out
 rows are stored in the model file (:func:`fit_trust`, ``hmodel surrogate trust``), so that a
 gate is a quantile: ``--gate 0.99`` sends the cells whose score exceeds the 99th percentile of
-the held-out rows' scores to an exact cell solver (:class:`hmodel.surrogate.solver.SurrogateSolver`).
+the held-out rows' scores to an exact cell solver (the gate at run time: :mod:`hmodel.surrogate.gate`).
 
 Whether the score ranks the real errors is measured, not assumed: :func:`fit_trust` reports,
 on held-out rows with known answers, which share of the error the rows above each quantile of
@@ -23,6 +23,7 @@ import numpy as np
 
 from ..errors import InputError
 from .evaluation import truth_and_prediction
+from .gate import disagreement, fingerprint, increment_fields, scores
 from .model import Surrogate
 
 #: Quantile levels of the held-out scores stored in a model file (gates between them interpolate).
@@ -67,29 +68,6 @@ def ranking(score: np.ndarray, error: np.ndarray) -> list[dict]:
     return rows
 
 
-def scores(model: Surrogate, X: np.ndarray) -> np.ndarray:
-    """Trust score of inputs X (n, n_inputs): mean distance to the k nearest reference rows in
-    the normalized input space (larger: less trusted). Needs a model with a reference sample."""
-    if model.trust_reference is None:
-        raise InputError("this surrogate has no trust reference: add one with "
-                         "'hmodel surrogate trust MODEL SAMPLE --out FILE'")
-    k = int(model.meta["trust"]["k"])
-    z = model.x_scaler.transform(np.asarray(X, float))
-    d, _ = model.trust_tree.query(z, k=k)
-    return d.reshape(len(z), -1).mean(axis=1)
-
-
-def threshold(model: Surrogate, gate: float) -> float:
-    """The score above which a cell is gated at level ``gate`` (a quantile of the held-out rows'
-    scores, in (0, 1])."""
-    if not (0.0 < gate <= 1.0):
-        raise InputError(f"the gate is a quantile level in (0, 1], got {gate}")
-    if model.trust_reference is None and not is_ensemble_trust(model):
-        scores(model, np.zeros((0, len(model.x_scaler.offset))))  # the one error message
-    q = model.meta["trust"]["quantiles"]
-    return float(np.interp(gate, q["levels"], q["scores"]))
-
-
 def fit_trust(model: Surrogate, train: dict[str, np.ndarray], held_out: dict[str, np.ndarray],
               reference: int = 4096, k: int = 8, seed: int = 0) -> tuple[Surrogate, list[dict]]:
     """The model with a trust reference of ``reference`` rows drawn from its training rows
@@ -121,72 +99,6 @@ def fit_trust(model: Surrogate, train: dict[str, np.ndarray], held_out: dict[str
 # that sees where training left the networks uncertain, also inside the data, where a distance
 # to the data sees nothing. (The spread of the raw compliances ranked the errors no better than
 # the distance: most of the 24 numbers belong to contact regimes the increment does not use.)
-
-
-def fingerprint(model: Surrogate) -> str:
-    """SHA-256 of a model's weights (which network it is)."""
-    import hashlib
-
-    h = hashlib.sha256()
-    for W, b in model.weights:
-        h.update(np.ascontiguousarray(W).tobytes())
-        h.update(np.ascontiguousarray(b).tobytes())
-    return h.hexdigest()
-
-
-def is_ensemble_trust(model: Surrogate) -> bool:
-    """Whether a model's trust score is its ensemble's disagreement."""
-    return (model.meta.get("trust") or {}).get("kind") == "ensemble"
-
-
-#: The state fields whose increments the disagreement compares (α, N1, N2, T1 of the packed state).
-INCREMENT_FIELDS = (2, 3, 4, 5)
-#: ... and of a richer cell's summary state (:mod:`hmodel.surrogate.meso`): also V σ_nn, V σ_tt.
-RICHER_INCREMENT_FIELDS = INCREMENT_FIELDS + (8, 9)
-
-
-def increment_fields(formulation) -> tuple[tuple[int, ...], tuple[str, ...]]:
-    """The state columns whose increments an ensemble's disagreement compares, and the
-    database columns of their values after an increment."""
-    names = ("alpha_next", "N1_next", "N2_next", "T1_next")
-    if getattr(formulation, "richer", False):
-        return RICHER_INCREMENT_FIELDS, names + ("Vs_nn_next", "Vs_tt_next")
-    return INCREMENT_FIELDS, names
-
-
-def disagreement(increments: list[np.ndarray], scale: np.ndarray) -> np.ndarray:
-    """Trust score of cell increments from every member's increment (K arrays (n, m)): the RMS
-    over the fields of the members' standard deviation, each in units of ``scale`` (m,)."""
-    spread = np.std(np.stack(increments), axis=0) / scale
-    return np.sqrt(np.mean(spread ** 2, axis=1))
-
-
-def increment_disagreement(formulation, v: np.ndarray, afters: list[np.ndarray], scale: np.ndarray) -> np.ndarray:
-    """Trust score of cell increments from states ``v`` (n, n_state): the :func:`disagreement`
-    of the members' states after them (K arrays like ``v``) on the compared fields."""
-    cols = list(increment_fields(formulation)[0])
-    return disagreement([a[:, cols] - v[:, cols] for a in afters], scale)
-
-
-def increment_scale(members: list[Surrogate]) -> np.ndarray | None:
-    """The increments' scales of an ensemble gated on its disagreement (its members checked), or
-    None for one network gated on its distance to the data; an ensemble without its
-    disagreement as trust score is refused."""
-    if is_ensemble_trust(members[0]):
-        check_members(members)
-        return np.asarray(members[0].meta["trust"]["increment_scale"])
-    if len(members) > 1:
-        raise InputError("an ensemble's gate needs its disagreement as trust score: add it with "
-                         "'hmodel surrogate trust MODEL+MODEL+... SAMPLE --out FILE'")
-    return None
-
-
-def check_members(members: list[Surrogate]) -> None:
-    """Refuse an ensemble other than the one its trust was measured on."""
-    t = members[0].meta["trust"]
-    if [fingerprint(m) for m in members] != t["members"]:
-        raise InputError(f"the ensemble's trust was measured on {len(t['members'])} other networks; "
-                         f"give the members in the order 'hmodel surrogate trust' was given them")
 
 
 def fit_ensemble_trust(members: list[Surrogate], held_out: dict[str, np.ndarray]
