@@ -115,14 +115,12 @@ def write_outputs(out_dir: "str | os.PathLike", writers: dict[str, Callable[[Pat
 
     A failure in any writer leaves ``out_dir`` as it was (no partial file).
     """
-    out_dir = Path(out_dir)
+    out_dir = check_output_folder(out_dir)
     parent = out_dir.parent if out_dir.parent != Path("") else Path(".")
     try:
         parent.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise InputError(f"cannot create output folder {str(out_dir)!r}: {e.strerror}") from None
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(f"output path {str(out_dir)!r} exists and is not a folder")
     tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=parent))
     try:
         for name, write in writers.items():

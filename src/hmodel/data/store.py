@@ -27,6 +27,7 @@ import pyarrow.parquet as pq
 
 from .. import __version__
 from ..errors import HModelError, InputError
+from ..io import check_output_folder
 from ..limits import check_disk
 from ..params import Params
 from .generator import DatasetSpec, compute_shard
@@ -138,8 +139,7 @@ def generate(spec: DatasetSpec, params: Params, out: "str | os.PathLike", *, wor
 
 def _prepare(folder: Path, header: dict, overwrite: bool) -> dict:
     """Create the folder or check that it holds the same dataset; drop temporary files."""
-    if folder.exists() and not folder.is_dir():
-        raise InputError(f"output path {str(folder)!r} exists and is not a folder")
+    check_output_folder(folder)
     path = folder / MANIFEST
     if path.is_file() and not overwrite:
         old = _read_manifest(path)

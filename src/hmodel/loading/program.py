@@ -167,7 +167,7 @@ class Program:
                 raise InputError(f"stage {i} must be a table")
             blocks.append(_block(item, i) if "stages" in item or "repeat" in item
                           else Block(_label(item, i), (_stage(item, _label(item, i)),)))
-        _p0_after_iso(blocks)
+        _check_p0_targets(blocks)
         program = cls(str(data.get("name", default_name)), tuple(blocks),
                       {str(k): str(v) for k, v in params.items()})
         check_count(program.n_increments, "increments of the program")
@@ -319,7 +319,7 @@ class _Run:
 
 # ---------------------------------------------------------------------- parsing helpers
 
-def _p0_after_iso(blocks: list[Block]) -> None:
+def _check_p0_targets(blocks: list[Block]) -> None:
     """Refuse a stage whose targets or criteria use p0 before any iso stage has set it, and a
     stress target that is not finite at the p0 of the iso stage before it (``p0 / 0``)."""
     p0 = None

@@ -19,7 +19,7 @@ from typing import Callable
 import numpy as np
 
 from ...errors import InputError
-from ...io import write_outputs
+from ...io import check_output_folder, write_outputs
 from ..yade import DEMError, run
 from .draw import draw_sample
 from .packing import initial_packing, mean_diameter
@@ -108,8 +108,7 @@ def _title(rec: dict, st: SampleState) -> str:
 def _open_folder(out: Path, settings: SampleSettings, names: list[str]) -> dict:
     """The sample.json of ``out`` to add the tests ``names`` to, or a new one; a folder of another
     sample, or with test CSVs that no sample.json describes, is refused."""
-    if out.exists() and not out.is_dir():
-        raise InputError(f"output path {str(out)!r} exists and is not a folder")
+    check_output_folder(out)
     wanted = settings.to_dict()
     meta = _read_json(out / "sample.json")
     if meta is not None:
