@@ -1,4 +1,4 @@
-"""DEM data -> surrogate -> ANN-based REV next to the DEM-REV (benchmarks/dem_ann.py, tiny sizes)."""
+"""DEM data -> surrogate -> ANN-based REV next to the DEM-REV (benchmarks/dem/dem_ann.py, tiny sizes)."""
 
 from __future__ import annotations
 
@@ -67,7 +67,7 @@ def test_meso_surrogate_of_the_hexagon_center_cell_runs_next_to_its_dem_rev(tmp_
     """The richer cell: DEM rows with their extra state -> sample -> meso formulation -> the
     ANN-REV (summary states, Love-Weber stress from the model) beside the DEM-REV on a short
     drained path; both hold the lateral stress, and the consolidation strains agree within 25 %
-    after 300 epochs on 180 rows (the pipeline, not the accuracy: see benchmarks/dem_ann.py)."""
+    after 300 epochs on 180 rows (the pipeline, not the accuracy: see benchmarks/dem/dem_ann.py)."""
     solver = "dem:hexagon-center:tol=1e-7,max_iter=100000"
     spec = DatasetSpec(kind=2, n_directions=3, theta_min=-60.0, theta_max=150.0, alpha0_min=45.0,
                        alpha0_max=45.0, max_strain=0.004, step=0.001, start_every=0.002,

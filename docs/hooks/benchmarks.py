@@ -1,15 +1,20 @@
-"""MkDocs hook: the benchmarks page's tables, generated at build time from ``benchmarks/*.json``.
+"""MkDocs hook: the benchmarks page's tables, generated at build time from ``benchmarks/*/*.json``.
 
-The page (``docs/benchmarks.md``) holds the prose; a marker ``<!-- benchmark: NAME -->`` is
-replaced by the tables of ``benchmarks/NAME.json`` and ``<!-- benchmark: * -->`` by those of
-every JSON file not placed yet, so a new benchmark shows up without editing the page. Each file
-gets a provenance line (date, machine and command, where they are known) and tables: a
-dedicated layout for the main benchmarks, and a generic one (scalars as a settings table, lists
-of records as tables) for anything else. Nothing is computed: the figures are the JSON's.
+The scripts of ``benchmarks/`` are grouped by the documentation page they feed
+(``benchmarks/engine/``, ``benchmarks/dem/``, ...) and each writes its JSON file beside itself.
+The page (``docs/benchmarks.md``) holds the prose; a marker ``<!-- benchmark: GROUP/NAME -->``
+is replaced by the tables of ``benchmarks/GROUP/NAME.json`` and ``<!-- benchmark: * -->`` by
+those of every JSON file not placed yet, so a new benchmark shows up without editing the page.
+Each file gets a provenance line (date, machine, command) and tables: a dedicated layout for the
+main benchmarks, and a generic one (scalars as a settings table, lists of records as tables) for
+anything else. Nothing is computed: the figures are the JSON's.
 
-The date is the JSON's own ``date`` (or ``timestamp``) when it has one, otherwise the date of
-the last commit that changed the file; the command is the JSON's ``command`` (or ``argv``),
-otherwise the script that writes it, with the options that the known files were recorded with.
+Everything about where a result comes from is the JSON's own (``benchmarks/timing.py``:
+``provenance``): its ``date`` (otherwise the date of the last commit that changed the file), its
+``command``, the ``options`` it ran with and its ``input_files``. A file that says
+``"command": null`` was written before the scripts recorded their command line, and is shown as
+such (with its ``command_note``, where one was noted by hand after the run); a file without a
+``command`` at all is an error of the build.
 """
 
 from __future__ import annotations
@@ -24,34 +29,12 @@ from pathlib import Path
 log = logging.getLogger("mkdocs.hooks.benchmarks")
 
 PAGE = "benchmarks.md"
-MARKER = re.compile(r"<!--\s*benchmark:\s*([\w.*-]+)\s*-->")
+MARKER = re.compile(r"<!--\s*benchmark:\s*([\w.*/-]+)\s*-->")
 
-#: The command line that produced a known file, for the files written before every benchmark
-#: recorded its own (``benchmarks/timing.py``: ``provenance``); an entry goes when its file is
-#: retaken.
-COMMANDS = {
-    "engine": "python benchmarks/engine.py",
-    "stability": "python benchmarks/stability.py",
-    "data": "python benchmarks/data.py",
-    "surrogate": "python benchmarks/surrogate.py",
-    "ann_rev": "python benchmarks/ann_rev.py",
-    "dem_ann": "python benchmarks/dem_ann.py --no-student (the shipped hexagon-center network, "
-               "--work /tmp/hexship --reuse after its training)",
-    "dem_ann_seed1": "python benchmarks/dem_ann.py (a second network trained alike, seed 1; "
-                     "exact options not recorded)",
-    "dem_ann_standard": "python benchmarks/dem_ann.py --mesostructure standard",
-    "dem_ann_drift": "python benchmarks/dem_ann_drift.py --model STUDENT (the model file named below)",
-    "dem_ann_drift_teacher": "python benchmarks/dem_ann_drift.py --model TEACHER "
-                             "--out benchmarks/dem_ann_drift_teacher.json",
-    "dem_ann_speed": "python benchmarks/dem_ann_speed.py --points 1,4,16,64 --model STUDENT "
-                     "--teacher TEACHER",
-    "dem_ann_speed_repeat": "python benchmarks/dem_ann_speed.py --points 64 --cells 2304 "
-                            "--model STUDENT --teacher TEACHER "
-                            "--out benchmarks/dem_ann_speed_repeat.json",
-    "dem_ann_start": "python benchmarks/dem_ann_start.py (the shipped hexagon-center network)",
-    "dem_ann_start_teacher": "python benchmarks/dem_ann_start.py --model TEACHER "
-                             "--out benchmarks/dem_ann_start_teacher.json",
-}
+#: Fields of :func:`provenance` (``benchmarks/timing.py``), shown in the provenance line and its
+#: note rather than as settings.
+PROVENANCE = ("date", "command", "command_note", "options", "input_files", "commit", "hmodel",
+              "python", "machine", "processor", "cpus")
 
 
 # --------------------------------------------------------------------------- formatting
@@ -185,29 +168,48 @@ def _machine(d: dict) -> str | None:
     return ", ".join(parts) or None
 
 
-def _command(name: str, d: dict, scripts: set[str]) -> str | None:
-    if d.get("command"):
-        return str(d["command"])
-    if isinstance(d.get("argv"), list):
-        return " ".join(map(str, d["argv"]))
-    if name in COMMANDS:
-        return COMMANDS[name]
+def _script(name: str, scripts: set[str]) -> str | None:
+    """The script that writes ``GROUP/NAME.json``: the longest ``GROUP/PREFIX`` of a script
+    (``dem/dem_ann_seed1`` is written by ``dem/dem_ann.py``)."""
     stem = name
-    while stem:
+    while stem and "/" in stem:
         if stem in scripts:
-            return f"python benchmarks/{stem}.py (options not recorded)"
+            return f"benchmarks/{stem}.py"
         stem = stem.rpartition("_")[0]
     return None
 
 
-def provenance(path: Path, d: dict, scripts: set[str]) -> str:
+def _command(name: str, d: dict, scripts: set[str]) -> str:
+    """The command line of a record, or what the record says about its absence."""
+    if "command" not in d:
+        log.warning("benchmarks page: benchmarks/%s.json records no command (benchmarks/timing.py: "
+                    "provenance)", name)
+        return "*no command in the file*"
+    if d["command"]:
+        return f"command: `{d['command']}`"
+    script = _script(name, scripts)
+    note = f"; {d['command_note']}" if d.get("command_note") else ""
+    return "command not recorded" + (f" (written by `{script}`{note})" if script else note)
+
+
+def _inputs(d: dict) -> str:
+    """The options and input files of a record as a collapsed note; empty when it has none."""
+    rows = [{"k": f"`{k}`", "v": v} for k, v in (d.get("options") or {}).items()]
+    rows += [{"k": f"`{f}`", "v": f"SHA-256 {h[:16]}…"} for f, h in (d.get("input_files") or {}).items()]
+    if d.get("commit"):
+        rows.append({"k": "commit", "v": d["commit"]})
+    if not rows:
+        return ""
+    return "\n??? note \"Options (defaults included) and inputs\"\n\n" + _indent(
+        table(rows, [("k", "option or file"), ("v", "value")]))
+
+
+def provenance(name: str, path: Path, d: dict, scripts: set[str]) -> str:
     date = d.get("date") or d.get("timestamp") or _git_date(path)
-    items = [f"`benchmarks/{path.name}`",
+    items = [f"`benchmarks/{name}.json`",
              f"recorded {date}" if date else "date not recorded",
              f"machine: {_machine(d)}" if _machine(d) else "machine not recorded"]
-    cmd = _command(path.stem, d, scripts)
-    line = " · ".join(items)
-    return line + (f"  \ncommand: `{cmd}`\n" if cmd else "\n")
+    return " · ".join(items) + "  \n" + _command(name, d, scripts) + "\n" + _inputs(d)
 
 
 # --------------------------------------------------------------------------- layouts
@@ -400,20 +402,20 @@ def _layout(d: dict):
     return None
 
 
-def render(path: Path, scripts: set[str]) -> str:
-    """The provenance line and tables of one benchmark file."""
+def render(name: str, path: Path, scripts: set[str]) -> str:
+    """The provenance line and tables of one benchmark file, ``benchmarks/NAME.json``."""
     d = json.loads(path.read_text())
-    head = provenance(path, d, scripts) + "\n"
     if not isinstance(d, dict):
-        return head + (table(d, [(k, f"`{k}`") for k in dict.fromkeys(k for r in d for k in r)])
-                       if isinstance(d, list) and d and isinstance(d[0], dict) else f"`{text(d)}`\n")
+        log.warning("benchmarks page: benchmarks/%s.json is not a JSON object", name)
+        return f"*benchmarks/{name}.json is not a record.*\n"
+    head = provenance(name, path, d, scripts) + "\n"
     layout = _layout(d)
     if layout is not None:
         try:
             return head + layout(d)
         except (KeyError, TypeError, ValueError, AttributeError) as e:  # a changed structure
             log.info("benchmarks: generic layout for %s (%s)", path.name, e)
-    return head + settings(d) + "\n" + generic_tables(d)
+    return head + settings({k: v for k, v in d.items() if k not in PROVENANCE}) + "\n" + generic_tables(d)
 
 
 # --------------------------------------------------------------------------- MkDocs events
@@ -426,21 +428,21 @@ def on_page_markdown(markdown, page, config, files, **kwargs):
     if page.file.src_uri != PAGE:
         return markdown
     folder = _folder(config)
-    found = {p.stem: p for p in sorted(folder.glob("*.json"))}
-    scripts = {p.stem for p in folder.glob("*.py")}
+    found = {f"{p.parent.name}/{p.stem}": p for p in sorted(folder.glob("*/*.json"))}
+    scripts = {f"{p.parent.name}/{p.stem}" for p in folder.glob("*/*.py")}
     placed: set[str] = {m.group(1) for m in MARKER.finditer(markdown) if m.group(1) != "*"}
 
     def replace(m):
         name = m.group(1)
         if name == "*":
             rest = [n for n in found if n not in placed]
-            return "\n".join(f"### `{n}.json`\n\n" + render(found[n], scripts) for n in rest) \
+            return "\n".join(f"### `{n}.json`\n\n" + render(n, found[n], scripts) for n in rest) \
                 or "(no other benchmark files)\n"
         if name not in found:
             log.warning("benchmarks page: no benchmarks/%s.json", name)
             return f"*benchmarks/{name}.json is missing.*\n"
         try:
-            return render(found[name], scripts)
+            return render(name, found[name], scripts)
         except (OSError, ValueError) as e:
             log.warning("benchmarks page: cannot read benchmarks/%s.json: %s", name, e)
             return f"*benchmarks/{name}.json could not be read.*\n"

@@ -1,0 +1,91 @@
+"""Engine speed: the figures of issue 2, printed as a table and written to ``engine.json``.
+
+(a) drained biaxial test at p0 = 200 kPa to 10 % axial strain, nθ = 360, default steps
+    (consolidation + shear + recording, i.e. everything ``run_biaxial`` computes), compiled
+    kernel and generic Python driver;
+(b) cell updates per second on one core: the closed-form cell kernel (``ClosedFormSolver.step``)
+    on a large batch, and the fused REV trial of the compiled path (localize + cell + average).
+
+Usage: ``python -m benchmarks.engine.engine [--repeat N] [--out PATH]``. The first call of each kernel
+compiles it (or loads Numba's cache); it is excluded, and the best of N runs is reported.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.timing import best_of, record, write_table
+from hmodel import Params
+from hmodel.cell import CellState
+from hmodel.cell.closed_form import ClosedFormSolver
+from hmodel.loading import paths, run_biaxial
+from hmodel.loading.compiled import CompiledSegment
+from hmodel.loading.control import Tangent
+from hmodel.rev import Rev
+
+
+def drained_biaxial(repeat: int, compiled: bool) -> float:
+    params = Params(n_theta=360)
+    if compiled:
+        return best_of(lambda: run_biaxial(params, [2e5], 0.1), repeat)
+    original = paths.supports
+    paths.supports = lambda rev: False
+    try:
+        return best_of(lambda: run_biaxial(params, [2e5], 0.1), max(1, repeat // 3))
+    finally:
+        paths.supports = original
+
+
+def cell_updates(repeat: int, n_cells: int = 2_000_000) -> float:
+    """Closed-form cell increments per second, compressive increments on loaded cells."""
+    params = Params()
+    rng = np.random.default_rng(0)
+    state = ClosedFormSolver().step(params, CellState.initial(params, (n_cells,)),
+                                    -1e-4 * params.l10, -0.5e-4 * params.l20)[0]
+    dl1 = -params.l10 * rng.uniform(0, 1e-4, n_cells)
+    dl2 = -params.l20 * rng.uniform(-1e-4, 1e-4, n_cells)
+    solver = ClosedFormSolver()
+    return n_cells / best_of(lambda: solver.step(params, state, dl1, dl2), repeat)
+
+
+def fused_trials(repeat: int, n_calls: int = 2000) -> float:
+    """Cell updates per second inside the compiled REV trial (nθ = 360, one material point)."""
+    from hmodel.loading.compiled import trial
+
+    rev = Rev(Params(n_theta=360))
+    s0 = paths.consolidate(rev, [2e5])
+    seg = CompiledSegment(rev, s0, (False, True, False), np.eye(3), s0.sig,
+                          np.array([[0.1, 2e5, 0.0]]), 1000, Tangent())
+    out, flags, sig = np.empty((360, 8)), np.empty((360, 5), bool), np.empty(3)
+    x = np.array([1e-4, -5e-5, 0.0])
+    resp = np.empty((360, 0))  # the closed form: no learned responses
+    args = (seg.values[0], seg.eps[0], x, seg.geo[0], seg.p[0], rev.mode, rev.volume0, out, flags, sig, resp)
+
+    def run():
+        for _ in range(n_calls):
+            trial(*args)
+    return n_calls * 360 / best_of(run, repeat)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--out", type=Path, default=Path(__file__).with_name("engine.json"))
+    args = ap.parse_args()
+    rows = [
+        ("drained biaxial 200 kPa to 10 %, ntheta=360, compiled [s]",
+         drained_biaxial(args.repeat, True), "<= 0.1"),
+        ("drained biaxial 200 kPa to 10 %, ntheta=360, generic driver [s]",
+         drained_biaxial(args.repeat, False), "-"),
+        ("cell updates per second, ClosedFormSolver.step (one core)",
+         cell_updates(args.repeat), ">= 1e7"),
+        ("cell updates per second, fused REV trial (one core)", fused_trials(args.repeat), ">= 1e7"),
+    ]
+    write_table(rows, args.out, record(__file__, args, args.repeat, rows), value_width=12)
+
+
+if __name__ == "__main__":
+    main()
