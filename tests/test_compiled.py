@@ -29,7 +29,7 @@ def _both(params, seg, p0=(2e5,), **kw):
     out = []
     for compiled in (True, False):
         rec = Recorder()
-        s = run_segment(rev, s0, seg, recorder=rec, compiled=compiled, **kw)
+        s = run_segment(rev, s0, seg, recorder=rec, compiled=compiled, **kw).state
         out.append((s, rec.result()))
     return out
 
@@ -64,7 +64,7 @@ def test_handed_back_increments_are_solved_by_the_generic_driver(monkeypatch):
     s0 = consolidate(rev, [1e5, 2e5])
     end = np.array([[0.01, 1e5, 0.0], [0.01, 2e5, 0.0]])
     ref = run_segment(rev, s0, Segment((False, True, False), np.eye(3), end, 20, "shear"),
-                      compiled=False)
+                      compiled=False).state
     monkeypatch.setattr(compiled, "_run_steps", failing_kernel)
     monkeypatch.setattr(compiled, "_run_steps_parallel", failing_kernel)
     runner = CompiledSegment(rev, s0, (False, True, False), np.eye(3), s0.sig, end, 20, Tangent())
@@ -79,14 +79,14 @@ def test_compiled_kernel_reports_unsolvable_increments_through_the_generic_error
     s0 = consolidate(rev, [1e5])
     seg = Segment.components("ESE", [1e-4, -5e4, 0.0], 1, "tension")
     with pytest.raises(SolverError, match="strain"):
-        run_segment(rev, s0, seg, compiled=True)
+        run_segment(rev, s0, seg, compiled=True).state
 
 
 def test_compiled_run_leaves_its_input_state_untouched():
     rev = Rev(SMALL)
     s0 = consolidate(rev, [1e5])
     before = s0.cells.values.copy(), s0.eps.copy(), s0.sig.copy()
-    run_segment(rev, s0, SEGMENTS["drained"], compiled=True)
+    run_segment(rev, s0, SEGMENTS["drained"], compiled=True).state
     np.testing.assert_array_equal(s0.cells.values, before[0])
     np.testing.assert_array_equal(s0.eps, before[1])
     np.testing.assert_array_equal(s0.sig, before[2])
@@ -104,8 +104,8 @@ def test_only_the_closed_form_solver_is_compiled():
     # A foreign solver runs through the generic driver and gives the same answer.
     rev_w, rev = Rev(SMALL, Wrapped()), Rev(SMALL)
     s0 = consolidate(rev, [1e5])
-    a = run_segment(rev_w, s0, SEGMENTS["drained"])
-    b = run_segment(rev, s0, SEGMENTS["drained"])
+    a = run_segment(rev_w, s0, SEGMENTS["drained"]).state
+    b = run_segment(rev, s0, SEGMENTS["drained"]).state
     np.testing.assert_allclose(a.sig, b.sig, rtol=1e-7, atol=1e-7 * np.abs(b.sig).max())  # sig12 is roundoff
 
 

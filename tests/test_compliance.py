@@ -8,7 +8,7 @@ from hmodel.cell import CellState
 from hmodel.cell.closed_form import ClosedFormSolver
 from hmodel.data import DatasetSpec, compute_shard
 from hmodel.surrogate import load, make_formulation, save
-from hmodel.surrogate.compliance import MINUS, PLUS, STICK, _packed
+from hmodel.surrogate.formulations.compliance import MINUS, PLUS, STICK, _packed
 from hmodel.surrogate.solver import SurrogateSolver
 from hmodel.surrogate.training import TrainConfig, train
 
@@ -138,7 +138,7 @@ def test_compiled_compliance_rev_equals_the_generic_driver(name):
     for compiled in (True, False):
         rec, s = Recorder(), s0
         for seg in segs:
-            s = run_segment(rev, s, seg, recorder=rec, compiled=compiled)
+            s = run_segment(rev, s, seg, recorder=rec, compiled=compiled).state
         runs.append((s, rec.result()))
     (sc, rc), (sg, rg) = runs
     q = lambda r: (r["sig11"] - r["sig22"]) / 2  # noqa: E731

@@ -79,7 +79,7 @@ def test_mixed_control_stress_target_on_shear_component():
     rev = Rev(SMALL)
     s0 = consolidate(rev, [2e5])
     seg = Segment.components("EES", [0.0, 0.0, 3e4], 10, "shear")
-    s = run_segment(rev, s0, seg)
+    s = run_segment(rev, s0, seg).state
     assert s.sig[0, 2] == pytest.approx(3e4, rel=1e-9)
     assert s.eps[0, 2] > 0
 
@@ -125,7 +125,7 @@ def test_unreachable_stress_target_raises_with_strain():
     s0 = consolidate(rev, [1e5])
     seg = Segment.components("ESE", [1e-4, -5e4, 0.0], 1, "tension")  # granular: no tension
     with pytest.raises(SolverError, match="strain"):
-        run_segment(rev, s0, seg)
+        run_segment(rev, s0, seg).state
 
 
 @pytest.mark.parametrize("bad", [

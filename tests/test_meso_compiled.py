@@ -12,7 +12,7 @@ from hmodel.compare import run_path, standard_paths
 from hmodel.loading import Recorder, Segment, consolidate, run_segment
 from hmodel.loading.compiled import supports
 from hmodel.rev import Rev
-from hmodel.surrogate.meso import MesoFormulation
+from hmodel.surrogate.formulations.meso import MesoFormulation
 from hmodel.cell.meso_kernel import kernel_params, meso_increment, pack_outputs, pack_responses
 from hmodel.surrogate.solver import SurrogateSolver
 from test_meso import PARAMS, _cells
@@ -98,7 +98,7 @@ def test_compiled_meso_rev_equals_the_generic_driver(tiny_model, name):
     runs = []
     for compiled in (True, False):
         rec = Recorder()
-        runs.append((run_segment(rev, s0, SEGMENTS[name], recorder=rec, compiled=compiled), rec.result()))
+        runs.append((run_segment(rev, s0, SEGMENTS[name], recorder=rec, compiled=compiled).state, rec.result()))
     (sc, rc), (sg, rg) = runs
     for col in ("eps11", "eps22", "sig11", "sig22", "sig12", "frac_sliding", "frac_open"):
         np.testing.assert_allclose(rc[col], rg[col], rtol=1e-6, atol=1e-6 * np.abs(rg["p"]).max())
@@ -143,6 +143,7 @@ def test_trials_are_counted_and_the_previous_increment_starts_newton(tiny_model)
             assert np.all(np.abs(runner.guess[:, 1]) < np.abs(last[:, 1]))
 
 
+@pytest.mark.slow
 def test_trial_slope_is_the_derivative_of_the_trial_stress(tiny_model):
     """The stress derivative a meso trial gives along a strain direction equals the central
     finite difference of the trial stress (where both step sizes agree: no regime changes in
@@ -150,7 +151,7 @@ def test_trial_slope_is_the_derivative_of_the_trial_stress(tiny_model):
     from hmodel.loading.compiled import trial, trial_tangent, cell_responses, kernel_inputs
     model, _ = tiny_model
     rev = Rev(PARAMS, SurrogateSolver(model, on_outside="fallback"))
-    s = run_segment(rev, consolidate(rev, [1e5]), SEGMENTS["drained"])
+    s = run_segment(rev, consolidate(rev, [1e5]), SEGMENTS["drained"]).state
     geo, p = kernel_inputs(rev)
     resp = cell_responses(rev, s.cells.values)[0]
     values, eps = s.cells.values[0], s.eps[0]

@@ -33,3 +33,10 @@ class PointFailure(SolverError):
         self.points = index[self.points]
         return self
 
+    def drop_into(self, failures: dict) -> np.ndarray:
+        """Record its points as dropped in ``failures`` (point -> the one-line reason), for a
+        caller that goes on with the other points; returns the points."""
+        for b in self.points:
+            failures[int(b)] = " ".join(str(self).split())
+        return self.points
+

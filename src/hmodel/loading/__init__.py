@@ -2,8 +2,9 @@
 
 from .control import Control, Tangent, solve_increment
 from .newton import NewtonSettings
-from .paths import (AXIAL_STEP, ISO_STEP, MAX_STRAIN_STEP, Segment, biaxial, consolidate,
-                    constant_p, oedometric, proportional, run_segment, strain_path)
+from .paths import (AXIAL_STEP, ISO_STEP, MAX_STRAIN_STEP, biaxial, consolidate, constant_p,
+                    oedometric, proportional, strain_path)
+from .segment import Segment, SegmentOutcome, StageFailed, run_segment
 from .recipes import PathSpec, run_recipe, standard_paths
 from .program import Program, ProgramFailed
 from .result import COLUMNS, PathResult, Recorder
@@ -13,4 +14,4 @@ __all__ = ["Control", "Tangent", "NewtonSettings", "solve_increment", "Segment",
            "biaxial", "oedometric", "constant_p", "proportional", "strain_path", "PathResult",
            "Recorder", "COLUMNS", "run_biaxial", "run_isotropic", "run_strain_path",
            "ISO_STEP", "AXIAL_STEP", "MAX_STRAIN_STEP", "PathSpec", "standard_paths", "run_recipe",
-           "Program", "ProgramFailed"]
+           "Program", "ProgramFailed", "SegmentOutcome", "StageFailed"]

@@ -42,8 +42,9 @@ from ..errors import PointFailure
 from ..rev import Rev, RevState
 from ..rev.kernels import cell_dl, weighted_global
 from .control import Control, Tangent, solve_increment
-from .newton import (ASK_SLOPE, ASK_TANGENT, ASK_TRIAL, BSIG, BX, C_FD, CONVERGED, NW, SIG, STALLED, X, XN,
-                     NewtonSettings, begin, free_direction, solve3, told_tangent, told_trial)
+from .newton import (ASK_SLOPE, ASK_TANGENT, ASK_TRIAL, BSIG, BX, C_FD, COMMIT_EVENT, COMMIT_SOLUTION, SIG,
+                     X, XN, NewtonSettings, after_newton, begin, block, event_targets, free_direction,
+                     segment_targets, told_tangent, told_trial, workspace_size)
 from .result import FRACTIONS
 
 # Kernel status per material point and increment.
@@ -247,18 +248,18 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, c,
         while nxt == cur or nxt == best:
             nxt += 1
         if act == ASK_TANGENT:
-            fd_tangent(values, eps, W[XN:XN + 3].copy(), geo, p, mode, volume0, c[C_FD], buf[nxt],
+            fd_tangent(values, eps, block(W, XN, 3).copy(), geo, p, mode, volume0, c[C_FD], buf[nxt],
                         bufflags[nxt], K, resp)
             trials[0] += 4
             act = told_tangent(W, K, has_K, S, M, c)
         elif act == ASK_SLOPE:
-            _slope_trial(values, eps, W[XN:XN + 3].copy(), geo, p, mode, volume0, buf[nxt],
+            _slope_trial(values, eps, block(W, XN, 3).copy(), geo, p, mode, volume0, buf[nxt],
                          bufflags[nxt], sig_n, resp, True, u, K)
             trials[0] += 1
             act = told_tangent(W, K, has_K, S, M, c)
         elif act == ASK_TRIAL:
             trials[0] += 1
-            ok = _slope_trial(values, eps, W[XN:XN + 3].copy(), geo, p, mode, volume0, buf[nxt],
+            ok = _slope_trial(values, eps, block(W, XN, 3).copy(), geo, p, mode, volume0, buf[nxt],
                               bufflags[nxt], sig_n, resp, exact, u, K)
             same = cur >= 0 and _same_events(bufflags[nxt], bufflags[cur])
             act = told_trial(W, K, S, M, c, sig_n, ok, _broken(bufflags[nxt]), same, exact, flag)
@@ -274,55 +275,39 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
                  buf, bufflags, resp, guess, trials):
     """One mixed-control increment of one material point, its state updated in place.
 
-    As ``control.solve_increment``: when Newton stalls inside the jump of a cell event, the
-    event state is committed and the rest of the increment solved from there (strain rows met
-    already), at most ``max_events`` times. Returns OK, or NOT_CONVERGED with the state
+    The event loop of :func:`hmodel.loading.newton.after_newton`, as in
+    ``control.solve_increment``: when Newton stalls inside the jump of a cell event, the event
+    state is committed and the rest of the increment solved from there
+    (:func:`~hmodel.loading.newton.event_targets`). Returns OK, or NOT_CONVERGED with the state
     restored to its start (slot 3 of ``buf`` keeps it).
     """
-    n_stress = 0
-    for r in range(3):
-        n_stress += S[r]
-    if n_stress == 0:
-        xs = solve3(M, v)
-        if xs is None:
-            return NOT_CONVERGED
-        sig_new = np.empty(3)
-        trials[0] += 1
-        if not trial(values, eps, xs, geo, p, mode, volume0, buf[0], bufflags[0], sig_new, resp):
-            return NOT_CONVERGED
-        values[:] = buf[0]
-        flags[:] = bufflags[0]
-        for j in range(3):
-            eps[j] += xs[j]
-            sig[j] = sig_new[j]
-        return OK
-    W = np.empty(NW)
+    W = np.empty(workspace_size(3))
     target = v.copy()
     eps0 = eps.copy()
     sig0 = sig.copy()
-    for event in range(max_events + 1):
+    event = 0
+    while True:
         act, cur, best = _newton_point(values, eps, sig, K, has_K, S, M, target, geo, p, mode,
                                        volume0, c, buf, bufflags, W, resp,
                                        guess if event == 0 else guess[:0], trials)
-        done = act == CONVERGED
-        if not done and (act != STALLED or event == max_events):
+        then = after_newton(act, event, max_events)
+        if then != COMMIT_SOLUTION and then != COMMIT_EVENT:
             break
-        if event == 0 and not done:  # keep the start state, to restore it on failure
+        if event == 0 and then == COMMIT_EVENT:  # keep the start state, to restore it on failure
             buf[3] = values
             bufflags[3] = flags
+        done = then == COMMIT_SOLUTION
         slot, at = (cur, X) if done else (best, BX)
         values[:] = buf[slot]
         flags[:] = bufflags[slot]
-        for j in range(3):
-            eps[j] += W[at + j]
-            sig[j] = W[(SIG if done else BSIG) + j]
+        eps += block(W, at, 3)
+        sig[:] = block(W, SIG if done else BSIG, 3)
         if done:
             for j in range(guess.shape[0]):
                 guess[j] = eps[j] - eps0[j]
             return OK
-        for r in range(3):  # past the event: strain rows are met, stress targets unchanged
-            if not S[r]:
-                target[r] = 0.0
+        event_targets(S, target)
+        event += 1
     if event > 0:
         values[:] = buf[3]
         flags[:] = bufflags[3]
@@ -376,11 +361,7 @@ def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin
             buf = np.empty((4, n, values.shape[2]))
             bufflags = np.empty((4, n, 5), dtype=np.bool_)
             v = np.empty(3)
-            for r in range(3):
-                if S[r]:
-                    v[r] = start[b, r] + (end[b, r] - start[b, r]) * (k / n_steps)
-                else:
-                    v[r] = end[b, r] / n_steps
+            segment_targets(S, start[b], end[b], k, n_steps, v)
             # The point's cells and parameters copied to arrays of this thread: views into the
             # shared arrays, made per cell in the trials, would all count references on the
             # shared arrays' one counter, which the threads would then take turns to update.
@@ -497,6 +478,8 @@ class CompiledSegment:
                  tangent: Tangent, settings: NewtonSettings = NewtonSettings(),
                  failures: dict | None = None):
         self.rev, self.n_steps, self.tangent, self.settings = rev, n_steps, tangent, settings
+        #: states kept by a run (none: its records are all there is; see GenericSegment)
+        self.states: list[RevState] = []
         #: with a dict, points that fail are dropped (point -> reason) instead of stopping all
         self.failures = failures
         self.dropped = np.array([b in (failures or {}) for b in range(state.n_points)], dtype=np.bool_)
@@ -580,11 +563,9 @@ class CompiledSegment:
             except PointFailure as e:
                 if self.failures is None:
                     raise
-                points = e.points
-                for b in points:
-                    self.failures[int(b)] = " ".join(str(e).split())
-                    self.dropped[b] = True
-                    rec_row[b] = np.nan
+                points = e.drop_into(self.failures)
+                self.dropped[points] = True
+                rec_row[points] = np.nan
                 idx = idx[~np.isin(idx, points)]
                 if not len(idx):
                     return None

@@ -96,15 +96,51 @@ SINGULAR = 5       # the Jacobian stayed singular after fresh tangents
 DIVERGED = 6       # not converged, and every trial held at the strain cap
 CELL_FAILED = 7    # a cell increment could not be solved
 
-# Layout of a point's workspace W (float64, NW).
-X, XN, SIG, R, SCALE, BX, BSIG, V = 0, 3, 6, 9, 12, 15, 18, 21
-TRUST, CAP, BKEY, IT, HELD, PHASE, PENDING, FRESH = 24, 25, 26, 27, 28, 29, 30, 31
-NW = 32
+# Layout of a point's workspace W (float64, :func:`workspace_size` of n components): eight
+# blocks of n values (block k is W[k n:(k + 1) n]), then eight scalars from W[8 n].
+X, XN, SIG, R, SCALE, BX, BSIG, V = range(8)
+TRUST, CAP, BKEY, IT, HELD, PHASE, PENDING, FRESH = range(8)
 
 # Phases: what the asked-for answer is for.
 P_FIRST_TANGENT, P_FIRST_TRIAL, P_TRIAL, P_REFRESH, P_FRESH = range(5)
 # After a fresh tangent for a singular Jacobian: retry the predictor or the correction.
 AT_PREDICTOR, AT_CORRECTION = 0, 1
+# What a driver does after Newton's outcome within one increment (:func:`after_newton`).
+COMMIT_SOLUTION, COMMIT_EVENT, GIVE_UP = 0, 1, 2
+
+
+@njit(cache=True, error_model="numpy")
+def workspace_size(n):
+    """Length of a point's workspace W for n components."""
+    return 8 * n + 8
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def block(W, k, n):
+    """Block ``k`` (X, XN, SIG, ...) of the workspace W of n components: a view."""
+    return W[k * n:(k + 1) * n]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _s(n, k):
+    """Index of scalar ``k`` (TRUST, CAP, ...) in the workspace of n components."""
+    return 8 * n + k
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _norm(x):
+    s = 0.0
+    for j in range(x.shape[0]):
+        s += x[j] ** 2
+    return math.sqrt(s)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _dot(a, b):
+    s = 0.0
+    for j in range(a.shape[0]):
+        s += a[j] * b[j]
+    return s
 
 
 @njit(cache=True, error_model="numpy")
@@ -128,32 +164,81 @@ def solve3(J, R):
 
 
 @njit(cache=True, error_model="numpy")
+def solve(J, R):
+    """J^-1 R for n x n J: cofactors for n = 3 (:func:`solve3`), Gaussian elimination with
+    partial pivoting otherwise; None when J is singular (a zero or non-finite pivot)."""
+    n = R.shape[0]
+    if n == 3:
+        return solve3(J, R)
+    A = J.copy()
+    x = R.copy()
+    for k in range(n):
+        piv = k
+        for i in range(k + 1, n):
+            if abs(A[i, k]) > abs(A[piv, k]):
+                piv = i
+        if A[piv, k] == 0.0 or not math.isfinite(A[piv, k]):
+            return None
+        if piv != k:
+            for j in range(n):
+                A[k, j], A[piv, j] = A[piv, j], A[k, j]
+            x[k], x[piv] = x[piv], x[k]
+        for i in range(k + 1, n):
+            f = A[i, k] / A[k, k]
+            for j in range(k, n):
+                A[i, j] -= f * A[k, j]
+            x[i] -= f * x[k]
+    for k in range(n - 1, -1, -1):
+        s = x[k]
+        for j in range(k + 1, n):
+            s -= A[k, j] * x[j]
+        x[k] = s / A[k, k]
+    return x
+
+
+@njit(cache=True, error_model="numpy")
 def free_direction(S, M):
-    """The strain direction (3,) the strain rows of M leave free when exactly one row is a
-    stress row (their cross product); empty otherwise."""
-    rows = np.empty(2, dtype=np.int64)
-    n = 0
-    for r in range(3):
-        if not S[r]:
-            if n == 2:
+    """The strain direction (n,) the strain rows of M leave free when exactly one row is a
+    stress row (for n = 3 the cross product of the two strain rows; otherwise M^-1 e_r, r the
+    stress row); empty otherwise."""
+    n = S.shape[0]
+    stress = -1
+    for r in range(n):
+        if S[r]:
+            if stress >= 0:
                 return np.zeros(0)
-            rows[n] = r
-            n += 1
-    if n != 2:
+            stress = r
+    if stress < 0:
         return np.zeros(0)
-    a, b = M[rows[0]], M[rows[1]]
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+    if n == 3:
+        rows = np.empty(2, dtype=np.int64)
+        m = 0
+        for r in range(3):
+            if not S[r]:
+                rows[m] = r
+                m += 1
+        a, b = M[rows[0]], M[rows[1]]
+        return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                         a[0] * b[1] - a[1] * b[0]])
+    e = np.zeros(n)
+    e[stress] = 1.0
+    u = solve(M, e)
+    return np.zeros(0) if u is None else u
 
 
 @njit(cache=True, error_model="numpy")
 def _newton_step(x, R, K, S, M):
     """x - J^-1 R with J = M, stress rows replaced by M[r] K; None when J is singular."""
+    n = S.shape[0]
     J = M.copy()
-    for r in range(3):
+    for r in range(n):
         if S[r]:
-            for j in range(3):
-                J[r, j] = M[r, 0] * K[0, j] + M[r, 1] * K[1, j] + M[r, 2] * K[2, j]
-    d = solve3(J, R)
+            for j in range(n):
+                s = 0.0
+                for a in range(n):
+                    s += M[r, a] * K[a, j]
+                J[r, j] = s
+    d = solve(J, R)
     if d is None:
         return None
     return x - d
@@ -161,11 +246,11 @@ def _newton_step(x, R, K, S, M):
 
 @njit(cache=True, error_model="numpy")
 def _bound(x, cap):
-    """Scales x (3,) in place back onto the ball of radius cap if outside; whether it did."""
-    nrm = math.sqrt(x[0] ** 2 + x[1] ** 2 + x[2] ** 2)
+    """Scales x (n,) in place back onto the ball of radius cap if outside; whether it did."""
+    nrm = _norm(x)
     if nrm <= cap:
         return False
-    for j in range(3):
+    for j in range(x.shape[0]):
         x[j] *= cap / nrm
     return True
 
@@ -173,42 +258,58 @@ def _bound(x, cap):
 @njit(cache=True, error_model="numpy")
 def _residual(W, S, M):
     """W[R] = M x - v on strain rows, M sig - v on stress rows, at the current trial."""
-    for r in range(3):
-        a = W[SIG:SIG + 3] if S[r] else W[X:X + 3]
-        W[R + r] = M[r, 0] * a[0] + M[r, 1] * a[1] + M[r, 2] * a[2] - W[V + r]
+    n = S.shape[0]
+    for r in range(n):
+        a = block(W, SIG, n) if S[r] else block(W, X, n)
+        W[R * n + r] = _dot(M[r], a) - W[V * n + r]
 
 
 @njit(cache=True, error_model="numpy")
 def _converged(W, S, rtol):
-    for r in range(3):
-        if S[r] and abs(W[R + r]) > rtol * W[SCALE + r]:
+    n = S.shape[0]
+    for r in range(n):
+        if S[r] and abs(W[R * n + r]) > rtol * W[SCALE * n + r]:
             return False
     return True
 
 
 @njit(cache=True, error_model="numpy")
 def begin(W, K, has_K, S, M, v, sig, c, guess, exact):
-    """Starts a point's increment toward targets v (3,) from stress sig (3,); returns the first
-    request. ``guess`` (3,) is the previous increment (or empty, or NaN: none); ``exact``:
-    trials give the exact slope along the free direction."""
+    """Starts a point's increment toward targets v (n,) from stress sig (n,); returns the first
+    request. ``guess`` (n,) is the previous increment (or empty, or NaN: none); ``exact``:
+    trials give the exact slope along the free direction. Without stress rows the one trial is
+    M^-1 v (SINGULAR when the strain rows are dependent)."""
+    n = S.shape[0]
     W[:] = 0.0
-    W[V:V + 3] = v
+    block(W, V, n)[:] = v
     strain = 0.0
-    for r in range(3):
+    n_stress = 0
+    for r in range(n):
         if not S[r]:
             strain += v[r] ** 2
-    W[CAP] = max(c[C_CAP], c[C_MULTIPLE] * math.sqrt(strain))
-    smax = max(abs(sig[0]), abs(sig[1]), abs(sig[2]))
-    for r in range(3):
-        W[SCALE + r] = max(max(abs(v[r]), smax), 1.0)
-    W[SIG:SIG + 3] = sig  # the state itself is the trial x = 0
-    W[BKEY] = 1e300
-    if guess.shape[0] == 3:
-        W[BX:BX + 3] = guess  # kept here until the predictor has used it
+        else:
+            n_stress += 1
+    W[_s(n, CAP)] = max(c[C_CAP], c[C_MULTIPLE] * math.sqrt(strain))
+    smax = 0.0
+    for j in range(n):
+        smax = max(smax, abs(sig[j]))
+    for r in range(n):
+        W[SCALE * n + r] = max(max(abs(v[r]), smax), 1.0)
+    block(W, SIG, n)[:] = sig  # the state itself is the trial x = 0
+    W[_s(n, BKEY)] = 1e300
+    if n_stress == 0:  # pure strain control: the increment is known, one trial evaluates it
+        x = solve(M, v)
+        if x is None:
+            return SINGULAR
+        block(W, XN, n)[:] = x
+        W[_s(n, PHASE)] = P_FIRST_TRIAL
+        return ASK_TRIAL
+    if guess.shape[0] == n:
+        block(W, BX, n)[:] = guess  # kept here until the predictor has used it
     else:
-        W[BX] = np.nan
+        W[BX * n] = np.nan
     if not has_K[0]:
-        W[PHASE] = P_FIRST_TANGENT
+        W[_s(n, PHASE)] = P_FIRST_TANGENT
         if exact:
             K[:, :] = 0.0
             return ASK_SLOPE
@@ -219,61 +320,63 @@ def begin(W, K, has_K, S, M, v, sig, c, guess, exact):
 @njit(cache=True, error_model="numpy")
 def _predict(W, K, S, M, c):
     """The first trial: the tangent predictor from the state, or the previous increment."""
+    n = S.shape[0]
     _residual(W, S, M)
-    xt = _newton_step(W[X:X + 3], W[R:R + 3], K, S, M)
+    xt = _newton_step(block(W, X, n), block(W, R, n), K, S, M)
     if xt is None:
-        return _fresh(W, AT_PREDICTOR)
-    W[FRESH] = 0.0
-    _bound(xt, W[CAP])
-    W[TRUST] = c[C_TRUST] * max(math.sqrt(xt[0] ** 2 + xt[1] ** 2 + xt[2] ** 2), 1e-8)
-    g = W[BX:BX + 3].copy()
+        return _fresh(W, AT_PREDICTOR, n)
+    W[_s(n, FRESH)] = 0.0
+    _bound(xt, W[_s(n, CAP)])
+    W[_s(n, TRUST)] = c[C_TRUST] * max(_norm(xt), 1e-8)
+    g = block(W, BX, n).copy()
     if math.isfinite(g[0]):
         # the last increment's strain, its strain rows moved to this increment's
-        d = np.zeros(3)
-        for r in range(3):
+        d = np.zeros(n)
+        for r in range(n):
             if not S[r]:
-                d[r] = W[V + r] - (M[r, 0] * g[0] + M[r, 1] * g[1] + M[r, 2] * g[2])
-        dg = solve3(M, d)
+                d[r] = W[V * n + r] - _dot(M[r], g)
+        dg = solve(M, d)
         if dg is not None:
             xt = g + dg
-            W[TRUST] = max(W[TRUST], c[C_TRUST] * math.sqrt(xt[0] ** 2 + xt[1] ** 2 + xt[2] ** 2))
-    W[HELD] = _bound(xt, W[CAP])
-    W[XN:XN + 3] = xt
-    W[PHASE] = P_FIRST_TRIAL
+            W[_s(n, TRUST)] = max(W[_s(n, TRUST)], c[C_TRUST] * _norm(xt))
+    W[_s(n, HELD)] = _bound(xt, W[_s(n, CAP)])
+    block(W, XN, n)[:] = xt
+    W[_s(n, PHASE)] = P_FIRST_TRIAL
     return ASK_TRIAL
 
 
 @njit(cache=True, error_model="numpy")
 def _correct(W, K, S, M, c):
     """The next correction from the current trial."""
-    xn = _newton_step(W[X:X + 3], W[R:R + 3], K, S, M)
+    n = S.shape[0]
+    xn = _newton_step(block(W, X, n), block(W, R, n), K, S, M)
     if xn is None:
-        return _fresh(W, AT_CORRECTION)
-    W[FRESH] = 0.0
-    dx = xn - W[X:X + 3]
-    nrm = math.sqrt(dx[0] ** 2 + dx[1] ** 2 + dx[2] ** 2)
-    if nrm > W[TRUST]:  # trust region: a correction never exceeds a few predictor increments
-        dx *= W[TRUST] / nrm
-    xn = W[X:X + 3] + dx
-    W[HELD] = _bound(xn, W[CAP])
-    W[XN:XN + 3] = xn
-    W[IT] += 1.0
-    W[PHASE] = P_TRIAL
+        return _fresh(W, AT_CORRECTION, n)
+    W[_s(n, FRESH)] = 0.0
+    dx = xn - block(W, X, n)
+    nrm = _norm(dx)
+    if nrm > W[_s(n, TRUST)]:  # trust region: a correction never exceeds a few predictor increments
+        dx *= W[_s(n, TRUST)] / nrm
+    xn = block(W, X, n) + dx
+    W[_s(n, HELD)] = _bound(xn, W[_s(n, CAP)])
+    block(W, XN, n)[:] = xn
+    W[_s(n, IT)] += 1.0
+    W[_s(n, PHASE)] = P_TRIAL
     return ASK_TRIAL
 
 
 @njit(cache=True, error_model="numpy")
-def _fresh(W, at):
+def _fresh(W, at, n):
     """A singular Jacobian: a fresh tangent at the current trial, then at no strain."""
-    W[PENDING] = at
-    W[PHASE] = P_FRESH
-    if W[FRESH] == 0.0:
-        W[FRESH] = 1.0
-        W[XN:XN + 3] = W[X:X + 3]
+    W[_s(n, PENDING)] = at
+    W[_s(n, PHASE)] = P_FRESH
+    if W[_s(n, FRESH)] == 0.0:
+        W[_s(n, FRESH)] = 1.0
+        block(W, XN, n)[:] = block(W, X, n)
         return ASK_TANGENT
-    if W[FRESH] == 1.0 and (W[X] != 0.0 or W[X + 1] != 0.0 or W[X + 2] != 0.0):
-        W[FRESH] = 2.0
-        W[XN:XN + 3] = 0.0
+    if W[_s(n, FRESH)] == 1.0 and _norm(block(W, X, n)) != 0.0:
+        W[_s(n, FRESH)] = 2.0
+        block(W, XN, n)[:] = 0.0
         return ASK_TANGENT
     return SINGULAR
 
@@ -281,59 +384,98 @@ def _fresh(W, at):
 @njit(cache=True, error_model="numpy")
 def told_tangent(W, K, has_K, S, M, c):
     """The driver has put the asked-for tangent (or slope) into K; the next request."""
-    phase = W[PHASE]
+    n = S.shape[0]
+    phase = W[_s(n, PHASE)]
     if phase == P_FIRST_TANGENT:
         has_K[0] = True
         return _predict(W, K, S, M, c)
     if phase == P_REFRESH:
         return _correct(W, K, S, M, c)
     # P_FRESH
-    if W[PENDING] == AT_PREDICTOR:
+    if W[_s(n, PENDING)] == AT_PREDICTOR:
         return _predict(W, K, S, M, c)
     return _correct(W, K, S, M, c)
 
 
 @njit(cache=True, error_model="numpy")
 def told_trial(W, K, S, M, c, sig_n, ok, broken, same_events, exact, best):
-    """The driver evaluated the asked-for trial: its stress sig_n (3,), whether every cell
+    """The driver evaluated the asked-for trial: its stress sig_n (n,), whether every cell
     increment was solved, its number of broken cells and whether the same cells are broken as
     in the current trial. Sets ``best[0]`` when this trial is the new event candidate (the
     driver keeps its state); returns the next request or the outcome."""
+    n = S.shape[0]
     best[0] = False
     if not ok:
         return CELL_FAILED
-    xn = W[XN:XN + 3].copy()
-    if W[PHASE] == P_TRIAL and not exact and same_events:
+    xn = block(W, XN, n).copy()
+    if W[_s(n, PHASE)] == P_TRIAL and not exact and same_events:
         # Broyden's rank-one secant update (skipped across a cell event, a jump, and where the
         # slope along u is exact)
-        dx = xn - W[X:X + 3]
-        dd = dx[0] ** 2 + dx[1] ** 2 + dx[2] ** 2
+        dx = xn - block(W, X, n)
+        dd = _dot(dx, dx)
         if dd > 0.0:
-            for a in range(3):
-                upd = sig_n[a] - W[SIG + a] - (K[a, 0] * dx[0] + K[a, 1] * dx[1] + K[a, 2] * dx[2])
-                for j in range(3):
+            for a in range(n):
+                upd = sig_n[a] - W[SIG * n + a] - _dot(K[a], dx)
+                for j in range(n):
                     K[a, j] += upd * dx[j] / dd
-    W[X:X + 3] = xn
-    W[SIG:SIG + 3] = sig_n
+    block(W, X, n)[:] = xn
+    block(W, SIG, n)[:] = sig_n
     _residual(W, S, M)
     res = 0.0
-    for r in range(3):
+    for r in range(n):
         if S[r]:
-            res = max(res, abs(W[R + r]))
+            res = max(res, abs(W[R * n + r]))
     key = -broken + res / (1.0 + res)
     # the event fallback's candidate: most broken cells, then residual (a trial held at the cap
     # is none: a jump lies near the solution, not out there)
-    if W[HELD] == 0.0 and key < W[BKEY]:
-        W[BKEY] = key
-        W[BX:BX + 3] = xn
-        W[BSIG:BSIG + 3] = sig_n
+    if W[_s(n, HELD)] == 0.0 and key < W[_s(n, BKEY)]:
+        W[_s(n, BKEY)] = key
+        block(W, BX, n)[:] = xn
+        block(W, BSIG, n)[:] = sig_n
         best[0] = True
     if _converged(W, S, c[C_RTOL]):
         return CONVERGED
-    if W[IT] >= c[C_MAX_ITER]:
-        return STALLED if W[BKEY] < 1e300 else DIVERGED
-    if W[IT] == c[C_REFRESH]:  # stalled: fresh finite-difference tangent at the current trial
-        W[XN:XN + 3] = xn
-        W[PHASE] = P_REFRESH
+    if W[_s(n, IT)] >= c[C_MAX_ITER]:
+        return STALLED if W[_s(n, BKEY)] < 1e300 else DIVERGED
+    if W[_s(n, IT)] == c[C_REFRESH]:  # stalled: fresh finite-difference tangent at the current trial
+        block(W, XN, n)[:] = xn
+        W[_s(n, PHASE)] = P_REFRESH
         return ASK_TANGENT
     return _correct(W, K, S, M, c)
+
+
+@njit(cache=True, error_model="numpy")
+def after_newton(act, event, max_events):
+    """The event loop of one increment (both drivers): after Newton's outcome ``act`` in the
+    ``event``-th attempt, COMMIT_SOLUTION (converged: the increment is done), COMMIT_EVENT
+    (stalled inside the jump of a cell event: commit the event state and solve the rest of the
+    increment from there, :func:`event_targets`) or GIVE_UP (failed, or ``max_events`` events
+    committed already)."""
+    if act == CONVERGED:
+        return COMMIT_SOLUTION
+    if act == STALLED and event < max_events:
+        return COMMIT_EVENT
+    return GIVE_UP
+
+
+@njit(cache=True, error_model="numpy")
+def event_targets(S, v):
+    """The rows of the rest of an increment past a committed cell event: its strain rows are
+    met already (0), its stress targets unchanged. Works on v (n,) or (B, n) in place."""
+    flat = v.reshape(-1, S.shape[0])
+    for b in range(flat.shape[0]):
+        for r in range(S.shape[0]):
+            if not S[r]:
+                flat[b, r] = 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def segment_targets(S, start, end, k, n_steps, v):
+    """Rows ``v`` (n,) of increment ``k`` (1..n_steps) of a segment of equal increments: stress
+    rows targeted on the straight line from ``start`` to ``end`` (n,), strain rows each taking
+    ``end / n_steps`` of their total change."""
+    for r in range(S.shape[0]):
+        if S[r]:
+            v[r] = start[r] + (end[r] - start[r]) * (k / n_steps)
+        else:
+            v[r] = end[r] / n_steps

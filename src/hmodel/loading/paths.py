@@ -12,18 +12,15 @@ A ``progress`` callable, when given, receives the completed fraction of the path
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError, PointFailure, SolverError
+from ..errors import InputError, SolverError
 from ..limits import check_count, steps_for
 from ..rev import Rev, RevState
-from .compiled import CompiledSegment, isotropic_steps, supports
-from .control import Control, Tangent, solve_increment
-from .newton import NewtonSettings
+from .compiled import isotropic_steps, supports
 from .result import Recorder
+from .segment import CHUNK, Progress, Segment, alive, run_segment
 
 #: Default strain increment of the isotropic compression (each of eps11, eps22).
 ISO_STEP = 1e-5
@@ -31,125 +28,6 @@ ISO_STEP = 1e-5
 AXIAL_STEP = 1e-4
 #: Largest strain-component increment of one cell update along a strain path.
 MAX_STRAIN_STEP = 1e-4
-
-Progress = Callable[[float], None] | None
-
-
-@dataclass(frozen=True)
-class Segment:
-    """``n_steps`` equal increments under fixed constraint rows (see :class:`Control`).
-
-    Strain rows spread ``values[r]`` (a total strain change) evenly over the steps; stress
-    rows move their target linearly from the value at the start of the segment to
-    ``values[r]``. ``values`` is (3,) or (B, 3).
-    """
-
-    stress_rows: tuple[bool, bool, bool]
-    matrix: np.ndarray
-    values: np.ndarray
-    n_steps: int
-    stage: str
-
-    @classmethod
-    def components(cls, kinds: str, values, n_steps: int, stage: str) -> "Segment":
-        """Per-component segment, ``kinds`` like ``"ESE"`` (E: strain change, S: final stress)."""
-        c = Control.components(kinds, np.atleast_2d(values))
-        return cls(tuple(c.stress_rows), np.eye(3), np.asarray(values, float), n_steps, stage)
-
-
-def run_segment(rev: Rev, state: RevState, seg: Segment, recorder: Recorder | None = None,
-                progress: Progress = None, tangent: Tangent | None = None,
-                record_every: int = 1, compiled: bool | None = None,
-                settings: NewtonSettings = NewtonSettings(),
-                failures: dict | None = None) -> RevState:
-    """Apply a :class:`Segment` to every material point; returns the final state.
-
-    ``settings`` are the mixed-control Newton's (:class:`~hmodel.loading.newton.NewtonSettings`).
-    ``failures``: None, and the first point whose increment cannot be solved stops the run
-    with its SolverError; or a dict, and such a point is dropped instead (``failures[point]``
-    says why; it is left in its last solved state and recorded no further, or as NaN) while
-    the others go on: a batch of independent material points, e.g. the parameter sets of a
-    calibration. Points already in the dict are dropped from the start.
-
-    ``compiled`` (default: whenever the REV's solver allows it) runs the segment in the
-    compiled kernel of :mod:`hmodel.loading.compiled`; ``False`` forces the generic driver.
-    """
-    if seg.n_steps < 1:
-        raise InputError(f"segment {seg.stage!r} needs at least one step, got {seg.n_steps}")
-    S = np.array(seg.stress_rows)
-    M = np.asarray(seg.matrix, float)
-    B = state.n_points
-    end = np.broadcast_to(np.asarray(seg.values, float), (B, 3))
-    start = state.sig @ M.T  # stress-row values at the start
-    tangent = tangent or Tangent()
-    if compiled is None:
-        compiled = supports(rev)
-    if compiled:
-        return _run_compiled(rev, state, seg, S, M, start, end, recorder, progress, tangent,
-                             record_every, settings, failures)
-    for k in range(1, seg.n_steps + 1):
-        control = Control.of_step(S, M, start, end, k, seg.n_steps)
-        if failures is None:
-            state = solve_increment(rev, state, control, tangent, settings)
-        else:
-            state = _increment_dropping(rev, state, control, tangent, settings,
-                                        failures)
-        if recorder is not None and (k % record_every == 0 or k == seg.n_steps):
-            recorder.record(state, seg.stage, _alive(B, failures))
-        if progress is not None:
-            progress(k / seg.n_steps)
-    return state
-
-
-#: Increments per call of the compiled kernel between progress reports.
-_CHUNK = 200
-
-
-def _alive(n: int, failures: dict | None) -> np.ndarray | None:
-    """Recorder mask (n,) of the points not dropped after a failure (None: none dropped)."""
-    return None if not failures else ~np.isin(np.arange(n), list(failures))
-
-
-def _increment_dropping(rev: Rev, state: RevState, control: Control, tangent: Tangent,
-                        settings: NewtonSettings, failures: dict) -> RevState:
-    """``solve_increment`` of the points not in ``failures``; a point it names as failed is
-    added there and the increment solved again for the others."""
-    B = state.n_points
-    live = ~np.isin(np.arange(B), list(failures))
-    if tangent.K is None or tangent.K.shape[0] != B:
-        tangent.K = tangent.previous = None
-    while live.any():
-        idx = np.flatnonzero(live)
-        sub_t = Tangent(None if tangent.K is None else tangent.K[idx],
-                        None if tangent.previous is None else tangent.previous[idx])
-        try:
-            sub = solve_increment(rev, state.select(idx), Control(control.stress_rows, control.matrix,
-                                                                  control.values[idx]), sub_t, settings)
-        except PointFailure as e:
-            for b in idx[e.points]:
-                failures[int(b)] = " ".join(str(e).split())
-                live[b] = False
-            continue
-        if tangent.K is None:
-            tangent.K, tangent.previous = np.zeros((B, 3, 3)), np.full((B, 3), np.nan)
-        tangent.K[idx], tangent.previous[idx] = sub_t.K, sub_t.previous
-        return state.scatter(idx, sub)
-    return state
-
-
-def _run_compiled(rev, state, seg, S, M, start, end, recorder, progress, tangent,
-                  record_every, settings, failures) -> RevState:
-    runner = CompiledSegment(rev, state, S, M, start, end, seg.n_steps, tangent, settings, failures)
-    for k0 in range(1, seg.n_steps + 1, _CHUNK):
-        k1 = min(k0 + _CHUNK, seg.n_steps + 1)
-        rec = runner.run(k0, k1)
-        if recorder is not None:
-            ks = np.arange(k0, k1)
-            keep = (ks % record_every == 0) | (ks == seg.n_steps)
-            recorder.record_block(rec[keep, :, :3], rec[keep, :, 3:6], rec[keep, :, 6:], seg.stage)
-        if progress is not None:
-            progress((k1 - 1) / seg.n_steps)
-    return runner.state()
 
 
 def _as_points(value, name: str) -> np.ndarray:
@@ -167,7 +45,7 @@ def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_S
 
     Each material point b stops at its own ``p0[b]`` [Pa]; the last increment is solved
     (mixed control on p, with deps11 = deps22) so that p = p0 exactly (``failures`` and
-    ``compiled``: see :func:`run_segment`; the compiled form runs every point's increments in
+    ``compiled``: see :func:`~hmodel.loading.segment.run_segment`; the compiled form runs every point's increments in
     one kernel call, or, for learned cells, one increment per call with the network evaluated
     between calls).
     """
@@ -190,14 +68,14 @@ def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_S
     values = np.stack([np.zeros_like(p0), p0, np.zeros_like(p0)], axis=1)
     # (a segment of one increment: compiled where the solver allows it)
     state = run_segment(rev, state, Segment((False, True, False), M, values, 1, "consolidation"),
-                        failures=failures, compiled=None if compiled else False)
+                        failures=failures, compiled=None if compiled else False).state
     if recorder is not None:
-        recorder.record(state, "consolidation", _alive(state.n_points, failures))
+        recorder.record(state, "consolidation", alive(state.n_points, failures))
     return state
 
 
 def _consolidate_compiled(rev, state, p0, step, recorder, progress, max_steps, failures):
-    """The strain-controlled part of :func:`consolidate` in the compiled kernel, _CHUNK
+    """The strain-controlled part of :func:`consolidate` in the compiled kernel, CHUNK
     increments per call; a point whose cell increment fails is dropped into ``failures``
     (or, without, stops the run)."""
     failed = np.zeros(state.n_points, dtype=np.bool_)
@@ -206,7 +84,7 @@ def _consolidate_compiled(rev, state, p0, step, recorder, progress, max_steps, f
     n = 0
     while True:
         start = state
-        state, done, rec = isotropic_steps(rev, state, step, p0, _CHUNK, failed)
+        state, done, rec = isotropic_steps(rev, state, step, p0, CHUNK, failed)
         if recorder is not None:
             recorder.record_block(rec[:, :, :3], rec[:, :, 3:6], rec[:, :, 6:], "consolidation")
         n += len(rec)
@@ -270,7 +148,7 @@ def biaxial(rev: Rev, state: RevState, axial_strain: float, undrained: bool = Fa
     sig22 = None if lateral_stress is None else _as_points(lateral_stress, "lateral stress")
     seg = biaxial_segment(state, axial_strain, strain_steps(axial_strain, step, "axial strain"),
                           undrained, sig22)
-    return run_segment(rev, state, seg, recorder, progress, failures=failures)
+    return run_segment(rev, state, seg, recorder, progress=progress, failures=failures).state
 
 
 def biaxial_segment(state: RevState, axial_strain: float, n_steps: int, undrained: bool = False,
@@ -290,7 +168,7 @@ def oedometric(rev: Rev, state: RevState, axial_strain: float, step: float = AXI
     """Oedometric compression: deps22 = deps12 = 0."""
     seg = Segment.components("EEE", [axial_strain, 0.0, 0.0],
                              strain_steps(axial_strain, step, "axial strain"), "oedometric")
-    return run_segment(rev, state, seg, recorder, progress)
+    return run_segment(rev, state, seg, recorder, progress=progress).state
 
 
 def constant_p(rev: Rev, state: RevState, axial_strain: float, step: float = AXIAL_STEP,
@@ -300,7 +178,7 @@ def constant_p(rev: Rev, state: RevState, axial_strain: float, step: float = AXI
     values = np.stack(np.broadcast_arrays(axial_strain, state.p, 0.0), axis=1)
     seg = Segment((False, True, False), M, values, strain_steps(axial_strain, step, "axial strain"),
                   "constant-p")
-    return run_segment(rev, state, seg, recorder, progress)
+    return run_segment(rev, state, seg, recorder, progress=progress).state
 
 
 def proportional(rev: Rev, state: RevState, direction, magnitude: float,
@@ -312,7 +190,7 @@ def proportional(rev: Rev, state: RevState, direction, magnitude: float,
         raise InputError(f"strain direction must be 3 finite numbers, not all zero, got {direction!r}")
     seg = Segment.components("EEE", magnitude * d / np.linalg.norm(d),
                              strain_steps(magnitude, step, "strain magnitude"), "proportional")
-    return run_segment(rev, state, seg, recorder, progress)
+    return run_segment(rev, state, seg, recorder, progress=progress).state
 
 
 def strain_path(rev: Rev, eps: np.ndarray, state: RevState | None = None,

@@ -37,9 +37,9 @@ from ..rev import Rev, RevState
 from .control import Tangent
 from .expressions import Criterion, Expression
 from .newton import NewtonSettings
-from .paths import AXIAL_STEP, ISO_STEP, Segment, consolidate
+from .paths import AXIAL_STEP, ISO_STEP, consolidate
 from .result import COLUMNS, PathResult, Recorder
-from .stepping import StageFailed, run_stage
+from .segment import Segment, StageFailed, run_segment
 
 #: Named rows: (a stress row?, coefficients on (11, 22, 12)).
 ROWS = {"eps11": (False, (1, 0, 0)), "eps22": (False, (0, 1, 0)), "eps12": (False, (0, 0, 1)),
@@ -194,7 +194,7 @@ class Program:
         ``meta["stopped"]`` lists the criteria that ended stages or cycles early (stage, cycle,
         criterion). An increment that cannot be solved raises :class:`ProgramFailed`, whose
         ``result`` holds every state before it. ``chunk``: see
-        :func:`~hmodel.loading.stepping.run_stage` (stability probes between chunks).
+        :func:`~hmodel.loading.segment.run_segment` (stability probes between chunks).
         ``settings``: the mixed-control Newton's (e.g. ``max_events``, the cell events one
         increment may commit before it is refused).
         """
@@ -294,9 +294,14 @@ class _Run:
             return np.logical_or.reduce(hits) if hits else None
 
         label = stage.name if not cycle else f"{stage.name} (cycle {cycle})"
+        first = self.done
+
+        def progress(fraction):
+            self.advance(first + round(fraction * seg.n_steps) - self.done)
         try:
-            out = run_stage(self.rev, self.state, seg, self.rec, stop if criteria else None,
-                            self.chunk, self.advance, self.tangent, self.settings)
+            out = run_segment(self.rev, self.state, seg, self.rec, stop=stop if criteria else None,
+                              chunk=self.chunk, progress=progress, tangent=self.tangent,
+                              settings=self.settings)
         except StageFailed as e:
             rows = ", ".join(f"{n} = {v:.6g}" for n, v, s in zip(stage.rows, seg.values, seg.stress_rows) if s)
             why = (f"increment {e.increment} of {seg.n_steps}: the targets ({rows or 'strain rows only'}) "

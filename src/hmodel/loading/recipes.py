@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..rev import Rev, RevState
-from .paths import Segment, biaxial_segment, consolidate, run_segment, strain_path
+from .paths import biaxial_segment, consolidate, strain_path
+from .segment import Segment, run_segment
 from .result import Recorder
 
 
@@ -35,7 +36,7 @@ class PathSpec:
 def _biaxial(axial: float, undrained: bool):
     def build(rev, state, step, rec):
         n = max(1, math.ceil(axial / step - 1e-9))
-        return run_segment(rev, state, biaxial_segment(state, axial, n, undrained), rec)
+        return run_segment(rev, state, biaxial_segment(state, axial, n, undrained), rec).state
     return build
 
 
@@ -45,7 +46,7 @@ def _unload_reload(peak: float, unload: float, final: float):
         for target in (peak, peak - unload, final):
             d = target - (state.eps[0, 0] - rec.meta["eps11_start"])
             n = max(1, math.ceil(abs(d) / step - 1e-9))
-            state = run_segment(rev, state, biaxial_segment(state, d, n, lateral_stress=p), rec)
+            state = run_segment(rev, state, biaxial_segment(state, d, n, lateral_stress=p), rec).state
         return state
     return build
 
@@ -53,7 +54,7 @@ def _unload_reload(peak: float, unload: float, final: float):
 def _oedometric(axial: float):
     def build(rev, state, step, rec):
         n = max(1, math.ceil(axial / step - 1e-9))
-        return run_segment(rev, state, Segment.components("EEE", [axial, 0.0, 0.0], n, "shear"), rec)
+        return run_segment(rev, state, Segment.components("EEE", [axial, 0.0, 0.0], n, "shear"), rec).state
     return build
 
 

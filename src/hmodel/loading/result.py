@@ -11,14 +11,55 @@ from pathlib import Path
 import numpy as np
 
 from ..rev import RevState
+from ..rev.rev import deviatoric_stress, mean_stress, volumetric_strain
 
-#: Columns of every result table, in order (the output contract of docs/cli.md plus diagnostics).
-COLUMNS = ("point", "stage", "step", "eps11", "eps22", "eps12", "sig11", "sig22", "sig12",
-           "p", "q", "eps_v", "q_p", "frac_sliding", "frac_open", "frac_contact14",
-           "frac_contact26")
+#: Tensor components of a state's strain and stress, by their number n (2D: 3, 3D: 6).
+COMPONENTS = {3: ("11", "22", "12"), 6: ("11", "22", "33", "23", "13", "12")}
 #: Cell-diagnostic columns, fractions of the directions (see ``RevState.fractions``).
-FRACTIONS = COLUMNS[-4:]
-UNITS = {"sig11": "Pa", "sig22": "Pa", "sig12": "Pa", "p": "Pa", "q": "Pa"}
+FRACTIONS = ("frac_sliding", "frac_open", "frac_contact14", "frac_contact26")
+
+
+def columns_for(n: int) -> tuple[str, ...]:
+    """Columns of a result table of states with n components, in order: the output contract
+    of docs/cli.md, the stress invariants (3D: also the Lode angle and b), the diagnostics."""
+    comps = COMPONENTS[n]
+    lode = ("lode", "b") if n == 6 else ()
+    return ("point", "stage", "step", *(f"eps{c}" for c in comps), *(f"sig{c}" for c in comps),
+            "p", "q", "eps_v", "q_p", *lode, *FRACTIONS)
+
+
+#: Columns of every 2D result table.
+COLUMNS = columns_for(3)
+UNITS = {**{f"sig{c}": "Pa" for c in COMPONENTS[6]}, "p": "Pa", "q": "Pa", "lode": "deg"}
+
+
+def stress_columns(eps: np.ndarray, sig: np.ndarray) -> dict[str, np.ndarray]:
+    """The component and invariant columns of states eps, sig (K, n): components, p, q, eps_v,
+    q/p (0 where p = 0), and in 3D the Lode angle [deg] and b of :func:`lode_b`."""
+    comps = COMPONENTS[sig.shape[-1]]
+    p, q = mean_stress(sig), deviatoric_stress(sig)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q_p = np.where(p != 0, q / np.where(p != 0, p, 1.0), 0.0)
+    cols = {**{f"eps{c}": eps[:, j] for j, c in enumerate(comps)},
+            **{f"sig{c}": sig[:, j] for j, c in enumerate(comps)},
+            "p": p, "q": q, "eps_v": volumetric_strain(eps), "q_p": q_p}
+    if sig.shape[-1] == 6:
+        cols["lode"], cols["b"] = lode_b(sig)
+    return cols
+
+
+def lode_b(sig: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lode angle [deg] and b = (s2 - s3)/(s1 - s3) of 3D stresses (K, 6), from the principal
+    stresses s1 >= s2 >= s3 (compression positive). The angle is measured from triaxial
+    compression (0°: s2 = s3, b = 0) to triaxial extension (60°: s1 = s2, b = 1), i.e.
+    tan θ = √3 b / (2 − b); NaN where the stress is isotropic."""
+    T = np.empty((len(sig), 3, 3))
+    for (i, j), k in zip(((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)), range(6)):
+        T[:, i, j] = T[:, j, i] = sig[:, k]
+    s3, s2, s1 = np.moveaxis(np.linalg.eigvalsh(T), -1, 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b = np.where(s1 - s3 > 1e-12 * np.maximum(np.abs(s1), 1.0), (s2 - s3) / (s1 - s3), np.nan)
+    return np.degrees(np.arctan2(np.sqrt(3.0) * b, 2.0 - b)), b
 
 
 @dataclass(frozen=True)
@@ -58,7 +99,8 @@ class PathResult:
         tmp = path.with_name(path.name + ".part")
         with open(tmp, "w", newline="") as fh:
             w = csv.writer(fh)
-            names = COLUMNS + tuple(c for c in self.columns if c not in COLUMNS)  # then any tags
+            first = columns_for(6 if "eps33" in self.columns else 3)
+            names = first + tuple(c for c in self.columns if c not in first)  # then any tags
             w.writerow(names)
             cols = [self.columns[c] for c in names]
             for row in zip(*cols):
@@ -76,6 +118,8 @@ class Recorder:
         #: blocks, where they are NaN): e.g. ``Rev.solver_fractions``
         self.columns = columns
         self._step: np.ndarray | None = None
+        #: strain and stress components of the states recorded (3 until one says otherwise)
+        self.n_components = 3
         self.meta = dict(meta or {})
         #: extra columns after :data:`COLUMNS`, with the value they take in the rows recorded
         #: from now on (a loading program's ``cycle``); set before the first row is recorded
@@ -92,11 +136,12 @@ class Recorder:
 
     def record_block(self, eps: np.ndarray, sig: np.ndarray, frac: np.ndarray, stage: str,
                      mask: np.ndarray | None = None, extra: dict | None = None) -> None:
-        """Append K consecutive states of B points: eps, sig (K, B, 3), frac (K, B, 4) in the
+        """Append K consecutive states of B points: eps, sig (K, B, n), frac (K, B, 4) in the
         order of :data:`FRACTIONS`, ``extra`` columns (K, B); only the points where ``mask``
         (B,) is true, and only the states that exist (a point dropped after a failure has NaN
         strains from then on)."""
         K, B = eps.shape[:2]
+        self.n_components = eps.shape[-1]
         if self._step is None:
             self._step = np.zeros(B, dtype=np.int64)
         m = np.ones(B, bool) if mask is None else np.asarray(mask, bool)
@@ -108,23 +153,19 @@ class Recorder:
         self._step += count[-1]
         pts = np.broadcast_to(np.arange(B), (K, B))[valid]
         eps, sig, frac = eps[valid], sig[valid], frac[valid]
-        p, q = 0.5 * (sig[:, 0] + sig[:, 1]), sig[:, 0] - sig[:, 1]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            q_p = np.where(p != 0, q / np.where(p != 0, p, 1.0), 0.0)
-        row = {"point": pts, "stage": np.full(len(steps), stage, dtype=object),
-               "step": steps, "eps11": eps[:, 0], "eps22": eps[:, 1], "eps12": eps[:, 2],
-               "sig11": sig[:, 0], "sig22": sig[:, 1], "sig12": sig[:, 2],
-               "p": p, "q": q, "eps_v": eps[:, 0] + eps[:, 1], "q_p": q_p}
+        row = {"point": pts, "stage": np.full(len(steps), stage, dtype=object), "step": steps,
+               **stress_columns(eps, sig)}
         row.update({c: frac[:, j] for j, c in enumerate(FRACTIONS)})
         row.update({c: np.asarray(v, float)[valid] for c, v in (extra or {}).items()})
         row.update({c: np.full(len(steps), v) for c, v in self.tags.items()})
         self._rows.append(row)
 
     def result(self) -> PathResult:
+        first = columns_for(self.n_components)
         if not self._rows:
-            cols = {c: np.array([]) for c in COLUMNS}
+            cols = {c: np.array([]) for c in first}
         else:
-            names = COLUMNS + tuple(dict.fromkeys(c for r in self._rows for c in r if c not in COLUMNS))
+            names = first + tuple(dict.fromkeys(c for r in self._rows for c in r if c not in first))
             # a column some rows lack (one recorded from states only) is NaN there
             cols = {c: np.concatenate([r[c] if c in r else np.full(len(r["step"]), np.nan)
                                        for r in self._rows]) for c in names}

@@ -26,6 +26,37 @@ _LOC_MODE = {"hexagon": LOC_CELL, "rectangle": LOC_CELL, "box": LOC_BOX,
              "hexagon-consistent": LOC_VIRTUAL}
 
 
+def _normal(n: int) -> int:
+    """Normal components of a (..., n) strain or stress: 2 in 2D (n = 3), 3 in 3D (n = 6)."""
+    if n not in (3, 6):
+        raise InputError(f"a strain or stress has 3 (2D) or 6 (3D) components, got {n}")
+    return 2 if n == 3 else 3
+
+
+def mean_stress(sig: np.ndarray) -> np.ndarray:
+    """p (...) of stresses (..., n): the mean of the normal components."""
+    if _normal(sig.shape[-1]) == 2:
+        return 0.5 * (sig[..., 0] + sig[..., 1])
+    return (sig[..., 0] + sig[..., 1] + sig[..., 2]) / 3.0
+
+
+def deviatoric_stress(sig: np.ndarray) -> np.ndarray:
+    """q (...) of stresses (..., n): sig11 - sig22 in 2D (the report's q, §1.1.2), sqrt(3 J2)
+    in 3D (tensor shear components 23, 13, 12), q = sig_a - sig_r in a triaxial test."""
+    if _normal(sig.shape[-1]) == 2:
+        return sig[..., 0] - sig[..., 1]
+    s11, s22, s33 = sig[..., 0], sig[..., 1], sig[..., 2]
+    shear = sig[..., 3] ** 2 + sig[..., 4] ** 2 + sig[..., 5] ** 2
+    return np.sqrt(0.5 * ((s11 - s22) ** 2 + (s22 - s33) ** 2 + (s33 - s11) ** 2) + 3.0 * shear)
+
+
+def volumetric_strain(eps: np.ndarray) -> np.ndarray:
+    """eps_v (...) of strains (..., n): the trace."""
+    if _normal(eps.shape[-1]) == 2:
+        return eps[..., 0] + eps[..., 1]
+    return eps[..., 0] + eps[..., 1] + eps[..., 2]
+
+
 @dataclass(frozen=True)
 class RevState:
     """State of B material points.
@@ -34,8 +65,8 @@ class RevState:
     ----------
     cells : CellState, shape (B, n_theta)
     flags : CellFlags, shape (B, n_theta)
-    eps : ndarray (B, 3)   cumulative macro strain (eps11, eps22, eps12)
-    sig : ndarray (B, 3)   macro stress (sig11, sig22, sig12) [Pa]
+    eps : ndarray (B, n)   cumulative macro strain: (eps11, eps22, eps12) in 2D, n = 3
+    sig : ndarray (B, n)   macro stress [Pa], the same components (3D: :mod:`hmodel.rev.rev3d`)
     sets : ndarray (B,) int or None
         Each point's parameter set, an index into :attr:`Rev.sets` (None: the first for all).
     """
@@ -56,19 +87,24 @@ class RevState:
         return np.zeros(self.n_points, np.int64) if self.sets is None else self.sets
 
     @property
+    def n_components(self) -> int:
+        """Strain and stress components: 3 in 2D (11, 22, 12), 6 in 3D (11, 22, 33, 23, 13, 12)."""
+        return self.eps.shape[1]
+
+    @property
     def p(self) -> np.ndarray:
-        """Mean stress (sig11 + sig22)/2 [Pa]."""
-        return 0.5 * (self.sig[:, 0] + self.sig[:, 1])
+        """Mean stress [Pa]: (sig11 + sig22)/2 in 2D, (sig11 + sig22 + sig33)/3 in 3D."""
+        return mean_stress(self.sig)
 
     @property
     def q(self) -> np.ndarray:
-        """Deviatoric stress sig11 - sig22 [Pa]."""
-        return self.sig[:, 0] - self.sig[:, 1]
+        """Deviatoric stress [Pa]: sig11 - sig22 in 2D, sqrt(3 J2) in 3D."""
+        return deviatoric_stress(self.sig)
 
     @property
     def eps_v(self) -> np.ndarray:
-        """Volumetric strain eps11 + eps22 (compression positive)."""
-        return self.eps[:, 0] + self.eps[:, 1]
+        """Volumetric strain, the trace of the strain (compression positive)."""
+        return volumetric_strain(self.eps)
 
     def where(self, mask: np.ndarray, other: "RevState") -> "RevState":
         """Material points of ``self`` where ``mask`` (B,) is true, else those of ``other``."""
@@ -121,6 +157,9 @@ class Rev:
     >>> bool(abs(s.sig[0, 0] - s.sig[0, 1]) < 1e-9 * s.sig[0, 0]), bool(s.sig[1, 0] > s.sig[0, 0])
     (True, True)
     """
+
+    #: strain and stress components of its states (11, 22, 12)
+    n_components = 3
 
     def __init__(self, params: Params | Sequence[Params], solver: CellSolver | None = None):
         if solver is None:
