@@ -4,11 +4,12 @@ V sigma = sum over contacts of f (x) b, with f the force on grain j by grain i a
 b = x_j - x_i the branch vector (compression positive: a compressive contact pushes j away
 from i, f.b > 0). For the standard cell this is eq. 1.12 term by term. The same tensor is
 sum over grains of F_p (x) x_p, F_p the resultant contact force on grain p (each contact enters
-twice with opposite signs), i.e. the boundary form through the reactions of the driven grains.
+twice with opposite signs), i.e. the boundary form through the reactions of the driven grains
+(``tests/test_dem.py`` checks both forms agree).
 
 With grain rotations blocked the grains need not be in moment equilibrium, so the sum may
-have a skew part (the blocking torques); :func:`meso_stress` returns the symmetric part and
-:func:`skew_ratio` measures what was dropped.
+have a skew part (the blocking torques); :func:`meso_stress` returns the symmetric part (the
+test measures what was dropped: nothing, for the mirror-symmetric cells).
 """
 
 from __future__ import annotations
@@ -24,22 +25,9 @@ def love_weber(contacts: np.ndarray) -> np.ndarray:
     return np.einsum("ca,cb->ab", c[:, 4:6], c[:, 6:8])
 
 
-def boundary_form(positions: np.ndarray, forces: np.ndarray) -> np.ndarray:
-    """sum_p F_p (x) x_p (2, 2) from grain positions (g, 2) and resultant forces (g, 2)."""
-    return np.einsum("pa,pb->ab", np.asarray(forces, float), np.asarray(positions, float))
-
-
 def vsigma(run: CellRun) -> np.ndarray:
     """V sigma of every recorded step, full (not symmetrized), shape (S+1, 2, 2) [N m]."""
     return np.array([love_weber(c) for c in run.contacts])
-
-
-def skew_ratio(vs: np.ndarray) -> np.ndarray:
-    """|skew part| / |V sigma| (Frobenius), 0 for a force-free cell; shape (...)."""
-    vs = np.asarray(vs, float)
-    skew = 0.5 * (vs - np.swapaxes(vs, -1, -2))
-    norm = np.linalg.norm(vs, axis=(-2, -1))
-    return np.where(norm > 0, np.linalg.norm(skew, axis=(-2, -1)) / np.where(norm > 0, norm, 1), 0.0)
 
 
 def meso_stress(run: CellRun) -> np.ndarray:
