@@ -19,7 +19,7 @@ import os
 import shutil
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .. import __version__
@@ -111,74 +111,98 @@ def table21(work: Path, sizes: tuple[int, ...], minutes: float, depths=None, d1_
                   "table-2-1.png": lambda p: plot_sweep(rows, p)}
 
 
-def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
-              progress: Callable[[float], None] | None = None) -> Path:
-    """Run the study into ``out`` (a fresh folder is written atomically); returns report.html."""
-    from ..solvers import get_solver
-    from ..compare import compare_path, plot_overlay, warm_up
-    from ..data import generate
-    from ..io import write_outputs, write_rows
-    from ..loading import run_biaxial, standard_paths
+@dataclass
+class _Study:
+    """What the steps of one :func:`reproduce` run share: the plan, the parameters, the work
+    folder, the files to write (name -> writer, in order) and the timings table."""
+    plan: Plan
+    params: Params
+    work: Path
+    tick: Callable[[float], None]
+    files: dict = field(default_factory=dict)
+    timings: list = field(default_factory=list)
+
+    def timed(self, step: str, t0: float) -> None:
+        """Records ``step`` as taking from ``t0`` (``time.perf_counter``) to now."""
+        self.timings.append({"step": step, "seconds": time.perf_counter() - t0})
+
+
+def _engine(study: _Study) -> None:
+    """1. Engine: Fig. 1.7, after a warm-up (Numba's first compilation is timed apart)."""
+    from ..compare import warm_up
+    from ..loading import run_biaxial
     from ..plotting import plot_result
+
+    plan, params = study.plan, study.params
+    warm = warm_up(params, ["closed-form"], plan.step, 1e-4)
+    study.timings.append({"step": "warm-up of the closed form (Numba compilation on a fresh install)",
+                          "seconds": warm["closed-form"]})
+    t = time.perf_counter()
+    fig17 = run_biaxial(params, [1e5, 2e5, 4e5], plan.axial)
+    study.timed("drained biaxial, 3 pressures (closed form)", t)
+    study.files["fig-1-7.png"] = lambda p: plot_result(fig17, p)
+    study.files["fig-1-7.csv"] = fig17.to_csv
+    study.tick(0.1)
+
+
+def _database(study: _Study):
+    """2. Database: REV-scale increments (reduced grid in --quick); returns it and its spec."""
+    from ..data import generate
+    from ..surrogate.shipped import REV_DATASET
+
+    a = [float(x) for x in study.plan.data_alpha0.split(":")]
+    spec = replace(REV_DATASET, n_directions=study.plan.data_directions, alpha0_min=a[0],
+                   alpha0_max=a[1], alpha0_step=a[2])
+    t = time.perf_counter()
+    ds = generate(spec, Params(), study.work / "dataset", workers=os.cpu_count() or 1)
+    study.timed(f"database generation ({ds.n_rows:,} rows)", t)
+    study.tick(0.2)
+    return ds, spec
+
+
+def _surrogate(study: _Study, ds, solver_spec: str):
+    """3. Surrogate: trained on the new database (full) or the shipped one, evaluated on new
+    rows; returns the solver, its spec and the metrics."""
+    from ..compare import warm_up
     from ..data.sampling import write_split
+    from ..io import write_rows
+    from ..solvers import get_solver
     from ..surrogate import save
     from ..surrogate.evaluation import evaluate, parity_plot
-    from ..surrogate.shipped import DEFAULT_TRAINING, REV_DATASET
-    from ..surrogate.torch_support import require_torch
+    from ..surrogate.shipped import DEFAULT_TRAINING
     from ..surrogate.training import train_on_sample
     from ..surrogate.training_rows import read_rows
 
-    plan = QUICK if quick else FULL
-    if plan.train_rows:
-        require_torch("reproduce without --quick (it trains a surrogate)")  # before any work
-    params = Params(n_theta=plan.n_theta)
-    work = out.with_name(out.name + ".work")
-    work.mkdir(parents=True, exist_ok=True)
-    tick = progress or (lambda f: None)
-    files, timings = {}, []
-
-    # 1. Engine: Fig. 1.7, after a warm-up (Numba's first compilation is timed apart).
-    warm = warm_up(params, ["closed-form"], plan.step, 1e-4)
-    timings.append({"step": "warm-up of the closed form (Numba compilation on a fresh install)",
-                    "seconds": warm["closed-form"]})
-    t = time.perf_counter()
-    fig17 = run_biaxial(params, [1e5, 2e5, 4e5], plan.axial)
-    timings.append({"step": "drained biaxial, 3 pressures (closed form)", "seconds": time.perf_counter() - t})
-    files["fig-1-7.png"] = lambda p: plot_result(fig17, p)
-    files["fig-1-7.csv"] = fig17.to_csv
-    tick(0.1)
-
-    # 2. Database: REV-scale increments (reduced grid in --quick).
-    a = [float(x) for x in plan.data_alpha0.split(":")]
-    spec = replace(REV_DATASET, n_directions=plan.data_directions, alpha0_min=a[0], alpha0_max=a[1],
-                   alpha0_step=a[2])
-    t = time.perf_counter()
-    ds = generate(spec, Params(), work / "dataset", workers=os.cpu_count() or 1)
-    timings.append({"step": f"database generation ({ds.n_rows:,} rows)", "seconds": time.perf_counter() - t})
-    tick(0.2)
-
-    # 3. Surrogate: trained on the new database (full) or the shipped one, evaluated on new rows.
+    plan, work, files = study.plan, study.work, study.files
     if plan.train_rows:
         t = time.perf_counter()
         n_test = min(100_000, ds.n_rows // 10)
         write_split(ds, work / "sample", min(plan.train_rows, ds.n_rows // 2), n_test, "random", 0)
         model, _ = train_on_sample(work / "sample", DEFAULT_TRAINING)
-        timings.append({"step": f"training ({plan.train_rows:,} rows, {model.meta['epochs_run']} epochs)",
-                        "seconds": time.perf_counter() - t})
+        study.timed(f"training ({plan.train_rows:,} rows, {model.meta['epochs_run']} epochs)", t)
         solver_spec = "surrogate:" + str(work / "surrogate.safetensors")
         save(model, work / "surrogate.safetensors")
         files["surrogate.safetensors"] = lambda p: shutil.copyfile(work / "surrogate.safetensors", p)
     solver = get_solver(solver_spec)
-    timings.append({"step": f"warm-up of {solver.name} (compilation)",
-                    "seconds": warm_up(params, [solver], plan.step, 1e-4)[solver.name]})
+    study.timings.append({"step": f"warm-up of {solver.name} (compilation)",
+                          "seconds": warm_up(study.params, [solver], plan.step, 1e-4)[solver.name]})
     model = solver.model
     cols, _ = read_rows(work / "sample" if plan.train_rows else ds.folder, n=min(100_000, ds.n_rows), seed=0)
     metrics = evaluate(model, cols, "new rows")
     files["parity.png"] = lambda p: parity_plot(model, cols, p, "surrogate on new rows")
     files["surrogate-metrics.csv"] = lambda p: write_rows(metrics, p)
-    tick(0.4)
+    study.tick(0.4)
+    return solver, solver_spec, metrics
 
-    # 4. Macro comparison and timings.
+
+def _comparison(study: _Study, solver):
+    """4. Macro comparison and timings on every standard path; returns the deviation rows, the
+    paths and the machine's conditions."""
+    from ..compare import compare_path, plot_overlay
+    from ..io import write_rows
+    from ..loading import standard_paths
+
+    params, plan = study.params, study.plan
     dev_rows = []
     specs = standard_paths(plan.axial)
     conditions = _conditions()
@@ -196,17 +220,30 @@ def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
                              "RMS Δq / peak q [%]": 100 * d["q_rms_dev_rel"],
                              "max |Δεv| [% strain]": 100 * d["eps_v_max_dev"], **times})
         if res is not None:
-            files[f"compare-{path_spec.name}.png"] = (lambda n, x, y: lambda p: plot_overlay(
+            study.files[f"compare-{path_spec.name}.png"] = (lambda n, x, y: lambda p: plot_overlay(
                 n, x, y, ("closed form", "surrogate"), p))(path_spec.name, ref, res)
-        tick(0.4 + 0.55 * (i + 1) / len(specs))
-    files["deviations.csv"] = lambda p: write_rows(dev_rows, p)
-    t21 = []
-    if plan.table21_sizes:
-        t = time.perf_counter()
-        t21, t21_files = table21(work / "table21", plan.table21_sizes, plan.table21_minutes)
-        files.update(t21_files)
-        timings.append({"step": f"Table 2.1 sweep ({len(t21)} trainings)", "seconds": time.perf_counter() - t})
-    files["timings.csv"] = lambda p: write_rows(timings, p)
+        study.tick(0.4 + 0.55 * (i + 1) / len(specs))
+    study.files["deviations.csv"] = lambda p: write_rows(dev_rows, p)
+    return dev_rows, specs, conditions
+
+
+def _table21_step(study: _Study) -> list[dict]:
+    """5. The Table 2.1 sweep of the full run (none in --quick); returns its rows."""
+    if not study.plan.table21_sizes:
+        return []
+    t = time.perf_counter()
+    t21, t21_files = table21(study.work / "table21", study.plan.table21_sizes, study.plan.table21_minutes)
+    study.files.update(t21_files)
+    study.timed(f"Table 2.1 sweep ({len(t21)} trainings)", t)
+    return t21
+
+
+def _report_writer(study: _Study, *, quick: bool, solver_spec: str, model, ds, spec, metrics,
+                   dev_rows, specs, conditions, t21):
+    """The writer of ``report.html``: every step's tables and the figures written before it."""
+    from ..surrogate.shipped import DEFAULT_TRAINING
+
+    plan, files, timings = study.plan, study.files, study.timings
 
     def write_html(p: Path) -> None:
         figs = {name: p.parent / name for name in files if name.endswith(".png")}
@@ -239,9 +276,33 @@ def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
                 "td,th{border:1px solid #ccc;padding:3px 6px;font-size:13px}"
         p.write_text(f"<!doctype html><html><head><meta charset='utf-8'><title>hmodel report</title>"
                      f"<style>{style}</style></head><body>{''.join(body)}</body></html>")
+    return write_html
 
-    files["report.html"] = write_html  # last: it reads the figures written before it
-    write_outputs(out, files)
+
+def reproduce(out: Path, quick: bool, solver_spec: str = "surrogate",
+              progress: Callable[[float], None] | None = None) -> Path:
+    """Run the study into ``out`` (a fresh folder is written atomically); returns report.html."""
+    from ..io import write_outputs, write_rows
+    from ..surrogate.torch_support import require_torch
+
+    plan = QUICK if quick else FULL
+    if plan.train_rows:
+        require_torch("reproduce without --quick (it trains a surrogate)")  # before any work
+    work = out.with_name(out.name + ".work")
+    work.mkdir(parents=True, exist_ok=True)
+    study = _Study(plan, Params(n_theta=plan.n_theta), work, progress or (lambda f: None))
+
+    _engine(study)
+    ds, spec = _database(study)
+    solver, solver_spec, metrics = _surrogate(study, ds, solver_spec)
+    dev_rows, specs, conditions = _comparison(study, solver)
+    t21 = _table21_step(study)
+    study.files["timings.csv"] = lambda p: write_rows(study.timings, p)
+    # last: it reads the figures written before it
+    study.files["report.html"] = _report_writer(
+        study, quick=quick, solver_spec=solver_spec, model=solver.model, ds=ds, spec=spec,
+        metrics=metrics, dev_rows=dev_rows, specs=specs, conditions=conditions, t21=t21)
+    write_outputs(out, study.files)
     shutil.rmtree(work, ignore_errors=True)
-    tick(1.0)
+    study.tick(1.0)
     return out / "report.html"
