@@ -56,6 +56,7 @@ def test_probing_leaves_the_state_untouched_and_batched_equals_one_at_a_time():
     np.testing.assert_allclose(env2.dsig, env.dsig, rtol=1e-10, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_stress_probes_invert_strain_probes_in_the_elastic_range():
     rev, s = _elastic_state()
     env = stress_envelope(rev, s, 12, 1e-4)
