@@ -21,11 +21,10 @@ from ..rev import Rev, RevState
 from .compiled import isotropic_steps, supports
 from .result import Recorder
 from .segment import CHUNK, Progress, Segment, alive, run_segment
+from .stages import AXIAL_STEP, Stage
 
 #: Default strain increment of the isotropic compression (each of eps11, eps22).
 ISO_STEP = 1e-5
-#: Default axial strain increment of biaxial, oedometric and constant-p paths.
-AXIAL_STEP = 1e-4
 #: Largest strain-component increment of one cell update along a strain path.
 MAX_STRAIN_STEP = 1e-4
 
@@ -154,42 +153,47 @@ def biaxial(rev: Rev, state: RevState, axial_strain: float, undrained: bool = Fa
 def biaxial_segment(state: RevState, axial_strain: float, n_steps: int, undrained: bool = False,
                     lateral_stress=None, stage: str = "shear") -> Segment:
     """``axial_strain`` more axial strain in ``n_steps``, eps12 held: drained at lateral stress
-    sig22 = ``lateral_stress`` (default: the current sig22), or undrained (deps22 = -deps11)."""
+    sig22 = ``lateral_stress`` (default: the current sig22), or undrained (deps22 = -deps11):
+    the ``drained`` and ``undrained`` stages of :data:`~hmodel.loading.stages.PRESETS`."""
     if undrained:
-        return Segment((False, False, False), np.array([[1.0, 0, 0], [1.0, 1.0, 0], [0, 0, 1.0]]),
-                       np.array([axial_strain, 0.0, 0.0]), n_steps, stage)
-    sig22 = state.sig[:, 1] if lateral_stress is None else lateral_stress
-    values = np.stack(np.broadcast_arrays(axial_strain, sig22, 0.0), axis=1)
-    return Segment((False, True, False), np.eye(3), values, n_steps, stage)
+        rows = {"eps11": axial_strain, "eps_v": 0.0, "eps12": 0.0}
+    else:
+        rows = {"eps11": axial_strain, "sig22": "hold" if lateral_stress is None else lateral_stress,
+                "eps12": 0.0}
+    return Stage(stage, rows, steps=n_steps).segment(state)
 
 
 def oedometric(rev: Rev, state: RevState, axial_strain: float, step: float = AXIAL_STEP,
                recorder: Recorder | None = None, progress: Progress = None) -> RevState:
-    """Oedometric compression: deps22 = deps12 = 0."""
-    seg = Segment.components("EEE", [axial_strain, 0.0, 0.0],
-                             strain_steps(axial_strain, step, "axial strain"), "oedometric")
-    return run_segment(rev, state, seg, recorder, progress=progress).state
+    """Oedometric compression: deps22 = deps12 = 0 (the ``oedometric`` stage)."""
+    return _run(rev, state, {"eps11": axial_strain, "eps22": 0.0, "eps12": 0.0},
+                strain_steps(axial_strain, step, "axial strain"), "oedometric", recorder, progress)
 
 
 def constant_p(rev: Rev, state: RevState, axial_strain: float, step: float = AXIAL_STEP,
                recorder: Recorder | None = None, progress: Progress = None) -> RevState:
-    """Axial compression at constant mean stress p = (sig11 + sig22)/2 (its current value)."""
-    M = np.array([[1.0, 0, 0], [0.5, 0.5, 0], [0, 0, 1.0]])
-    values = np.stack(np.broadcast_arrays(axial_strain, state.p, 0.0), axis=1)
-    seg = Segment((False, True, False), M, values, strain_steps(axial_strain, step, "axial strain"),
-                  "constant-p")
-    return run_segment(rev, state, seg, recorder, progress=progress).state
+    """Axial compression at constant mean stress p = (sig11 + sig22)/2 (its current value; the
+    ``constant_p`` stage)."""
+    return _run(rev, state, {"eps11": axial_strain, "p": "hold", "eps12": 0.0},
+                strain_steps(axial_strain, step, "axial strain"), "constant-p", recorder, progress)
 
 
 def proportional(rev: Rev, state: RevState, direction, magnitude: float,
                  step: float = MAX_STRAIN_STEP, recorder: Recorder | None = None,
                  progress: Progress = None) -> RevState:
-    """Proportional strain path: deps = magnitude * direction/|direction|, in equal steps."""
+    """Proportional strain path: deps = magnitude * direction/|direction|, in equal steps (the
+    ``proportional`` stage)."""
     d = np.asarray(direction, float)
     if d.shape != (3,) or not np.all(np.isfinite(d)) or not np.any(d):
         raise InputError(f"strain direction must be 3 finite numbers, not all zero, got {direction!r}")
-    seg = Segment.components("EEE", magnitude * d / np.linalg.norm(d),
-                             strain_steps(magnitude, step, "strain magnitude"), "proportional")
+    rows = dict(zip(("eps11", "eps22", "eps12"), magnitude * d / np.linalg.norm(d)))
+    return _run(rev, state, rows, strain_steps(magnitude, step, "strain magnitude"), "proportional",
+                recorder, progress)
+
+
+def _run(rev, state, rows, n_steps, name, recorder, progress) -> RevState:
+    """The stage of ``rows`` in ``n_steps`` increments, run on every point of ``state``."""
+    seg = Stage(name, rows, steps=n_steps).segment(state)
     return run_segment(rev, state, seg, recorder, progress=progress).state
 
 

@@ -31,88 +31,21 @@ import numpy as np
 
 from ..cell import CellSolver
 from ..errors import InputError, SolverError
-from ..limits import check_count, steps_for
+from ..limits import check_count
 from ..params import Params
 from ..rev import Rev, RevState
 from .control import Tangent
 from .expressions import Criterion, Expression
 from .newton import NewtonSettings
-from .paths import AXIAL_STEP, ISO_STEP, consolidate
+from .paths import ISO_STEP, consolidate
 from .result import COLUMNS, PathResult, Recorder
-from .segment import Segment, StageFailed, run_segment
+from .segment import StageFailed, run_segment
+from .stages import _COMPONENT, PRESETS, ROWS, Stage, component_order
 
-#: Named rows: (a stress row?, coefficients on (11, 22, 12)).
-ROWS = {"eps11": (False, (1, 0, 0)), "eps22": (False, (0, 1, 0)), "eps12": (False, (0, 0, 1)),
-        "eps_v": (False, (1, 1, 0)), "sig11": (True, (1, 0, 0)), "sig22": (True, (0, 1, 0)),
-        "sig12": (True, (0, 0, 1)), "p": (True, (0.5, 0.5, 0)), "q": (True, (1, -1, 0))}
-#: Components named by the single-component rows (a component controlled twice is an error).
-_COMPONENT = {"eps11": "11", "sig11": "11", "eps22": "22", "sig22": "22", "eps12": "12", "sig12": "12"}
 #: Columns a criterion may compare (those of the result table that are numbers).
 CRITERION_COLUMNS = tuple(c for c in COLUMNS if c not in ("point", "stage", "step"))
-#: Presets: the rows they fix (value, or "hold") and the rows one of which drives them.
-PRESETS = {
-    "drained": ({"sig22": "hold", "eps12": 0.0}, ("eps11", "q", "sig11")),
-    "undrained": ({"eps_v": 0.0, "eps12": 0.0}, ("eps11", "q")),
-    "oedometric": ({"eps22": 0.0, "eps12": 0.0}, ("eps11", "sig11")),
-    "constant_p": ({"p": "hold", "eps12": 0.0}, ("eps11", "q")),
-}
 _STAGE_KEYS = {"name", "preset", "control", "steps", "max_increment", "until", "stop_on_failure"}
 _BLOCK_KEYS = {"name", "repeat", "stages", "until", "stop_on_failure"}
-#: Increments of a stage whose strain rows do not move (a stress-controlled stage) by default.
-DEFAULT_STEPS = 100
-
-
-@dataclass(frozen=True)
-class Stage:
-    """One segment: ``rows`` maps each of three row names (:data:`ROWS`) to a strain change, a
-    stress target (:class:`Expression` of ``p0``) or ``"hold"``; or, with ``iso`` set, an
-    isotropic consolidation to that pressure [Pa] in strain increments ``max_increment``."""
-
-    name: str
-    rows: Mapping[str, object] = field(default_factory=dict)
-    steps: int | None = None
-    max_increment: float | None = None
-    until: Criterion | None = None
-    iso: float | None = None
-    #: an increment that cannot be solved ends the program (recorded in ``meta["stopped"]``)
-    #: instead of failing it: flow under stress control, e.g. cyclic liquefaction
-    stop_on_failure: bool = False
-
-    def segment(self, state: RevState, p0: float | None) -> Segment:
-        """The :class:`Segment` of this stage from ``state`` (``p0``: for targets using it)."""
-        names = list(self.rows)
-        S = tuple(ROWS[n][0] for n in names)
-        M = np.array([ROWS[n][1] for n in names], float)
-        values = []
-        for n, row in zip(names, M):
-            v = self.rows[n]
-            if v == "hold":
-                v = float(row @ state.sig[0])
-            elif isinstance(v, Expression):
-                v = self.target(n, v, p0)
-            values.append(float(v))
-        return Segment(S, M, np.array(values), self.n_steps(), self.name)
-
-    def target(self, row: str, expression: Expression, p0: float | None) -> float:
-        """The stress target of ``row`` at ``p0``: a finite number, or an InputError."""
-        if "p0" in expression.names and p0 is None:
-            raise InputError(f"stage {self.name!r}: {row} = {expression.text!r} uses p0, but no iso "
-                             f"stage comes before it")
-        v = float(expression({"p0": p0}))
-        if not math.isfinite(v):
-            raise InputError(f"stage {self.name!r}: {row} = {expression.text!r} is not a finite "
-                             f"stress at p0 = {p0:g} Pa")
-        return v
-
-    def n_steps(self) -> int:
-        """``steps``, or the largest strain change over ``max_increment`` (default
-        :data:`~hmodel.loading.paths.AXIAL_STEP`); :data:`DEFAULT_STEPS` when no strain row moves."""
-        if self.steps is not None:
-            return self.steps
-        change = max([abs(v) for n, v in self.rows.items() if not ROWS[n][0]] + [0.0])
-        if change == 0:
-            return DEFAULT_STEPS
-        return steps_for(change, self.max_increment or AXIAL_STEP, f"stage {self.name!r}: increments")
 
 
 @dataclass(frozen=True)
@@ -303,7 +236,8 @@ class _Run:
                               chunk=self.chunk, progress=progress, tangent=self.tangent,
                               settings=self.settings)
         except StageFailed as e:
-            rows = ", ".join(f"{n} = {v:.6g}" for n, v, s in zip(stage.rows, seg.values, seg.stress_rows) if s)
+            rows = ", ".join(f"{n} = {v:.6g}" for n, v, s in zip(component_order(list(stage.rows)), seg.values,
+                                                              seg.stress_rows) if s)
             why = (f"increment {e.increment} of {seg.n_steps}: the targets ({rows or 'strain rows only'}) "
                    f"cannot be reached: {e}")
             if not stop_on_failure:
