@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from hmodel.cell import CellFlags, CellState
-from hmodel.loading import Control, Recorder, Segment, Tangent, run_segment, solve_increment
+from hmodel.loading import (Control, Recorder, Segment, Tangent, consolidate, run_segment,
+                            solve_increment, strain_path)
 from hmodel.loading.newton import free_direction, solve
 from hmodel.loading.result import columns_for, lode_b
 from hmodel.rev import RevState
@@ -34,11 +35,16 @@ class ElasticRev3D:
 
     n_components = 6
     solver = _Solver()
+    kernel = None  # no compiled increment: the generic driver
 
     def initial(self, n: int, sig0: float = 1e5) -> RevState:
         sig = np.zeros((n, 6))
         sig[:, :3] = sig0
         return RevState(CellState(np.zeros((n, 1, 8))), CellFlags.none((n, 1)), np.zeros((n, 6)), sig)
+
+    def stress(self, cells, eps: np.ndarray, sets=None) -> np.ndarray:
+        """The stress at strain eps of a point unloaded at zero strain."""
+        return eps @ D.T
 
     def step(self, state: RevState, deps: np.ndarray) -> RevState:
         deps = np.asarray(deps, float)
@@ -125,3 +131,17 @@ def test_a_segment_of_the_wrong_size_is_refused():
     with pytest.raises(Exception, match="3 rows for states of 6 components"):
         run_segment(rev, rev.initial(1), Segment.components("ESE", [1e-3, 1e5, 0.0], 5, "x"),
                     compiled=False)
+
+
+def test_isotropic_consolidation_and_strain_path_on_six_components():
+    rev = ElasticRev3D()
+    s = consolidate(rev, [1e5, 3e5], state=rev.initial(2, 0.0), step=1e-4)
+    np.testing.assert_allclose(s.p, [1e5, 3e5], rtol=1e-10)
+    np.testing.assert_allclose(s.sig[:, :3], np.repeat(s.p[:, None], 3, 1), rtol=1e-10)  # isotropic
+    np.testing.assert_allclose(s.eps[:, 0], s.p / (3 * LAM + 2 * MU), rtol=1e-9)  # K = lam + 2mu/3
+    np.testing.assert_allclose(s.eps[:, 3:], 0.0, atol=1e-15)
+    eps = np.array([[1e-3, 0, 0, 0, 0, 2e-4], [2e-3, -1e-3, 0, 1e-4, 0, 0]])
+    end = strain_path(rev, eps, state=rev.initial(1, 0.0), max_step=1e-4)
+    np.testing.assert_allclose(end.sig[0], D @ eps[-1], rtol=1e-9)
+    with pytest.raises(Exception, match=r"rows of \(eps11, eps22, eps33, eps23, eps13, eps12\)"):
+        strain_path(rev, eps[:, :3], state=rev.initial(1, 0.0))

@@ -19,7 +19,7 @@ from ..errors import InputError, SolverError
 from ..limits import check_count, steps_for
 from ..rev import Rev, RevState
 from .compiled import isotropic_steps, supports
-from .result import Recorder
+from .result import COMPONENTS, Recorder
 from .segment import CHUNK, Progress, Segment, alive, run_segment
 from .stages import AXIAL_STEP, Stage
 
@@ -43,7 +43,7 @@ def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_S
     """Isotropic compression: equal strain increments until the mean stress reaches ``p0``.
 
     Each material point b stops at its own ``p0[b]`` [Pa]; the last increment is solved
-    (mixed control on p, with deps11 = deps22) so that p = p0 exactly (``failures`` and
+    (mixed control on p, :func:`isotropic_segment`) so that p = p0 exactly (``failures`` and
     ``compiled``: see :func:`~hmodel.loading.segment.run_segment`; the compiled form runs every point's increments in
     one kernel call, or, for learned cells, one increment per call with the network evaluated
     between calls).
@@ -63,14 +63,28 @@ def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_S
         state = _consolidate_compiled(rev, state, p0, step, recorder, progress, max_steps, failures)
     else:
         state = _consolidate_generic(rev, state, p0, step, recorder, progress, max_steps)
-    M = np.array([[1.0, -1.0, 0.0], [0.5, 0.5, 0.0], [0.0, 0.0, 1.0]])
-    values = np.stack([np.zeros_like(p0), p0, np.zeros_like(p0)], axis=1)
     # (a segment of one increment: compiled where the solver allows it)
-    state = run_segment(rev, state, Segment((False, True, False), M, values, 1, "consolidation"),
-                        failures=failures, compiled=None if compiled else False).state
+    state = run_segment(rev, state, isotropic_segment(state, p0), failures=failures,
+                        compiled=None if compiled else False).state
     if recorder is not None:
         recorder.record(state, "consolidation", alive(state.n_points, failures))
     return state
+
+
+def isotropic_segment(state: RevState, p0: np.ndarray) -> Segment:
+    """One increment to the mean stress ``p0`` (B,) with equal normal strain increments and no
+    shear strain: rows deps11 - deps22 = 0 (and deps22 - deps33 = 0 in 3D), p = p0, the
+    shear strains held."""
+    n = state.n_components
+    normal = 2 if n == 3 else 3
+    M = np.zeros((n, n))
+    for i in range(normal - 1):
+        M[i, i], M[i, i + 1] = 1.0, -1.0
+    M[normal - 1, :normal] = 1.0 / normal
+    M[normal:, normal:] = np.eye(n - normal)
+    values = np.zeros((state.n_points, n))
+    values[:, normal - 1] = p0
+    return Segment(tuple(r == normal - 1 for r in range(n)), M, values, 1, "consolidation")
 
 
 def _consolidate_compiled(rev, state, p0, step, recorder, progress, max_steps, failures):
@@ -109,7 +123,8 @@ def _not_reached(state, max_steps):
 def _consolidate_generic(rev, state, p0, step, recorder, progress, max_steps):
     """The strain-controlled part of :func:`consolidate`, one batched REV step at a time."""
     active = state.p < p0
-    inc = np.array([[step, step, 0.0]] * state.n_points)
+    inc = np.zeros((state.n_points, state.n_components))
+    inc[:, :2 if state.n_components == 3 else 3] = step
     n = 0
     while active.any():
         trial = rev.step(state, inc)
@@ -200,15 +215,17 @@ def _run(rev, state, rows, n_steps, name, recorder, progress) -> RevState:
 def strain_path(rev: Rev, eps: np.ndarray, state: RevState | None = None,
                 max_step: float | None = None, recorder: Recorder | None = None,
                 progress: Progress = None) -> RevState:
-    """Follow cumulative strains ``eps`` (n, 3), one recorded state per row.
+    """Follow cumulative strains ``eps`` (rows, n), one recorded state per row (n: the REV's
+    components, :data:`~hmodel.loading.result.COMPONENTS`).
 
     Each row is reached from the previous one (the unloaded state for the first) in one
     increment, split into equal sub-steps when ``max_step`` is given and a strain component
     changes by more than it.
     """
     eps = np.asarray(eps, dtype=float)
-    if eps.ndim != 2 or eps.shape[1] != 3 or not np.all(np.isfinite(eps)):
-        raise InputError("strain path must be finite numbers in rows of (eps11, eps22, eps12)")
+    names = ", ".join(f"eps{c}" for c in COMPONENTS[rev.n_components])
+    if eps.ndim != 2 or eps.shape[1] != rev.n_components or not np.all(np.isfinite(eps)):
+        raise InputError(f"strain path must be finite numbers in rows of ({names})")
     state = state if state is not None else rev.initial(1)
     prev = state.eps[0].copy()
     changes = np.abs(np.diff(np.vstack([prev, eps]), axis=0)).max(axis=1)
