@@ -1,0 +1,229 @@
+"""The bi-hexagonal cell of the 3D H-model, solved in closed form (docs/model3d.md).
+
+A bi-hexagon is two H-cells (report Fig. 1.2, eq. 1.2) in perpendicular planes that both
+contain the cell's direction **n**: hexagon A in the plane (n, t1), hexagon B in the plane
+(n, t2), sharing grains 1 and 4 on the n axis (ten grains, twelve contacts). Its three lengths
+are l1 (grains 1-4, along n), l2 (hexagon A's columns, along t1) and l3 (hexagon B's columns,
+along t2); the REV drives them by the projections of the 3D strain increment on the cell frame
+(eq. 1.1 lifted, :mod:`hmodel.rev.rev3d`).
+
+**Closure.** The unknowns are each hexagon's (δd1, δd2, δα). Grains 2, 3, 5, 6 touch only
+grains of hexagon A (and 7-10 only of B), so each hexagon keeps its own grain-2 balance
+(eqs. 1.5-1.6, row 3 of eq. 1.7). The shared grain 1 touches grains 2, 6 (A) and 7, 10 (B):
+its balance across n holds by the mirror symmetries t1 -> -t1 and t2 -> -t2, and its balance
+along n is carried by the external force that prescribes l1, exactly as in 2D, where grains 1
+and 4 are the driven grains. The two hexagons therefore share one kinematic constraint, their
+common l1 (rows 1 of both eq. 1.7 systems have the same δl1), and nothing else: with l1, l2,
+l3 prescribed the 6x6 system is block-diagonal and the bi-hexagon is two 2D H-cells driven by
+(δl1, δl2) and (δl1, δl3). It would couple if l1 were not prescribed (a stress-controlled cell)
+or if the grains of the two hexagons touched (see ``cross`` below), neither of which this
+closure admits.
+
+**State layout** (``CellState.values``, last axis, :data:`BIHEX_FIELDS`): 16 fields, hexagon
+A's 2D state ``d1, d2, alpha, N1, N2, T1, l1, l2`` then hexagon B's ``d1_b, d2_b, alpha_b,
+N1_b, N2_b, T1_b, l1_b, l3``, each a valid 2D H-cell state (l1_b = l1 always: both follow the
+same δl1). Because the first 8 fields are a 2D H-cell, code that reads ``state.d1`` etc. sees
+hexagon A. **Flags** (:data:`BIHEX_FLAGS`, 11): hexagon A's five 2D flags, hexagon B's five,
+and ``cross``: a grain of A and one of B closer than 2r (|x2 - x7| < 2r, which happens at
+opening angles below 45°); the closure ignores those contacts, the flag reports them.
+
+Units: as in 2D, lengths in m, forces in N with kn in N/m; 3D meso-volumes in m^3, so the
+meso-stress is in Pa and scales with kn / r.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..errors import InputError, SolverError
+from ..params import Params
+from .base import CellKernel
+from .closed_form import P_R, cell_increment, kernel_params
+from .mesostress import contact_vsigma
+from .state import FIELDS, FLAGS, CellFlags, CellState, initial_lengths
+
+#: Fields of a bi-hexagon's state: hexagon A (plane n, t1), then hexagon B (plane n, t2).
+BIHEX_FIELDS = FIELDS + ("d1_b", "d2_b", "alpha_b", "N1_b", "N2_b", "T1_b", "l1_b", "l3")
+#: Diagnostics: hexagon A's 2D flags, hexagon B's, and ``cross`` (grains of A and B overlap).
+BIHEX_FLAGS = FLAGS + tuple(f + "_b" for f in FLAGS) + ("cross",)
+#: Meso-volume options of the 3D cell (Params.volume); ``hexagon-consistent`` has none in 3D.
+VOLUMES_3D = ("hexagon", "rectangle", "box")
+
+
+def check_params(params: Params) -> None:
+    """Refuse parameters the 3D cell has no meaning for (one-line :class:`InputError`)."""
+    if params.volume not in VOLUMES_3D:
+        raise InputError(f"parameter volume must be one of {', '.join(VOLUMES_3D)} for the 3D "
+                         f"H-model, got {params.volume!r} (eq. 1.21's virtual l1* is not shared by "
+                         "the two hexagons of a bi-hexagon)")
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def cross_contact(v, two_r):
+    """Whether a grain of hexagon A (at (±d2/2, ±l2/2, 0) in the cell frame) and one of hexagon
+    B (at (±d2_b/2, 0, ±l3/2)) are closer than 2r."""
+    dn = 0.5 * (v[1] - v[9])
+    return dn * dn + 0.25 * (v[7] * v[7] + v[15] * v[15]) < two_r * two_r
+
+
+@njit(cache=True, error_model="numpy")
+def bihex_step_kernel(values, dl, p, out, flags):
+    """Advance every bi-hexagon; ``values``/``out`` (n, 16), ``dl`` (n, 3) = (δl1, δl2, δl3),
+    ``flags`` (n, 11). Each hexagon is the 2D increment of eq. 1.7 (closed_form.cell_increment)
+    with the shared δl1. Returns the index of the first failed cell, or -1."""
+    bad = -1
+    two_r = 2.0 * p[P_R]
+    for i in range(values.shape[0]):
+        ok_a = cell_increment(values[i, :8], dl[i, 0], dl[i, 1], p, out[i, :8], flags[i, :5])
+        ok_b = cell_increment(values[i, 8:], dl[i, 0], dl[i, 2], p, out[i, 8:], flags[i, 5:10])
+        flags[i, 10] = cross_contact(out[i], two_r)
+        if not (ok_a and ok_b) and bad < 0:
+            bad = i
+    return bad
+
+
+@njit(cache=True, error_model="numpy")
+def bihex_vsigma_kernel(values, kn, two_r, out):
+    """V σ in the cell frame, (nn, t1t1, t2t2) (n, 3), of bi-hexagon states (n, 16).
+
+    Love-Weber (eq. 1.11) over the twelve contacts: each hexagon contributes eq. 1.12 in its own
+    plane (its nn term to σ_nn, its tt term to σ_t1t1 for A, σ_t2t2 for B); the extra contacts
+    of docs/model.md step 3 (Fig. 1.6): grains 1-4 once (shared) when l1 <= 2r, grains 2-6/3-5
+    when l2 <= 2r, 7-10/8-9 when l3 <= 2r. Off-diagonal terms vanish by the mirror symmetries.
+    """
+    for i in range(values.shape[0]):
+        v = values[i]
+        ann, att = contact_vsigma(v[0], v[1], math.cos(v[2]), math.sin(v[2]), v[3], v[4], v[5])
+        bnn, btt = contact_vsigma(v[8], v[9], math.cos(v[10]), math.sin(v[10]), v[11], v[12],
+                                  v[13])
+        l1, l2, l3 = v[6], v[7], v[15]
+        nn = ann + bnn
+        if l1 <= two_r:
+            nn += kn * (two_r - l1) * l1
+        if l2 <= two_r:
+            att += 2.0 * kn * (two_r - l2) * l2
+        if l3 <= two_r:
+            btt += 2.0 * kn * (two_r - l3) * l3
+        out[i, 0] = nn
+        out[i, 1] = att
+        out[i, 2] = btt
+
+
+def bihex_volume(params: Params, values: np.ndarray) -> np.ndarray:
+    """Meso-volume [m^3] of bi-hexagon states (..., 16) for ``params.volume``.
+
+    ``hexagon`` (default): the virtual box of eqs. 1.20-1.21 lifted, l1* l2* l3* with
+    l1* = d2 + d1 cos α (mean of the two hexagons), l2* = 2 d1 sin α (A), l3* = 2 d1_b sin α_b
+    (B); ``rectangle``: l1 l2 l3 (eq. 1.18 lifted); ``box``: (l1 + 2r)(l2 + 2r)(l3 + 2r)
+    (eq. 1.19 lifted).
+    """
+    v = np.asarray(values, float)
+    if params.volume == "rectangle":
+        return v[..., 6] * v[..., 7] * v[..., 15]
+    if params.volume == "box":
+        two_r = 2.0 * params.radius
+        return (v[..., 6] + two_r) * (v[..., 7] + two_r) * (v[..., 15] + two_r)
+    l1s = 0.5 * (v[..., 1] + v[..., 0] * np.cos(v[..., 2]) + v[..., 9] + v[..., 8] * np.cos(v[..., 10]))
+    return l1s * 2 * v[..., 0] * np.sin(v[..., 2]) * 2 * v[..., 8] * np.sin(v[..., 10])
+
+
+def initial_bihex(params: Params, alpha0: np.ndarray) -> CellState:
+    """Unloaded bi-hexagons with their own opening angles α0 (both hexagons alike: d1 = d2 = 2r,
+    no force, lengths from eq. 1.2, l3 = l2)."""
+    a = np.asarray(alpha0, float)
+    d = 2.0 * params.radius
+    l10, l20 = initial_lengths(params.radius, a)
+    z = np.zeros_like(a)
+    hexagon = [z + d, z + d, a, z, z, z, l10, l20]
+    return CellState(np.ascontiguousarray(np.stack(hexagon + hexagon, axis=-1)))
+
+
+class BiHexSolver:
+    """The bi-hexagonal 3D cell in closed form: two eq. 1.7 systems sharing δl1.
+
+    The 3D counterpart of :class:`hmodel.cell.ClosedFormSolver`; its :meth:`step` takes three
+    length increments. Used by :class:`hmodel.rev.Rev3D`.
+    """
+
+    name = "closed-form"
+    #: exact to round-off
+    stress_rtol = 0.0
+    #: two H-cells' state, flags and buffers (the 2D cell's 1024 B, twice)
+    bytes_per_cell = 2048
+    #: lengths driven by the strain: l1 (n), l2 (t1), l3 (t2)
+    n_lengths = 3
+
+    def initial(self, params: Params, shape: tuple[int, ...] = ()) -> CellState:
+        """Unloaded bi-hexagons of shape ``shape`` (opening angle params.alpha0)."""
+        return initial_bihex(params, np.full(shape, params.alpha0))
+
+    def initial_cells(self, params: Params, alpha0: np.ndarray) -> CellState:
+        return initial_bihex(params, alpha0)
+
+    def meso(self, params: Params, state: CellState) -> tuple[np.ndarray, np.ndarray]:
+        """(V σ in the cell frame (..., 6), meso-volume (...)).
+
+        V σ [N m] as the symmetric 3x3 tensor in the frame (n, t1, t2), components in the order
+        (nn, t1t1, t2t2, t1t2, nt2, nt1) (tensor, not engineering, shear; compression
+        positive); the shear terms are zero by the cell's symmetries. Volume by
+        :func:`bihex_volume`.
+        """
+        values = np.ascontiguousarray(np.asarray(state.values, float).reshape(-1, len(BIHEX_FIELDS)))
+        diag = np.empty((values.shape[0], 3))
+        bihex_vsigma_kernel(values, params.kn, 2.0 * params.radius, diag)
+        out = np.zeros((values.shape[0], 6))
+        out[:, :3] = diag
+        shape = state.values.shape[:-1]
+        return out.reshape(*shape, 6), bihex_volume(params, state.values)
+
+    def kernel(self, params: Params) -> CellKernel | None:
+        """None for now: the generic loading driver calls :meth:`step`."""
+        return None
+
+    def fractions(self, params: Params, state: CellState) -> dict[str, np.ndarray]:
+        return {}
+
+    def step(self, params: Params, state: CellState, dl1, dl2, dl3) -> tuple[CellState, CellFlags]:
+        """One increment of every bi-hexagon.
+
+        Parameters
+        ----------
+        params : Params
+        state : CellState
+            Bi-hexagons before the increment, values (S, 16).
+        dl1, dl2, dl3 : array_like, broadcastable to S
+            Increments [m] of l1 (along n, shared by both hexagons), l2 (hexagon A, along t1)
+            and l3 (hexagon B, along t2); negative is shortening.
+
+        Returns
+        -------
+        (CellState, CellFlags)
+            State (S, 16) and flags (S, 11) after the increment.
+        """
+        check_params(params)
+        values = np.asarray(state.values, float)
+        if values.shape[-1] != len(BIHEX_FIELDS):
+            raise InputError(f"a bi-hexagon state has {len(BIHEX_FIELDS)} fields, got {values.shape[-1]}")
+        shape = values.shape[:-1]
+        flat = np.ascontiguousarray(values.reshape(-1, len(BIHEX_FIELDS)))
+        dl = np.empty((flat.shape[0], 3))
+        for k, d in enumerate((dl1, dl2, dl3)):
+            dl[:, k] = np.broadcast_to(d, shape).reshape(-1)
+        out = np.empty_like(flat)
+        flags = np.empty((flat.shape[0], len(BIHEX_FLAGS)), dtype=np.bool_)
+        p = kernel_params(params)
+        bad = bihex_step_kernel(flat, dl, p, out, flags)
+        if bad >= 0:
+            raise SolverError(
+                f"bi-hexagon increment could not be solved (singular eq. 1.7 or non-finite result) "
+                f"for cell {np.unravel_index(bad, shape) if shape else ()} with state "
+                f"{dict(zip(BIHEX_FIELDS, flat[bad].round(12)))} and dl={tuple(dl[bad].round(15))}")
+        return (CellState(out.reshape(*shape, len(BIHEX_FIELDS))),
+                CellFlags(flags.reshape(*shape, len(BIHEX_FLAGS))))
+
+
+__all__ = ["BIHEX_FIELDS", "BIHEX_FLAGS", "VOLUMES_3D", "BiHexSolver", "bihex_volume",
+           "check_params", "initial_bihex"]

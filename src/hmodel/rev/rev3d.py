@@ -1,0 +1,237 @@
+"""The 3D REV: bi-hexagonal cells on the sphere (docs/model3d.md).
+
+A :class:`Rev3D` holds what does not change along a path (parameters, the sphere's directions
+and cell frames, the cell solver); a :class:`~hmodel.rev.RevState` is the state of ``B``
+material points with C bi-hexagons each (cells (B, C) of 16 fields, flags (B, C, 11)).
+
+Strains and stresses are ``(B, 6)`` arrays in the order ``(11, 22, 33, 23, 13, 12)``, tensor
+(not engineering) shear components, soil-mechanics signs (compression positive); stresses in Pa.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..cell import CellFlags, CellState
+from ..cell.bihex import BIHEX_FLAGS, BiHexSolver, check_params
+from ..errors import InputError, SolverError
+from ..limits import check_memory
+from ..params import Params, check_batch
+from .rev import RevState
+from .sphere import Sphere
+
+#: Voigt positions (11, 22, 33, 23, 13, 12) of the index pairs (i, j).
+VOIGT = ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))
+
+
+def voigt_to_tensor(v: np.ndarray) -> np.ndarray:
+    """Symmetric tensors (..., 3, 3) of Voigt rows (..., 6) (tensor shear components)."""
+    v = np.asarray(v, float)
+    t = np.empty((*v.shape[:-1], 3, 3))
+    for k, (i, j) in enumerate(VOIGT):
+        t[..., i, j] = v[..., k]
+        t[..., j, i] = v[..., k]
+    return t
+
+
+def tensor_to_voigt(t: np.ndarray) -> np.ndarray:
+    """Voigt rows (..., 6) of symmetric tensors (..., 3, 3) (the symmetric part's components)."""
+    t = np.asarray(t, float)
+    return np.stack([0.5 * (t[..., i, j] + t[..., j, i]) for i, j in VOIGT], axis=-1)
+
+
+def projector(frames: np.ndarray) -> np.ndarray:
+    """P (C, 3, 6): the normal strains along a cell's axes, ε_kk = e_k·ε·e_k = P[k] @ ε_voigt,
+    for frames (C, 3, 3) of rows e_k (eq. 1.1 lifted to 3D, tensor shear counted twice)."""
+    e = np.asarray(frames, float)
+    return np.stack([e[..., i] * e[..., j] * (1.0 if i == j else 2.0) for i, j in VOIGT], axis=-1)
+
+
+def dyads(frames: np.ndarray) -> np.ndarray:
+    """Q (C, 3, 6): Voigt components of e_k ⊗ e_k, to rotate a cell-frame diagonal stress to
+    the global frame (σ = Σ_k σ_kk e_k ⊗ e_k)."""
+    e = np.asarray(frames, float)
+    return np.stack([e[..., i] * e[..., j] for i, j in VOIGT], axis=-1)
+
+
+class Rev3D:
+    """Directional averaging of bi-hexagons over the sphere, for a batch of material points.
+
+    Parameters
+    ----------
+    params : Params or sequence of Params
+        One parameter set for every point, or one per point (as :class:`hmodel.rev.Rev`). Used:
+        kn, kt_kn, phi_g, alpha0, radius, volume (hexagon, rectangle or box), g2, sliding_rhs;
+        the 2D fabric and discretization (alpha_omega, beta_omega, n_theta) are not: the 3D ones
+        are the ``sphere``'s.
+    sphere : Sphere, optional
+        Lebedev order, azimuths per direction and transversely isotropic fabric (default
+        ``Sphere()``).
+    solver : BiHexSolver, optional
+        The 3D cell solver (default the closed form).
+
+    Examples
+    --------
+    >>> rev = Rev3D(Params(), Sphere(order=7))
+    >>> s = rev.step(rev.initial(1), np.array([[1e-4, 1e-4, 1e-4, 0, 0, 0]]))
+    >>> bool(np.allclose(s.sig[0, :3], s.sig[0, 0], rtol=1e-12)), bool(s.sig[0, 0] > 0)
+    (True, True)
+    """
+
+    #: strain and stress components of a state: (11, 22, 33, 23, 13, 12)
+    n_components = 6
+
+    def __init__(self, params: Params | Sequence[Params], sphere: Sphere | None = None,
+                 solver: BiHexSolver | None = None):
+        self.solver = BiHexSolver() if solver is None else solver
+        if not hasattr(self.solver, "n_lengths") or self.solver.n_lengths != 3:
+            raise InputError(f"Rev3D takes a 3D cell solver (three cell lengths), got {self.solver!r}")
+        #: the parameter sets (K,), and the first, whose shared fields all sets have
+        self.sets = check_batch(params)
+        for s in self.sets:
+            check_params(s)
+        self.params = self.sets[0]
+        self.sphere = Sphere() if sphere is None else sphere
+        #: cell frames (C, 3, 3), rows (n, t1, t2), and weights (C,) summing to 1
+        self.frames, self.weights = self.sphere.frames()
+        self._proj = np.ascontiguousarray(projector(self.frames))
+        self._wdyads = np.ascontiguousarray(self.weights[:, None, None] * dyads(self.frames))
+        self.check_size(len(self.sets))
+        cell0 = [self.solver.initial(s, ()) for s in self.sets]
+        # V0 = sum_i w_i V_meso,i (eq. 1.14 lifted) per set; all cells of a set start alike.
+        #: initial macro volume of each set's points (K,) [m^3]
+        self.volumes0 = np.array([float(self.solver.meso(s, c)[1]) for s, c in zip(self.sets, cell0)]
+                                 ) * self.weights.sum()
+        #: no compiled increment yet: the loading drivers call :meth:`step`
+        self.kernels = None
+
+    @property
+    def n_cells(self) -> int:
+        """Bi-hexagons per material point (directions × azimuths)."""
+        return len(self.weights)
+
+    @property
+    def volume0(self) -> float:
+        """Initial macro volume of the first set's points [m^3]."""
+        return float(self.volumes0[0])
+
+    @property
+    def kernel(self):
+        """None: no compiled increment for the 3D cell yet."""
+        return None
+
+    @property
+    def n_sets(self) -> int:
+        return len(self.sets)
+
+    def check_size(self, n_points: int, what: str = "") -> None:
+        """Refuse (:class:`~hmodel.limits.WorkTooLarge`) ``n_points`` material points whose
+        cells would not fit in the memory budget of :mod:`hmodel.limits`."""
+        cells = float(n_points) * float(self.n_cells)
+        check_memory(cells * self.solver.bytes_per_cell,
+                     what or f"a 3D REV of {n_points:,} material point{'s' if n_points != 1 else ''} × "
+                             f"{self.n_cells} bi-hexagons (Lebedev order {self.sphere.order})")
+
+    def initial(self, n_points: int = 1) -> RevState:
+        """B unloaded material points; with K > 1 parameter sets, the K points (B = K or 1)."""
+        K = self.n_sets
+        self.check_size(max(n_points, K))
+        C = self.n_cells
+        if K == 1:
+            shape = (n_points, C)
+            return RevState(self.solver.initial(self.params, shape),
+                            CellFlags(np.zeros((*shape, len(BIHEX_FLAGS)), bool)),
+                            np.zeros((n_points, 6)), np.zeros((n_points, 6)))
+        if n_points not in (1, K):
+            raise InputError(f"{K} parameter sets and {n_points} material points: give one "
+                             "value or as many as the sets")
+        cells = np.stack([self.solver.initial(s, (C,)).values for s in self.sets])
+        return RevState(CellState(cells), CellFlags(np.zeros((K, C, len(BIHEX_FLAGS)), bool)),
+                        np.zeros((K, 6)), np.zeros((K, 6)), np.arange(K))
+
+    def localize(self, cells: CellState, deps: np.ndarray) -> np.ndarray:
+        """Length increments (B, C, 3) of every cell for strain increments (B, 6):
+        δl_k = -L_k ε_ij e_k,i e_k,j (eq. 1.1 lifted), L = (l1, l2, l3) (+ 2r each for the
+        ``box`` volume, eq. 1.19)."""
+        strain = np.einsum("ckj,bj->bck", self._proj, np.asarray(deps, float))
+        v = cells.values
+        lengths = np.stack([v[..., 6], v[..., 7], v[..., 15]], axis=-1)
+        if self.params.volume == "box":
+            lengths = lengths + 2.0 * self.params.radius
+        return -lengths * strain
+
+    def macro_volume(self, eps: np.ndarray, sets: np.ndarray | None = None) -> np.ndarray:
+        """V = V0 det(I - ε) (B,): the macro volume follows the macro strain."""
+        v0 = self.volume0 if sets is None else self.volumes0[np.asarray(sets, np.int64)]
+        return v0 * np.linalg.det(np.eye(3) - voigt_to_tensor(eps))
+
+    def stress(self, cells: CellState, eps: np.ndarray, sets: np.ndarray | None = None) -> np.ndarray:
+        """Macro stress (B, 6) [Pa] of cells (B, C) at macro strain ε (B, 6): eq. 1.15 lifted,
+        σ = (1/V) Σ_c w_c Σ_k (V σ)_c,kk e_k ⊗ e_k."""
+        idx = np.zeros(cells.shape[0], np.int64) if sets is None else np.asarray(sets, np.int64)
+        vs, _ = self._by_set(idx, lambda s, rows: self.solver.meso(s, CellState(cells.values[rows])))
+        vsig = np.einsum("bck,ckj->bj", vs[..., :3], self._wdyads)
+        if np.any(vs[..., 3:]):  # a solver with cell-frame shear (none yet): rotate it too
+            e = self.frames
+            for k, (i, j) in zip((3, 4, 5), ((1, 2), (0, 2), (0, 1))):
+                sym = e[:, i, :, None] * e[:, j, None, :] + e[:, j, :, None] * e[:, i, None, :]
+                vsig += np.einsum("bc,c,cj->bj", vs[..., k], self.weights, tensor_to_voigt(sym))
+        return vsig / self.macro_volume(eps, None if sets is None else idx)[:, None]
+
+    def solver_fractions(self, state: RevState) -> dict[str, np.ndarray]:
+        """The cell solver's own diagnostics as fractions of each point's cells, name -> (B,)."""
+        idx = state.set_index
+        out: dict[str, np.ndarray] = {}
+        for k in np.unique(idx):
+            rows = idx == k
+            for name, hit in self.solver.fractions(self.sets[k], CellState(state.cells.values[rows])).items():
+                frac = np.mean(np.reshape(hit, (int(rows.sum()), -1)), axis=1)
+                out.setdefault(name, np.full(state.n_points, np.nan))[rows] = frac
+        return out
+
+    def flag_fractions(self, state: RevState) -> dict[str, np.ndarray]:
+        """Fraction of each point's hexagons (two per bi-hexagon) sliding, open, with the extra
+        contacts, and of bi-hexagons whose hexagons' grains cross, name -> (B,)."""
+        f = state.flags.flags
+        both = lambda k: 0.5 * (f[..., k].mean(axis=1) + f[..., 5 + k].mean(axis=1))
+        return {"frac_sliding": both(0),
+                "frac_open": 0.5 * ((f[..., 1] | f[..., 2]).mean(axis=1) + (f[..., 6] | f[..., 7]).mean(axis=1)),
+                "frac_contact14": f[..., 3].mean(axis=1), "frac_contact26": both(4),
+                "frac_cross": f[..., 10].mean(axis=1)}
+
+    def _by_set(self, idx: np.ndarray, call):
+        """``call(set, rows)`` for each parameter set present in idx (B,), outputs (tuples of
+        arrays over the rows' points) put back in point order."""
+        present = np.unique(idx)
+        if len(present) == 1:
+            return call(self.sets[present[0]], slice(None))
+        parts = [(np.flatnonzero(idx == k), call(self.sets[k], idx == k)) for k in present]
+        out = []
+        for j in range(len(parts[0][1])):
+            first = parts[0][1][j]
+            arr = np.empty((len(idx), *first.shape[1:]), first.dtype)
+            for rows, piece in parts:
+                arr[rows] = piece[j]
+            out.append(arr)
+        return tuple(out)
+
+    def step(self, state: RevState, deps: np.ndarray) -> RevState:
+        """Apply macro strain increments ``deps`` (B, 6) in one cell increment."""
+        deps = np.asarray(deps, dtype=float)
+        if deps.shape != state.eps.shape:
+            raise InputError(f"a 3D strain increment has shape {state.eps.shape}, got {deps.shape}")
+        if not np.all(np.isfinite(deps)):
+            raise SolverError(f"non-finite strain increment at strain {state.eps.tolist()}")
+        dl = self.localize(state.cells, deps)
+        idx = state.set_index
+
+        def cell_step(s, rows):
+            new, flags = self.solver.step(s, CellState(state.cells.values[rows]), dl[rows, :, 0],
+                                          dl[rows, :, 1], dl[rows, :, 2])
+            return new.values, flags.flags
+        values, flags = self._by_set(idx, cell_step)
+        cells = CellState(values)
+        eps = state.eps + deps
+        return RevState(cells, CellFlags(flags), eps, self.stress(cells, eps, state.sets), state.sets)
