@@ -21,7 +21,7 @@ from benchmarks.timing import best_of, record, write_table
 from hmodel import Params
 from hmodel.cell import CellState
 from hmodel.cell.closed_form import ClosedFormSolver
-from hmodel.loading import paths, run_biaxial
+from hmodel.loading import consolidate, run_biaxial
 from hmodel.loading.compiled import CompiledSegment
 from hmodel.loading.control import Tangent
 from hmodel.rev import Rev
@@ -31,12 +31,7 @@ def drained_biaxial(repeat: int, compiled: bool) -> float:
     params = Params(n_theta=360)
     if compiled:
         return best_of(lambda: run_biaxial(params, [2e5], 0.1), repeat)
-    original = paths.supports
-    paths.supports = lambda rev: False
-    try:
-        return best_of(lambda: run_biaxial(params, [2e5], 0.1), max(1, repeat // 3))
-    finally:
-        paths.supports = original
+    return best_of(lambda: run_biaxial(params, [2e5], 0.1, compiled=False), max(1, repeat // 3))
 
 
 def cell_updates(repeat: int, n_cells: int = 2_000_000) -> float:
@@ -56,7 +51,7 @@ def fused_trials(repeat: int, n_calls: int = 2000) -> float:
     from hmodel.loading.compiled import trial
 
     rev = Rev(Params(n_theta=360))
-    s0 = paths.consolidate(rev, [2e5])
+    s0 = consolidate(rev, [2e5])
     seg = CompiledSegment(rev, s0, (False, True, False), np.eye(3), s0.sig,
                           np.array([[0.1, 2e5, 0.0]]), 1000, Tangent())
     out, flags, sig = np.empty((360, 8)), np.empty((360, 5), bool), np.empty(3)

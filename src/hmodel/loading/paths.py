@@ -152,17 +152,19 @@ def strain_steps(total: float, step: float, name: str) -> int:
 
 def biaxial(rev: Rev, state: RevState, axial_strain: float, undrained: bool = False,
             lateral_stress=None, step: float = AXIAL_STEP, recorder: Recorder | None = None,
-            progress: Progress = None, failures: dict | None = None) -> RevState:
+            progress: Progress = None, failures: dict | None = None,
+            compiled: bool | None = None) -> RevState:
     """Biaxial compression from ``state`` to ``axial_strain`` more axial strain.
 
     Drained: constant lateral stress sig22 = ``lateral_stress`` (default: the current sig22),
     solved by Newton on deps22 each increment. Undrained: isochoric, deps22 = -deps11.
-    eps12 is held (rigid platens). ``failures``: see :func:`run_segment`.
+    eps12 is held (rigid platens). ``failures``, ``compiled``: see :func:`run_segment`.
     """
     sig22 = None if lateral_stress is None else _as_points(lateral_stress, "lateral stress")
     seg = biaxial_segment(state, axial_strain, strain_steps(axial_strain, step, "axial strain"),
                           undrained, sig22)
-    return run_segment(rev, state, seg, recorder, progress=progress, failures=failures).state
+    return run_segment(rev, state, seg, recorder, progress=progress, failures=failures,
+                       compiled=compiled).state
 
 
 def biaxial_segment(state: RevState, axial_strain: float, n_steps: int, undrained: bool = False,

@@ -37,12 +37,14 @@ def run_isotropic(params: Params | Sequence[Params], p0, *, solver: CellSolver |
 def run_biaxial(params: Params | Sequence[Params], p0, axial_strain: float, *, undrained: bool = False,
                 solver: CellSolver | None = None, iso_step: float = ISO_STEP,
                 step: float = AXIAL_STEP, progress: Progress = None,
-                drop_failed: bool = False) -> PathResult:
+                drop_failed: bool = False, compiled: bool | None = None) -> PathResult:
     """Isotropic consolidation to each ``p0`` [Pa], then drained or undrained biaxial
     compression to ``axial_strain`` more axial strain (report §1.1.2, Fig. 1.7).
 
     With ``drop_failed``, a point whose Newton fails is dropped and the others go on; the
-    result's ``meta["failed"]`` maps each dropped point to the reason (its rows stop there)."""
+    result's ``meta["failed"]`` maps each dropped point to the reason (its rows stop there).
+    ``compiled``: None (the compiled kernel where the cell solver has one) or False (the
+    generic driver, e.g. to time or check the two against each other)."""
     paths.strain_steps(axial_strain, step, "axial strain")  # refused before any work
     rev = Rev(params, solver)
     p0 = np.atleast_1d(np.asarray(p0, float))
@@ -53,10 +55,10 @@ def run_biaxial(params: Params | Sequence[Params], p0, axial_strain: float, *, u
     shear = None if progress is None else (lambda f: progress(0.1 + 0.9 * f))
     failures = {} if drop_failed else None
     state = paths.consolidate(rev, p0, step=iso_step, recorder=rec, progress=consolidation,
-                              failures=failures)
+                              failures=failures, compiled=compiled)
     p0 = np.broadcast_to(p0, state.n_points)
     paths.biaxial(rev, state, axial_strain, undrained=undrained, lateral_stress=p0, step=step,
-                  recorder=rec, progress=shear, failures=failures)
+                  recorder=rec, progress=shear, failures=failures, compiled=compiled)
     if drop_failed:
         rec.meta["failed"] = {int(b): why for b, why in sorted(failures.items())}
     return rec.result()
