@@ -12,7 +12,7 @@ from skfem import Basis, ElementQuad1, ElementQuadS2, ElementTriP2, ElementVecto
 
 from hmodel import Params
 from hmodel.cli.app import main
-from hmodel.fem import NewtonSettings, biaxial, footing, material_point_curve
+from hmodel.fem import GlobalNewtonSettings, biaxial, footing, material_point_curve
 from hmodel.fem.assembly import internal_force, strain_hm
 from hmodel.fem.bands import band_inclination, concentration, peak_angles, theory_angles
 from hmodel.fem.material import HModelMaterial, Trial
@@ -85,7 +85,7 @@ def _patch(basis: Basis, material, A: np.ndarray, n_steps: int = 1):
     g = _linear_field(basis, A)
     pb = Problem(basis, material, fixed, g, internal_force(basis, material.sig))
     steps = []
-    out = run_steps(pb, n_steps, lambda s, lam: steps.append(s), NewtonSettings(rtol=1e-11))
+    out = run_steps(pb, n_steps, lambda s, lam: steps.append(s), GlobalNewtonSettings(rtol=1e-11))
     assert out.stopped is None
     return g, sum(s.du for s in steps), steps
 
@@ -217,7 +217,7 @@ def test_newton_converges_quadratically():
 
 def test_stopped_run_keeps_converged_steps(tmp_path):
     res = biaxial(FAST, 2e5, 0.02, mesh=(1, 1), n_steps=5, reference=False,
-                  settings=NewtonSettings(max_iter=1, max_cuts=1))
+                  settings=GlobalNewtonSettings(max_iter=1, max_cuts=1))
     assert res.stopped is not None and "did not converge at axial strain" in res.stopped
     assert 1 <= len(res) < 6
     assert np.all(res.column("residual") <= 1e-8)

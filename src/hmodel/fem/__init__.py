@@ -8,10 +8,10 @@ nodal displacements uses the REV's consistent tangent, from batched finite diffe
 """
 
 from .mesh import ELEMENTS, Domain, parse_pair
-from .newton import NewtonSettings
+from .newton import GlobalNewtonSettings
 from .outputs import write_result
 from .problems import biaxial, footing, parse_imperfection
 from .result import FemResult, Snapshot, material_point_curve
 
-__all__ = ["biaxial", "footing", "write_result", "FemResult", "Snapshot", "NewtonSettings",
+__all__ = ["biaxial", "footing", "write_result", "FemResult", "Snapshot", "GlobalNewtonSettings",
            "Domain", "ELEMENTS", "parse_pair", "parse_imperfection", "material_point_curve"]

@@ -37,8 +37,9 @@ from .material import Trial
 
 
 @dataclass(frozen=True)
-class NewtonSettings:
-    """``rtol``: residual tolerance relative to the reference force; ``max_iter`` per step;
+class GlobalNewtonSettings:
+    """Settings of the global Newton on the nodal displacements (the material points' own
+    mixed-control Newton has :class:`hmodel.loading.NewtonSettings`). ``rtol``: residual tolerance relative to the reference force; ``max_iter`` per step;
     ``max_cuts``: halvings of a failing step before the run stops; ``event_after``,
     ``max_events``: the cell-event fallback; ``line_search``: halvings of a correction that
     raises the residual."""
@@ -110,7 +111,7 @@ def _evaluate(pb: Problem, du: np.ndarray):
 
 
 def newton_step(pb: Problem, d_lambda: float, guess: np.ndarray | None,
-                settings: NewtonSettings, scale: float, events_left: int = 0) -> StepResult:
+                settings: GlobalNewtonSettings, scale: float, events_left: int = 0) -> StepResult:
     """Solve one load step from the committed state; raises :class:`NotConverged`. With
     ``events_left``, a stalled Newton may return an event state (:class:`StepResult.event`).
 
@@ -174,7 +175,7 @@ class Stepping:
 
 
 def run_steps(pb: Problem, n_steps: int, on_step: Callable[[StepResult, float], None],
-              settings: NewtonSettings = NewtonSettings(),
+              settings: GlobalNewtonSettings = GlobalNewtonSettings(),
               where: Callable[[float], str] = lambda lam: f"load factor {lam:.4g}") -> Stepping:
     """Apply the load in ``n_steps`` nominal steps, cutting failing ones; ``on_step(step,
     lambda)`` after each converged step (its state committed). ``where(lambda)`` describes a
@@ -210,7 +211,7 @@ def _scale(pb: Problem) -> float:
     return max(float(np.linalg.norm(internal_force(pb.basis, pb.material.sig))), 1e-300)
 
 
-def _step_with_events(pb: Problem, d_lam: float, guess, settings: NewtonSettings) -> StepResult:
+def _step_with_events(pb: Problem, d_lam: float, guess, settings: GlobalNewtonSettings) -> StepResult:
     """One load step, committed on success, with the event fallback; on failure the material
     is back in its state at the start of the step."""
     start = pb.material.checkpoint()

@@ -24,7 +24,7 @@ from .assembly import volume_average
 from .bands import shear_band
 from .material import DaskStep, HModelMaterial
 from .mesh import Domain, dofs_where, gauss_points
-from .newton import NewtonSettings, Problem, StepResult, run_steps
+from .newton import GlobalNewtonSettings, Problem, StepResult, run_steps
 from .result import FemResult, Snapshot
 
 PLATENS = ("smooth", "rough")
@@ -182,7 +182,7 @@ def biaxial(params: Params | None = None, p0: float = 2e5, axial_strain: float =
             element: str = "q4", platens: str = "smooth", undrained: bool = False,
             imperfection: "str | tuple[Params, tuple[float, float, float]] | None" = None,
             n_steps: int = 100, solver: CellSolver | None = None,
-            settings: NewtonSettings = NewtonSettings(), n_saved: int = 10,
+            settings: GlobalNewtonSettings = GlobalNewtonSettings(), n_saved: int = 10,
             reference: bool = True, scheduler: str | None = None, progress=None) -> FemResult:
     """Plane-strain biaxial test of a ``size`` = (width, height) [m] specimen.
 
@@ -267,7 +267,7 @@ FOOTING_COLUMNS = ("step", "settlement", "s_B", "pressure", "newton_iterations",
 def footing(params: Params | None = None, p0: float = 1e5, settlement: float = 0.05, *,
             width: float = 0.2, layer: tuple[float, float] = (1.0, 0.5), mesh: tuple[int, int] = (20, 10),
             element: str = "q4", rough: bool = True, n_steps: int = 50, solver: CellSolver | None = None,
-            settings: NewtonSettings = NewtonSettings(), n_saved: int = 10,
+            settings: GlobalNewtonSettings = GlobalNewtonSettings(), n_saved: int = 10,
             scheduler: str | None = None, progress=None) -> FemResult:
     """Rigid strip footing of ``width`` [m] at the centre of the top of a ``layer`` = (width,
     depth) [m] layer, pushed down to ``settlement`` times its width in ``n_steps`` load steps.
