@@ -15,8 +15,8 @@ from hmodel.compare import deviations, run_path, standard_paths
 from hmodel.data import DatasetSpec, generate
 from hmodel.data.sampling import write_split
 from hmodel.errors import InputError
-from hmodel.surrogate.formulation_registry import make_formulation
-from hmodel.surrogate.meso import STATE_FIELDS, MesoFormulation
+from hmodel.surrogate.formulations.registry import make_formulation
+from hmodel.surrogate.formulations.meso import STATE_FIELDS, MesoFormulation
 from hmodel.surrogate.modelfile import load, save
 from hmodel.surrogate.solver import SurrogateSolver
 from hmodel.surrogate.training import TrainConfig, train_on_sample
@@ -319,7 +319,7 @@ def test_a_richer_cells_geometry_comes_from_the_cell_layer_not_the_dem_package()
     from :mod:`hmodel.cell.geometry`: nothing of hmodel.dem (YADE's client) is imported."""
     import subprocess
     import sys
-    code = ("import sys; from hmodel import Params; from hmodel.surrogate.meso import MesoFormulation; "
+    code = ("import sys; from hmodel import Params; from hmodel.surrogate.formulations.meso import MesoFormulation; "
             "f = MesoFormulation(Params(), 'dem:hexagon-center'); "
             "z = f.summary(f.geometry.initial(Params(), (2,)).values); "
             "assert f.richer and z.shape == (2, 11) and f.geometry.n_fields == 8 + 14 + 21; "

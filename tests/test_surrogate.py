@@ -292,7 +292,7 @@ def test_numpy_forward_matches_torch(activation):
 
 
 def test_secant_weights_turn_increment_errors_into_secant_errors():
-    from hmodel.surrogate.training import secant_weights
+    from hmodel.surrogate.formulations.meso_rollout import secant_weights
     e = np.array([[3.0, 4.0], [0.3, 0.4], [0.0, 0.0], [0.03, 0.04]])  # |e| = 5, 0.5, 0, 0.05
     w = secant_weights(e, 0.1)
     np.testing.assert_allclose(w, [1 / 25, 4.0, 100.0, 100.0])

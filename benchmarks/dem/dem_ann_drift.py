@@ -34,7 +34,7 @@ from hmodel.data import Dataset
 from hmodel.dem.solver import DEMSolver
 from hmodel.loading.paths import biaxial, consolidate
 from hmodel.rev.rev import Rev
-from hmodel.surrogate.meso import STATE_FIELDS
+from hmodel.surrogate.formulations.meso import STATE_FIELDS
 from hmodel.surrogate.modelfile import load
 from hmodel.surrogate.solver import SurrogateSolver
 

@@ -1,7 +1,7 @@
 """A cell increment with learned compliances of eq. 1.7, as a compiled per-cell kernel.
 
 It lives with the cells, below the loading drivers and the surrogates that both use it: the
-``compliance`` surrogates (:mod:`hmodel.surrogate.compliance`) learn the 24 numbers of a state's
+``compliance`` surrogates (:mod:`hmodel.surrogate.formulations.compliance`) learn the 24 numbers of a state's
 compliances, this applies them. Within a contact regime eq. 1.7 is linear in the length
 increments, so for the network's compliances ``c`` (24,) of a cell's state
 

@@ -1,7 +1,7 @@
 """The state of a cell of grains (a mesostructure) and its Love-Weber meso-stress, without YADE.
 
 The DEM cell solver (:class:`hmodel.dem.solver.DEMSolver`) runs these cells in YADE; the
-surrogates of them (:mod:`hmodel.surrogate.meso`) need only their geometry: how many fields a
+surrogates of them (:mod:`hmodel.surrogate.formulations.meso`) need only their geometry: how many fields a
 state has, the unloaded state, and the meso-stress of a state. Both build on
 :class:`CellGeometry`, which lives with the cells so that neither needs the other.
 

@@ -1,10 +1,10 @@
 """A cell increment with a learned response, as a compiled per-cell kernel (the REV's fast path).
 
 It lives with the cells, below the loading drivers and the surrogates that both use it: the
-``meso`` surrogates (:mod:`hmodel.surrogate.meso`) learn the response, this applies it.
+``meso`` surrogates (:mod:`hmodel.surrogate.formulations.meso`) learn the response, this applies it.
 A meso network sees the state only, so within one increment every Newton trial of a material
 point applies the same learned response to another strain: ``dz = A e + sum_k <n_k . e - c_k^2>
-B_k``, then the way back (``MesoFormulation._advanced`` in :mod:`hmodel.surrogate.meso`). :func:`meso_increment` is that
+B_k``, then the way back (``MesoFormulation._advanced`` in :mod:`hmodel.surrogate.formulations.meso`). :func:`meso_increment` is that
 trial for one cell, in the same operations as the NumPy way back; the compiled loading driver
 (:mod:`hmodel.loading.compiled`) runs it inside its Newton loop, so a trial costs no Python
 call and no network evaluation. :func:`pack_responses` lays the responses of a batch of states

@@ -1,7 +1,7 @@
 """Cell descriptions (mesostructures): the grains of a cell and how they are driven.
 
 They live with the cells, below both the DEM solver that runs them in YADE (:mod:`hmodel.dem`)
-and the surrogates that learn them (:mod:`hmodel.surrogate.meso`), which need their geometry
+and the surrogates that learn them (:mod:`hmodel.surrogate.formulations.meso`), which need their geometry
 without YADE; the cells' state layout is :mod:`hmodel.cell.geometry`.
 
 A :class:`Mesostructure` lists grains (radius, initial centre in the cell frame n = x, t = y)

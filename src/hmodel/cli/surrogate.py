@@ -38,9 +38,9 @@ Mechanisms = Annotated[int, typer.Option(help="meso: kinks of the learned increm
 Rollout = Annotated[int, typer.Option(help="meso of a richer cell: also train on rollouts of this many "
                                            "steps along the data's paths (0: single increments only).")]
 RolloutWeight = Annotated[float, typer.Option(help="Weight of the rollout error in the loss.")]
-RolloutSubsteps = Annotated[int, typer.Option(help="Experimental, tried and not kept (docs/notes): network "
-                                                   "steps per data step of a rollout (a REV at a finer "
-                                                   "increment than the data's).")]
+RolloutSubsteps = Annotated[int, typer.Option(help="meso: network steps per data step of a rollout (a REV "
+                                                   "at a finer increment than the data's; the shipped "
+                                                   "hexagon-center networks: 4, with --cell-step).")]
 SecantFloor = Annotated[float, typer.Option(help="meso: weigh errors as errors of the secant dz/|de|, "
                                                  "increments below this strain as this (0: of dz/m0).")]
 CellStep = Annotated[Optional[float], typer.Option(help="meso: largest cell strain of one network step in a "

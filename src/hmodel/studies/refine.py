@@ -50,12 +50,14 @@ from ..solvers import get_solver
 from ..surrogate import modelfile
 from ..surrogate.model import Surrogate
 from ..surrogate.solver import SurrogateSolver, gated_solver
+from ..surrogate.formulations.meso_rollout import LOSS_OPTIONS
 from ..surrogate.training import TrainConfig, train, union
 from ..surrogate.gate import fingerprint
 from ..surrogate.trust import fit_ensemble_trust, fit_trust
 
-#: The training settings a fine-tuning keeps from the model's own (the loss it was trained with).
-LOSS_SETTINGS = ("loss", "secant_floor", "rollout", "rollout_weight", "rollout_substeps")
+#: The training settings a fine-tuning keeps from the model's own (the loss it was trained with:
+#: a ``meso`` network's own options too, :class:`~hmodel.surrogate.formulations.meso.MesoTraining`).
+LOSS_SETTINGS = ("loss", *LOSS_OPTIONS)
 PATHS = ("drained", "undrained", "unload-reload")
 
 
@@ -185,7 +187,7 @@ def fine_tune(members: list[Surrogate], cols: dict, params: Params, config: Refi
         cfg = replace(TrainConfig(formulation=m.formulation.name), epochs=config.epochs,
                       patience=config.patience, lr=config.lr, seed=config.seed + 1000 * r + k,
                       **{name: made[name] for name in LOSS_SETTINGS if name in made})
-        m, hist = train(cols, params, cfg, init=m, cell=getattr(m.formulation, "cell", "closed-form"))
+        m, hist = train(cols, params, cfg, init=m, cell=m.formulation.cell)
         m.meta.update(params=params.to_dict(), refined={"round": r, "rows": len(cols["deps1"])})
         tuned.append(m)
         epochs += len(hist)

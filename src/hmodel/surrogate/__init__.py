@@ -1,8 +1,7 @@
 """Neural surrogates of the H-cell increment (report §2.4-2.5): formulations, normalizations,
 PyTorch training, evaluation, safe model files and the shipped model."""
 
-from .formulation_registry import FORMULATIONS, make_formulation
-from .formulations import Formulation
+from .formulations import FORMULATIONS, Formulation, make_formulation
 from .model import Architecture, Surrogate
 from .modelfile import ModelFileError, load, save
 

@@ -29,9 +29,10 @@ import numpy as np
 from ..errors import InputError
 from ..limits import check_memory
 from .fit_loop import FitConfig, device, fit
+from .formulations.meso_rollout import RolloutLoss, secant_weights
 from .model import Architecture, Surrogate
 from .torch_support import require_torch
-from .training import _Rollout, best_weights, build_network, secant_weights, torch_network, training_bytes
+from .training import best_weights, build_network, torch_network, training_bytes
 
 
 @dataclass(frozen=True)
@@ -132,12 +133,12 @@ def distill(teacher: Surrogate, columns: dict[str, np.ndarray], config: DistillC
             e, at = strains(rows)
             batch = loss(rows, e, at, raw=True)
             if roll is not None:
-                batch = batch + config.rollout_weight * roll.train_batch(i // config.batch_size, n_batches)
+                batch = batch + roll.train_batch(i // config.batch_size, n_batches)
             yield batch, len(rows)
 
     def validation() -> float:  # increments and rollouts, not the raw outputs
         v = float(loss(val, val_e, val_at, raw=False))
-        return v + config.rollout_weight * roll.validation() if roll is not None else v
+        return v + roll.validation() if roll is not None else v
 
     best_state, best, history = fit(net, batches, validation, len(tr), config, progress=progress,
                                     plateau_patience=config.patience, min_lr=config.min_lr,
@@ -171,13 +172,14 @@ def distill_on_sample(teacher: Surrogate, folder, config: DistillConfig = Distil
     return s, history
 
 
-class _TeacherRollouts(_Rollout):
+class _TeacherRollouts(RolloutLoss):
     """Rollout windows of the data (as in training), with the teacher's own rollouts from the
     same start states as their targets: the student learns the teacher's paths, not the data's."""
 
     def __init__(self, teacher: Surrogate, columns, config: DistillConfig, rng, net):
         torch = require_torch("distillation")
-        super().__init__(teacher.formulation, columns, config, rng, teacher.x_scaler, net, config.rollout)
+        super().__init__(teacher.formulation, columns, config, rng, teacher.x_scaler, net, config.rollout,
+                         weight=config.rollout_weight)
         t_net = torch_network(teacher)
         with torch.no_grad():
             for part in (self.train, self.val):

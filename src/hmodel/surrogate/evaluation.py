@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from .formulations import OUTPUTS
 from .metrics import metrics_table
 from .model import Surrogate
 
@@ -22,13 +21,13 @@ UNITS = {"alpha_next": "rad", "N1_next": "N", "N2_next": "N", "T1_next": "N", "V
 def outputs_of(s: Surrogate) -> tuple[str, ...]:
     """The predicted state columns (``*_next``): the four of the report, and the meso-stress
     of the ``meso`` formulation."""
-    return getattr(s.formulation, "outputs", OUTPUTS)
+    return s.formulation.outputs
 
 
 def truth_and_prediction(s: Surrogate, cols: dict[str, np.ndarray]
                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """True and predicted state after, and the state before, (n, outputs) each."""
-    cols = getattr(s.formulation, "augment", lambda c: c)(cols)
+    cols = s.formulation.augment(cols)
     pred = s.predict(cols)
     out = outputs_of(s)
     return tuple(np.column_stack([src[k] for k in out]) for src in (cols, pred)) + (

@@ -31,7 +31,8 @@ from .model import Surrogate
 
 #: The state fields whose increments the disagreement compares (α, N1, N2, T1 of the packed state).
 INCREMENT_FIELDS = (2, 3, 4, 5)
-#: ... and of a richer cell's summary state (:mod:`hmodel.surrogate.meso`): also V σ_nn, V σ_tt.
+#: ... and of a richer cell's summary state (:mod:`hmodel.surrogate.formulations.meso_summary`):
+#: also V σ_nn, V σ_tt.
 RICHER_INCREMENT_FIELDS = INCREMENT_FIELDS + (8, 9)
 
 
@@ -172,7 +173,7 @@ def increment_fields(formulation) -> tuple[tuple[int, ...], tuple[str, ...]]:
     """The state columns whose increments an ensemble's disagreement compares, and the
     database columns of their values after an increment."""
     names = ("alpha_next", "N1_next", "N2_next", "T1_next")
-    if getattr(formulation, "richer", False):
+    if formulation.richer:
         return RICHER_INCREMENT_FIELDS, names + ("Vs_nn_next", "Vs_tt_next")
     return INCREMENT_FIELDS, names
 

@@ -11,7 +11,7 @@ each other (:meth:`Surrogate.forward`); a large batch is split across the cores 
 block per task. ``forward(X, single=True)`` runs the layers in
 float32, the precision the network was trained in (outputs within ~4e-7 of float64, at half the
 memory traffic); the solver uses it for the formulations that ask for it, ``meso`` only
-(``single_precision`` in :mod:`hmodel.surrogate.formulations`).
+(``single_precision`` in :mod:`hmodel.surrogate.formulations.base`).
 Networks with the strain increment among their inputs need float64: the Newton iterations'
 finite-difference probes differentiate their output, and float32 round-off made those tangents
 noise.
@@ -28,7 +28,7 @@ from numba import njit
 from threadpoolctl import ThreadpoolController
 
 from ..errors import InputError
-from .formulations import Formulation
+from .formulations.base import Formulation
 from .scalers import Affine
 
 ACTIVATIONS = ("tanh", "relu", "silu", "gelu", "elu")

@@ -21,7 +21,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError
-from .formulation_registry import FORMULATIONS, formulation_from_dict
+from .formulations.registry import FORMULATIONS, formulation_from_dict
 from .model import Architecture, Surrogate
 from .scalers import METHODS, Affine
 

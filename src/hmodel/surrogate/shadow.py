@@ -1,6 +1,6 @@
 """A richer cell's learned response gated to its DEM cell, which it keeps in step.
 
-The ``meso`` surrogate of a richer cell (:mod:`hmodel.surrogate.meso`) carries an 11-field
+The ``meso`` surrogate of a richer cell (:mod:`hmodel.surrogate.formulations.meso`) carries an 11-field
 summary of the cell; a DEM cell cannot restart from it (the grain centres and the tangential
 forces of the inner contacts are not in it: rebuilt from the summary, the DEM increments are
 three times as far from the true ones as the network's, see the DEM cells page). So that an exact
@@ -50,9 +50,9 @@ class ShadowedSolver:
 
     def __init__(self, surrogate, fallback, gate: float):
         f = surrogate.formulation
-        if getattr(f, "name", None) != "meso" or not f.richer:
+        if not f.richer:
             raise InputError("a DEM fallback keeps a richer cell's meso surrogate in step; "
-                             f"this is a {f.name!r} model of {getattr(f, 'cell', 'H-cells')}")
+                             f"this is a {f.name!r} model of {f.cell}")
         geometry = getattr(fallback, "geometry", None)
         if geometry is None or (geometry.mesostructure, geometry.options) != (f.geometry.mesostructure,
                                                                               f.geometry.options):
@@ -135,8 +135,8 @@ class ShadowedSolver:
         """Every member's summary states after the length increments ``dl``."""
         f = self.formulation
         outs, _ = self.surrogate.outputs(summary, f.features(summary))
-        e = np.column_stack([-dl[:, 0] / params.l10, -dl[:, 1] / params.l20]) / f.m0
-        return [f.advance(summary, f.head(o[:, :f.n_outputs], e), dl)[0] for o in outs]
+        strain = np.column_stack([-dl[:, 0] / params.l10, -dl[:, 1] / params.l20])
+        return f.member_afters(summary, strain, dl, outs)
 
     def fractions(self, params: Params, state: CellState) -> dict[str, np.ndarray]:
         """``gated``: with the distance gate, the cells whose next increment the DEM solves;

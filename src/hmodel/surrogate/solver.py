@@ -6,16 +6,19 @@ into the database's cell strains (δε = −δl / l0, on the initial lengths); a
 than the ones the network was trained on is split into equal sub-steps (at most
 ``max_substeps``). What the network sees and how its outputs become the cells' next state is
 the formulation's (:mod:`hmodel.surrogate.formulations`): strain-input networks (``report``,
-``increment``) with the zero-increment correction and eq. 1.2; the ``compliance`` network
-(:mod:`hmodel.surrogate.compliance`), which sees the state only, evaluated once per state and
-applied exactly to every trial increment of a Newton iteration; a ``meso`` network
-(:mod:`hmodel.surrogate.meso`), which also sees the state only. For both, the REV's compiled
-loading path (:mod:`hmodel.loading.compiled`) takes the response once per increment from
-:meth:`SurrogateSolver.kernel` and applies it in its Newton trials
-(:func:`hmodel.cell.meso_kernel.meso_increment`,
+``increment``, :mod:`hmodel.surrogate.formulations.strain`) with the zero-increment correction
+and eq. 1.2; the ``compliance`` network (:mod:`hmodel.surrogate.formulations.compliance`), which
+sees the state only, evaluated once per state and applied exactly to every trial increment of a
+Newton iteration; a ``meso`` network (:mod:`hmodel.surrogate.formulations.meso`), which also
+sees the state only. For both, the REV's compiled loading path (:mod:`hmodel.loading.compiled`)
+takes the response once per increment from :meth:`SurrogateSolver.kernel` and applies it in its
+Newton trials (:func:`hmodel.cell.meso_kernel.meso_increment`,
 :func:`hmodel.cell.compliance_kernel.compliance_increment`).
 The solver holds what is common: the material check, the networks' evaluation (cached per
-state, float32 or float64 as the formulation says), ensembles, counts and the sub-step bound.
+state, float32 or float64 as the formulation says), ensembles, the sub-step bound, and the
+cells outside the training domain: a formulation's increment names them
+(:class:`~hmodel.surrogate.formulations.base.Increment`), the solver counts them and hands them
+to its fallback.
 
 Cells whose inputs lie outside the training domain are either handed to the closed-form
 solver (``on_outside="fallback"``; a ``meso`` cell, which has none, is extrapolated) or stop
@@ -53,11 +56,11 @@ from ..cell import CellFlags, CellKernel, CellSolver, CellState
 from ..cell.closed_form import ClosedFormSolver
 from ..errors import InputError, SolverError
 from ..params import Params
-from .compliance import ComplianceFormulation as Compliance
-from .formulations import LEAK_REFUSED
+from .formulations.base import Increment
+from .formulations.strain import LEAK_REFUSED
+from .gate import Gate, gate_for
 from .model import Surrogate
 from .state_cache import StateCache, distinct_rows
-from .gate import Gate, gate_for
 
 #: Parameters a surrogate is specific to (it was trained on cells with these values).
 MATERIAL = ("kn", "kt_kn", "phi_g", "radius", "g2", "sliding_rhs", "volume")
@@ -66,7 +69,7 @@ MATERIAL = ("kn", "kt_kn", "phi_g", "radius", "g2", "sliding_rhs", "volume")
 class SurrogateSolver:
     """Implements :class:`hmodel.cell.CellSolver` with a trained :class:`Surrogate` (or an
     ensemble), delegating to its formulation what depends on it; the solver's networks are the
-    formulation's :class:`~hmodel.surrogate.formulations.Networks`.
+    formulation's :class:`~hmodel.surrogate.formulations.base.Networks`.
 
     A cell of a strain-input formulation opens where eq. 1.7's closed form would, on the
     continued force increments, and separated grains carry no force (the ``increment``
@@ -94,7 +97,7 @@ class SurrogateSolver:
         self.members = _members(model)
         self.model, self.on_outside, self.margin = self.members[0], on_outside, margin
         self.formulation = self.model.formulation
-        if getattr(self.formulation, "needs_answer", False):
+        if self.formulation.needs_answer:
             raise InputError(LEAK_REFUSED)
         self.fallback = self.closed_form = ClosedFormSolver()
         self.counts = {"cell_updates": 0, "network_cells": 0, "outside": 0, "substeps": 0,
@@ -123,7 +126,8 @@ class SurrogateSolver:
             raise InputError("a fallback solver needs a gate (--gate LEVEL, e.g. 0.99)")
         if fallback is None:
             raise InputError("a gate needs a fallback solver (--fallback closed-form)")
-        if not isinstance(self.formulation, Compliance):
+        f = self.formulation
+        if not (f.state_only and f.falls_back):
             raise InputError(f"gating needs a network that sees the H-cell's state only (the "
                              f"compliance formulation, the default model's), so that an exact "
                              f"solver can take the cell over; this is a "
@@ -141,13 +145,13 @@ class SurrogateSolver:
         v = np.asarray(state.values, float).reshape(-1, self.n_state)
         return {"gated": self.gate.mask(v).reshape(state.shape)}
 
-    def gate_increments(self, v: np.ndarray, dl: np.ndarray, outs: list[np.ndarray], advance) -> np.ndarray | None:
-        """The ensemble's gate (None where the gate is not an ensemble's): cells whose members'
-        increments under length increments ``dl`` (``advance(v, dl, outs[k])`` each) disagree
-        beyond the threshold. Counted per cell increment, Newton trials included."""
-        if self.gate is None or not self.gate.per_increment:
-            return None
-        gated = self._record_gate(v, self.gate.mask(v, [advance(v, dl, o)[0] for o in outs]))
+    def _gate_increments(self, v: np.ndarray, strain: np.ndarray, dl: np.ndarray,
+                         outs: list[np.ndarray]) -> np.ndarray:
+        """The ensemble's gate: cells whose members' increments under cell strains ``strain``
+        and length increments ``dl`` disagree beyond the threshold. Counted per cell increment,
+        Newton trials included."""
+        afters = self.formulation.member_afters(v, strain, dl, outs)
+        gated = self._record_gate(v, self.gate.mask(v, afters))
         self._gated = gated
         return gated
 
@@ -193,19 +197,31 @@ class SurrogateSolver:
         opening angle only, the one the model was trained for)."""
         return self.formulation.initial_cells(params, alpha0)
 
-    @property
-    def has_gate(self) -> bool:
-        """Whether a gate sends cells to the fallback solver (and records their fraction)."""
-        return self.gate is not None
-
     def kernel(self, params: Params) -> CellKernel | None:
         """The formulation's compiled increment (a ``meso`` network's learned response or a
         ``compliance`` network's compliances, applied by every Newton trial inside the compiled
-        loading path), or None: strain-input networks run through the generic driver."""
-        kernel = self.formulation.kernel(self, params)
-        if kernel is not None:  # its trials never pass through step's check
-            self.check(params)
-        return kernel
+        loading path), or None: strain-input networks run through the generic driver, and so
+        does a gated solver (its fallback may be another solver, an ensemble's gate is decided
+        per trial increment, and the gated fraction is recorded per increment)."""
+        if self.gate is not None:
+            return None
+        kernel_params = self.formulation.kernel_params(params)
+        if kernel_params is None:
+            return None
+        self.check(params)  # its trials never pass through step's check
+        return CellKernel(kernel_params, self._responses)
+
+    def _responses(self, v: np.ndarray) -> np.ndarray:
+        """The compiled increment's response rows of states ``v``: the network's outputs for
+        them (cached), the cells outside the training domain counted (or the run stopped,
+        ``on_outside="error"``) as :meth:`step` does; a formulation that falls back takes the
+        closed form for them inside the kernel."""
+        f = self.formulation
+        outs, mask = self.outputs(v)
+        n_fall = self.count_outside(mask, f.describe(v))
+        if f.falls_back:
+            self.counts["fallback_cells"] += n_fall
+        return f.responses(v, outs, mask)
 
     def step(self, params: Params, state: CellState, dl1, dl2) -> tuple[CellState, CellFlags]:
         self.check(params)
@@ -218,13 +234,27 @@ class SurrogateSolver:
         e1, e2 = -dl[:, 0] / params.l10, -dl[:, 1] / params.l20
         n_sub = self._substeps(max(np.abs(e1).max(initial=0.0), np.abs(e2).max(initial=0.0)))
         values, flags = v, None
-        step = self.formulation.step_cells
         for _ in range(n_sub):
-            values, flags = step(self, params, values, e1 / n_sub, e2 / n_sub, dl / n_sub)
+            values, flags = self._network_step(params, values, e1 / n_sub, e2 / n_sub, dl / n_sub)
         self.counts["substeps"] += n_sub
         if not np.all(np.isfinite(values)):
             raise SolverError("the surrogate returned a non-finite cell state")
         return CellState(values.reshape(*shape, n_state)), CellFlags(flags.reshape(*shape, 5))
+
+    def _network_step(self, params: Params, v: np.ndarray, e1: np.ndarray, e2: np.ndarray,
+                      dl: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The formulation's increment of cells ``v``, then the solver's part: the cells outside
+        the training domain (or gated) counted, the run stopped (``on_outside="error"``) or
+        those cells handed to the fallback solver where the formulation falls back."""
+        f = self.formulation
+        inc: Increment = f.step_cells(self, params, v, e1, e2, dl)
+        self.counts["network_cells"] += inc.network_cells
+        mask = inc.outside
+        if self.gate is not None and self.gate.per_increment:  # the members disagree on it
+            mask = mask | self._gate_increments(v, np.column_stack([e1, e2]), dl, inc.outs)
+        if self.count_outside(mask, inc.describe) and f.falls_back:
+            self.fall_back(params, v, dl, mask, inc.new, inc.flags)
+        return inc.new, inc.flags
 
     def _substeps(self, largest: float) -> int:
         """Sub-steps for a cell strain increment of size ``largest``: a request beyond
@@ -239,7 +269,7 @@ class SurrogateSolver:
                 f"{self.max_substeps} sub-steps)")
         return max(1, math.ceil(largest / self.max_increment - 1e-12))
 
-    # -- the formulation's networks (formulations.Networks) ---------------------------------
+    # -- the formulation's networks (formulations.base.Networks) ----------------------------
     def forward(self, X: np.ndarray) -> np.ndarray:
         """The network's outputs for inputs X, in float64 (strain-input networks, one model)."""
         return self.model.forward(X)
@@ -356,7 +386,7 @@ def gated_solver(spec: "str | CellSolver", gate: float | None = None,
         raise InputError(f"--gate and --fallback are for learned cell solvers (surrogate[:MODEL]), "
                          f"got {solver.name!r}")
     exact = get_solver(fallback)
-    if getattr(solver.formulation, "richer", False):  # a DEM cell kept in step (shadow.py)
+    if solver.formulation.richer:  # a DEM cell kept in step (shadow.py)
         from .shadow import ShadowedSolver
 
         return ShadowedSolver(solver, exact, gate)

@@ -13,7 +13,8 @@ from ..errors import InputError
 from ..limits import check_memory
 from ..params import Params
 from .fit_loop import FitConfig, device, fit
-from .formulation_registry import make_formulation
+from .formulations.meso_rollout import MesoTraining
+from .formulations.registry import make_formulation
 from .model import Architecture, Surrogate
 from .scalers import Affine, fit_scaler
 from .torch_support import require_torch
@@ -22,10 +23,12 @@ LOSSES = ("mse", "mae")
 
 
 @dataclass(frozen=True)
-class TrainConfig(FitConfig):
+class TrainConfig(FitConfig, MesoTraining):
     """A training's settings: the fit's (:class:`~hmodel.surrogate.fit_loop.FitConfig`; early
     stopping after ``patience`` epochs without improvement), the formulation and network, and
-    the ``meso`` formulation's own."""
+    the ``meso`` formulation's own
+    (:class:`~hmodel.surrogate.formulations.meso_rollout.MesoTraining`: its mechanisms, cell
+    step, rollouts and secant weighting; refused for another formulation)."""
 
     formulation: str = "increment"
     normalization: str = "zscore"
@@ -33,43 +36,13 @@ class TrainConfig(FitConfig):
     depth: int = 3
     activation: str = "tanh"
     loss: str = "mse"
-    #: ``meso`` formulation: kinks of the incremental response (see :mod:`hmodel.surrogate.meso`).
-    mechanisms: int = 4
-    #: Rollout training (``meso`` of a richer cell): windows of this many steps along the data's
-    #: paths, each step fed the previous step's prediction, add ``rollout_weight`` times their
-    #: error to the loss (0: single increments only). A learned state drifts in a REV where
-    #: single-increment errors pile up; this charges the network for the pile-up.
-    rollout: int = 0
-    rollout_weight: float = 1.0
-    #: Network steps per data step of a rollout window (a REV at a finer increment than the
-    #: data's; 1: the data's steps): with ``cell_step``, the network learns steps of the size a
-    #: REV will take (the shipped hexagon-center networks use 4).
-    rollout_substeps: int = 1
-    #: ``meso``: weigh each row's error as an error of the secant dz/|de| instead of dz/m0, for
-    #: increments down to this strain (smaller ones weigh as this): the loss on dz/m0 leaves the
-    #: first increments of a loading to the large ones, whose sliding dominates it (0: off).
-    secant_floor: float = 0.0
-    #: ``meso``: largest cell strain of one network step in a REV (None: any), stored with the
-    #: model (:attr:`hmodel.surrogate.meso.MesoFormulation.cell_step`).
-    cell_step: float | None = None
 
     def __post_init__(self) -> None:
         Architecture(self.width, self.depth, self.activation)
         if self.loss not in LOSSES:
             raise InputError(f"unknown loss {self.loss!r} (known: {', '.join(LOSSES)})")
-        super().__post_init__()
-        if self.rollout_substeps < 1:
-            raise InputError(f"rollout_substeps must be at least 1, got {self.rollout_substeps}")
-        if self.mechanisms < 0 or self.rollout < 0 or not self.rollout_weight >= 0:
-            raise InputError("mechanisms, rollout and rollout_weight must be positive or zero")
-        if self.rollout and self.formulation != "meso":
-            raise InputError("rollout training needs --formulation meso")
-        if not self.secant_floor >= 0:
-            raise InputError(f"secant_floor must be positive or zero, got {self.secant_floor}")
-        if self.secant_floor and self.formulation != "meso":
-            raise InputError("secant weighting needs --formulation meso")
-        if self.cell_step is not None and self.formulation != "meso":
-            raise InputError("--cell-step needs --formulation meso")
+        FitConfig.__post_init__(self)
+        self.check(self.formulation)
 
 
 def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = TrainConfig(),
@@ -96,8 +69,7 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
                          depth=init.architecture.depth, activation=init.architecture.activation,
                          normalization=init.x_scaler.method)
     X, (Y, W), A = form.inputs(columns), form.targets(columns), form.aux(columns)
-    if config.secant_floor:
-        W = W * secant_weights(A, config.secant_floor / form.m0)[:, None]
+    W = form.row_weights(W, A, config)
     n = len(X)
     if n < 10:
         raise InputError(f"need at least 10 training rows, got {n}")
@@ -124,8 +96,7 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
                  f"a {config.depth} x {config.width} network")
     net = (build_network(arch, X.shape[1], n_out) if init is None else torch_network(init)).to(dev)
     loss_fn = _loss(config.loss, form.logit_column)
-    roll = (_Rollout(form, columns, config, rng, xs, net, config.rollout, config.rollout_substeps)
-            if config.rollout else None)
+    roll = form.rollout_loss(columns, config, rng, xs, net)  # the meso formulation's rollouts
     n_batches = math.ceil(len(Xt) / config.batch_size)
     gen = torch.Generator(device="cpu").manual_seed(config.seed)
 
@@ -135,12 +106,12 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
             idx = order[i:i + config.batch_size]
             loss = loss_fn(form.head(net(Xt[idx]), None if At is None else At[idx], Yt[idx]), Yt[idx], Wt[idx])
             if roll is not None:
-                loss = loss + config.rollout_weight * roll.train_batch(i // config.batch_size, n_batches)
+                loss = loss + roll.train_batch(i // config.batch_size, n_batches)
             yield loss, len(idx)
 
     def validation() -> float:
         v = float(loss_fn(form.head(net(Xv), Av, Yv), Yv, Wv))
-        return v + config.rollout_weight * roll.validation() if roll is not None else v
+        return v + roll.validation() if roll is not None else v
 
     best_state, best, history = fit(net, batches, validation, len(Xt), config, progress=progress,
                                     plateau_patience=max(1, config.patience // 3),
@@ -174,7 +145,7 @@ def train_on_sample(folder, config: TrainConfig, progress: Callable[[float], Non
         cols = union([p[0][0] for p in parts])
         test = union([p[1] for p in parts])
     if init is not None and (init.meta.get("params", info["params"]) != info["params"]
-                             or getattr(init.formulation, "cell", cell) != cell):
+                             or not init.formulation.fits(cell)):
         raise InputError("the model to fine-tune was trained on other material parameters or cells "
                          "than these samples'")
     s, history = train(cols, params_of(info), config, progress, cell, init=init)
@@ -203,59 +174,6 @@ def union(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
         if "path_id" in cols and len(cols["path_id"]):
             shift += int(cols["path_id"].max()) + 1
     return {k: np.concatenate(v) for k, v in out.items()}
-
-
-class _Rollout:
-    """Windows along the data's paths (:meth:`MesoFormulation.windows`), split like the rows,
-    and their rollout errors for the training loop."""
-
-    def __init__(self, form, columns, config: FitConfig, rng, xs, net, window: int, substeps: int = 1):
-        torch = require_torch()
-        if not getattr(form, "richer", False):
-            raise InputError("rollout training needs the meso formulation of a richer cell (DEM data "
-                             "whose V sigma is learned)")
-        w = form.windows(columns, window)
-        if len(w["z0"]) < 2:
-            raise InputError("rollout training needs data along paths (a Dataset 2 sample with its "
-                             "start states)")
-        perm = rng.permutation(len(w["z0"]))
-        n_val = max(1, int(round(config.val_fraction * len(perm))))
-        dev = next(net.parameters()).device
-        as64 = lambda a: torch.as_tensor(a, dtype=torch.float64, device=dev)  # noqa: E731
-        self.val = {k: as64(a[perm[:n_val]]) for k, a in w.items()}
-        self.train = {k: as64(a[perm[n_val:]]) for k, a in w.items()}
-        off, scale = as64(xs.offset), as64(xs.scale)
-        self.scale_inputs = lambda X: (X - off) / scale  # noqa: E731
-        self.form, self.net, self.substeps = form, net, substeps
-        self.gen = torch.Generator().manual_seed(config.seed)
-        self.order = torch.randperm(len(perm) - n_val, generator=self.gen)
-
-    def _error(self, part: dict, idx=None):
-        a = part if idx is None else {k: t[idx] for k, t in part.items()}
-        return self.form.rollout_error(self.net, a["z0"], a["e"], a["dl"], a["target"], a["mask"],
-                                       self.scale_inputs, self.substeps)
-
-    def train_batch(self, b: int, n_batches: int):
-        """Rollout error of the b-th of ``n_batches`` slices of the training windows."""
-        torch = require_torch()
-        if b == 0:  # a new epoch: new slices
-            self.order = torch.randperm(len(self.order), generator=self.gen)
-        size = math.ceil(len(self.order) / n_batches)
-        return self._error(self.train, self.order[b * size:(b + 1) * size])
-
-    def validation(self) -> float:
-        torch = require_torch()
-        with torch.no_grad():
-            return float(self._error(self.val))
-
-
-def secant_weights(e, floor: float):
-    """Row weights (m0/|de|)^2 = 1/|e|^2 for strains e = de/m0 (n, 2), |e| taken as at least
-    ``floor``: they turn a squared error of dz/m0 into one of the secant dz/|de| (times m0).
-    NumPy or torch."""
-    if isinstance(e, np.ndarray):
-        return 1.0 / np.maximum(np.linalg.norm(e, axis=1), floor) ** 2
-    return 1.0 / e.norm(dim=1).clamp(min=floor) ** 2
 
 
 def _loss(kind: str, logit: int | None):

@@ -111,12 +111,12 @@ def fit_ensemble_trust(members: list[Surrogate], held_out: dict[str, np.ndarray]
     if len(members) < 2:
         raise InputError("an ensemble's disagreement needs at least two networks")
     f = members[0].formulation
-    if not hasattr(f, "advance"):
+    if not f.ensembles:
         raise InputError(f"an ensemble's disagreement needs compliance or meso networks, got {f.name!r}")
     for m in members[1:]:
         if m.formulation.to_dict() != f.to_dict():
             raise InputError("the ensemble's networks have different formulations or materials")
-    held_out = getattr(f, "augment", lambda c: c)(held_out)
+    held_out = f.augment(held_out)
     X = np.asarray(f.inputs(held_out), float)
     outs = [m.forward(X, single=f.single_precision) for m in members]
     names = increment_fields(f)[1]
@@ -124,7 +124,8 @@ def fit_ensemble_trust(members: list[Surrogate], held_out: dict[str, np.ndarray]
     scale = increment_spread(y, before)
     # each member's increment, and the ensemble's as the solver makes it
     inc = [np.column_stack([f.decode(held_out, o)[k] for k in names]) - before for o in outs]
-    mean = _ensemble_after(f, held_out, outs, names)
+    after = f.ensemble_decode(held_out, outs)  # the ensemble's, as the solver makes it
+    mean = np.column_stack([after[k] for k in names])
     s = disagreement(inc, scale)
     error = np.sqrt(np.mean(((mean - y) / scale) ** 2, axis=1))
     table = ranking(s, error)
@@ -133,17 +134,3 @@ def fit_ensemble_trust(members: list[Surrogate], held_out: dict[str, np.ndarray]
              "quantiles": {"levels": LEVELS.tolist(), "scores": np.quantile(s, LEVELS).tolist()}}
     first = replace(members[0], meta={**members[0].meta, "trust": trust}, trust_reference=None)
     return [first, *members[1:]], table
-
-
-def _ensemble_after(f, held_out: dict[str, np.ndarray], outs: list[np.ndarray], names) -> np.ndarray:
-    """The ensemble's state after each held-out row's increment, as the solver makes it: the
-    members' increments averaged (``meso``) or their outputs averaged (``compliance``)."""
-    if not hasattr(f, "mean_response"):
-        return np.column_stack([f.decode(held_out, np.mean(outs, axis=0))[k] for k in names])
-    from .meso import STATE_FIELDS
-
-    v = np.column_stack([held_out[k] for k in STATE_FIELDS])
-    dl = np.column_stack([held_out["l1_next"] - held_out["l1"], held_out["l2_next"] - held_out["l2"]])
-    Y = np.mean([f.increment(o, held_out["deps1"], held_out["deps2"]) for o in outs], axis=0)
-    new, _ = f.advance(v, Y, dl)
-    return new[:, list(increment_fields(f)[0])]

@@ -25,8 +25,9 @@ In the cell solver (:meth:`ComplianceFormulation.step_cells`) the network sees t
 it is evaluated once per state and reused for every trial increment of a Newton iteration
 (:class:`hmodel.surrogate.solver.SurrogateSolver` caches it), and every increment is an exact,
 compiled application of the learned compliances, of any size within its regime (no sub-steps).
-The REV's compiled loading path takes the compliances once per increment from
-:meth:`ComplianceFormulation.kernel` and applies them in every Newton trial, inside its kernel
+The REV's compiled loading path takes the compliances once per increment
+(:meth:`ComplianceFormulation.responses`, with :meth:`ComplianceFormulation.kernel_params`) and
+applies them in every Newton trial, inside its kernel
 (:func:`hmodel.cell.compliance_kernel.compliance_increment`, the same per-cell code as
 :meth:`ComplianceFormulation.advance`).
 """
@@ -38,18 +39,18 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..cell.base import LAW_COMPLIANCE, CellKernel
-from ..cell.closed_form import kernel_params, sliding_lambda
-from ..cell.compliance_kernel import MINUS, N_OUT, PLUS, STICK, advance_cells, pack_responses
-from ..cell.state import FIELDS, initial_lengths
-from ..params import Params
-from .formulations import HCellStates, MaterialScales, Networks
+from ...cell.base import LAW_COMPLIANCE
+from ...cell.closed_form import kernel_params, sliding_lambda
+from ...cell.compliance_kernel import MINUS, N_OUT, PLUS, STICK, advance_cells, pack_responses
+from ...cell.state import FIELDS, initial_lengths
+from ...params import Params
+from .base import Formulation, Increment, MaterialScales, Networks
 
-__all__ = ["ComplianceFormulation", "N_OUT", "STICK", "PLUS", "MINUS"]
+__all__ = ["MINUS", "N_OUT", "PLUS", "STICK", "ComplianceFormulation"]
 
 
 @dataclass(frozen=True)
-class ComplianceFormulation(MaterialScales, HCellStates):
+class ComplianceFormulation(MaterialScales, Formulation):
     """Inputs, targets and the exact decoding of the compliance formulation for one material."""
 
     params: Params  #: the material (only its material parameters matter)
@@ -63,6 +64,7 @@ class ComplianceFormulation(MaterialScales, HCellStates):
     #: only, so no Newton tangent differentiates its round-off; the comparison grid (every path
     #: at increments of 2e-4 to 2e-3, both loading drivers) is unchanged to 0.001 % of peak q.
     single_precision = True
+    state_only = True
 
     def to_dict(self) -> dict:
         return {"name": self.name, "params": self.params.to_dict()}
@@ -141,36 +143,28 @@ class ComplianceFormulation(MaterialScales, HCellStates):
                       np.ascontiguousarray(out), kernel_params(self.params), new, flags)
         return new, flags
 
-    def kernel(self, net: Networks, params: Params) -> CellKernel | None:
-        """The compiled increment: the learned compliances of the states (one network evaluation
-        per increment), which every Newton trial applies in
+    def kernel_params(self, params: Params) -> np.ndarray:
+        """The compiled increment's parameters: the learned compliances of the states (one
+        network evaluation per increment, :meth:`responses`), which every Newton trial applies in
         :func:`hmodel.cell.compliance_kernel.compliance_increment`; cells outside the training
-        domain take eq. 1.7 there. None with a gate (its fallback may be another solver, an
-        ensemble's is decided per trial increment, and the gated fraction is recorded per
-        increment): the generic driver then calls :meth:`step_cells`."""
-        if net.has_gate:
-            return None
-        return CellKernel(np.append(kernel_params(params), LAW_COMPLIANCE),
-                          lambda values: self.responses(net, values))
+        domain take eq. 1.7 there."""
+        return np.append(kernel_params(params), LAW_COMPLIANCE)
 
-    def responses(self, net: Networks, v: np.ndarray) -> np.ndarray:
+    def responses(self, v: np.ndarray, outs: list[np.ndarray], mask: np.ndarray) -> np.ndarray:
         """Packed response rows (n, 25) of cell states ``v`` (n, 8): the compliances (an
-        ensemble's mean) and the cells outside the training domain, which take the closed form
-        instead, counted (or the run stopped, ``on_outside="error"``) as :meth:`step_cells`
-        does."""
-        outs, mask = net.outputs(v)
-        net.counts["fallback_cells"] += net.count_outside(mask, _describe(v))
+        ensemble's mean) and the cells outside the training domain ``mask``, which take the
+        closed form instead."""
         return pack_responses(_mean(outs), mask)
 
-    def step_cells(self, net, params, v, e1, e2, dl):
+    def step_cells(self, net: Networks, params: Params, v, e1, e2, dl) -> Increment:
         """One exact increment of cells ``v`` with the learned compliances of their states."""
         outs, mask = net.outputs(v)
         new, flags = self.advance(v, dl, _mean(outs))
-        gated = net.gate_increments(v, dl, outs, self.advance)
-        if gated is not None:  # an ensemble's gate: its members disagree on this increment
-            mask = mask | gated
-        self.closed_form_outside(net, params, v, dl, mask, new, flags, _describe(v))
-        return new, flags
+        return Increment(new, flags, mask, self.describe(v), outs)
+
+    def member_afters(self, v, strain, dl, outs):
+        """Every member's states after length increments ``dl``, its compliances applied."""
+        return [self.advance(v, dl, o)[0] for o in outs]
 
     def decode(self, c: dict[str, np.ndarray], out: np.ndarray) -> dict[str, np.ndarray]:
         """Predicted state after the increment of database rows (Surrogate.predict)."""
@@ -182,11 +176,6 @@ class ComplianceFormulation(MaterialScales, HCellStates):
 def _mean(outs: list[np.ndarray]) -> np.ndarray:
     """The compliances of an ensemble's members averaged (one member's as they are)."""
     return outs[0] if len(outs) == 1 else np.mean(outs, axis=0)
-
-
-def _describe(v: np.ndarray):
-    """Names the state of cell i of ``v``, for the out-of-domain error."""
-    return lambda i: ", ".join(f"{k}={v[i, j]:.4g}" for j, k in enumerate(FIELDS))
 
 
 def _packed(c: dict[str, np.ndarray]) -> np.ndarray:
