@@ -244,3 +244,19 @@ def test_drained_triaxial_by_strain():
     assert np.all(np.abs(sig[:, 3:]) < 1e-9 * p0)
     eps_v = eps[:, :3].sum(axis=1)
     assert eps_v[-1] < eps_v.max()  # contraction, then dilatancy
+
+
+def test_rev_state_selection_works_on_3d_states():
+    rev = Rev3D([Params(), Params(phi_g=math.radians(35))], Sphere(order=5))
+    a = run(rev, [np.tile(2e-5 * ISO, (20, 1))] * 2)
+    b = rev.step(a, np.tile([1e-4, -3e-5, -3e-5, 0, 0, 0], (2, 1)))
+    mixed = b.where(np.array([True, False]), a)
+    np.testing.assert_array_equal(mixed.sig, np.stack([b.sig[0], a.sig[1]]))
+    np.testing.assert_array_equal(mixed.cells.values[1], a.cells.values[1])
+    one = b.select([1])
+    assert one.cells.shape == (1, rev.n_cells) and one.eps.shape == (1, 6)
+    back = a.scatter(np.array([1]), one)
+    np.testing.assert_array_equal(back.flags.flags[1], b.flags.flags[1])
+    np.testing.assert_allclose(rev.stress(back.cells, back.eps, back.sets)[1], b.sig[1], rtol=1e-14)
+    assert set(rev.flag_fractions(b)) >= {"frac_sliding", "frac_open", "frac_cross"}
+    assert rev.solver_fractions(b) == {}

@@ -30,7 +30,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.integrate import lebedev_rule
 
 from ..errors import InputError
 
@@ -44,6 +43,8 @@ ORDERS = (3, 5, 7, 9, 11, 15, 17, 19, 21, 23, 29, 31, 35, 41, 47, 53, 59, 65, 71
 def _hemisphere(order: int) -> tuple[np.ndarray, np.ndarray]:
     """One direction of each antipodal pair of the Lebedev rule of ``order`` (N/2, 3), with the
     pair's summed weights normalized to 1 (N/2,)."""
+    from scipy.integrate import lebedev_rule  # here: importing hmodel.rev stays light
+
     x, w = lebedev_rule(order)
     x = x.T
     # Keep the member of each pair whose first non-zero coordinate is positive.
