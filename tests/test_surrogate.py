@@ -335,3 +335,66 @@ def test_forward_is_bitwise_the_same_on_any_number_of_threads():
         del s._forward
     assert seen and set(seen) == {1}
     assert pickle.loads(pickle.dumps(s)).forward(X[:7]).tolist() == s.forward(X[:7]).tolist()
+
+
+def test_every_formulation_declares_what_the_solver_and_training_read():
+    """Every registered formulation is a Formulation: what the solver and the training code read
+    of it is declared, with an H-cell formulation's defaults where it keeps them."""
+    from hmodel.surrogate.formulations import FORMULATIONS, Formulation
+
+    p = Params()
+    forms = {name: make_formulation(name, p) for name in FORMULATIONS}
+    forms["meso-rich"] = make_formulation("meso", p, "dem:hexagon-center")
+    assert all(isinstance(f, Formulation) for f in forms.values())
+    cols = {"deps1": np.zeros(2)}
+    for name in ("report", "increment", "report-leak", "compliance"):
+        f = forms[name]
+        assert (f.richer, f.cell, f.falls_back, f.n_state, f.outputs) == (False, "closed-form", True, 8, OUTPUTS)
+        assert f.augment(cols) is cols and f.meso(np.zeros((2, 8))) is None
+        assert f.fits("dem:standard") and not f.fits("dem:hexagon-center")
+        assert f.needs_answer == (name == "report-leak")
+        assert f.state_only == f.ensembles == (name == "compliance")
+    with pytest.raises(TypeError, match="not those of a state alone"):
+        forms["increment"].features(np.zeros((2, 8)))
+    h, rich = forms["meso"], forms["meso-rich"]
+    assert h.state_only and h.ensembles and not h.falls_back and not h.richer and rich.richer
+    assert rich.fits("dem:hexagon-center") and not rich.fits("closed-form")
+    assert h.outputs == OUTPUTS + ("Vs_nn_next", "Vs_tt_next") and h.n_state == 11
+
+
+def test_a_formulation_steps_cells_through_the_networks_interface_only():
+    """A formulation's increment asks its networks for outputs and nothing else (no counts, no
+    fallback of the solver's): the solver's step is the formulation's Increment where no cell
+    leaves the training domain, and the solver keeps the counts."""
+    from hmodel.cell import CellState
+    from hmodel.cell.closed_form import ClosedFormSolver
+    from hmodel.surrogate.formulations.base import Increment
+    from hmodel.surrogate.shipped import load_shipped
+    from hmodel.surrogate.solver import SurrogateSolver
+
+    for name in ("increment", "default"):
+        m = load_shipped(name)
+        p = Params.from_dict(m.meta["params"])
+        solver = SurrogateSolver(m)
+
+        class Networks:  # exactly base.Networks: evaluation, nothing of the solver's state
+            def forward(self, X):
+                return m.forward(X)
+
+            def outside(self, X):
+                return m.outside(X, 0.0)
+
+            def outputs(self, v, X=None):
+                X = m.formulation.features(v) if X is None else X
+                f = m.formulation
+                return [m.forward(X, single=f.single_precision, spare=f.spare_columns)], m.outside(X, 0.0)
+
+        th = np.linspace(-0.5, 2.0, 7)
+        dl = np.column_stack([-p.l10 * 2e-4 * np.cos(th), -p.l20 * 2e-4 * np.sin(th)])
+        st = ClosedFormSolver().step(p, CellState.initial(p, (7,)), dl[:, 0], dl[:, 1])[0]  # distinct states
+        inc = m.formulation.step_cells(Networks(), p, st.values, -dl[:, 0] / p.l10, -dl[:, 1] / p.l20, dl)
+        assert isinstance(inc, Increment) and not inc.outside.any()
+        new, flags = solver.step(p, st, dl[:, 0], dl[:, 1])
+        np.testing.assert_array_equal(new.values, inc.new)
+        np.testing.assert_array_equal(flags.flags, inc.flags)
+        assert solver.counts["cell_updates"] == 7 and solver.counts["network_cells"] == 7
