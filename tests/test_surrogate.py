@@ -378,21 +378,24 @@ def test_a_formulation_steps_cells_through_the_networks_interface_only():
         solver = SurrogateSolver(m)
 
         class Networks:  # exactly base.Networks: evaluation, nothing of the solver's state
+            def __init__(self, model):
+                self.m = model
+
             def forward(self, X):
-                return m.forward(X)
+                return self.m.forward(X)
 
             def outside(self, X):
-                return m.outside(X, 0.0)
+                return self.m.outside(X, 0.0)
 
             def outputs(self, v, X=None):
-                X = m.formulation.features(v) if X is None else X
-                f = m.formulation
-                return [m.forward(X, single=f.single_precision, spare=f.spare_columns)], m.outside(X, 0.0)
+                f = self.m.formulation
+                X = f.features(v) if X is None else X
+                return [self.m.forward(X, single=f.single_precision, spare=f.spare_columns)], self.m.outside(X, 0.0)
 
         th = np.linspace(-0.5, 2.0, 7)
         dl = np.column_stack([-p.l10 * 2e-4 * np.cos(th), -p.l20 * 2e-4 * np.sin(th)])
         st = ClosedFormSolver().step(p, CellState.initial(p, (7,)), dl[:, 0], dl[:, 1])[0]  # distinct states
-        inc = m.formulation.step_cells(Networks(), p, st.values, -dl[:, 0] / p.l10, -dl[:, 1] / p.l20, dl)
+        inc = m.formulation.step_cells(Networks(m), p, st.values, -dl[:, 0] / p.l10, -dl[:, 1] / p.l20, dl)
         assert isinstance(inc, Increment) and not inc.outside.any()
         new, flags = solver.step(p, st, dl[:, 0], dl[:, 1])
         np.testing.assert_array_equal(new.values, inc.new)
