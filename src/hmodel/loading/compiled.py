@@ -303,8 +303,9 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
         eps += block(W, at, 3)
         sig[:] = block(W, SIG if done else BSIG, 3)
         if done:
-            for j in range(guess.shape[0]):
-                guess[j] = eps[j] - eps0[j]
+            if S.any():  # a pure strain increment had no Newton: nothing to start the next one
+                for j in range(guess.shape[0]):
+                    guess[j] = eps[j] - eps0[j]
             return OK
         event_targets(S, target)
         event += 1

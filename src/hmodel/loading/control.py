@@ -161,7 +161,9 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
             raise _failure(acts, then, W, state.select(pending), out.select(pending), S, M,
                            targets[pending], settings).renumber(pending)
         if np.all(then == COMMIT_SOLUTION):
-            tangent.K, tangent.previous = K, out.eps - start.eps
+            tangent.K = K
+            if S.any():  # a pure strain increment had no Newton: nothing to start the next one
+                tangent.previous = out.eps - start.eps
             return out
         # Points past a cell event go on from the event state (newton.event_targets).
         pending, state = pending[then == COMMIT_EVENT], out
