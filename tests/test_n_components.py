@@ -15,7 +15,7 @@ from hmodel.loading import (Control, Recorder, Segment, Tangent, consolidate, ru
 from hmodel.loading.newton import free_direction, solve
 from hmodel.loading.result import columns_for, lode_b
 from hmodel.rev import RevState
-from hmodel.rev.rev import deviatoric_stress, mean_stress
+from hmodel.rev.rev import deviatoric_stress, equivalent_stress, mean_stress
 
 LAM, MU = 40e6, 25e6  # Lame constants [Pa]
 E = MU * (3 * LAM + 2 * MU) / (LAM + MU)
@@ -67,8 +67,9 @@ def test_drained_triaxial_on_six_components_is_hand_algebra():
     np.testing.assert_allclose(s.sig[:, 1:3], 1e5, rtol=1e-9)
     res = rec.result()
     assert tuple(res.columns)[:len(columns_for(6))] == columns_for(6)
-    # triaxial compression: q = sig_a - sig_r, the Lode angle 0 and b = 0
+    # triaxial compression: q = sig_a - sig_r = sqrt(3 J2), the Lode angle 0 and b = 0
     np.testing.assert_allclose(res["q"], res["sig11"] - res["sig22"], rtol=1e-12)
+    np.testing.assert_allclose(res["q_eq"], res["q"], rtol=1e-9)
     np.testing.assert_allclose(res["lode"], 0.0, atol=1e-6)
     np.testing.assert_allclose(res["eps_v"], res["eps11"] + res["eps22"] + res["eps33"], rtol=1e-12)
 
@@ -118,7 +119,10 @@ def test_invariants_are_objective_and_lode_spans_compression_to_extension():
     rotated = np.array([Tr[0, 0], Tr[1, 1], Tr[2, 2], Tr[1, 2], Tr[0, 2], Tr[0, 1]])
     both = np.stack([sig, rotated])
     np.testing.assert_allclose(mean_stress(both), 5e5 / 3, rtol=1e-12)
-    np.testing.assert_allclose(deviatoric_stress(both), 2e5, rtol=1e-12)
+    np.testing.assert_allclose(equivalent_stress(both), 2e5, rtol=1e-12)
+    # q of DESIGN.md: sig11 - (sig22 + sig33)/2, axis 1 axial, negative in extension
+    np.testing.assert_allclose(deviatoric_stress(np.array([sig, [1e5, 3e5, 3e5, 0, 0, 0]])),
+                               [2e5, -2e5], rtol=1e-12)
     lode, b = lode_b(np.stack([sig, [3e5, 3e5, 1e5, 0, 0, 0], [3e5, 2e5, 1e5, 0, 0, 0], rotated]))
     np.testing.assert_allclose(b, [0.0, 1.0, 0.5, 0.0], atol=1e-9)
     np.testing.assert_allclose(lode, [0.0, 60.0, 30.0, 0.0], atol=1e-6)

@@ -98,9 +98,18 @@ class CellFlags:
             raise AttributeError(name) from None
 
     @property
+    def hexagons(self) -> np.ndarray:
+        """The flags (..., k, 5) of the k hexagons of each cell: one for an H-cell, two for a
+        bi-hexagon (whose flags are its hexagons' five each, then its own)."""
+        f = self.flags
+        k = f.shape[-1] // len(FLAGS)
+        return f[..., :k * len(FLAGS)].reshape(*f.shape[:-1], k, len(FLAGS))
+
+    @property
     def broken(self) -> np.ndarray:
-        """Cells that carry no force because a contact is open (report Fig. 1.5)."""
-        return self.open1 | self.open2
+        """Cells that carry no force in some hexagon because a contact is open (report Fig. 1.5)."""
+        h = self.hexagons
+        return np.any(h[..., FLAG_IDX["open1"]] | h[..., FLAG_IDX["open2"]], axis=-1)
 
     @classmethod
     def none(cls, shape: tuple[int, ...] = ()) -> "CellFlags":

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..rev import RevState
-from ..rev.rev import deviatoric_stress, mean_stress, volumetric_strain
+from ..rev.rev import deviatoric_stress, equivalent_stress, mean_stress, volumetric_strain
 
 #: Tensor components of a state's strain and stress, by their number n (2D: 3, 3D: 6).
 COMPONENTS = {3: ("11", "22", "12"), 6: ("11", "22", "33", "23", "13", "12")}
@@ -19,23 +19,28 @@ COMPONENTS = {3: ("11", "22", "12"), 6: ("11", "22", "33", "23", "13", "12")}
 FRACTIONS = ("frac_sliding", "frac_open", "frac_contact14", "frac_contact26")
 
 
+#: The components in the order of a result table: 3D tables list the shears 12, 13, 23.
+TABLE_ORDER = {3: COMPONENTS[3], 6: ("11", "22", "33", "12", "13", "23")}
+
+
 def columns_for(n: int) -> tuple[str, ...]:
     """Columns of a result table of states with n components, in order: the output contract
-    of docs/cli.md, the stress invariants (3D: also the Lode angle and b), the diagnostics."""
-    comps = COMPONENTS[n]
-    lode = ("lode", "b") if n == 6 else ()
+    of docs/cli.md, the stress invariants (3D: also sqrt(3 J2), the Lode angle and b), the
+    diagnostics."""
+    comps = TABLE_ORDER[n]
+    extra = ("q_eq", "lode", "b") if n == 6 else ()
     return ("point", "stage", "step", *(f"eps{c}" for c in comps), *(f"sig{c}" for c in comps),
-            "p", "q", "eps_v", "q_p", *lode, *FRACTIONS)
+            "p", "q", "eps_v", "q_p", *extra, *FRACTIONS)
 
 
 #: Columns of every 2D result table.
 COLUMNS = columns_for(3)
-UNITS = {**{f"sig{c}": "Pa" for c in COMPONENTS[6]}, "p": "Pa", "q": "Pa", "lode": "deg"}
+UNITS = {**{f"sig{c}": "Pa" for c in COMPONENTS[6]}, "p": "Pa", "q": "Pa", "q_eq": "Pa", "lode": "deg"}
 
 
 def stress_columns(eps: np.ndarray, sig: np.ndarray) -> dict[str, np.ndarray]:
     """The component and invariant columns of states eps, sig (K, n): components, p, q, eps_v,
-    q/p (0 where p = 0), and in 3D the Lode angle [deg] and b of :func:`lode_b`."""
+    q/p (0 where p = 0), and in 3D sqrt(3 J2), the Lode angle [deg] and b of :func:`lode_b`."""
     comps = COMPONENTS[sig.shape[-1]]
     p, q = mean_stress(sig), deviatoric_stress(sig)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -44,6 +49,7 @@ def stress_columns(eps: np.ndarray, sig: np.ndarray) -> dict[str, np.ndarray]:
             **{f"sig{c}": sig[:, j] for j, c in enumerate(comps)},
             "p": p, "q": q, "eps_v": volumetric_strain(eps), "q_p": q_p}
     if sig.shape[-1] == 6:
+        cols["q_eq"] = equivalent_stress(sig)
         cols["lode"], cols["b"] = lode_b(sig)
     return cols
 

@@ -41,10 +41,17 @@ def mean_stress(sig: np.ndarray) -> np.ndarray:
 
 
 def deviatoric_stress(sig: np.ndarray) -> np.ndarray:
-    """q (...) of stresses (..., n): sig11 - sig22 in 2D (the report's q, §1.1.2), sqrt(3 J2)
-    in 3D (tensor shear components 23, 13, 12), q = sig_a - sig_r in a triaxial test."""
+    """q (...) of stresses (..., n): sig11 - sig22 in 2D (the report's q, §1.1.2); in 3D
+    sig11 - (sig22 + sig33)/2, axis 1 axial: sig_a - sig_r in a triaxial test, negative in
+    extension (the contract of DESIGN.md; :func:`equivalent_stress` is the invariant)."""
     if _normal(sig.shape[-1]) == 2:
         return sig[..., 0] - sig[..., 1]
+    return sig[..., 0] - 0.5 * (sig[..., 1] + sig[..., 2])
+
+
+def equivalent_stress(sig: np.ndarray) -> np.ndarray:
+    """sqrt(3 J2) (...) of 3D stresses (..., 6) (tensor shear components 23, 13, 12): |q| in a
+    triaxial test, and the same in every frame."""
     s11, s22, s33 = sig[..., 0], sig[..., 1], sig[..., 2]
     shear = sig[..., 3] ** 2 + sig[..., 4] ** 2 + sig[..., 5] ** 2
     return np.sqrt(0.5 * ((s11 - s22) ** 2 + (s22 - s33) ** 2 + (s33 - s11) ** 2) + 3.0 * shear)
@@ -98,7 +105,7 @@ class RevState:
 
     @property
     def q(self) -> np.ndarray:
-        """Deviatoric stress [Pa]: sig11 - sig22 in 2D, sqrt(3 J2) in 3D."""
+        """Deviatoric stress [Pa]: sig11 - sig22 in 2D, sig11 - (sig22 + sig33)/2 in 3D."""
         return deviatoric_stress(self.sig)
 
     @property
@@ -131,10 +138,13 @@ class RevState:
         return RevState(CellState(parts[0]), CellFlags(parts[1]), parts[2], parts[3], self.sets)
 
     def fractions(self) -> dict[str, np.ndarray]:
-        """Weighted-free fraction of cells per diagnostic, each (B,)."""
-        f = self.flags
-        return {"frac_sliding": f.sliding.mean(axis=1), "frac_open": f.broken.mean(axis=1),
-                "frac_contact14": f.contact14.mean(axis=1), "frac_contact26": f.contact26.mean(axis=1)}
+        """Weighted-free fraction of hexagons per diagnostic, each (B,) (a bi-hexagon has two
+        hexagons; its contact 1-4 is shared, counted once)."""
+        h = self.flags.hexagons.astype(float)  # (B, cells, k, 5)
+        frac = lambda a: a.mean(axis=(1, 2))  # noqa: E731
+        opened = np.maximum(h[..., 1], h[..., 2])
+        return {"frac_sliding": frac(h[..., 0]), "frac_open": frac(opened),
+                "frac_contact14": h[..., 0, 3].mean(axis=1), "frac_contact26": frac(h[..., 4])}
 
 
 class Rev:

@@ -193,13 +193,9 @@ class Rev3D:
 
     def flag_fractions(self, state: RevState) -> dict[str, np.ndarray]:
         """Fraction of each point's hexagons (two per bi-hexagon) sliding, open, with the extra
-        contacts, and of bi-hexagons whose hexagons' grains cross, name -> (B,)."""
-        f = state.flags.flags
-        both = lambda k: 0.5 * (f[..., k].mean(axis=1) + f[..., 5 + k].mean(axis=1))
-        return {"frac_sliding": both(0),
-                "frac_open": 0.5 * ((f[..., 1] | f[..., 2]).mean(axis=1) + (f[..., 6] | f[..., 7]).mean(axis=1)),
-                "frac_contact14": f[..., 3].mean(axis=1), "frac_contact26": both(4),
-                "frac_cross": f[..., 10].mean(axis=1)}
+        contacts (:meth:`RevState.fractions`), and of bi-hexagons whose hexagons' grains cross,
+        name -> (B,)."""
+        return {**state.fractions(), "frac_cross": state.flags.flags[..., 10].mean(axis=1)}
 
     def _by_set(self, idx: np.ndarray, call):
         """``call(set, rows)`` for each parameter set present in idx (B,), outputs (tuples of
