@@ -13,7 +13,7 @@ from hmodel.errors import PointFailure, SolverError
 from hmodel.loading.compiled import CompiledSegment
 from hmodel.loading.control import Control, Tangent, solve_increment
 from hmodel.loading.newton import NewtonSettings, _bound
-from hmodel.loading.paths import consolidate
+from hmodel.loading.named_paths import consolidate
 from hmodel.rev import Rev
 from hmodel.surrogate.shipped import load_shipped
 from hmodel.surrogate.solver import SurrogateSolver

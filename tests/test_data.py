@@ -129,7 +129,7 @@ def test_dataset3_starts_from_the_cells_of_a_rev_along_its_loading(tmp_path):
     every cell of the consolidated isotropic REV is alike, and each row is one solver step."""
     from dataclasses import replace
 
-    from hmodel.loading.paths import biaxial, consolidate
+    from hmodel.loading.named_paths import biaxial, consolidate
     from hmodel.rev import Rev
 
     spec = DatasetSpec(kind=3, n_directions=8, max_strain=0.004, step=0.001, start_every=0.002,

@@ -13,7 +13,7 @@ from hmodel.cli.app import main
 from hmodel.errors import InputError
 from hmodel.loading import Program, ProgramFailed, consolidate, run_segment
 from hmodel.loading.expressions import Criterion, Expression
-from hmodel.loading.paths import biaxial_segment
+from hmodel.loading.named_paths import biaxial_segment
 from hmodel.loading.program import cycle_summary
 from hmodel.rev import Rev
 

@@ -17,7 +17,7 @@ from hmodel.cli.app import main
 from hmodel.dem.solver import DEMSolver
 from hmodel.errors import InputError
 from hmodel.loading import run_biaxial
-from hmodel.loading.paths import consolidate
+from hmodel.loading.named_paths import consolidate
 from hmodel.rev.rev import Rev
 from hmodel.solvers import get_solver
 from hmodel.surrogate.modelfile import save

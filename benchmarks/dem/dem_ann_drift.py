@@ -32,7 +32,7 @@ from hmodel import Params
 from hmodel.cell import CellState
 from hmodel.data import Dataset
 from hmodel.dem.solver import DEMSolver
-from hmodel.loading.paths import biaxial, consolidate
+from hmodel.loading.named_paths import biaxial, consolidate
 from hmodel.rev.rev import Rev
 from hmodel.surrogate.formulations.meso import STATE_FIELDS
 from hmodel.surrogate.modelfile import load

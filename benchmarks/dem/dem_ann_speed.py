@@ -40,7 +40,7 @@ from hmodel import Params
 from hmodel.cell import CellState
 from hmodel.compare import deviations, run_path, standard_paths
 from hmodel.dem.solver import DEMSolver
-from hmodel.loading.paths import consolidate
+from hmodel.loading.named_paths import consolidate
 from hmodel.rev.rev import Rev
 from hmodel.surrogate.modelfile import load
 from hmodel.surrogate.solver import SurrogateSolver

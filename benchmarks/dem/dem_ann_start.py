@@ -50,7 +50,7 @@ def onset(models, step: float) -> list[dict]:
     increment (the tangent) and for the whole increment; they differ
     where a learned mechanism (an onset of sliding) is active within the increment."""
     from hmodel.cell import CellState
-    from hmodel.loading.paths import consolidate
+    from hmodel.loading.named_paths import consolidate
     from hmodel.rev.rev import Rev
 
     rev = Rev(PARAMS, SurrogateSolver(models, on_outside="error"))

@@ -22,7 +22,7 @@ from scipy.stats import qmc
 
 from benchmarks.timing import best_of, record, write_table
 from hmodel import Params
-from hmodel.loading import paths
+from hmodel.loading import named_paths
 from hmodel.loading.compiled import CompiledSegment
 from hmodel.rev import Rev
 
@@ -46,9 +46,9 @@ def drawn_sets(n: int, seed: int = 0) -> list[Params]:
 def trials_per_point(params, n: int, axial: float) -> float:
     """Newton trials (REV trial evaluations) per point of the shear stage, from the kernel."""
     rev = Rev(params)
-    state = paths.consolidate(rev, [2e5] * (n if isinstance(params, Params) else 1))
-    seg = paths.biaxial_segment(state, axial, paths._n_steps(axial, paths.AXIAL_STEP, "axial"),
-                                False, np.full(state.n_points, 2e5))
+    state = named_paths.consolidate(rev, [2e5] * (n if isinstance(params, Params) else 1))
+    seg = named_paths.biaxial_segment(state, axial, named_paths.strain_steps(axial, named_paths.AXIAL_STEP, "axial"),
+                                      False, np.full(state.n_points, 2e5))
     from hmodel.loading.control import Tangent
     runner = CompiledSegment(rev, state, seg.stress_rows, seg.matrix, state.sig, seg.values,
                              seg.n_steps, Tangent())

@@ -1,6 +1,6 @@
 """Closed form against another cell solver at the macro scale (report §3.1), measured honestly.
 
-Every comparison path (a loading recipe of ``hmodel.loading.recipes``) runs twice from the same
+Every comparison path (a loading recipe of ``hmodel.loading.comparison_paths``) runs twice from the same
 parameters and increments, once per solver, and records the stress-strain curves and the wall
 time of each run. Deviations are measured row by row on the shear part of the path (rows
 correspond: same increments): the deviation of q relative to the peak |q| of the closed form

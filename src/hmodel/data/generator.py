@@ -285,7 +285,7 @@ def _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta, l0) -
 
 def _rev_histories(spec, params, shard, paths) -> pa.Table:
     """Dataset 3: the increments from the states of a REV's cells along one loading path."""
-    from ..loading.paths import biaxial, consolidate  # the loading layer sits above the data's
+    from ..loading.named_paths import biaxial, consolidate  # the loading layer sits above the data's
     from ..rev import Rev
 
     loading, p0 = spec.rev_loadings[shard]

@@ -2,13 +2,13 @@
 
 from .control import Control, Tangent, solve_increment
 from .newton import NewtonSettings
-from .paths import (AXIAL_STEP, ISO_STEP, MAX_STRAIN_STEP, biaxial, consolidate, constant_p,
+from .named_paths import (AXIAL_STEP, ISO_STEP, MAX_STRAIN_STEP, biaxial, consolidate, constant_p,
                     oedometric, proportional, strain_path)
 from .segment import Segment, SegmentOutcome, StageFailed, run_segment
-from .recipes import PathSpec, run_recipe, standard_paths
+from .comparison_paths import PathSpec, run_recipe, standard_paths
 from .program import Program, ProgramFailed
 from .result import COLUMNS, PathResult, Recorder
-from .runs import run_biaxial, run_isotropic, run_strain_path
+from .lab_tests import run_biaxial, run_isotropic, run_strain_path
 
 __all__ = ["Control", "Tangent", "NewtonSettings", "solve_increment", "Segment", "run_segment", "consolidate",
            "biaxial", "oedometric", "constant_p", "proportional", "strain_path", "PathResult",

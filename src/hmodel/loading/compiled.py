@@ -448,7 +448,7 @@ def isotropic_steps(rev: Rev, state: RevState, step: float, p0: np.ndarray, n_ma
                     failed: np.ndarray) -> tuple[RevState, np.ndarray, np.ndarray]:
     """Up to ``n_max`` isotropic strain increments of ``step`` of every point whose mean
     stress is below its ``p0`` (B,), each stopping before the increment that would reach it
-    (the compiled form of the loop in :func:`hmodel.loading.paths.consolidate`).
+    (the compiled form of the loop in :func:`hmodel.loading.named_paths.consolidate`).
 
     Returns the new state, whether each point is done (reached p0 or failed; ``failed`` (B,)
     is updated in place) and the records (n, B, 10) of the committed increments (NaN where a

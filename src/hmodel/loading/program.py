@@ -37,7 +37,7 @@ from ..rev import Rev, RevState
 from .control import Tangent
 from .expressions import Criterion, Expression
 from .newton import NewtonSettings
-from .paths import ISO_STEP, consolidate
+from .named_paths import ISO_STEP, consolidate
 from .result import COLUMNS, PathResult, Recorder
 from .segment import StageFailed, run_segment
 from .stages import _COMPONENT, PRESETS, ROWS, Stage, component_order

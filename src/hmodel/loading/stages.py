@@ -3,7 +3,7 @@
 A stage names what each of its rows controls (:data:`ROWS`: strain changes over the stage,
 stress targets reached linearly over its increments) and builds the :class:`Segment` the one
 runner (:func:`~hmodel.loading.segment.run_segment`) runs. Loading programs are made of stages;
-the named paths of :mod:`hmodel.loading.paths` (drained and undrained biaxial, oedometric,
+the named paths of :mod:`hmodel.loading.named_paths` (drained and undrained biaxial, oedometric,
 constant p, proportional) are the stages of :data:`PRESETS`.
 """
 

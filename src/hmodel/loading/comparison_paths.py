@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..rev import Rev, RevState
-from .paths import consolidate
+from .named_paths import consolidate
 from .result import Recorder
 from .segment import run_segment
 from .stages import Stage

@@ -9,8 +9,8 @@ import numpy as np
 from ..cell import CellSolver
 from ..params import Params
 from ..rev import Rev
-from . import paths
-from .paths import AXIAL_STEP, ISO_STEP, Progress
+from . import named_paths
+from .named_paths import AXIAL_STEP, ISO_STEP, Progress
 from .result import PathResult, Recorder
 
 
@@ -30,7 +30,7 @@ def run_isotropic(params: Params | Sequence[Params], p0, *, solver: CellSolver |
     rev = Rev(params, solver)
     p0 = np.atleast_1d(np.asarray(p0, float))
     rec = Recorder(_meta(params, rev, "iso", p0=p0.tolist(), iso_step=step), rev.solver_fractions)
-    paths.consolidate(rev, p0, step=step, recorder=rec, progress=progress)
+    named_paths.consolidate(rev, p0, step=step, recorder=rec, progress=progress)
     return rec.result()
 
 
@@ -45,7 +45,7 @@ def run_biaxial(params: Params | Sequence[Params], p0, axial_strain: float, *, u
     result's ``meta["failed"]`` maps each dropped point to the reason (its rows stop there).
     ``compiled``: None (the compiled kernel where the cell solver has one) or False (the
     generic driver, e.g. to time or check the two against each other)."""
-    paths.strain_steps(axial_strain, step, "axial strain")  # refused before any work
+    named_paths.strain_steps(axial_strain, step, "axial strain")  # refused before any work
     rev = Rev(params, solver)
     p0 = np.atleast_1d(np.asarray(p0, float))
     rec = Recorder(_meta(params, rev, "undrained biaxial" if undrained else "drained biaxial",
@@ -54,10 +54,10 @@ def run_biaxial(params: Params | Sequence[Params], p0, axial_strain: float, *, u
     consolidation = None if progress is None else (lambda f: progress(0.1 * f))
     shear = None if progress is None else (lambda f: progress(0.1 + 0.9 * f))
     failures = {} if drop_failed else None
-    state = paths.consolidate(rev, p0, step=iso_step, recorder=rec, progress=consolidation,
+    state = named_paths.consolidate(rev, p0, step=iso_step, recorder=rec, progress=consolidation,
                               failures=failures, compiled=compiled)
     p0 = np.broadcast_to(p0, state.n_points)
-    paths.biaxial(rev, state, axial_strain, undrained=undrained, lateral_stress=p0, step=step,
+    named_paths.biaxial(rev, state, axial_strain, undrained=undrained, lateral_stress=p0, step=step,
                   recorder=rec, progress=shear, failures=failures, compiled=compiled)
     if drop_failed:
         rec.meta["failed"] = {int(b): why for b, why in sorted(failures.items())}
@@ -73,5 +73,5 @@ def run_strain_path(params: Params | Sequence[Params], eps, *, solver: CellSolve
     rev = Rev(params, solver)
     rec = Recorder(_meta(params, rev, "strain path", n_rows=len(eps), max_step=max_step),
                    rev.solver_fractions)
-    paths.strain_path(rev, eps, max_step=max_step, recorder=rec, progress=progress)
+    named_paths.strain_path(rev, eps, max_step=max_step, recorder=rec, progress=progress)
     return rec.result()
