@@ -15,7 +15,6 @@ from hmodel.cell.mesostress import meso_volume, meso_vsigma
 from hmodel.cell.state import CellState
 from hmodel.cli.app import main
 from hmodel.dem.scene import DEMOptions, hcell_state, scene_settings, simulate
-from hmodel.dem.stress import vsigma
 from hmodel.dem.yade import DEMError, EquilibriumError, YadeNotFound, YadeServer
 from hmodel.params import Params
 
@@ -46,6 +45,19 @@ def test_standard_cell_follows_closed_form_on_two_paths():
     assert v.dem[0, -1, 5] > 0 and v.dem[1, -1, 5] < 0  # T1 sign as in the closed form
     sliding = np.abs(v.dem[1, 1:, 5]) / v.dem[1, 1:, 3]
     assert np.allclose(sliding, math.tan(PARAMS.phi_g), rtol=5e-3)  # on the Coulomb cone
+
+
+def _love_weber(contacts: np.ndarray) -> np.ndarray:
+    """V sigma (2, 2) [N m] = sum f (x) b over the rows of a contact table
+    (scene.CONTACT_COLUMNS): f the force on grain j by grain i, b = x_j - x_i the branch vector
+    (report eq. 1.11, compression positive)."""
+    c = np.asarray(contacts, float).reshape(-1, 8)
+    return np.einsum("ca,cb->ab", c[:, 4:6], c[:, 6:8])
+
+
+def vsigma(run) -> np.ndarray:
+    """V sigma of every recorded step of a DEM cell run, full (not symmetrized), (S+1, 2, 2)."""
+    return np.array([_love_weber(c) for c in run.contacts])
 
 
 def _boundary_form(positions: np.ndarray, forces: np.ndarray) -> np.ndarray:

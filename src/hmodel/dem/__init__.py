@@ -6,7 +6,6 @@
   the scene settings the solver shares;
 - :mod:`~hmodel.dem.yade`: YADE behind one door, the scripts YADE runs and the client that
   runs them (one process answering JSON requests), its errors;
-- :mod:`~hmodel.dem.stress`: Love-Weber meso-stress (eq. 1.11);
 - :mod:`~hmodel.dem.validate`: the DEM standard cell against the closed form (eq. 1.7);
 - :mod:`~hmodel.dem.sample`: a periodic 2D disk sample consolidated and sheared in biaxial
   tests (``hmodel dem sample``: test data to calibrate on).

@@ -27,7 +27,8 @@ servo control).
 
 Units and the 2D convention: lengths in m, forces in N, kn in N/m; stresses are the 2D
 Love-Weber stress (1/A) sum f (x) l over the contacts, A the cell's area, in N/m (Pa m: Pa for a
-sample of unit thickness), as hmodel's DEM cells (:mod:`hmodel.dem.stress`). Masses are those of
+sample of unit thickness), as hmodel's DEM cells
+(:meth:`hmodel.cell.geometry.CellGeometry.love_weber`). Masses are those of
 disks of unit thickness, ``density`` pi r^2, and the inertial number is
 I = strain rate x mean diameter x sqrt(density / p).
 """

@@ -2,7 +2,8 @@
 rattlers, contact forces and the 2D Love-Weber stress.
 
 Stresses are (1/A) sum f (x) l over the contacts, A the cell's area, in N/m (Pa m: Pa for a
-sample of unit thickness), as hmodel's DEM cells (:mod:`hmodel.dem.stress`).
+sample of unit thickness), as hmodel's DEM cells
+(:meth:`hmodel.cell.geometry.CellGeometry.love_weber`).
 """
 
 from __future__ import annotations
