@@ -1,4 +1,12 @@
-"""Whole tests from parameters to result tables: the functions behind ``hmodel run``."""
+"""Whole tests from parameters to result tables: the functions behind ``hmodel run``.
+
+2D (hexagonal cells in the plane, :class:`~hmodel.rev.Rev`): :func:`run_isotropic`,
+:func:`run_biaxial`, :func:`run_strain_path`. 3D (bi-hexagons on the sphere,
+:class:`~hmodel.rev.rev3d.Rev3D`, axis 1 axial): :func:`run_triaxial` (drained or undrained,
+compression or extension), :func:`run_true_triaxial` (constant p and b) and
+:func:`run_oedometer` (K0), each from an isotropic consolidation to every ``p0``, run as the
+stages of :data:`~hmodel.loading.stages.PRESETS_3D`.
+"""
 
 from __future__ import annotations
 
@@ -7,11 +15,26 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..cell import CellSolver
+from ..errors import InputError
 from ..params import Params
 from ..rev import Rev
+from ..rev.rev3d import Rev3D
+from ..rev.sphere import Sphere
 from . import named_paths
 from .named_paths import AXIAL_STEP, ISO_STEP, Progress
 from .result import PathResult, Recorder
+from .segment import run_segment
+from .stages import Stage, check_b
+
+#: Parameters of the 2D model only, and what takes their place in 3D (:func:`check_3d_params`).
+PARAMS_2D_ONLY = {
+    "n_theta": "the 3D directions are the Lebedev rule's: --order N (and --azimuths M) on the "
+               "command line, [sphere] order in a program, Sphere(order=...) in Python",
+    "alpha_omega": "the 3D fabric is the sphere's: --fabric A on the command line, [sphere] "
+                   "alpha_omega in a program, Sphere(alpha_omega=...) in Python",
+    "beta_omega": "the 3D fabric's axis is the sphere's: the axial axis 1 on the command line, "
+                  "[sphere] axis in a program, Sphere(axis=...) in Python",
+}
 
 
 # ``solver``: a cell solver (None: the closed form); resolve a spec with hmodel.solvers.get_solver.
@@ -75,3 +98,127 @@ def run_strain_path(params: Params | Sequence[Params], eps, *, solver: CellSolve
                    rev.solver_fractions)
     named_paths.strain_path(rev, eps, max_step=max_step, recorder=rec, progress=progress)
     return rec.result()
+
+
+# ---------------------------------------------------------------------- 3D laboratory tests
+
+def check_3d_params(names, where: str = "--param") -> None:
+    """Refuse a 2D-only parameter (:data:`PARAMS_2D_ONLY`) given to a 3D test, naming its 3D
+    equivalent (one-line InputError)."""
+    for name in names:
+        if name in PARAMS_2D_ONLY:
+            raise InputError(f"{where}: parameter {name} is the 2D model's and has no meaning in 3D: "
+                             f"{PARAMS_2D_ONLY[name]}")
+
+
+def _run_3d(params, p0, test: str, rows, n_steps: int, *, sphere: Sphere | None,
+            solver, iso_step: float, progress: Progress, drop_failed: bool,
+            compiled: bool | None, **meta) -> tuple[Recorder, dict | None]:
+    """Isotropic consolidation of a :class:`Rev3D` to each ``p0``, then the stage whose rows
+    ``rows(p0)`` gives (p0 per point, (B,)) in ``n_steps`` increments, recorded as ``shear``."""
+    sets = (params,) if isinstance(params, Params) else tuple(params)
+    for name in ("alpha_omega", "beta_omega"):
+        if any(isinstance(p, Params) and getattr(p, name) != 0 for p in sets):
+            check_3d_params([name], "parameters")
+    rev = Rev3D(params, sphere, solver)
+    p0 = np.atleast_1d(np.asarray(p0, float))
+    s = rev.sphere
+    rec = Recorder(_meta(params, rev, test, p0=p0.tolist(), iso_step=iso_step, **meta,
+                         sphere={"order": s.order, "n_azimuth": s.n_azimuth,
+                                 "alpha_omega": s.alpha_omega, "axis": list(s.axis),
+                                 "cells": rev.n_cells}),
+                   rev.solver_fractions)
+    consolidation = None if progress is None else (lambda f: progress(0.1 * f))
+    shear = None if progress is None else (lambda f: progress(0.1 + 0.9 * f))
+    failures = {} if drop_failed else None
+    state = named_paths.consolidate(rev, p0, step=iso_step, recorder=rec, progress=consolidation,
+                                    failures=failures, compiled=compiled)
+    p0 = np.broadcast_to(p0, state.n_points).copy()
+    seg = Stage("shear", rows(p0), steps=n_steps).segment(state)
+    run_segment(rev, state, seg, rec, progress=shear, failures=failures, compiled=compiled)
+    if drop_failed:
+        rec.meta["failed"] = {int(b): why for b, why in sorted(failures.items())}
+    return rec, failures
+
+
+_SHEARS = {"eps23": 0.0, "eps13": 0.0, "eps12": 0.0}
+
+
+def run_triaxial(params: Params | Sequence[Params], p0, axial_strain: float, *,
+                 undrained: bool = False, extension: bool = False, sphere: Sphere | None = None,
+                 solver=None, iso_step: float = ISO_STEP, step: float = AXIAL_STEP,
+                 progress: Progress = None, drop_failed: bool = False,
+                 compiled: bool | None = None) -> PathResult:
+    """The triaxial test of the 3D H-model (axis 1 axial, the shear strains held): isotropic
+    consolidation to each ``p0`` [Pa], then ``axial_strain`` (its magnitude) of axial
+    compression, or with ``extension`` of axial unloading (σ11 < σ22 = σ33), drained (σ22 =
+    σ33 = p0) or undrained (eps_v = 0, eps22 = eps33): the ``drained`` and ``undrained``
+    stages of :data:`~hmodel.loading.stages.PRESETS_3D`.
+
+    ``sphere``: the directions, azimuths and fabric (default ``Sphere()``); ``solver``: a 3D
+    cell solver (default the closed-form bi-hexagon). ``params``, ``drop_failed``,
+    ``compiled``: as :func:`run_biaxial`. The result has the 3D columns of
+    :func:`~hmodel.loading.result.columns_for` (q = σ11 - (σ22 + σ33)/2, negative in
+    extension; the Lode angle and b)."""
+    n = named_paths.strain_steps(axial_strain, step, "axial strain")  # refused before any work
+    d = -axial_strain if extension else axial_strain
+
+    def rows(p0):
+        if undrained:
+            return {"eps11": d, "eps_v": 0.0, "eps22-eps33": 0.0, **_SHEARS}
+        return {"eps11": d, "sig22": p0, "sig33": p0, **_SHEARS}
+    test = f"{'undrained' if undrained else 'drained'} triaxial {'extension' if extension else 'compression'}"
+    rec, _ = _run_3d(params, p0, test, rows, n, sphere=sphere, solver=solver, iso_step=iso_step,
+                     progress=progress, drop_failed=drop_failed, compiled=compiled,
+                     axial_strain=axial_strain, step=step)
+    return rec.result()
+
+
+def run_true_triaxial(params: Params | Sequence[Params], p0, b: float, axial_strain: float, *,
+                      sphere: Sphere | None = None, solver=None, iso_step: float = ISO_STEP,
+                      step: float = AXIAL_STEP, progress: Progress = None,
+                      drop_failed: bool = False, compiled: bool | None = None) -> PathResult:
+    """The drained true triaxial test at constant mean stress p = p0 and constant b: isotropic
+    consolidation to each ``p0`` [Pa], then ``axial_strain`` of compression along axis 1 (the
+    major principal stress) with the rows p = p0, (σ22 - σ33) - b (σ11 - σ33) = 0 (the
+    principal axes stay 1, 2, 3 with σ11 >= σ22 >= σ33) and the shear strains held: the
+    ``true_triaxial`` stage of :data:`~hmodel.loading.stages.PRESETS_3D`. Its Lode angle is
+    atan(√3 b / (2 - b)) (0° at b = 0, triaxial compression; 60° at b = 1, extension).
+    Other arguments: as :func:`run_triaxial`."""
+    b = check_b(b, "true triaxial test")
+    n = named_paths.strain_steps(axial_strain, step, "axial strain")
+    rec, _ = _run_3d(params, p0, "true triaxial", lambda p0: {"eps11": axial_strain, "p": p0, "b": b,
+                                                              **_SHEARS},
+                     n, sphere=sphere, solver=solver, iso_step=iso_step, progress=progress,
+                     drop_failed=drop_failed, compiled=compiled, b=b, axial_strain=axial_strain,
+                     step=step)
+    return rec.result()
+
+
+def run_oedometer(params: Params | Sequence[Params], p0, axial_strain: float, *,
+                  sphere: Sphere | None = None, solver=None, iso_step: float = ISO_STEP,
+                  step: float = AXIAL_STEP, progress: Progress = None, drop_failed: bool = False,
+                  compiled: bool | None = None) -> PathResult:
+    """Oedometric compression of the 3D H-model: isotropic consolidation to each ``p0`` [Pa],
+    then ``axial_strain`` along axis 1 with no lateral strain (eps22 = eps33 = 0, the shears
+    held: the ``oedometric`` stage of :data:`~hmodel.loading.stages.PRESETS_3D`).
+
+    The coefficient of earth pressure at rest K0 = σr/σa, σr = (σ22 + σ33)/2, σa = σ11, is
+    the column ``K0`` of every row and, at the end of the test, ``meta["K0"]`` (one per point;
+    NaN for a point dropped by ``drop_failed``). Other arguments: as :func:`run_triaxial`."""
+    n = named_paths.strain_steps(axial_strain, step, "axial strain")
+    rec, failures = _run_3d(params, p0, "oedometer", lambda p0: {"eps11": axial_strain, "eps22": 0.0,
+                                                                 "eps33": 0.0, **_SHEARS},
+                            n, sphere=sphere, solver=solver, iso_step=iso_step, progress=progress,
+                            drop_failed=drop_failed, compiled=compiled, axial_strain=axial_strain,
+                            step=step)
+    result = rec.result()
+    cols = dict(result.columns)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cols["K0"] = 0.5 * (cols["sig22"] + cols["sig33"]) / cols["sig11"]
+    k0 = []
+    for b in range(int(cols["point"].max()) + 1 if len(cols["point"]) else 0):
+        rows = (cols["point"] == b) & (cols["stage"] == "shear")
+        done = rows.any() and not (failures and b in failures)
+        k0.append(float(cols["K0"][rows][-1]) if done else float("nan"))
+    return PathResult(cols, {**result.meta, "K0": k0})

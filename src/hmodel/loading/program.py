@@ -15,6 +15,13 @@ fixes all rows but the one driving it. Stages may be repeated as cycles (``repea
 list of ``stages``) and end early on a criterion (``until = "p <= 0.05 * p0"``), see
 ``docs/programs.md``.
 
+A program with ``dim = 3`` (or a ``[sphere]`` table: ``order``, ``azimuths``, ``alpha_omega``,
+``axis``) runs on the 3D H-model (:class:`~hmodel.rev.rev3d.Rev3D`, axis 1 axial): its stages
+name six rows (:data:`~hmodel.loading.stages.ROWS_3D`: also eps33, eps23, eps13, sig33, sig23,
+sig13, the lateral differences ``eps22-eps33`` and ``sig22-sig33``, and ``b``; p = tr σ/3,
+q = σ11 - (σ22 + σ33)/2, eps_v = tr ε) and take the presets of
+:data:`~hmodel.loading.stages.PRESETS_3D` (also ``true_triaxial``).
+
 A program runs one material point; ``result.csv`` gets the columns of every path plus
 ``cycle`` (0 outside cycles), and ``stage`` holds the stage's name.
 """
@@ -34,16 +41,33 @@ from ..errors import InputError, SolverError
 from ..limits import check_count
 from ..params import Params
 from ..rev import Rev, RevState
+from ..rev.rev3d import Rev3D
+from ..rev.sphere import Sphere
 from .control import Tangent
 from .expressions import Criterion, Expression
-from .newton import NewtonSettings
+from .lab_tests import check_3d_params
 from .named_paths import ISO_STEP, consolidate
-from .result import COLUMNS, PathResult, Recorder
+from .newton import NewtonSettings
+from .result import PathResult, Recorder, columns_for
 from .segment import StageFailed, run_segment
-from .stages import _COMPONENT, PRESETS, ROWS, Stage, component_order
+from .stages import (
+    Stage,
+    check_b,
+    component_order,
+    components_for,
+    is_stress_row,
+    presets_for,
+    row_coefficients,
+    rows_for,
+)
 
-#: Columns a criterion may compare (those of the result table that are numbers).
-CRITERION_COLUMNS = tuple(c for c in COLUMNS if c not in ("point", "stage", "step"))
+#: Columns a criterion may compare (those of the result table that are numbers), by the
+#: number of components (2D: 3, 3D: 6).
+CRITERION_COLUMNS_BY_N = {n: tuple(c for c in columns_for(n) if c not in ("point", "stage", "step"))
+                          for n in (3, 6)}
+#: Columns a criterion of a 2D program may compare.
+CRITERION_COLUMNS = CRITERION_COLUMNS_BY_N[3]
+_SPHERE_KEYS = {"order": "order", "azimuths": "n_azimuth", "alpha_omega": "alpha_omega", "axis": "axis"}
 _STAGE_KEYS = {"name", "preset", "control", "steps", "max_increment", "until", "stop_on_failure"}
 _BLOCK_KEYS = {"name", "repeat", "stages", "until", "stop_on_failure"}
 
@@ -66,6 +90,14 @@ class Program:
     name: str
     blocks: tuple[Block, ...]
     params: Mapping[str, str] = field(default_factory=dict)
+    #: the 3D H-model's sphere (directions, azimuths, fabric) of a program with ``dim = 3``;
+    #: None: a 2D program
+    sphere: Sphere | None = None
+
+    @property
+    def dim(self) -> int:
+        """2 or 3: the H-model the program runs on."""
+        return 2 if self.sphere is None else 3
 
     # ------------------------------------------------------------------ reading
 
@@ -87,7 +119,9 @@ class Program:
     @classmethod
     def from_dict(cls, data: Mapping, default_name: str = "program") -> "Program":
         """A program from the tables of a TOML file: ``name``, ``params`` and ``stage`` (a list)."""
-        _keys(data, {"name", "description", "params", "stage"}, "program")
+        _keys(data, {"name", "description", "params", "stage", "dim", "sphere"}, "program")
+        sphere = _sphere(data)
+        n = 3 if sphere is None else 6
         stages = data.get("stage")
         if not isinstance(stages, list) or not stages:
             raise InputError("a program needs at least one [[stage]]")
@@ -98,16 +132,22 @@ class Program:
         for i, item in enumerate(stages, 1):
             if not isinstance(item, Mapping):
                 raise InputError(f"stage {i} must be a table")
-            blocks.append(_block(item, i) if "stages" in item or "repeat" in item
-                          else Block(_label(item, i), (_stage(item, _label(item, i)),)))
+            blocks.append(_block(item, i, n) if "stages" in item or "repeat" in item
+                          else Block(_label(item, i), (_stage(item, _label(item, i), n),)))
         _check_p0_targets(blocks)
+        if sphere is not None:
+            check_3d_params([str(k) for k in params], "[params] of a 3D program")
         program = cls(str(data.get("name", default_name)), tuple(blocks),
-                      {str(k): str(v) for k, v in params.items()})
+                      {str(k): str(v) for k, v in params.items()}, sphere)
         check_count(program.n_increments, "increments of the program")
         return program
 
     def with_params(self, assignments: Sequence[str] | None) -> Params:
-        """The program's ``[params]`` overridden by ``NAME=VALUE`` assignments (``-p``)."""
+        """The program's ``[params]`` overridden by ``NAME=VALUE`` assignments (``-p``); a 3D
+        program refuses the 2D model's own parameters (n_theta, alpha_omega, beta_omega)."""
+        if self.sphere is not None:
+            check_3d_params([a.partition("=")[0].strip() for a in assignments or []],
+                            "--param of a 3D program")
         return Params.parse_assignments([f"{k}={v}" for k, v in self.params.items()]
                                         + list(assignments or []))
 
@@ -133,10 +173,22 @@ class Program:
         """
         if not isinstance(params, Params):
             raise InputError("a program runs one material point: give one parameter set")
-        rev = Rev(params, solver)
-        rec = Recorder({"test": "program", "program": self.name, "params": params.to_dict(),
-                        "solver": rev.solver.name, "stopped": [], "cycles": {},
-                        "undrained_stages": self.undrained_stages}, rev.solver_fractions)
+        if self.sphere is None:
+            rev = Rev(params, solver)
+        else:
+            if solver is not None and getattr(solver, "n_lengths", 2) != 3:
+                if solver.name != "closed-form":
+                    raise InputError(f"a 3D program runs on the closed-form bi-hexagon; the cell "
+                                     f"solver {solver.name!r} is a 2D one")
+                solver = None  # "closed-form" of the command line: the bi-hexagon's in 3D
+            rev = Rev3D(params, self.sphere, solver)
+        meta = {"test": "program", "program": self.name, "params": params.to_dict(), "dim": self.dim,
+                "solver": rev.solver.name, "stopped": [], "cycles": {},
+                "undrained_stages": self.undrained_stages}
+        if self.sphere is not None:
+            meta["sphere"] = {"order": self.sphere.order, "n_azimuth": self.sphere.n_azimuth,
+                              "alpha_omega": self.sphere.alpha_omega, "axis": list(self.sphere.axis)}
+        rec = Recorder(meta, rev.solver_fractions)
         rec.tags["cycle"] = 0
         run = _Run(rev, rec, progress, self.n_increments, chunk, settings)
         try:
@@ -294,13 +346,36 @@ def _positive_int(value, what: str) -> int:
     return value
 
 
-def _criterion(text, where: str) -> Criterion | None:
+def _criterion(text, where: str, n: int = 3) -> Criterion | None:
     if text is None:
         return None
-    return Criterion.parse(text, CRITERION_COLUMNS, ("p0",), what=f"{where}: until")
+    return Criterion.parse(text, CRITERION_COLUMNS_BY_N[n], ("p0",), what=f"{where}: until")
 
 
-def _block(item: Mapping, i: int) -> Block:
+def _sphere(data: Mapping) -> Sphere | None:
+    """The sphere of a 3D program (``dim = 3`` and/or a ``[sphere]`` table), None for 2D."""
+    dim = data.get("dim", 3 if "sphere" in data else 2)
+    if isinstance(dim, bool) or dim not in (2, 3):
+        raise InputError(f"program: dim must be 2 (hexagons in the plane) or 3 (bi-hexagons on the "
+                         f"sphere), got {dim!r}")
+    table = data.get("sphere", {})
+    if not isinstance(table, Mapping):
+        raise InputError("[sphere] must be a table (order, azimuths, alpha_omega, axis)")
+    if dim == 2:
+        if "sphere" in data:
+            raise InputError("program: a [sphere] table is the 3D H-model's, and dim = 2")
+        return None
+    _keys(table, set(_SPHERE_KEYS), "[sphere]")
+    for key, value in table.items():
+        ok = (isinstance(value, list) and len(value) == 3 and all(_number(x) for x in value)
+              if key == "axis" else _number(value))
+        if not ok:
+            raise InputError(f"[sphere] {key} must be {'3 numbers' if key == 'axis' else 'a number'}, "
+                             f"got {value!r}")
+    return Sphere(**{_SPHERE_KEYS[k]: (tuple(v) if k == "axis" else v) for k, v in table.items()})
+
+
+def _block(item: Mapping, i: int, n: int = 3) -> Block:
     name = _label(item, i)
     where = f"stage {name!r}"
     _keys(item, _BLOCK_KEYS, where)
@@ -312,14 +387,14 @@ def _block(item: Mapping, i: int) -> Block:
     for j, s in enumerate(stages, 1):
         if "stages" in s or "repeat" in s:
             raise InputError(f"{where}: cycles cannot be nested")
-        parsed.append(_stage(s, _label(s, j)))
+        parsed.append(_stage(s, _label(s, j), n))
         if parsed[-1].iso is not None and repeat > 1:
             raise InputError(f"{where}: an iso stage cannot be repeated")
-    return Block(name, tuple(parsed), repeat, _criterion(item.get("until"), where),
+    return Block(name, tuple(parsed), repeat, _criterion(item.get("until"), where, n),
                  _flag(item, "stop_on_failure", where))
 
 
-def _stage(item: Mapping, name: str) -> Stage:
+def _stage(item: Mapping, name: str, n: int = 3) -> Stage:
     where = f"stage {name!r}"
     preset = item.get("preset")
     if preset is not None and not isinstance(preset, str):
@@ -333,16 +408,17 @@ def _stage(item: Mapping, name: str) -> Stage:
         raise InputError(f"{where}: max_increment must be a positive number, got {max_inc!r}")
     if steps is not None and max_inc is not None:
         raise InputError(f"{where}: give steps or max_increment, not both")
-    until = _criterion(item.get("until"), where)
+    until = _criterion(item.get("until"), where, n)
     common = dict(name=name, steps=steps, max_increment=max_inc, until=until,
                   stop_on_failure=_flag(item, "stop_on_failure", where))
     if preset is None:
         _keys(item, _STAGE_KEYS, where)
         control = item.get("control")
         if not isinstance(control, Mapping):
-            raise InputError(f"{where}: needs a preset or a control table, e.g. control = "
-                             f"{{eps11 = 0.02, sig22 = \"hold\", eps12 = 0}}")
-        return Stage(rows=_rows(control, where), **common)
+            example = ("eps11 = 0.02, sig22 = \"hold\", eps12 = 0" if n == 3 else
+                       "eps11 = 0.02, sig22 = \"hold\", sig33 = \"hold\", eps23 = 0, eps13 = 0, eps12 = 0")
+            raise InputError(f"{where}: needs a preset or a control table, e.g. control = {{{example}}}")
+        return Stage(rows=_rows(control, where, n), **common)
     if preset == "iso":
         _keys(item, {"name", "preset", "p", "max_increment"}, where)
         return Stage(name=name, iso=_pressure(item.get("p"), f"{where}: p"), max_increment=max_inc)
@@ -350,23 +426,27 @@ def _stage(item: Mapping, name: str) -> Stage:
         _keys(item, (_STAGE_KEYS - {"control"}) | {"direction", "magnitude"}, where)
         d = item.get("direction")
         m = item.get("magnitude")
-        if not (isinstance(d, list) and len(d) == 3 and all(_number(x) for x in d) and any(d)):
-            raise InputError(f"{where}: direction must be 3 numbers (eps11, eps22, eps12), not all zero")
+        names = ("eps11", "eps22", "eps12") if n == 3 else ("eps11", "eps22", "eps33", "eps12", "eps13", "eps23")
+        if not (isinstance(d, list) and len(d) == n and all(_number(x) for x in d) and any(d)):
+            raise InputError(f"{where}: direction must be {n} numbers ({', '.join(names)}), not all zero")
         if not (_number(m) and m > 0):
             raise InputError(f"{where}: magnitude must be a positive strain, got {m!r}")
         d = np.asarray(d, float) * m / np.linalg.norm(d)
-        return Stage(rows=dict(zip(("eps11", "eps22", "eps12"), map(float, d))), **common)
-    if preset not in PRESETS:
+        return Stage(rows=dict(zip(names, map(float, d))), **common)
+    presets = presets_for(n)
+    if preset not in presets:
+        other = presets_for(6 if n == 3 else 3)
+        hint = (f"; {preset!r} is a {'3D' if n == 3 else '2D'} preset" if preset in other else "")
         raise InputError(f"{where}: unknown preset {preset!r} (presets: iso, "
-                         f"{', '.join(PRESETS)}, proportional)")
-    fixed, drivers = PRESETS[preset]
+                         f"{', '.join(presets)}, proportional){hint}")
+    fixed, drivers = presets[preset]
     _keys(item, (_STAGE_KEYS - {"control"}) | set(fixed) | set(drivers), where)
     given = [k for k in drivers if k in item]
     if len(given) != 1:
         raise InputError(f"{where}: preset {preset!r} is driven by exactly one of "
                          f"{', '.join(drivers)}, got {', '.join(given) or 'none'}")
     rows = {**fixed, **{k: item[k] for k in fixed if k in item}, given[0]: item[given[0]]}
-    return Stage(rows=_rows(rows, where), **common)
+    return Stage(rows=_rows(rows, where, n), **common)
 
 
 def _flag(item: Mapping, key: str, where: str) -> bool:
@@ -390,32 +470,46 @@ def _pressure(value, what: str) -> float:
     raise InputError(f"{what} must be a positive pressure (a number in Pa or e.g. \"200kPa\"), got {value!r}")
 
 
-def _rows(control: Mapping, where: str) -> dict[str, object]:
-    """Check the three rows of a control table and read their values."""
-    unknown = [k for k in control if k not in ROWS]
+def _rows(control: Mapping, where: str, n: int = 3) -> dict[str, object]:
+    """Check the rows of a control table (three in 2D, six in 3D) and read their values."""
+    table, component, dim = rows_for(n), components_for(n), ("2D" if n == 3 else "3D")
+    unknown = [k for k in control if k not in table]
     if unknown:
-        raise InputError(f"{where}: unknown component {unknown[0]!r} (components: {', '.join(ROWS)})")
+        other = rows_for(6 if n == 3 else 3)
+        hint = ("; a 3D row: a 3D program says dim = 3" if n == 3 and unknown[0] in other else "")
+        raise InputError(f"{where}: unknown component {unknown[0]!r} (components: {', '.join(table)})"
+                         f"{hint}")
     seen: dict[str, str] = {}
     for name in control:
-        comp = _COMPONENT.get(name)
+        comp = component.get(name)
         if comp is not None:
             if comp in seen:
                 raise InputError(f"{where}: component {comp} is controlled twice ({seen[comp]} and {name})")
             seen[comp] = name
-    if "12" not in seen:
-        raise InputError(f"{where}: component 12 is not controlled (give eps12 or sig12)")
-    if len(control) != 3:
-        free = [c for c in ("11", "22") if c not in seen]
-        raise InputError(f"{where}: {len(control)} rows control the components; give exactly three "
-                         f"(components 11, 22, 12{'; not controlled: ' + ', '.join(free) if len(control) < 3 else ''})")
-    M = np.array([ROWS[n][1] for n in control], float)
+    shears = ("12",) if n == 3 else ("23", "13", "12")
+    for comp in shears:
+        if comp not in seen:
+            raise InputError(f"{where}: component {comp} is not controlled (give eps{comp} or sig{comp})")
+    if len(control) != n:
+        normal = ("11", "22") if n == 3 else ("11", "22", "33")
+        free = [c for c in normal if c not in seen]
+        words = "three" if n == 3 else "six"
+        comps = "11, 22, 12" if n == 3 else "11, 22, 33, 23, 13, 12"
+        raise InputError(f"{where}: {len(control)} rows control the components; give exactly {words} "
+                         f"({'' if n == 3 else dim + ': '}components {comps}"
+                         f"{'; not controlled: ' + ', '.join(free) if len(control) < n else ''})")
+    if "b" in control:
+        check_b(control["b"], f"{where}: b")
+    M = np.array([row_coefficients(k, control[k], n) for k in control], float)
     if abs(np.linalg.det(M)) < 1e-12:
         raise InputError(f"{where}: rows {', '.join(control)} do not fix every component "
                          f"(they are linearly dependent)")
     rows: dict[str, object] = {}
     for name, value in control.items():
-        stress = ROWS[name][0]
-        if not stress:
+        stress = is_stress_row(name)
+        if name == "b":
+            rows[name] = float(value)
+        elif not stress:
             if not _number(value):
                 raise InputError(f"{where}: {name} must be a strain change (a number), got {value!r}")
             rows[name] = float(value)
