@@ -12,17 +12,29 @@ from .loading.result import PathResult
 
 def _label(result: PathResult, b: int) -> str:
     p0 = result.meta.get("p0")
-    if p0 is not None and b < len(p0):
-        return f"$p_0$ = {p0[b] / 1e3:g} kPa"
-    return f"point {b}"
+    parts = []
+    if p0 is not None and len(p0) and (b < len(p0) or len(p0) == 1):
+        parts.append(f"$p_0$ = {p0[b if b < len(p0) else 0] / 1e3:g} kPa")
+    sets = result.meta.get("point_params")
+    if sets and b < len(sets):  # per-point parameter sets: the parameters that differ
+        parts += [f"{k}={sets[b][k]:g}" if isinstance(sets[b][k], float) else f"{k}={sets[b][k]}"
+                  for k in sets[0] if len({str(s[k]) for s in sets}) > 1]
+    return ", ".join(parts) if parts else f"point {b}"
 
 
 def _subtitle(result: PathResult) -> str:
     p = result.meta.get("params", {})
+    sphere = result.meta.get("sphere")
     keys = ("kn", "kt_kn", "phi_g", "alpha0", "alpha_omega", "n_theta", "volume", "g2")
+    if sphere is not None:  # 3D: the sphere's directions and fabric, not the 2D ones
+        keys = ("kn", "kt_kn", "phi_g", "alpha0", "volume", "g2", "sliding_rhs")
     units = {"phi_g": "°", "alpha0": "°"}
-    return ", ".join(f"{k}={p[k]:g}{units.get(k, '')}" if isinstance(p[k], float) else f"{k}={p[k]}"
+    text = ", ".join(f"{k}={p[k]:g}{units.get(k, '')}" if isinstance(p[k], float) else f"{k}={p[k]}"
                      for k in keys if k in p)
+    if sphere is not None:
+        text += (f", Lebedev order {sphere['order']} × {sphere['n_azimuth']} azimuths, "
+                 f"fabric α_ω={sphere['alpha_omega']:g}")
+    return text
 
 
 def plot_biaxial(result: PathResult, path: "str | os.PathLike") -> None:
@@ -109,8 +121,12 @@ def plot_program(result: PathResult, path: "str | os.PathLike") -> None:
     r = result.point(0)
     r = PathResult({k: v[r["stage"] != "consolidation"] for k, v in r.columns.items()}, r.meta)
     a.plot(r["p"] / 1e3, r["q"] / 1e3, lw=0.8)
-    a.set(xlabel=r"$p=(\sigma_{11}+\sigma_{22})/2$ [kPa]", ylabel=r"$q=\sigma_{11}-\sigma_{22}$ [kPa]",
-          title="stress path")
+    if result.meta.get("dim") == 3:
+        a.set(xlabel=r"$p=\mathrm{tr}\,\sigma/3$ [kPa]", ylabel=r"$q=\sigma_{11}-(\sigma_{22}+\sigma_{33})/2$ [kPa]",
+              title="stress path")
+    else:
+        a.set(xlabel=r"$p=(\sigma_{11}+\sigma_{22})/2$ [kPa]", ylabel=r"$q=\sigma_{11}-\sigma_{22}$ [kPa]",
+              title="stress path")
     b.plot(100 * r["eps11"], r["q"] / 1e3, lw=0.8)
     b.set(xlabel=r"$\varepsilon_{11}$ [%]", ylabel="q [kPa]", title="q against axial strain")
     p0 = (result.meta.get("p0") or [None])[0]
@@ -139,11 +155,68 @@ def plot_program(result: PathResult, path: "str | os.PathLike") -> None:
     fig.savefig(path, dpi=130)
 
 
+def plot_triaxial(result: PathResult, path: "str | os.PathLike") -> None:
+    """A 3D test (triaxial, true triaxial, oedometer) against the axial strain since the end of
+    consolidation: q = σ11 − (σ22 + σ33)/2, the volumetric strain (undrained: the stress path),
+    q/p, and the quantity the test is about: K0 = σr/σa (oedometer), the Lode angle (true
+    triaxial), the excess pore pressure p0 − p (undrained) or the stress path (drained)."""
+    test = result.meta.get("test", "")
+    undrained = "undrained" in test
+    fig = Figure(figsize=(12, 8.4), layout="constrained")
+    (a, b), (c, d) = fig.subplots(2, 2)
+    for k in range(result.n_points):
+        r, cons = result.point(k).stage("shear"), result.point(k).stage("consolidation")
+        if not len(cons):
+            continue
+        last = {n: cons[n][-1] for n in ("eps11", "eps_v", "q", "p", "q_p", "sig11", "sig22", "sig33")}
+        ea = np.concatenate([[0.0], r["eps11"] - last["eps11"]]) * 100
+        col = lambda n: np.concatenate([[last[n]], r[n]])  # noqa: E731
+        kw = dict(label=_label(result, k), lw=1.6)
+        a.plot(ea, col("q") / 1e3, **kw)
+        if undrained:
+            b.plot(col("p") / 1e3, col("q") / 1e3, **kw)
+        else:
+            b.plot(ea, (col("eps_v") - last["eps_v"]) * 100, **kw)
+        c.plot(ea, col("q_p"), **kw)
+        if test == "oedometer":
+            d.plot(ea, 0.5 * (col("sig22") + col("sig33")) / col("sig11"), **kw)
+        elif test == "true triaxial":
+            d.plot(ea[1:], r["lode"], **kw)
+        elif undrained:
+            d.plot(ea, (last["p"] - col("p")) / 1e3, **kw)
+        else:
+            d.plot(col("p") / 1e3, col("q") / 1e3, **kw)
+    xlabel = r"axial strain after consolidation $\Delta\varepsilon_{11}$ [%]"
+    a.set(xlabel=xlabel, ylabel=r"$q=\sigma_{11}-(\sigma_{22}+\sigma_{33})/2$ [kPa]")
+    if undrained:
+        b.set(xlabel=r"$p=\mathrm{tr}\,\sigma/3$ [kPa]", ylabel="q [kPa]", title="stress path")
+    else:
+        b.set(xlabel=xlabel, ylabel=r"volumetric strain $\Delta\varepsilon_v$ [%] (compression > 0)")
+        b.axhline(0.0, color="0.6", lw=0.8)
+    c.set(xlabel=xlabel, ylabel="stress ratio $q/p$ [-]")
+    if test == "oedometer":
+        d.set(xlabel=xlabel, ylabel=r"$K_0=\sigma_r/\sigma_a$ [-]", title="coefficient of earth pressure")
+    elif test == "true triaxial":
+        d.set(xlabel=xlabel, ylabel="Lode angle [°]", title=f"b = {result.meta.get('b', float('nan')):g}",
+              ylim=(-2, 62), yticks=(0, 15, 30, 45, 60))
+    elif undrained:
+        d.set(xlabel=xlabel, ylabel=r"excess pore pressure $p_0-p$ [kPa]")
+    else:
+        d.set(xlabel=r"$p=\mathrm{tr}\,\sigma/3$ [kPa]", ylabel="q [kPa]", title="stress path")
+    for ax in (a, b, c, d):
+        ax.grid(alpha=0.3)
+    a.legend(frameon=False)
+    fig.suptitle(f"3D H-model, {test} test\n{_subtitle(result)}", fontsize=10)
+    fig.savefig(path, dpi=130)
+
+
 def plot_result(result: PathResult, path: "str | os.PathLike") -> None:
     """The figure that fits the result's test."""
     test = result.meta.get("test", "")
     if test == "program":
         plot_program(result, path)
+    elif "triaxial" in test or test == "oedometer":
+        plot_triaxial(result, path)
     elif "biaxial" in test:
         plot_biaxial(result, path)
     elif test == "iso":

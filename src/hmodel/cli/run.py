@@ -1,4 +1,6 @@
-"""``hmodel run iso | biaxial | strain-path | program``: material-point tests to result.csv + result.png."""
+"""``hmodel run iso | biaxial | strain-path | triaxial | true-triaxial | oedometer | program``:
+material-point tests to result.csv + result.png (2D: iso, biaxial, strain-path; 3D: triaxial,
+true-triaxial, oedometer; a program in either)."""
 
 from __future__ import annotations
 
@@ -9,11 +11,24 @@ import typer
 
 from ..errors import InputError
 from ..io import read_strain_path, write_outputs
-from ..loading import (AXIAL_STEP, ISO_STEP, MAX_STRAIN_STEP, Program, ProgramFailed, run_biaxial,
-                       run_isotropic, run_strain_path)
+from ..loading import (
+    AXIAL_STEP,
+    ISO_STEP,
+    MAX_STRAIN_STEP,
+    Program,
+    ProgramFailed,
+    run_biaxial,
+    run_isotropic,
+    run_oedometer,
+    run_strain_path,
+    run_triaxial,
+    run_true_triaxial,
+)
+from ..loading.lab_tests import check_3d_params
 from ..loading.result import PathResult
 from ..params import UNITS, Params, parse_point_assignments
 from ..plotting import plot_result
+from ..rev.sphere import Sphere
 from ..solvers import get_solver
 from ..units import parse_pressures
 from .options import out_folder
@@ -164,3 +179,115 @@ def program(path: Annotated[Path, typer.Argument(help="TOML file of stages (see 
         typer.echo(f"stopped {where}: " + (f"until {s['until']} met" if "until" in s else s["failure"]))
     for name, n in result.meta["cycles"].items():
         typer.echo(f"{name}: {n} cycle{'s' if n != 1 else ''}")
+
+
+# ---------------------------------------------------------------------- 3D tests
+
+Param3DOpt = Annotated[Optional[list[str]], typer.Option(
+    "--param", "-p", metavar="NAME=VALUE",
+    help="Model parameter, repeatable; angles in degrees. A comma list (phi_g=25,35) gives one "
+         "material point per value, broadcast against --p0. In 3D: kn, kt_kn, phi_g, alpha0, "
+         "radius, volume (hexagon, rectangle, box), g2, sliding_rhs (default here: equilibrium); "
+         "the directions and fabric are --order, --azimuths, --fabric.")]
+OrderOpt = Annotated[Optional[int], typer.Option(
+    "--order", help="Order of the Lebedev rule of the directions (default: Sphere's, 17; one of "
+                    "3, 5, 7, 9, 11, 15, 17, 19, 21, 23, 29, 31, 35, 41, ...).")]
+AzimuthsOpt = Annotated[Optional[int], typer.Option(
+    "--azimuths", min=1, help="Bi-hexagons per direction, turned about it (default: Sphere's, 2).")]
+FabricOpt = Annotated[float, typer.Option(
+    "--fabric", help="Fabric intensity alpha_omega in [-1, 1] of the directions' density "
+                     "1 + alpha_omega cos 2psi about the axial axis 1 (the deposition axis).")]
+AxialOpt = Annotated[float, typer.Option(help="Axial strain after consolidation (its magnitude).")]
+StepOpt = Annotated[float, typer.Option(help="Axial strain increment.")]
+IsoStepOpt = Annotated[float, typer.Option(help="Strain increment of the consolidation.")]
+
+
+def _sphere(order: int | None, azimuths: int | None, fabric: float) -> Sphere:
+    """The 3D discretization of --order, --azimuths, --fabric (deposition axis: axis 1)."""
+    kw = {k: v for k, v in (("order", order), ("n_azimuth", azimuths)) if v is not None}
+    return Sphere(**kw, alpha_omega=fabric, axis=(1.0, 0.0, 0.0))
+
+
+def _points_3d(param: list[str] | None, n_pressures: int) -> Params | list[Params]:
+    """``--param`` of a 3D test (:func:`_material_points`): the 2D model's own parameters are
+    refused, naming their 3D equivalent; ``sliding_rhs`` defaults to ``equilibrium`` (with the
+    report's λ the mixed-control driver cannot yet pass the jumps of the 3D cells' events)."""
+    names = [item.partition("=")[0].strip() for item in param or []]
+    check_3d_params(names)
+    if "sliding_rhs" not in names:
+        param = ["sliding_rhs=equilibrium", *(param or [])]
+    return _material_points(param, n_pressures)
+
+
+def _axial(axial_strain: float) -> float:
+    _positive(axial_strain, "--axial-strain")
+    if axial_strain >= 1:
+        raise InputError(f"--axial-strain must be below 1, got {axial_strain}")
+    return axial_strain
+
+
+@app.command("triaxial")
+def triaxial(p0: P0Opt = "200kPa", axial_strain: AxialOpt = 0.1,
+             undrained: Annotated[bool, typer.Option("--undrained", help="Undrained: eps_v = 0, eps22 = eps33.")] = False,
+             extension: Annotated[bool, typer.Option(
+                 "--extension", help="Axial unloading at constant radial stress (sig11 < sig22 = sig33).")] = False,
+             param: Param3DOpt = None, order: OrderOpt = None, azimuths: AzimuthsOpt = None,
+             fabric: FabricOpt = 0.0, out: OutOpt = Path("results/triaxial"), step: StepOpt = AXIAL_STEP,
+             iso_step: IsoStepOpt = ISO_STEP) -> None:
+    """The 3D H-model's triaxial test: isotropic consolidation to p0, then drained (sig22 = sig33
+    = p0) or undrained axial compression, or extension, along axis 1."""
+    pressures = parse_pressures(p0)
+    params = _points_3d(param, len(pressures))
+    _axial(axial_strain)
+    sphere = _sphere(order, azimuths, fabric)
+    with LazyProgress("triaxial test") as progress:
+        result = run_triaxial(params, pressures, axial_strain, undrained=undrained, extension=extension,
+                              sphere=sphere, iso_step=_positive(iso_step, "--iso-step"),
+                              step=_positive(step, "--step"), progress=progress)
+    _finish(result, out)
+
+
+@app.command("true-triaxial")
+def true_triaxial(p0: P0Opt = "200kPa",
+                  b: Annotated[float, typer.Option(
+                      "--b", min=0.0, max=1.0,
+                      help="b = (s2 - s3)/(s1 - s3) in [0, 1], held with p (0: triaxial compression, "
+                           "1: extension); Lode angle atan(sqrt(3) b/(2 - b)).")] = 0.5,
+                  axial_strain: AxialOpt = 0.1, param: Param3DOpt = None, order: OrderOpt = None,
+                  azimuths: AzimuthsOpt = None, fabric: FabricOpt = 0.0,
+                  out: OutOpt = Path("results/true-triaxial"), step: StepOpt = AXIAL_STEP,
+                  iso_step: IsoStepOpt = ISO_STEP) -> None:
+    """Drained true triaxial test at constant p = p0 and constant b: isotropic consolidation,
+    then compression along axis 1 (the major principal stress)."""
+    pressures = parse_pressures(p0)
+    params = _points_3d(param, len(pressures))
+    _axial(axial_strain)
+    sphere = _sphere(order, azimuths, fabric)
+    with LazyProgress("true triaxial test") as progress:
+        result = run_true_triaxial(params, pressures, b, axial_strain, sphere=sphere,
+                                   iso_step=_positive(iso_step, "--iso-step"),
+                                   step=_positive(step, "--step"), progress=progress)
+    _finish(result, out)
+
+
+@app.command("oedometer")
+def oedometer(p0: P0Opt = "200kPa", axial_strain: AxialOpt = 0.05, param: Param3DOpt = None,
+              order: OrderOpt = None, azimuths: AzimuthsOpt = None, fabric: FabricOpt = 0.0,
+              out: OutOpt = Path("results/oedometer"), step: StepOpt = AXIAL_STEP,
+              iso_step: IsoStepOpt = ISO_STEP) -> None:
+    """Oedometric compression of the 3D H-model (eps22 = eps33 = 0) from isotropic consolidation
+    to p0; K0 = sig_r/sig_a at its end is printed and is the column K0 of result.csv."""
+    pressures = parse_pressures(p0)
+    params = _points_3d(param, len(pressures))
+    _axial(axial_strain)
+    sphere = _sphere(order, azimuths, fabric)
+    with LazyProgress("oedometric test") as progress:
+        result = run_oedometer(params, pressures, axial_strain, sphere=sphere,
+                               iso_step=_positive(iso_step, "--iso-step"),
+                               step=_positive(step, "--step"), progress=progress)
+    _finish(result, out)
+    p0s = result.meta["p0"]
+    for k, k0 in enumerate(result.meta["K0"]):
+        where = f"p0 = {p0s[k if len(p0s) > 1 else 0] / 1e3:g} kPa" + (f", point {k}" if len(p0s) == 1 and
+                                                                           len(result.meta["K0"]) > 1 else "")
+        typer.echo(f"K0 = sig_r/sig_a after {axial_strain:g} axial strain ({where}): {k0:.4f}")
