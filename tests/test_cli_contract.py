@@ -43,6 +43,12 @@ FILES = {
     "percent.csv": "eps11,q\n" + "".join(f"{0.01 * i},{1000 * i}\n" for i in range(1, 271)),
     "test.csv": "eps11,q,eps_v\n" + "".join(f"{0.001 * i},{2e4 * i},{1e-4 * i}\n" for i in range(1, 20)),
     "a_file": "not a folder\n",
+    "rows3d_in_2d.toml": ISO + "[[stage]]\ncontrol = {eps11 = 0.01, eps33 = 0, eps12 = 0}\n",
+    "rows2d_in_3d.toml": "dim = 3\n" + ISO + '[[stage]]\ncontrol = {eps11 = 0.01, sig22 = "hold", eps12 = 0}\n',
+    "b_in_3d.toml": "dim = 3\n" + ISO + '[[stage]]\npreset = "true_triaxial"\nb = 1.5\neps11 = 0.01\n',
+    "theta_in_3d.toml": "dim = 3\n[params]\nn_theta = 72\n" + ISO,
+    "order_13.toml": "[sphere]\norder = 13\n" + ISO,
+    "iso_3d.toml": "dim = 3\n" + ISO,
 }
 FAST = ["-p", "n_theta=12"]
 CAL = ["calibrate", "--data", "drained:200kPa:test.csv", "--fit", "phi_g", "--starts", "1", *FAST]
@@ -99,6 +105,26 @@ CASES = [
      "of memory, over the limit"),
     ("judgement: fem steps 1e20", ["fem", "biaxial", "--steps", "100000000000000000000", "--out", "o"], 1,
      "exceeds the limit"),
+    # 3D tests (issue 34)
+    ("3D unknown rule order", ["run", "triaxial", "--order", "13", "--out", "o"], 1, "Lebedev rule order must be one of"),
+    ("3D unknown rule order, program", ["run", "program", "order_13.toml", "--out", "o"], 1, "Lebedev rule order"),
+    ("3D b above 1", ["run", "true-triaxial", "--b", "1.5", "--out", "o"], 2, "'--b'"),
+    ("3D b below 0", ["run", "true-triaxial", "--b", "-0.1", "--out", "o"], 2, "'--b'"),
+    ("3D b above 1, program", ["run", "program", "b_in_3d.toml", "--out", "o"], 1, "b must be a number in [0, 1]"),
+    ("3D azimuths 0", ["run", "triaxial", "--azimuths", "0", "--out", "o"], 2, "'--azimuths'"),
+    ("3D fabric 2", ["run", "oedometer", "--fabric", "2", "--out", "o"], 2, "'--fabric'"),
+    ("3D given n_theta", ["run", "triaxial", "-p", "n_theta=72", "--out", "o"], 1, "--order N"),
+    ("3D given alpha_omega", ["run", "true-triaxial", "-p", "alpha_omega=0.3", "--out", "o"], 1, "--fabric A"),
+    ("3D given beta_omega", ["run", "oedometer", "-p", "beta_omega=10", "--out", "o"], 1, "the axial axis 1"),
+    ("3D program given n_theta", ["run", "program", "theta_in_3d.toml", "--out", "o"], 1, "[sphere] order"),
+    ("3D program given -p n_theta", ["run", "program", "iso_3d.toml", "-p", "n_theta=72", "--out", "o"], 1,
+     "[sphere] order"),
+    ("3D row in a 2D program", ["run", "program", "rows3d_in_2d.toml", "--out", "o"], 1, "a 3D program says dim = 3"),
+    ("2D rows in a 3D program", ["run", "program", "rows2d_in_3d.toml", "--out", "o"], 1,
+     "component 23 is not controlled"),
+    ("2D test given a 3D option", ["run", "biaxial", "--order", "9", "--out", "o"], 2, "--order"),
+    ("3D hexagon-consistent volume", ["run", "triaxial", "-p", "volume=hexagon-consistent", "--out", "o"], 1,
+     "hexagon, rectangle, box for the 3D H-model"),
 ]
 
 

@@ -195,7 +195,7 @@ OrderOpt = Annotated[Optional[int], typer.Option(
 AzimuthsOpt = Annotated[Optional[int], typer.Option(
     "--azimuths", min=1, help="Bi-hexagons per direction, turned about it (default: Sphere's, 2).")]
 FabricOpt = Annotated[float, typer.Option(
-    "--fabric", help="Fabric intensity alpha_omega in [-1, 1] of the directions' density "
+    "--fabric", min=-1.0, max=1.0, help="Fabric intensity alpha_omega in [-1, 1] of the directions' density "
                      "1 + alpha_omega cos 2psi about the axial axis 1 (the deposition axis).")]
 AxialOpt = Annotated[float, typer.Option(help="Axial strain after consolidation (its magnitude).")]
 StepOpt = Annotated[float, typer.Option(help="Axial strain increment.")]
