@@ -19,7 +19,14 @@ from hmodel.cell.closed_form import ClosedFormSolver
 from hmodel.cli.app import main
 from hmodel.data import DatasetSpec, generate
 from hmodel.errors import SolverError
-from hmodel.limits import WorkTooLarge, check_count, check_disk, check_memory, human_bytes, parse_bytes
+from hmodel.limits import (
+    WorkTooLarge,
+    check_count,
+    check_disk,
+    check_memory,
+    human_bytes,
+    parse_bytes,
+)
 from hmodel.params import Params
 from hmodel.surrogate.shipped import model_path
 
@@ -123,6 +130,17 @@ CASES = [
     ("2D rows in a 3D program", ["run", "program", "rows2d_in_3d.toml", "--out", "o"], 1,
      "component 23 is not controlled"),
     ("2D test given a 3D option", ["run", "biaxial", "--order", "9", "--out", "o"], 2, "--order"),
+    ("failure surface Lode 75", ["failure-surface", "--lode", "0,75", "--out", "o"], 1,
+     "a Lode angle must lie in [0, 60]"),
+    ("failure surface Lode -5", ["failure-surface", "--lode", "-5", "--out", "o"], 1, "[0, 60]"),
+    ("failure surface Lode not a number", ["failure-surface", "--lode", "0,abc", "--out", "o"], 1,
+     "--lode must be Lode angles"),
+    ("failure surface two pressures", ["failure-surface", "--p", "100kPa,200kPa", "--out", "o"], 1,
+     "one mean stress"),
+    ("failure surface parameter lists", ["failure-surface", "-p", "phi_g=25,35", "--out", "o"], 1,
+     "one parameter set"),
+    ("failure surface given n_theta", ["failure-surface", "-p", "n_theta=72", "--out", "o"], 1, "--order N"),
+    ("failure surface unknown order", ["failure-surface", "--order", "25", "--out", "o"], 1, "Lebedev rule order"),
     ("3D hexagon-consistent volume", ["run", "triaxial", "-p", "volume=hexagon-consistent", "--out", "o"], 1,
      "hexagon, rectangle, box for the 3D H-model"),
 ]

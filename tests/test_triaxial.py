@@ -273,3 +273,23 @@ def test_cli_3d_program(tmp_path):
     assert main(["run", "program", str(EXAMPLE), "--out", str(tmp_path / "p")]) == 0
     cols = _read(tmp_path / "p" / "result.csv")
     assert set(CONTRACT) <= set(cols) and "cycle" in cols
+
+
+def test_cli_failure_surface_writes_its_tables_and_figure(tmp_path, capsys):
+    out = tmp_path / "fs"
+    assert main(["failure-surface", "--p", "200kPa", "--lode", "60", "--order", "5", "--max-strain", "0.05",
+                 "--out", str(out)]) == 0
+    assert {p.name for p in out.iterdir()} == {"failure_surface.csv", "failure_surface.json",
+                                                "failure_surface.png", "paths.csv"}
+    table = _read(out / "failure_surface.csv")
+    np.testing.assert_array_equal(table["lode"].astype(float), [0.0, 60.0])  # 0 added for the fits
+    info = __import__("json").loads((out / "failure_surface.json").read_text())
+    q_p = table["q_p"].astype(float)
+    assert info["strength_ratio"] == pytest.approx(q_p[1] / q_p[0], rel=1e-12)
+    assert info["params"]["sliding_rhs"] == "equilibrium" and info["order"] == 5
+    # the fits agree with the model at compression, where they are fitted
+    for fit in ("mohr_coulomb", "matsuoka_nakai", "lade_duncan"):
+        assert float(table[fit][0]) == pytest.approx(q_p[0], rel=1e-9)
+    paths = _read(out / "paths.csv")
+    assert set(CONTRACT) <= set(paths) and set(paths["point"]) == {"0", "1"}
+    assert "extension/compression strength ratio" in capsys.readouterr().out

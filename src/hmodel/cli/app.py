@@ -23,6 +23,7 @@ from . import calibrate as calibrate_cmd
 from . import compare as compare_cmd
 from . import data as data_cmds
 from . import dem as dem_cmds
+from . import failure as failure_cmd
 from . import fem as fem_cmds
 from . import reproduce as reproduce_cmd
 from . import run as run_cmds
@@ -41,6 +42,7 @@ app.command("compare")(compare_cmd.compare)
 app.command("calibrate")(calibrate_cmd.calibrate)
 app.command("reproduce")(reproduce_cmd.reproduce)
 app.command("stability")(stability_cmd.stability)
+app.command("failure-surface")(failure_cmd.failure)
 
 
 def _version(value: bool) -> None:
