@@ -1,0 +1,173 @@
+"""Critical state of the 3D H-model (issue 34): drained and undrained triaxial tests from a
+dense and a loose state at three pressures to large strain; does (p, q, specific volume)
+approach one line? Writes ``critical_state.json`` and ``docs/figures/critical_state_3d.png``.
+
+States: the initial opening angle α0 sets the initial packing (``--dense`` and ``--loose``, in
+degrees: at 45° the drained test dilates and softens after its peak, at 65° it contracts first).
+Every test is one material point of one batched run (one parameter set per point, one run per
+drainage condition):
+
+- drained: σ22 = σ33 = p0 each, ε11 in increments of ``--step``, shear strains held;
+- undrained: ε11 increments, ε11 + ε22 + ε33 = 0, σ22 = σ33, shear strains held.
+
+The **specific volume** of the REV is defined from its macro volume, V = V0(α0) det(I - ε)
+(docs/model3d.md, "The REV"), against the initial volume of the α0 = 45° REV of the same
+grains: ν = V / V0(45°). The grains (radius, number of cells) are the same for every α0, so
+ν is the volume per unit solid up to one constant factor, and a critical-state line in
+(ln p, ν) is one in (ln p, e) for any choice of the solid volume (e = c ν - 1).
+
+Usage: ``python -m benchmarks.model3d.critical_state [--order 17] [--n-azimuth 2]
+[--strain 0.3] [--step 1e-4] [--out PATH] [--figure PATH]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.timing import FIGURES, record
+from hmodel import Params
+from hmodel.loading import Recorder, Segment, consolidate, run_segment
+from hmodel.rev import Rev3D, Sphere
+
+
+def segment(undrained: bool, p0: np.ndarray, strain: float, steps: int) -> Segment:
+    M = np.eye(6)
+    if undrained:
+        M[1, :3] = (1.0, 1.0, 1.0)      # eps_v = 0
+        M[2, :3] = (0.0, 1.0, -1.0)     # sig22 - sig33 = 0
+        stress = (False, False, True, False, False, False)
+        values = np.column_stack([np.full(len(p0), strain), np.zeros((len(p0), 5))])
+    else:
+        stress = (False, True, True, False, False, False)
+        values = np.column_stack([np.full(len(p0), strain), p0, p0, np.zeros((len(p0), 3))])
+    return Segment(stress, M, values, steps, "shear")
+
+
+def run(sets, p0, sphere, undrained, strain, steps):
+    rev = Rev3D(sets, sphere)
+    state = consolidate(rev, p0)
+    rec = Recorder()
+    failures: dict = {}
+    run_segment(rev, state, segment(undrained, p0, strain, steps), rec, failures=failures)
+    res = rec.result()
+    out = []
+    for b in range(len(sets)):
+        r = res.point(b).columns
+        eps = np.column_stack([r[f"eps{c}"] for c in ("11", "22", "33", "23", "13", "12")])
+        nu = rev.macro_volume(eps, np.full(len(eps), b))
+        out.append({"eps11": r["eps11"], "p": r["p"], "q": r["q"], "eps_v": r["eps_v"],
+                    "volume": nu, "failed": failures.get(b)})
+    return out, rev
+
+
+def summary(path: dict, v_ref: float, window: float) -> dict:
+    e, p, q = path["eps11"], path["p"], path["q"]
+    nu = path["volume"] / v_ref
+    end = e >= e[-1] - window
+    rate = float(np.polyfit(e[end], path["eps_v"][end], 1)[0]) if end.sum() > 2 else math.nan
+    qp_rate = float(np.polyfit(e[end], q[end] / p[end], 1)[0]) if end.sum() > 2 else math.nan
+    k = int(np.argmax(q / np.where(p > 0, p, np.inf)))
+    return {"axial_strain_end": float(e[-1]), "p_end": float(p[-1]), "q_end": float(q[-1]),
+            "q_p_end": float(q[-1] / p[-1]), "nu_end": float(nu[-1]), "nu_start": float(nu[0]),
+            "peak_q_p": float(q[k] / p[k]), "axial_strain_at_peak_q_p": float(e[k]),
+            "deps_v_deps11_end": rate, "dq_p_deps11_end": qp_rate,
+            "newton_failed": path["failed"] is not None}
+
+
+def figure(paths, labels, out: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 3, figsize=(14, 4.3))
+    colors = {"dense": "tab:blue", "loose": "tab:red"}
+    for path, lab in zip(paths, labels):
+        c = colors[lab["state"]]
+        ls = "-" if lab["test"] == "drained" else "--"
+        kw = dict(color=c, ls=ls, lw=1.2, alpha=0.35 + 0.2 * lab["k"])
+        ax[0].plot(path["eps11"] * 100, path["q"] / path["p"], **kw)
+        ax[1].plot(path["p"] / 1e3, path["q"] / 1e3, **kw)
+        ax[2].semilogx(path["p"] / 1e3, path["volume"] / lab["v_ref"], **kw)
+        for a, x, y in ((ax[1], path["p"][-1] / 1e3, path["q"][-1] / 1e3),
+                        (ax[2], path["p"][-1] / 1e3, path["volume"][-1] / lab["v_ref"])):
+            a.plot(x, y, "o" if lab["test"] == "drained" else "s", color=c, ms=4)
+    ax[0].set(xlabel="axial strain ε11 [%]", ylabel="q/p", title="stress ratio")
+    ax[1].set(xlabel="p [kPa]", ylabel="q [kPa]", title="q–p (end states: markers)")
+    ax[2].set(xlabel="p [kPa] (log)", ylabel="specific volume ν = V/V0(45°)", title="ν–ln p")
+    from matplotlib.lines import Line2D
+    ax[0].legend([Line2D([], [], color="tab:blue"), Line2D([], [], color="tab:red"),
+                  Line2D([], [], color="k"), Line2D([], [], color="k", ls="--")],
+                 ["dense (α0 = %g°)" % labels[0]["alpha0"], "loose (α0 = %g°)" % labels[-1]["alpha0"],
+                  "drained", "undrained"], fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--order", type=int, default=None, help="default: Sphere()'s")
+    ap.add_argument("--n-azimuth", type=int, default=None, help="default: Sphere()'s")
+    ap.add_argument("--dense", type=float, default=45.0)
+    ap.add_argument("--loose", type=float, default=65.0)
+    ap.add_argument("--pressures", default="100e3,200e3,400e3")
+    ap.add_argument("--strain", type=float, default=0.3)
+    ap.add_argument("--step", type=float, default=1e-4)
+    ap.add_argument("--window", type=float, default=0.03, help="strain window of the end rates")
+    ap.add_argument("--sliding-rhs", default="equilibrium")
+    ap.add_argument("--out", type=Path, default=Path(__file__).with_name("critical_state.json"))
+    ap.add_argument("--figure", type=Path, default=FIGURES / "critical_state_3d.png")
+    args = ap.parse_args()
+    d = Sphere()
+    sphere = Sphere(order=args.order or d.order, n_azimuth=args.n_azimuth or d.n_azimuth)
+    pressures = [float(x) for x in args.pressures.split(",")]
+    states = (("dense", args.dense), ("loose", args.loose))
+    sets, p0, labels = [], [], []
+    for state, a0 in states:
+        for k, p in enumerate(pressures):
+            sets.append(Params(alpha0=math.radians(a0), sliding_rhs=args.sliding_rhs))
+            p0.append(p)
+            labels.append({"state": state, "alpha0": a0, "p0": p, "k": k})
+    p0 = np.array(p0)
+    v_ref = Rev3D(Params(alpha0=math.radians(45.0)), sphere).volume0
+    steps = int(round(args.strain / args.step))
+    table, paths, plabels = [], [], []
+    t = time.perf_counter()
+    for test in ("drained", "undrained"):
+        out, _ = run(sets, p0, sphere, test == "undrained", args.strain, steps)
+        for path, lab in zip(out, labels):
+            row = {"test": test, **{k: v for k, v in lab.items() if k != "k"},
+                   **summary(path, v_ref, args.window)}
+            table.append(row)
+            paths.append(path)
+            plabels.append({**lab, "test": test, "v_ref": v_ref})
+            print(f"{test:9s} {lab['state']:5s} p0 {lab['p0'] / 1e3:4.0f} kPa: to ε11 {row['axial_strain_end']:.3f}"
+                  f"  q/p {row['q_p_end']:.3f} (peak {row['peak_q_p']:.3f})  p {row['p_end'] / 1e3:7.1f} kPa"
+                  f"  ν {row['nu_end']:.4f}  dεv/dε11 {row['deps_v_deps11_end']:+.3f}"
+                  f"  d(q/p)/dε11 {row['dq_p_deps11_end']:+.2f}{'  (Newton failed)' if row['newton_failed'] else ''}",
+                  flush=True)
+    wall = time.perf_counter() - t
+    figure(paths, plabels, args.figure)
+    drained = [r for r in table if r["test"] == "drained"]
+    qp = [r["q_p_end"] for r in table if not r["newton_failed"]]
+    results = [("spread of q/p at the end of the tests that reached the end (max - min)",
+                max(qp) - min(qp) if qp else math.nan, "-> 0 at a critical state"),
+               ("largest |deps_v/deps11| at the end of the drained tests",
+                max(abs(r["deps_v_deps11_end"]) for r in drained), "-> 0 at a critical state"),
+               ("wall time of the two batched runs [s]", wall, "-")]
+    rec = record(__file__, args, 1, results, table=table,
+                 sphere={"order": sphere.order, "n_azimuth": sphere.n_azimuth}, v_ref=v_ref)
+    args.out.write_text(json.dumps(rec, indent=2) + "\n")
+    for name, value, target in results:
+        print(f"{name}: {value:.4g} ({target})")
+    print(f"written {args.out}, {args.figure}")
+
+
+if __name__ == "__main__":
+    main()
