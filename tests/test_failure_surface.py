@@ -150,3 +150,12 @@ def test_driver_peaks_are_finite_and_on_their_rays(cheap: FailureSurface):
         assert v[0] == pytest.approx(cheap.ratio[0], rel=1e-12)
     assert set(cheap.ended) <= {"past peak", "newton", "max strain"}
     assert len(cheap.table()) == 3 and cheap.strength_ratio > 0
+
+
+def test_default_rule_is_among_the_offered_ones():
+    # docs/model3d.md, "Convergence in directions": the default and the offered orders
+    from hmodel.rev.sphere import DEFAULT_AZIMUTHS, DEFAULT_ORDER, OFFERED, ORDERS
+    assert DEFAULT_ORDER in OFFERED and set(OFFERED) <= set(ORDERS)
+    assert list(OFFERED) == sorted(OFFERED)
+    s = Sphere()
+    assert (s.order, s.n_azimuth) == (DEFAULT_ORDER, DEFAULT_AZIMUTHS)
