@@ -176,6 +176,9 @@ class Program:
         if self.sphere is None:
             rev = Rev(params, solver)
         else:
+            if chunk is not None:  # the stability probes (hmodel.stability) are 2D ones
+                raise InputError("the stability analysis runs 2D programs only: its probes of a "
+                                 "dim = 3 program are not implemented yet")
             if solver is not None and getattr(solver, "n_lengths", 2) != 3:
                 if solver.name != "closed-form":
                     raise InputError(f"a 3D program runs on the closed-form bi-hexagon; the cell "
