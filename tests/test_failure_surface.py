@@ -159,3 +159,25 @@ def test_default_rule_is_among_the_offered_ones():
     assert list(OFFERED) == sorted(OFFERED)
     s = Sphere()
     assert (s.order, s.n_azimuth) == (DEFAULT_ORDER, DEFAULT_AZIMUTHS)
+
+
+def test_compression_peak_against_an_independent_constant_p_triaxial_test():
+    # The ray at θ = 0 driven by ε_s is the constant-p triaxial compression driven by ε11 with
+    # σ22 = σ33 (other rows, other strain variable, the same stress path): the same peak
+    # q_eq/p up to the increments (measured 3e-6 at order 9).
+    from hmodel.loading import Recorder, Segment, consolidate, run_segment
+    from hmodel.rev import Rev3D
+
+    params, sphere = Params(sliding_rhs="equilibrium"), Sphere(order=9)
+    fs = failure_surface(params, 200e3, [0.0], sphere=sphere, max_strain=0.1)
+    assert fs.ended == ("past peak",)
+    rev = Rev3D(params, sphere)
+    M = np.eye(6)
+    M[1, :3] = 1 / 3
+    M[2, :3] = (0.0, 1.0, -1.0)
+    rec = Recorder()
+    run_segment(rev, consolidate(rev, 200e3), Segment((False, True, True, False, False, False), M,
+                np.array([0.08, 200e3, 0.0, 0.0, 0.0, 0.0]), 800, "shear"), rec)
+    res = rec.result()
+    assert res["q_eq"].max() / 200e3 == pytest.approx(fs.ratio[0], rel=1e-4)
+    assert res["eps11"][np.argmax(res["q_eq"])] == pytest.approx(fs.strain[0, 0], abs=2e-4)

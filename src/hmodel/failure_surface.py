@@ -18,7 +18,7 @@ The six rows of each increment are
   by ``step`` each increment (ε_s is work-conjugate to q_eq on the ray, and is ε_q = (2/3)(ε1 - ε3)
   in triaxial compression);
 - a stress row: p = (σ11 + σ22 + σ33)/3 held at p;
-- a stress row: e·σ = 0 with e = -(sin θ_1, sin θ_2, sin θ_3), the unit deviatoric direction
+- a stress row: e·σ = 0 with e = -sqrt(2/3) (sin θ_1, sin θ_2, sin θ_3), the unit deviatoric direction
   normal to the ray in the π-plane: the stress stays on the ray (b and θ constant);
 - three strain rows: the shear strains ε23, ε13, ε12 held at 0 (fixed principal axes).
 
