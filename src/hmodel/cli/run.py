@@ -190,10 +190,12 @@ Param3DOpt = Annotated[Optional[list[str]], typer.Option(
          "radius, volume (hexagon, rectangle, box), g2, sliding_rhs (default here: equilibrium); "
          "the directions and fabric are --order, --azimuths, --fabric.")]
 OrderOpt = Annotated[Optional[int], typer.Option(
-    "--order", help="Order of the Lebedev rule of the directions (default: Sphere's, 17; one of "
-                    "3, 5, 7, 9, 11, 15, 17, 19, 21, 23, 29, 31, 35, 41, ...).")]
+    "--order", help=f"Order of the Lebedev rule of the directions (default: Sphere's, "
+                    f"{Sphere.__dataclass_fields__['order'].default}; one of 3, 5, 7, 9, 11, 15, 17, 19, "
+                    f"21, 23, 29, 31, 35, 41, ...).")]
 AzimuthsOpt = Annotated[Optional[int], typer.Option(
-    "--azimuths", min=1, help="Bi-hexagons per direction, turned about it (default: Sphere's, 2).")]
+    "--azimuths", min=1, help=f"Bi-hexagons per direction, turned about it (default: Sphere's, "
+                              f"{Sphere.__dataclass_fields__['n_azimuth'].default}).")]
 FabricOpt = Annotated[float, typer.Option(
     "--fabric", min=-1.0, max=1.0, help="Fabric intensity alpha_omega in [-1, 1] of the directions' density "
                      "1 + alpha_omega cos 2psi about the axial axis 1 (the deposition axis).")]
