@@ -126,6 +126,8 @@ def test_invariants_are_objective_and_lode_spans_compression_to_extension():
     lode, b = lode_b(np.stack([sig, [3e5, 3e5, 1e5, 0, 0, 0], [3e5, 2e5, 1e5, 0, 0, 0], rotated]))
     np.testing.assert_allclose(b, [0.0, 1.0, 0.5, 0.0], atol=1e-9)
     np.testing.assert_allclose(lode, [0.0, 60.0, 30.0, 0.0], atol=1e-6)
+    nan_row = lode_b(np.array([[np.nan] * 6, sig]))  # a dropped point's NaN row stays NaN
+    assert np.isnan(nan_row[0][0]) and nan_row[0][1] == 0.0
     with pytest.raises(Exception, match="3 \\(2D\\) or 6 \\(3D\\) components"):
         mean_stress(np.zeros((1, 4)))
 

@@ -58,11 +58,14 @@ def lode_b(sig: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Lode angle [deg] and b = (s2 - s3)/(s1 - s3) of 3D stresses (K, 6), from the principal
     stresses s1 >= s2 >= s3 (compression positive). The angle is measured from triaxial
     compression (0°: s2 = s3, b = 0) to triaxial extension (60°: s1 = s2, b = 1), i.e.
-    tan θ = √3 b / (2 − b); NaN where the stress is isotropic."""
+    tan θ = √3 b / (2 − b); NaN where the stress is isotropic or not finite."""
     T = np.empty((len(sig), 3, 3))
     for (i, j), k in zip(((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)), range(6)):
         T[:, i, j] = T[:, j, i] = sig[:, k]
-    s3, s2, s1 = np.moveaxis(np.linalg.eigvalsh(T), -1, 0)
+    ok = np.all(np.isfinite(sig), axis=1)  # a dropped point's rows are NaN
+    principal = np.full((len(sig), 3), np.nan)
+    principal[ok] = np.linalg.eigvalsh(T[ok])
+    s3, s2, s1 = principal.T
     with np.errstate(divide="ignore", invalid="ignore"):
         b = np.where(s1 - s3 > 1e-12 * np.maximum(np.abs(s1), 1.0), (s2 - s3) / (s1 - s3), np.nan)
     return np.degrees(np.arctan2(np.sqrt(3.0) * b, 2.0 - b)), b
