@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 
 from hmodel import Params, SolverError
+from hmodel.cell import ClosedFormSolver
 from hmodel.loading import Recorder, Segment, consolidate, run_segment
 from hmodel.loading.compiled import CompiledSegment, supports
 from hmodel.loading.control import Tangent
-from hmodel.cell import ClosedFormSolver
-from hmodel.rev import Rev
+from hmodel.rev import Rev, Rev3D, Sphere
 
 SMALL = Params(n_theta=36)
 
@@ -24,7 +24,9 @@ SEGMENTS = {
 
 
 def _both(params, seg, p0=(2e5,), **kw):
-    rev = Rev(params)
+    """The segment from consolidation at p0, compiled then generic: [(state, result)] * 2;
+    ``params``: a Params or a REV (tests/test_compiled3d.py passes a Rev3D)."""
+    rev = Rev(params) if isinstance(params, Params) else params
     s0 = consolidate(rev, list(p0))
     out = []
     for compiled in (True, False):
@@ -109,11 +111,13 @@ def test_only_the_closed_form_solver_is_compiled():
     np.testing.assert_allclose(a.sig, b.sig, rtol=1e-7, atol=1e-7 * np.abs(b.sig).max())  # sig12 is roundoff
 
 
-def test_compiled_consolidation_equals_the_generic_loop():
+@pytest.mark.parametrize("dim", [2, 3])
+def test_compiled_consolidation_equals_the_generic_loop(dim):
     """Per-point parameters and pressures: each point stops at its own p0 after its own number
-    of increments, in the kernel (all points at once) as in the batched Python loop."""
+    of increments, in the kernel (all points at once) as in the batched Python loop; for the 2D
+    and the 3D REV (isotropic strain increments of eps11, eps22 (and eps33))."""
     sets = [SMALL, SMALL.with_(kn=5e7, alpha0=np.radians(55)), SMALL.with_(phi_g=np.radians(20))]
-    rev = Rev(sets * 2)
+    rev = Rev(sets * 2) if dim == 2 else Rev3D(sets * 2, Sphere(order=7, n_azimuth=2))
     p0 = [1e5, 2e5, 4e5, 4e5, 1e5, 2e5]
     out = []
     for compiled in (True, False):
@@ -126,6 +130,7 @@ def test_compiled_consolidation_equals_the_generic_loop():
     np.testing.assert_allclose(rc["eps11"], rg["eps11"], rtol=0, atol=1e-15)
     np.testing.assert_allclose(rc["q"], rg["q"], rtol=1e-12, atol=1e-6)
     assert len(set(np.bincount(rc["point"]))) > 2  # the points did take different numbers of steps
+    np.testing.assert_allclose(sc.sig[:, :dim], np.repeat(sc.p[:, None], dim, axis=1), rtol=1e-9)
 
 
 def test_the_serial_and_parallel_kernels_keep_separate_cache_entries():

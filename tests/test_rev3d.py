@@ -182,7 +182,9 @@ def test_parameter_sets_match_single_runs():
         alone = run(Rev3D(p, sphere), [path])
         np.testing.assert_allclose(both.sig[k], alone.sig[0], rtol=1e-13)
     rev = Rev3D(sets, sphere)
-    assert rev.n_sets == 2 and rev.volumes0[0] != rev.volumes0[1] and rev.kernels is None
+    assert rev.n_sets == 2 and rev.volumes0[0] != rev.volumes0[1]
+    # one compiled increment per set (the closed form's packed parameters, tests/test_compiled3d.py)
+    assert len(rev.kernels) == 2 and rev.kernels[0].params[2] != rev.kernels[1].params[2]
 
 
 def test_coulomb_bound_on_random_strain_paths():

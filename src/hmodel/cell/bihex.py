@@ -69,47 +69,58 @@ def cross_contact(v, two_r):
     return dn * dn + 0.25 * (v[7] * v[7] + v[15] * v[15]) < two_r * two_r
 
 
-@njit(cache=True, error_model="numpy")
-def bihex_step_kernel(values, dl, p, out, flags):
-    """Advance every bi-hexagon; ``values``/``out`` (n, 16), ``dl`` (n, 3) = (δl1, δl2, δl3),
-    ``flags`` (n, 11). Each hexagon is the 2D increment of eq. 1.7 (closed_form.cell_increment)
-    with the shared δl1. Returns the index of the first failed cell, or -1."""
-    bad = -1
-    two_r = 2.0 * p[P_R]
-    for i in range(values.shape[0]):
-        ok_a = cell_increment(values[i, :8], dl[i, 0], dl[i, 1], p, out[i, :8], flags[i, :5])
-        ok_b = cell_increment(values[i, 8:], dl[i, 0], dl[i, 2], p, out[i, 8:], flags[i, 5:10])
-        flags[i, 10] = cross_contact(out[i], two_r)
-        if not (ok_a and ok_b) and bad < 0:
-            bad = i
-    return bad
+@njit(cache=True, inline="always", error_model="numpy")
+def bihex_increment(v, dl1, dl2, dl3, p, out, flags):
+    """Advance one bi-hexagon ``v`` (16,) by (δl1, δl2, δl3) into ``out`` (16,) and ``flags``
+    (11,): each hexagon is the 2D increment of eq. 1.7 (closed_form.cell_increment) with the
+    shared δl1. Returns False when either hexagon's increment failed."""
+    ok_a = cell_increment(v[:8], dl1, dl2, p, out[:8], flags[:5])
+    ok_b = cell_increment(v[8:], dl1, dl3, p, out[8:], flags[5:10])
+    flags[10] = cross_contact(out, 2.0 * p[P_R])
+    return ok_a and ok_b
 
 
-@njit(cache=True, error_model="numpy")
-def bihex_vsigma_kernel(values, kn, two_r, out):
-    """V σ in the cell frame, (nn, t1t1, t2t2) (n, 3), of bi-hexagon states (n, 16).
+@njit(cache=True, inline="always", error_model="numpy")
+def bihex_vsigma(v, kn, two_r):
+    """V σ in the cell frame, (nn, t1t1, t2t2), of one bi-hexagon state ``v`` (16,).
 
     Love-Weber (eq. 1.11) over the twelve contacts: each hexagon contributes eq. 1.12 in its own
     plane (its nn term to σ_nn, its tt term to σ_t1t1 for A, σ_t2t2 for B); the extra contacts
     of docs/model.md step 3 (Fig. 1.6): grains 1-4 once (shared) when l1 <= 2r, grains 2-6/3-5
     when l2 <= 2r, 7-10/8-9 when l3 <= 2r. Off-diagonal terms vanish by the mirror symmetries.
     """
+    ann, att = contact_vsigma(v[0], v[1], math.cos(v[2]), math.sin(v[2]), v[3], v[4], v[5])
+    bnn, btt = contact_vsigma(v[8], v[9], math.cos(v[10]), math.sin(v[10]), v[11], v[12], v[13])
+    l1, l2, l3 = v[6], v[7], v[15]
+    nn = ann + bnn
+    if l1 <= two_r:
+        nn += kn * (two_r - l1) * l1
+    if l2 <= two_r:
+        att += 2.0 * kn * (two_r - l2) * l2
+    if l3 <= two_r:
+        btt += 2.0 * kn * (two_r - l3) * l3
+    return nn, att, btt
+
+
+@njit(cache=True, error_model="numpy")
+def bihex_step_kernel(values, dl, p, out, flags):
+    """Advance every bi-hexagon (:func:`bihex_increment`); ``values``/``out`` (n, 16), ``dl``
+    (n, 3) = (δl1, δl2, δl3), ``flags`` (n, 11). Returns the index of the first failed cell, or
+    -1."""
+    bad = -1
     for i in range(values.shape[0]):
-        v = values[i]
-        ann, att = contact_vsigma(v[0], v[1], math.cos(v[2]), math.sin(v[2]), v[3], v[4], v[5])
-        bnn, btt = contact_vsigma(v[8], v[9], math.cos(v[10]), math.sin(v[10]), v[11], v[12],
-                                  v[13])
-        l1, l2, l3 = v[6], v[7], v[15]
-        nn = ann + bnn
-        if l1 <= two_r:
-            nn += kn * (two_r - l1) * l1
-        if l2 <= two_r:
-            att += 2.0 * kn * (two_r - l2) * l2
-        if l3 <= two_r:
-            btt += 2.0 * kn * (two_r - l3) * l3
-        out[i, 0] = nn
-        out[i, 1] = att
-        out[i, 2] = btt
+        ok = bihex_increment(values[i], dl[i, 0], dl[i, 1], dl[i, 2], p, out[i], flags[i])
+        if not ok and bad < 0:
+            bad = i
+    return bad
+
+
+@njit(cache=True, error_model="numpy")
+def bihex_vsigma_kernel(values, kn, two_r, out):
+    """V σ in the cell frame, (nn, t1t1, t2t2) (n, 3), of bi-hexagon states (n, 16)
+    (:func:`bihex_vsigma`)."""
+    for i in range(values.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2] = bihex_vsigma(values[i], kn, two_r)
 
 
 def bihex_volume(params: Params, values: np.ndarray) -> np.ndarray:
@@ -179,9 +190,13 @@ class BiHexSolver:
         shape = state.values.shape[:-1]
         return out.reshape(*shape, 6), bihex_volume(params, state.values)
 
-    def kernel(self, params: Params) -> CellKernel | None:
-        """None for now: the generic loading driver calls :meth:`step`."""
-        return None
+    def kernel(self, params: Params) -> CellKernel:
+        """The compiled increment: the 2D closed form's packed parameters
+        (:func:`hmodel.cell.closed_form.kernel_params`), which both hexagons' increments take
+        (:func:`bihex_increment`, called by the compiled 3D REV trial
+        :func:`hmodel.rev.kernels3d.bihex_trial`)."""
+        check_params(params)
+        return CellKernel(kernel_params(params))
 
     def fractions(self, params: Params, state: CellState) -> dict[str, np.ndarray]:
         return {}
@@ -225,5 +240,5 @@ class BiHexSolver:
                 CellFlags(flags.reshape(*shape, len(BIHEX_FLAGS))))
 
 
-__all__ = ["BIHEX_FIELDS", "BIHEX_FLAGS", "VOLUMES_3D", "BiHexSolver", "bihex_volume",
-           "check_params", "initial_bihex"]
+__all__ = ["BIHEX_FIELDS", "BIHEX_FLAGS", "VOLUMES_3D", "BiHexSolver", "bihex_increment",
+           "bihex_volume", "bihex_vsigma", "check_params", "initial_bihex"]

@@ -9,6 +9,11 @@ point, the one Newton of :mod:`hmodel.loading.newton`, its trials evaluated here
 localization (eq. 1.1), the cell increment and averaging (eq. 1.15) fused in one loop over
 directions (:func:`trial`).
 
+The kernels are written for n components: n = 3 runs the H-cell trial above, n = 6 the 3D REV's
+bi-hexagon trial (:func:`hmodel.rev.kernels3d.bihex_trial`, :func:`any_trial`), whose backend
+is :class:`hmodel.loading.compiled3d.CompiledSegment3D`; Newton, the event loop, the batched
+per-point kernel and the hand-back to the generic driver are the same code.
+
 A learned cell response (``meso`` and ``compliance`` surrogates) sees the state only, so each
 increment starts with one evaluation of every cell of every point (:func:`cell_responses`,
 which may refuse cells outside a training domain), and every trial of the increment applies
@@ -35,16 +40,37 @@ from numba import njit, prange
 from ..cell.base import LAW_COMPLIANCE, LAW_MESO, P_LAW
 from ..cell.closed_form import P_KN, P_R, cell_increment
 from ..cell.compliance_kernel import compliance_increment
-from ..cell.mesostress import vsigma_local
 from ..cell.meso_kernel import meso_increment
+from ..cell.mesostress import vsigma_local
 from ..cell.state import CellFlags, CellState
 from ..errors import PointFailure
 from ..rev import Rev, RevState
 from ..rev.kernels import cell_dl, weighted_global
+from ..rev.kernels3d import bihex_trial
 from .control import Control, Tangent, solve_increment
-from .newton import (ASK_SLOPE, ASK_TANGENT, ASK_TRIAL, BSIG, BX, C_FD, COMMIT_EVENT, COMMIT_SOLUTION, SIG,
-                     X, XN, NewtonSettings, after_newton, begin, block, event_targets, free_direction,
-                     segment_targets, told_tangent, told_trial, workspace_size)
+from .newton import (
+    ASK_SLOPE,
+    ASK_TANGENT,
+    ASK_TRIAL,
+    BSIG,
+    BX,
+    C_FD,
+    COMMIT_EVENT,
+    COMMIT_SOLUTION,
+    SIG,
+    XN,
+    NewtonSettings,
+    X,
+    after_newton,
+    begin,
+    block,
+    event_targets,
+    free_direction,
+    segment_targets,
+    told_tangent,
+    told_trial,
+    workspace_size,
+)
 from .result import FRACTIONS
 
 # Kernel status per material point and increment.
@@ -176,27 +202,38 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
     return ok
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def any_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
+    """The REV trial of n = eps.shape[0] components: :func:`trial` (2D, n = 3) or the 3D REV's
+    :func:`~hmodel.rev.kernels3d.bihex_trial` (n = 6, closed form, ``resp`` unused)."""
+    if eps.shape[0] == 6:
+        return bihex_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig)
+    return trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp)
+
+
 @njit(cache=True, error_model="numpy")
 def fd_tangent(values, eps, x, geo, p, mode, volume0, h, out, flags, K, resp):
-    """K[i, j] = dsig_i / dx_j by forward differences at trial increment x."""
-    sig0 = np.empty(3)
-    sig1 = np.empty(3)
+    """K[i, j] = dsig_i / dx_j (n x n) by forward differences at trial increment x (n,): n + 1
+    trials."""
+    n = x.shape[0]
+    sig0 = np.empty(n)
+    sig1 = np.empty(n)
     xp = x.copy()
-    trial(values, eps, xp, geo, p, mode, volume0, out, flags, sig0, resp)
-    for j in range(3):
+    any_trial(values, eps, xp, geo, p, mode, volume0, out, flags, sig0, resp)
+    for j in range(n):
         xp[:] = x
         xp[j] += h
-        trial(values, eps, xp, geo, p, mode, volume0, out, flags, sig1, resp)
-        for i in range(3):
+        any_trial(values, eps, xp, geo, p, mode, volume0, out, flags, sig1, resp)
+        for i in range(n):
             K[i, j] = (sig1[i] - sig0[i]) / h
 
 
 @njit(cache=True, error_model="numpy")
 def _slope_trial(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp, exact, u, K):
-    """:func:`trial`; with ``exact``, also the stress slope du along u, set into K: K u = du,
-    K unchanged on directions normal to u (a rank-one update)."""
+    """:func:`any_trial`; with ``exact`` (a 2D meso surrogate), also the stress slope du along
+    u, set into K: K u = du, K unchanged on directions normal to u (a rank-one update)."""
     if not exact:
-        return trial(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp)
+        return any_trial(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp)
     du = np.empty(3)
     ok = trial_tangent(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp, u, du)
     uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2]
@@ -207,11 +244,21 @@ def _slope_trial(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp, e
     return ok
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _cell_broken(f):
+    """Whether a cell with flags ``f`` (five per hexagon: one H-cell, or a bi-hexagon's two and
+    its own) has a contact open in some hexagon (``CellFlags.broken``)."""
+    out = False
+    for h in range(f.shape[0] // 5):
+        out = out or f[5 * h + 1] or f[5 * h + 2]
+    return out
+
+
 @njit(cache=True, error_model="numpy")
 def _same_events(flags_a, flags_b):
     """Whether the same cells are broken (a contact open) in two trials."""
     for i in range(flags_a.shape[0]):
-        if (flags_a[i, 1] or flags_a[i, 2]) != (flags_b[i, 1] or flags_b[i, 2]):
+        if _cell_broken(flags_a[i]) != _cell_broken(flags_b[i]):
             return False
     return True
 
@@ -220,7 +267,7 @@ def _same_events(flags_a, flags_b):
 def _broken(flags):
     n = 0
     for i in range(flags.shape[0]):
-        n += flags[i, 1] or flags[i, 2]
+        n += _cell_broken(flags[i])
     return n
 
 
@@ -239,7 +286,8 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, c,
     u = free_direction(S, M) if resp.shape[1] > 0 and p[P_LAW] == LAW_MESO else np.zeros(0)
     exact = u.shape[0] > 0
     flag = np.zeros(1, dtype=np.bool_)
-    sig_n = np.empty(3)
+    n = S.shape[0]
+    sig_n = np.empty(n)
     cur = -1
     best = -1
     act = begin(W, K, has_K, S, M, v, sig, c, guess, exact)
@@ -248,18 +296,18 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, c,
         while nxt == cur or nxt == best:
             nxt += 1
         if act == ASK_TANGENT:
-            fd_tangent(values, eps, block(W, XN, 3).copy(), geo, p, mode, volume0, c[C_FD], buf[nxt],
-                        bufflags[nxt], K, resp)
-            trials[0] += 4
+            fd_tangent(values, eps, block(W, XN, n).copy(), geo, p, mode, volume0, c[C_FD], buf[nxt],
+                       bufflags[nxt], K, resp)
+            trials[0] += n + 1
             act = told_tangent(W, K, has_K, S, M, c)
         elif act == ASK_SLOPE:
-            _slope_trial(values, eps, block(W, XN, 3).copy(), geo, p, mode, volume0, buf[nxt],
+            _slope_trial(values, eps, block(W, XN, n).copy(), geo, p, mode, volume0, buf[nxt],
                          bufflags[nxt], sig_n, resp, True, u, K)
             trials[0] += 1
             act = told_tangent(W, K, has_K, S, M, c)
         elif act == ASK_TRIAL:
             trials[0] += 1
-            ok = _slope_trial(values, eps, block(W, XN, 3).copy(), geo, p, mode, volume0, buf[nxt],
+            ok = _slope_trial(values, eps, block(W, XN, n).copy(), geo, p, mode, volume0, buf[nxt],
                               bufflags[nxt], sig_n, resp, exact, u, K)
             same = cur >= 0 and _same_events(bufflags[nxt], bufflags[cur])
             act = told_trial(W, K, S, M, c, sig_n, ok, _broken(bufflags[nxt]), same, exact, flag)
@@ -281,7 +329,8 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
     (:func:`~hmodel.loading.newton.event_targets`). Returns OK, or NOT_CONVERGED with the state
     restored to its start (slot 3 of ``buf`` keeps it).
     """
-    W = np.empty(workspace_size(3))
+    n = S.shape[0]
+    W = np.empty(workspace_size(n))
     target = v.copy()
     eps0 = eps.copy()
     sig0 = sig.copy()
@@ -300,8 +349,8 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
         slot, at = (cur, X) if done else (best, BX)
         values[:] = buf[slot]
         flags[:] = bufflags[slot]
-        eps += block(W, at, 3)
-        sig[:] = block(W, SIG if done else BSIG, 3)
+        eps += block(W, at, n)
+        sig[:] = block(W, SIG if done else BSIG, n)
         if done:
             if S.any():  # a pure strain increment had no Newton: nothing to start the next one
                 for j in range(guess.shape[0]):
@@ -319,35 +368,47 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
 
 @njit(cache=True, error_model="numpy")
 def _record(row, eps, sig, flags):
-    """A record row: eps (3), sig (3) and the cell fractions sliding, broken, contact14,
-    contact26 of one point's ``flags`` (n, 5)."""
+    """A record row (2m + 4): eps (m), sig (m) and the fractions of hexagons sliding, broken,
+    with contact 1-4 (shared by a bi-hexagon's hexagons: counted once per cell) and 2-6 of one
+    point's ``flags`` (n, 5 per hexagon), as ``RevState.fractions``."""
     n = flags.shape[0]
-    row[:3] = eps
-    row[3:6] = sig
+    m = eps.shape[0]
+    nh = flags.shape[1] // 5
+    row[:m] = eps
+    row[m:2 * m] = sig
     slid = 0.0
     brk = 0.0
     c14 = 0.0
     c26 = 0.0
     for i in range(n):
         f = flags[i]
-        slid += f[0]
-        brk += f[1] or f[2]
         c14 += f[3]
-        c26 += f[4]
-    row[6] = slid / n
-    row[7] = brk / n
-    row[8] = c14 / n
-    row[9] = c26 / n
+        for h in range(nh):
+            slid += f[5 * h]
+            brk += f[5 * h + 1] or f[5 * h + 2]
+            c26 += f[5 * h + 4]
+    row[2 * m] = slid / (n * nh)
+    row[2 * m + 1] = brk / (n * nh)
+    row[2 * m + 2] = c14 / n
+    row[2 * m + 3] = c26 / (n * nh)
+
+
+@njit(cache=True, inline="always")
+def _geo_row(geo, k):
+    """The row of ``geo`` (K or 1, ...) for parameter set k."""
+    return k if geo.shape[0] > 1 else 0
 
 
 def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin, k_end,
            geo, p, mode, volume0, c, max_events, rec, status, resp, guess, trials, sets, dropped):
-    """Increments k_begin..k_end-1 (1-based k of n_steps) of a segment for B material points.
+    """Increments k_begin..k_end-1 (1-based k of n_steps) of a segment for B material points of
+    m components (3 or 6).
 
     Stops after the first increment where a point fails (``status[b] != OK``) and returns its
-    k; returns k_end when all went through. ``rec[k - k_begin, b]`` receives eps (3), sig (3)
+    k; returns k_end when all went through. ``rec[k - k_begin, b]`` receives eps (m), sig (m)
     and the cell fractions sliding, broken, contact14, contact26. Point b runs with parameter
-    set ``sets[b]``: its rows of ``geo`` (K, 6, n_theta), ``p`` (K, P) and ``volume0`` (K,).
+    set ``sets[b]``: its rows of ``geo`` (K, ...; one row shared by all sets where the
+    geometry does not depend on the set, as in 3D), ``p`` (K, P) and ``volume0`` (K,).
     The points of an increment are independent: compiled with ``parallel=True``
     (:data:`_run_steps_parallel`) they run on all cores. A ``dropped`` point (a failed one the
     caller chose to go on without) is left as it is, its records NaN.
@@ -360,8 +421,8 @@ def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin
                 rec[k - k_begin, b, :] = np.nan
                 continue
             buf = np.empty((4, n, values.shape[2]))
-            bufflags = np.empty((4, n, 5), dtype=np.bool_)
-            v = np.empty(3)
+            bufflags = np.empty((4, n, flags.shape[2]), dtype=np.bool_)
+            v = np.empty(S.shape[0])
             segment_targets(S, start[b], end[b], k, n_steps, v)
             # The point's cells and parameters copied to arrays of this thread: views into the
             # shared arrays, made per cell in the trials, would all count references on the
@@ -369,7 +430,7 @@ def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin
             vals = values[b].copy()
             flg = flags[b].copy()
             status[b] = solve_point(vals, flg, eps[b], sig[b], K[b], has_K[b:b + 1],
-                                    S, M, v, geo[sets[b]].copy(), p[sets[b]].copy(), mode,
+                                    S, M, v, geo[_geo_row(geo, sets[b])].copy(), p[sets[b]].copy(), mode,
                                     volume0[sets[b]], c, max_events, buf, bufflags, resp[b].copy(),
                                     guess[b], trials[b:b + 1])
             values[b] = vals
@@ -383,7 +444,8 @@ def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin
 
 def _iso_steps(values, flags, eps, sig, geo, p, mode, volume0, sets, step, p0, rec, done, failed,
                resp):
-    """Up to ``rec.shape[0]`` isotropic strain increments (step, step, 0) of every point not
+    """Up to ``rec.shape[0]`` isotropic strain increments (step on every normal component, no
+    shear: (step, step, 0) in 2D, (step, step, step, 0, 0, 0) in 3D) of every point not
     ``done``, each committed while the mean stress stays below the point's ``p0``; the first
     that would reach it is not, and marks the point ``done``. ``rec[j, b]`` receives the state
     after the point's j-th committed increment (:func:`_record`), NaN where there is none.
@@ -399,19 +461,22 @@ def _iso_steps(values, flags, eps, sig, geo, p, mode, volume0, sets, step, p0, r
         flg = flags[b].copy()
         out = np.empty_like(vals)
         oflags = np.empty_like(flg)
-        gk = geo[sets[b]].copy()
+        gk = geo[_geo_row(geo, sets[b])].copy()
         pk = p[sets[b]].copy()
         rb = resp[b].copy()
-        x = np.array([step, step, 0.0])
+        m = eps.shape[1]
+        normal = 2 if m == 3 else 3
+        x = np.zeros(m)
+        x[:normal] = step
         e = eps[b].copy()
         sg = sig[b].copy()
-        s = np.empty(3)
+        s = np.empty(m)
         for j in range(rec.shape[0]):
-            if not trial(vals, e, x, gk, pk, mode, volume0[sets[b]], out, oflags, s, rb):
+            if not any_trial(vals, e, x, gk, pk, mode, volume0[sets[b]], out, oflags, s, rb):
                 failed[b] = True
                 done[b] = True
                 break
-            if 0.5 * (s[0] + s[1]) >= p0[b]:
+            if (0.5 * (s[0] + s[1]) if m == 3 else (s[0] + s[1] + s[2]) / 3.0) >= p0[b]:
                 done[b] = True
                 break
             vals[:] = out
@@ -445,23 +510,24 @@ _run_iso_steps = njit(cache=True, parallel=True, error_model="numpy")(_iso_steps
 
 
 def isotropic_steps(rev: Rev, state: RevState, step: float, p0: np.ndarray, n_max: int,
-                    failed: np.ndarray) -> tuple[RevState, np.ndarray, np.ndarray]:
+                    failed: np.ndarray, inputs=batch_inputs) -> tuple[RevState, np.ndarray, np.ndarray]:
     """Up to ``n_max`` isotropic strain increments of ``step`` of every point whose mean
     stress is below its ``p0`` (B,), each stopping before the increment that would reach it
     (the compiled form of the loop in :func:`hmodel.loading.named_paths.consolidate`).
 
     Returns the new state, whether each point is done (reached p0 or failed; ``failed`` (B,)
-    is updated in place) and the records (n, B, 10) of the committed increments (NaN where a
+    is updated in place) and the records (n, B, 2m + 4) of the committed increments (NaN where a
     point made none): n = n_max, or 1 for learned cells, whose responses are evaluated here for
-    the states of this one increment."""
+    the states of this one increment. ``inputs(rev)``: the kernel's (geo, p)
+    (:func:`batch_inputs` in 2D)."""
     values = np.array(state.cells.values, dtype=float, order="C")
     flags = np.array(state.flags.flags, dtype=np.bool_, order="C")
     eps = np.array(state.eps, dtype=float, order="C")
     sig = np.array(state.sig, dtype=float, order="C")
-    geo, p = batch_inputs(rev)
+    geo, p = inputs(rev)
     done = np.ascontiguousarray(state.p >= p0) | failed
     resp = cell_responses(rev, values, state.sets)
-    rec = np.empty((1 if rev.kernel.learned else n_max, state.n_points, 10))
+    rec = np.empty((1 if rev.kernel.learned else n_max, state.n_points, 2 * state.n_components + 4))
     _run_iso_steps(values, flags, eps, sig, geo, p, rev.mode, rev.volumes0,
                    state.set_index.astype(np.int64), float(step), np.ascontiguousarray(p0, float),
                    rec, done, failed, resp)
@@ -473,7 +539,12 @@ class CompiledSegment:
 
     The state lives in arrays owned by this object; :meth:`state` returns it as a new
     :class:`RevState`. ``tangent`` is shared with the generic driver for handed-back increments.
+    Written for n components; :meth:`inputs` packs the REV's kernel inputs (the 2D REV's here,
+    the 3D REV's in :class:`hmodel.loading.compiled3d.CompiledSegment3D`).
     """
+
+    #: (geo, p) of the kernel: per-set geometry rows and packed cell parameters
+    inputs = staticmethod(batch_inputs)
 
     def __init__(self, rev: Rev, state: RevState, stress_rows, matrix, start, end, n_steps: int,
                  tangent: Tangent, settings: NewtonSettings = NewtonSettings(),
@@ -492,18 +563,18 @@ class CompiledSegment:
         self.flags = np.array(state.flags.flags, dtype=np.bool_, order="C")
         self.eps = np.array(state.eps, dtype=float, order="C")
         self.sig = np.array(state.sig, dtype=float, order="C")
-        B = state.n_points
+        B, n = state.n_points, state.n_components
         self.has_K = np.full(B, tangent.K is not None and tangent.K.shape[0] == B)
-        self.K = tangent.K.copy() if self.has_K.all() else np.zeros((B, 3, 3))
-        self.geo, self.p = batch_inputs(rev)
+        self.K = tangent.K.copy() if self.has_K.all() else np.zeros((B, n, n))
+        self.geo, self.p = self.inputs(rev)
         self.sets = state.set_index.astype(np.int64)
         self._sets = state.sets  # as the state had them (None: all the first set)
         self.meso = rev.kernel.learned
         # per point: the last increment's strain (Newton's first trial of the next one, where
         # the settings ask for it; NaN: none yet), and the trials made (calls of the cell
         # solver on its n_theta cells)
-        self.guess = np.full((B, 3 if settings.previous_first else 0), np.nan)
-        if settings.previous_first and tangent.previous is not None and tangent.previous.shape == (B, 3):
+        self.guess = np.full((B, n if settings.previous_first else 0), np.nan)
+        if settings.previous_first and tangent.previous is not None and tangent.previous.shape == (B, n):
             self.guess[:] = tangent.previous
         self.trials = np.zeros(B, dtype=np.int64)
         # the solver's own tolerance floor, as the generic driver takes it (``solve_increment``)
@@ -528,9 +599,9 @@ class CompiledSegment:
             getattr(self, a)[...] = snap[a]
 
     def run(self, k_begin: int, k_end: int) -> np.ndarray:
-        """Increments k_begin..k_end-1; returns their records (k_end - k_begin, B, 10)."""
-        B = self.eps.shape[0]
-        rec = np.empty((k_end - k_begin, B, 10))
+        """Increments k_begin..k_end-1; returns their records (k_end - k_begin, B, 2n + 4)."""
+        B, n = self.eps.shape
+        rec = np.empty((k_end - k_begin, B, 2 * n + 4))
         status = np.zeros(B, dtype=np.int64)
         # A meso surrogate's responses belong to the states an increment starts from: one
         # increment per kernel call, the network evaluated between them for every cell at once.
@@ -587,6 +658,7 @@ class CompiledSegment:
         self.values[idx], self.flags[idx] = out.cells.values, out.flags.flags
         self.eps[idx], self.sig[idx] = out.eps, out.sig
         self.K[idx], self.has_K[idx] = tangent.K, True
-        rec_row[idx, :3], rec_row[idx, 3:6] = out.eps, out.sig
+        n = out.n_components
+        rec_row[idx, :n], rec_row[idx, n:2 * n] = out.eps, out.sig
         fr = out.fractions()
-        rec_row[idx, 6:] = np.stack([fr[c] for c in FRACTIONS], axis=1)
+        rec_row[idx, 2 * n:] = np.stack([fr[c] for c in FRACTIONS], axis=1)

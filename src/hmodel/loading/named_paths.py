@@ -19,6 +19,7 @@ from ..errors import InputError, SolverError
 from ..limits import check_count, steps_for
 from ..rev import Rev, RevState
 from .compiled import isotropic_steps, supports
+from .compiled3d import isotropic_steps3d
 from .result import COMPONENTS, Recorder
 from .segment import CHUNK, Progress, Segment, alive, run_segment
 from .stages import AXIAL_STEP, Stage
@@ -97,9 +98,12 @@ def _consolidate_compiled(rev, state, p0, step, recorder, progress, max_steps, f
     n = 0
     while True:
         start = state
-        state, done, rec = isotropic_steps(rev, state, step, p0, CHUNK, failed)
+        steps = isotropic_steps3d if state.n_components == 6 else isotropic_steps
+        state, done, rec = steps(rev, state, step, p0, CHUNK, failed)
         if recorder is not None:
-            recorder.record_block(rec[:, :, :3], rec[:, :, 3:6], rec[:, :, 6:], "consolidation")
+            m = state.n_components
+            recorder.record_block(rec[:, :, :m], rec[:, :, m:2 * m], rec[:, :, 2 * m:],
+                                  "consolidation")
         n += len(rec)
         if progress is not None:
             progress(float(np.clip(np.min(np.where(failed, 1.0, state.p / p0)), 0, 1)))

@@ -5,7 +5,8 @@ A :class:`Segment` is ``n_steps`` equal increments under n fixed constraint rows
 change evenly, stress rows move their target linearly from the value at the start of the
 segment. :func:`run_segment` runs it on one of two backends with one interface (``run``,
 ``state``, ``snapshot``, ``restore``): the compiled kernel of :mod:`hmodel.loading.compiled`
-where the REV's cell solver has a compiled increment, the generic driver
+(:mod:`hmodel.loading.compiled3d` for the 3D REV) where the REV's cell solver has a compiled
+increment, the generic driver
 (:func:`~hmodel.loading.control.solve_increment`) otherwise.
 
 The compiled backend runs chunks of :data:`CHUNK` increments; before each chunk the runner's
@@ -28,6 +29,7 @@ import numpy as np
 from ..errors import InputError, PointFailure, SolverError
 from ..rev import Rev, RevState
 from .compiled import CompiledSegment, supports
+from .compiled3d import CompiledSegment3D
 from .control import Control, Tangent, solve_increment
 from .newton import NewtonSettings
 from .result import FRACTIONS, Recorder, stress_columns
@@ -206,8 +208,9 @@ def run_segment(rev: Rev, state: RevState, seg: Segment, recorder: Recorder | No
     start = state.sig @ np.asarray(seg.matrix, float).T  # stress-row values at the start
     tangent = tangent or Tangent()
     if (supports(rev) if compiled is None else compiled):
-        runner = CompiledSegment(rev, state, S, seg.matrix, start, end, seg.n_steps, tangent,
-                                 settings, failures)
+        backend = CompiledSegment3D if n == 6 else CompiledSegment
+        runner = backend(rev, state, S, seg.matrix, start, end, seg.n_steps, tangent, settings,
+                         failures)
         default = CHUNK
     else:
         runner = GenericSegment(rev, state, seg, start, end, tangent, settings, failures)

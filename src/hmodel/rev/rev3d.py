@@ -19,6 +19,8 @@ from ..cell.bihex import BIHEX_FLAGS, BiHexSolver, check_params
 from ..errors import InputError, SolverError
 from ..limits import check_memory
 from ..params import Params, check_batch
+from .kernels import LOC_BOX, LOC_CELL
+from .kernels3d import geometry
 from .rev import RevState
 from .sphere import Sphere
 
@@ -104,8 +106,12 @@ class Rev3D:
         #: initial macro volume of each set's points (K,) [m^3]
         self.volumes0 = np.array([float(self.solver.meso(s, c)[1]) for s, c in zip(self.sets, cell0)]
                                  ) * self.weights.sum()
-        #: no compiled increment yet: the loading drivers call :meth:`step`
-        self.kernels = None
+        kernels = [self.solver.kernel(s) for s in self.sets]
+        #: the solver's compiled increment of each set (None: the loading drivers call
+        #: :meth:`step`), run by the compiled 3D trial (:func:`hmodel.rev.kernels3d.bihex_trial`)
+        self.kernels = None if any(k is None for k in kernels) else tuple(kernels)
+        #: localization mode of the compiled trial: the ``box`` volume drives l + 2r
+        self.mode = LOC_BOX if self.params.volume == "box" else LOC_CELL
 
     @property
     def n_cells(self) -> int:
@@ -119,8 +125,13 @@ class Rev3D:
 
     @property
     def kernel(self):
-        """None: no compiled increment for the 3D cell yet."""
-        return None
+        """The first set's compiled increment (None: the solver has none)."""
+        return None if self.kernels is None else self.kernels[0]
+
+    def geometry(self) -> np.ndarray:
+        """Per-cell inputs (C, 36) of the compiled trial: the projector rows of the localization
+        and the weighted dyads of the averaging (:func:`hmodel.rev.kernels3d.geometry`)."""
+        return geometry(self._proj, self._wdyads)
 
     @property
     def n_sets(self) -> int:

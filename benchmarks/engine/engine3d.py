@@ -1,0 +1,171 @@
+"""Engine speed of the 3D H-model (issue 34): the compiled 3D path, printed as a table and written
+to ``engine3d.json``.
+
+(a) drained triaxial test at p0 = 200 kPa to 10 % axial strain in 1000 increments (σ22 and σ33
+    held by Newton; consolidation + shear + recording) at the default rule (``Sphere()``),
+    compiled kernel and generic Python driver;
+(b) 32 parameter sets (kn, kt/kn, φg, α0 from a Sobol design) × 3 drained triaxial tests
+    (100, 200, 400 kPa), 96 material points in one batched call (consolidation + shear +
+    recording, all cores), in the calibration benchmark's setting (5 % axial strain in
+    increments of 10⁻³, consolidation in steps of 10⁻⁴: ``benchmarks/calibration/calibrate.py``)
+    at the default rule and at order 17 with two azimuths, and once to 10 % in 1000 increments;
+(c) bi-hexagon updates per second on one core, ``BiHexSolver.step`` on a large batch and inside
+    the fused 3D REV trial, beside the 2D engine's cell updates per second measured in the same
+    run (``benchmarks.engine.engine``);
+(d) test (a) compiled at several (order, azimuths) pairs, to choose the defaults.
+
+All tests use ``sliding_rhs="equilibrium"``: with the report's λ, Newton's event loop stops a
+3D drained triaxial test near 1 % axial strain (the same increment in both drivers). Points
+whose increment Newton cannot solve are dropped (``failures``) and counted.
+
+Usage: ``python -m benchmarks.engine.engine3d [--repeat N] [--out PATH]``. The first call of each
+kernel compiles it (or loads Numba's cache); it is excluded, and the best of N runs is reported
+(of one run for the grid (d) and the batch to 10 %).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import qmc
+
+from benchmarks.engine.engine import cell_updates, fused_trials
+from benchmarks.timing import best_of, record, write_table
+from hmodel import Params
+from hmodel.cell.bihex import BiHexSolver
+from hmodel.loading import Recorder, Segment, consolidate, run_segment
+from hmodel.loading.compiled import any_trial
+from hmodel.loading.compiled3d import kernel_inputs3d
+from hmodel.rev import Rev3D, Sphere
+
+BASE = Params(sliding_rhs="equilibrium")
+#: Ranges of the drawn materials (angles in degrees).
+RANGES = {"kn": (1e8, 4e8), "kt_kn": (0.3, 1.0), "phi_g": (20.0, 40.0), "alpha0": (40.0, 60.0)}
+PRESSURES = (1e5, 2e5, 4e5)
+GRID_ORDERS = (17, 23, 35, 59, 89)
+GRID_AZIMUTHS = (2, 4, 6, 8)
+#: the calibration benchmark's setting: shear strain and step, consolidation step
+CALIBRATION = (0.05, 1e-3, 1e-4)
+
+
+def drawn_sets(n: int, seed: int = 0) -> list[Params]:
+    u = qmc.Sobol(len(RANGES), seed=seed).random(n)
+    sets = []
+    for row in u:
+        v = {k: lo + x * (hi - lo) for (k, (lo, hi)), x in zip(RANGES.items(), row)}
+        v["phi_g"], v["alpha0"] = math.radians(v["phi_g"]), math.radians(v["alpha0"])
+        sets.append(BASE.with_(**v))
+    return sets
+
+
+def triaxial(rev: Rev3D, p0, axial: float = 0.1, n_steps: int = 1000, compiled: bool | None = None,
+             failures: dict | None = None, iso_step: float = 1e-5):
+    """A drained triaxial test of every point: consolidation to p0 (B,), then ``axial`` in
+    ``n_steps`` with σ22 = σ33 = p0, all recorded; returns the result table."""
+    p0 = np.asarray(p0, float)
+    rec = Recorder()
+    state = consolidate(rev, p0, step=iso_step, recorder=rec, compiled=compiled, failures=failures)
+    values = np.zeros((state.n_points, 6))
+    values[:, 0], values[:, 1], values[:, 2] = axial, state.sig[:, 1], state.sig[:, 2]
+    seg = Segment((False, True, True, False, False, False), np.eye(6), values, n_steps, "shear")
+    run_segment(rev, state, seg, rec, compiled=compiled, failures=failures)
+    return rec.result()
+
+
+def single(repeat: int, compiled: bool, sphere: Sphere = Sphere()) -> float:
+    rev = Rev3D(BASE, sphere)
+    return best_of(lambda: triaxial(rev, [2e5], compiled=compiled), repeat)
+
+
+def batched(repeat: int, sphere: Sphere = Sphere(), calibration: bool = True,
+            n_sets: int = 32) -> tuple[float, int]:
+    """(seconds, points dropped) of n_sets x 3 tests in one call: in the calibration setting, or
+    to 10 % in 1000 increments; ``repeat`` 0: one run, no warm-up."""
+    sets = drawn_sets(n_sets)
+    rev = Rev3D([s for s in sets for _ in PRESSURES], sphere)
+    p0 = np.tile(PRESSURES, n_sets)
+    failures: dict = {}
+    axial, step, iso = CALIBRATION if calibration else (0.1, 1e-4, 1e-5)
+    run = lambda: (failures.clear(), triaxial(rev, p0, axial, round(axial / step),  # noqa: E731
+                                              failures=failures, iso_step=iso))
+    if repeat:
+        return best_of(run, repeat), len(failures)
+    t = time.perf_counter()  # one run, the kernels compiled by the calls before
+    run()
+    return time.perf_counter() - t, len(failures)
+
+
+def bihex_updates(repeat: int, n_cells: int = 1_000_000) -> float:
+    """BiHexSolver.step increments per second, compressive increments on loaded cells."""
+    params, solver = BASE, BiHexSolver()
+    rng = np.random.default_rng(0)
+    l1, l2 = solver.initial(params, ()).values[[6, 7]]
+    state = solver.step(params, solver.initial(params, (n_cells,)), -1e-4 * l1, -0.5e-4 * l2, -0.5e-4 * l2)[0]
+    dl1 = -l1 * rng.uniform(0, 1e-4, n_cells)
+    dl2 = -l2 * rng.uniform(-1e-4, 1e-4, n_cells)
+    dl3 = -l2 * rng.uniform(-1e-4, 1e-4, n_cells)
+    return n_cells / best_of(lambda: solver.step(params, state, dl1, dl2, dl3), repeat)
+
+
+def fused_bihex_trials(repeat: int, n_calls: int = 2000) -> float:
+    """Bi-hexagon updates per second inside the compiled 3D REV trial (default rule, one
+    material point after consolidation to 200 kPa)."""
+    rev = Rev3D(BASE)
+    s0 = consolidate(rev, [2e5])
+    geo, p = kernel_inputs3d(rev)
+    values = np.ascontiguousarray(s0.cells.values[0])
+    C = rev.n_cells
+    out, flags, sig, resp = np.empty_like(values), np.empty((C, 11), bool), np.empty(6), np.empty((C, 0))
+    x = np.array([1e-4, -5e-5, -5e-5, 0.0, 0.0, 0.0])
+    args = (values, s0.eps[0], x, geo[0], p[0], rev.mode, rev.volume0, out, flags, sig, resp)
+
+    def run():
+        for _ in range(n_calls):
+            any_trial(*args)
+    return n_calls * C / best_of(run, repeat)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--out", type=Path, default=Path(__file__).with_name("engine3d.json"))
+    args = ap.parse_args()
+    r = args.repeat
+    d = Sphere()
+    rule = f"order {d.order}, m = {d.n_azimuth} ({d.n_cells} bi-hexagons)"
+    t_cal, drop_cal = batched(r)
+    t_cal17, drop_cal17 = batched(r, Sphere(order=17, n_azimuth=2))
+    t_long, drop_long = batched(0, calibration=False)
+    rows = [
+        (f"drained triaxial 200 kPa to 10 %, default rule: {rule}, compiled [s]", single(r, True), "<= 0.5"),
+        (f"drained triaxial 200 kPa to 10 %, default rule: {rule}, generic driver [s]",
+         single(max(1, r // 3), False), "-"),
+        ("32 parameter sets x 3 triaxial tests, calibration setting (5 %, steps 1e-3), "
+         "default rule, one batched call [s]", t_cal, "<= 2"),
+        ("  points dropped (Newton failed)", drop_cal, "0"),
+        ("32 parameter sets x 3 triaxial tests, calibration setting, order 17, m = 2 [s]", t_cal17, "-"),
+        ("  points dropped (Newton failed)", drop_cal17, "0"),
+        ("32 parameter sets x 3 triaxial tests to 10 % in 1000 increments, default rule (one run) [s]",
+         t_long, "-"),
+        ("  points dropped (Newton failed)", drop_long, "0"),
+        ("bi-hexagon updates per second, BiHexSolver.step (one core)", bihex_updates(r), "-"),
+        ("bi-hexagon updates per second, fused 3D REV trial (one core)", fused_bihex_trials(r), "-"),
+        ("2D cell updates per second, ClosedFormSolver.step (one core)", cell_updates(r), "-"),
+        ("2D cell updates per second, fused REV trial (one core)", fused_trials(r), "-"),
+    ]
+    for order in GRID_ORDERS:
+        for m in GRID_AZIMUTHS:
+            sphere = Sphere(order=order, n_azimuth=m)
+            rows.append((f"drained triaxial to 10 %, order {order}, m = {m} ({sphere.n_cells} "
+                         "bi-hexagons), compiled [s]", single(1, True, sphere), "-"))
+    write_table(rows, args.out, record(__file__, args, r, rows, pressures=list(PRESSURES),
+                                       ranges=RANGES, sliding_rhs=BASE.sliding_rhs,
+                                       default_order=d.order, default_azimuths=d.n_azimuth))
+
+
+if __name__ == "__main__":
+    main()

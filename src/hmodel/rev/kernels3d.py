@@ -1,0 +1,80 @@
+"""Compiled REV trial of the 3D model (docs/model3d.md): one material point's :meth:`Rev3D.step`
+fused in one loop over its bi-hexagons, for the compiled loading path
+(:mod:`hmodel.loading.compiled`, :mod:`hmodel.loading.compiled3d`).
+
+The same operations as ``Rev3D.localize``, ``BiHexSolver.step`` and ``Rev3D.stress``, in the
+same order within each cell (the sums over cells and components are in another order than
+NumPy's contractions: results agree to round-off): the normal strains along the cell's axes
+from the projector rows (``rev3d.projector``), δl_k = -L_k ε_kk (eq. 1.1 lifted), the two
+hexagons' 2D increments sharing δl1 (:func:`hmodel.cell.bihex.bihex_increment`), the cell-frame
+V σ (:func:`hmodel.cell.bihex.bihex_vsigma`) rotated by the weighted dyads e_k ⊗ e_k and summed,
+divided by the macro volume V0 det(I - ε).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..cell.bihex import bihex_increment, bihex_vsigma
+from ..cell.closed_form import P_KN, P_R
+from .kernels import LOC_BOX
+
+#: Per-cell kernel inputs (:func:`geometry`): the projector's 3 x 6 rows, then the weighted
+#: dyads' 3 x 6.
+GEO_WIDTH = 36
+
+
+def geometry(proj: np.ndarray, wdyads: np.ndarray) -> np.ndarray:
+    """Kernel inputs (C, 36) of cells with projector rows ``proj`` (C, 3, 6) and weighted dyads
+    ``wdyads`` (C, 3, 6) (``Rev3D._proj``, ``Rev3D._wdyads``)."""
+    C = proj.shape[0]
+    return np.ascontiguousarray(np.concatenate([proj.reshape(C, 18), wdyads.reshape(C, 18)], axis=1))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def det_i_minus(t):
+    """det(I - ε) of a Voigt strain t (6,) = (11, 22, 33, 23, 13, 12), tensor shear."""
+    a, b, c = 1.0 - t[0], 1.0 - t[1], 1.0 - t[2]
+    d, e, f = -t[3], -t[4], -t[5]  # (2,3), (1,3), (1,2) entries of I - ε
+    return a * (b * c - d * d) - f * (f * c - d * e) + e * (f * d - b * e)
+
+
+@njit(cache=True, error_model="numpy")
+def bihex_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig):
+    """:meth:`Rev3D.step` of one material point: cells ``values`` (C, 16) at strain ``eps`` (6,)
+    by the strain increment ``deps`` (6,) -> cells ``out``, flags ``flags`` (C, 11), stress
+    ``sig`` (6,); ``geo`` (C, 36) (:func:`geometry`), ``p`` the closed form's packed parameters,
+    ``mode`` ``LOC_BOX`` (the ``box`` volume: lengths + 2r) or not. Returns False when a cell
+    increment failed."""
+    two_r = 2.0 * p[P_R]
+    kn = p[P_KN]
+    add = two_r if mode == LOC_BOX else 0.0
+    d0, d1, d2, d3, d4, d5 = deps[0], deps[1], deps[2], deps[3], deps[4], deps[5]
+    s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+    ok = True
+    for i in range(values.shape[0]):
+        g = geo[i]
+        v = values[i]
+        e0 = g[0] * d0 + g[1] * d1 + g[2] * d2 + g[3] * d3 + g[4] * d4 + g[5] * d5
+        e1 = g[6] * d0 + g[7] * d1 + g[8] * d2 + g[9] * d3 + g[10] * d4 + g[11] * d5
+        e2 = g[12] * d0 + g[13] * d1 + g[14] * d2 + g[15] * d3 + g[16] * d4 + g[17] * d5
+        o = out[i]
+        ok &= bihex_increment(v, -(v[6] + add) * e0, -(v[7] + add) * e1, -(v[15] + add) * e2, p, o,
+                              flags[i])
+        nn, t1, t2 = bihex_vsigma(o, kn, two_r)
+        s0 += nn * g[18] + t1 * g[24] + t2 * g[30]
+        s1 += nn * g[19] + t1 * g[25] + t2 * g[31]
+        s2 += nn * g[20] + t1 * g[26] + t2 * g[32]
+        s3 += nn * g[21] + t1 * g[27] + t2 * g[33]
+        s4 += nn * g[22] + t1 * g[28] + t2 * g[34]
+        s5 += nn * g[23] + t1 * g[29] + t2 * g[35]
+    t = eps + deps  # total strain after the trial: the macro volume V0 det(I - eps)
+    vol = volume0 * det_i_minus(t)
+    sig[0] = s0 / vol
+    sig[1] = s1 / vol
+    sig[2] = s2 / vol
+    sig[3] = s3 / vol
+    sig[4] = s4 / vol
+    sig[5] = s5 / vol
+    return ok
