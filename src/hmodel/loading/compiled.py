@@ -43,7 +43,7 @@ from ..cell.compliance_kernel import compliance_increment
 from ..cell.meso_kernel import meso_increment
 from ..cell.mesostress import vsigma_local
 from ..cell.state import CellFlags, CellState
-from ..errors import PointFailure
+from ..errors import InputError, PointFailure
 from ..rev import Rev, RevState
 from ..rev.kernels import cell_dl, weighted_global
 from ..rev.kernels3d import bihex_trial
@@ -86,7 +86,10 @@ def supports(rev: Rev) -> bool:
 def kernel_inputs(rev: Rev, k: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """(geo, p) for :func:`trial` of a point of parameter set k: the direction factors cos²,
     sin², sin·cos and their weighted versions (6, n_theta), and the solver kernel's packed
-    parameters."""
+    parameters. A 2D REV's only (the 3D REV's: :func:`hmodel.loading.compiled3d.kernel_inputs3d`)."""
+    if rev.n_components != 3:
+        raise InputError(f"these compiled kernel inputs (and the stability probes built on them) are "
+                         f"the 2D REV's, got a REV of {rev.n_components} components")
     d = rev.directions
     w = rev.weights[k]
     geo = np.ascontiguousarray(np.stack([d.cos2, d.sin2, d.sincos, w * d.cos2, w * d.sin2,
