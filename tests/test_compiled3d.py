@@ -241,3 +241,13 @@ def test_the_2d_probes_refuse_a_3d_rev_in_one_line():
     rev = Rev3D(Params(), SPHERE)
     with pytest.raises(InputError, match="2D REV"):
         strain_envelope(rev, rev.initial(1), n=4)
+
+
+def test_a_learned_3d_kernel_is_refused_not_ignored():
+    from hmodel.cell import CellKernel
+    from hmodel.errors import InputError
+
+    rev = Rev3D(Params(), SPHERE)
+    rev.kernels = (CellKernel(rev.kernel.params, responses=lambda values: values),)
+    with pytest.raises(InputError, match="generic driver"):
+        kernel_inputs3d(rev)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InputError
 from ..rev import Rev3D, RevState
 from .compiled import CompiledSegment, isotropic_steps
 
@@ -28,7 +29,11 @@ __all__ = ["CompiledSegment3D", "isotropic_steps3d", "kernel_inputs3d"]
 def kernel_inputs3d(rev: Rev3D) -> tuple[np.ndarray, np.ndarray]:
     """(geo, p) of the kernel for a 3D REV: the cells' projector rows and weighted dyads
     (1, C, 36) (:meth:`Rev3D.geometry`, the same for every parameter set) and each set's
-    packed closed-form parameters (K, P)."""
+    packed closed-form parameters (K, P). The 3D trial is the closed form's: a learned 3D
+    cell's kernel is refused (one-line :class:`~hmodel.errors.InputError`), not ignored."""
+    if any(k.learned for k in rev.kernels):
+        raise InputError("the compiled 3D trial applies the closed-form bi-hexagon; a learned 3D "
+                         "cell runs on the generic driver (run_segment(..., compiled=False))")
     return (np.ascontiguousarray(rev.geometry()[None]),
             np.ascontiguousarray(np.stack([k.params for k in rev.kernels])))
 
