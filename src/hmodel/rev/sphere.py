@@ -18,7 +18,7 @@ elastic response of a direction's cells does not depend on the azimuth of the fi
 (docs/model3d.md, "The frame rule"), which is what makes the REV objective up to the Lebedev
 rule's error.
 
->>> s = Sphere(order=5)
+>>> s = Sphere(order=5, n_azimuth=2)
 >>> frames, w = s.frames()
 >>> frames.shape, round(float(w.sum()), 12)
 ((14, 3, 3), 1.0)
