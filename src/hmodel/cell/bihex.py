@@ -40,8 +40,8 @@ from numba import njit
 
 from ..errors import InputError, SolverError
 from ..params import Params
-from .base import CellKernel
-from .closed_form import P_R, cell_increment, kernel_params
+from .base import CellKernel, CellSolver
+from .closed_form import P_R, ClosedFormSolver, cell_increment, kernel_params
 from .mesostress import contact_vsigma
 from .state import FIELDS, FLAGS, CellFlags, CellState, initial_lengths
 
@@ -152,20 +152,84 @@ def initial_bihex(params: Params, alpha0: np.ndarray) -> CellState:
     return CellState(np.ascontiguousarray(np.stack(hexagon + hexagon, axis=-1)))
 
 
+def check_hexagon(solver) -> None:
+    """Refuse a 2D cell solver that cannot step the hexagons of a bi-hexagon (one-line
+    :class:`InputError` naming why): the decomposition into two H-cells sharing δl1
+    (docs/model3d.md) holds for H-cells, whose state is eq. 1.2's eight fields and whose
+    meso-stress is eq. 1.12 of them; a richer cell (a learned ``meso`` state or a DEM cell with
+    more grains), a surrogate learned from DEM cells and a DEM cell solver are not such a
+    hexagon here."""
+    name = getattr(solver, "name", repr(solver))
+    if getattr(solver, "n_lengths", 2) != 2:
+        raise InputError(f"the hexagons of a bi-hexagon are 2D cells (two lengths), got the 3D cell "
+                         f"solver {name!r}")
+    if not isinstance(solver, CellSolver):
+        raise InputError(f"not a cell solver: {solver!r}")
+    if name.startswith("dem"):
+        raise InputError(f"the 3D H-model's hexagons are H-cells of the closed form or a surrogate of it; "
+                         f"{name!r} is a DEM cell solver (YADE), which the bi-hexagon does not drive "
+                         "(3D DEM samples are a later issue's)")
+    f = getattr(solver, "formulation", None)
+    if f is not None:
+        cell = f.to_dict().get("cell", "closed-form")
+        if getattr(f, "richer", False) or str(cell).startswith("dem"):
+            raise InputError(f"the surrogate learned the DEM cell {cell!r}, not the closed-form H-cell: "
+                             "the 3D H-model's bi-hexagon is two closed-form H-cells sharing dl1, and "
+                             "its learned 3D cell takes a surrogate of that H-cell (e.g. surrogate:default)")
+        if f.n_state != len(FIELDS):
+            raise InputError(f"the surrogate's cells keep a {f.name!r} summary state of {f.n_state} "
+                             f"fields, not the H-cell's {len(FIELDS)} (eq. 1.2) whose eq. 1.12 stress "
+                             "the bi-hexagon sums; give a surrogate of the H-cell's increment "
+                             "(e.g. surrogate:default)")
+    if solver.initial(Params()).values.shape[-1] != len(FIELDS):
+        raise InputError(f"the cell solver {name!r} keeps other cell states than the H-cell's "
+                         f"{len(FIELDS)} fields, which the bi-hexagon's hexagons are")
+
+
 class BiHexSolver:
-    """The bi-hexagonal 3D cell in closed form: two eq. 1.7 systems sharing δl1.
+    """The bi-hexagonal 3D cell: two eq. 1.7 systems sharing δl1.
 
     The 3D counterpart of :class:`hmodel.cell.ClosedFormSolver`; its :meth:`step` takes three
     length increments. Used by :class:`hmodel.rev.Rev3D`.
+
+    Parameters
+    ----------
+    hexagon : CellSolver, optional
+        The 2D H-cell solver that steps each hexagon (default: the closed form, compiled). With
+        l1, l2, l3 prescribed the closure is exactly two 2D H-cell increments, (δl1, δl2) for
+        hexagon A and (δl1, δl3) for hexagon B (docs/model3d.md), so any solver of the 2D H-cell
+        steps a bi-hexagon: a surrogate of the closed-form H-cell (``surrogate:default``)
+        makes the **learned 3D cell**. Both hexagons of every bi-hexagon go through one call of
+        ``hexagon.step`` (one batch of 2S H-cells). A learned hexagon has no compiled 3D trial:
+        :meth:`kernel` is None and the REV runs on the generic loading driver. Refused
+        (:func:`check_hexagon`): richer or DEM cells, surrogates of them, ``meso`` summary states.
     """
 
-    name = "closed-form"
-    #: exact to round-off
-    stress_rtol = 0.0
-    #: two H-cells' state, flags and buffers (the 2D cell's 1024 B, twice)
-    bytes_per_cell = 2048
     #: lengths driven by the strain: l1 (n), l2 (t1), l3 (t2)
     n_lengths = 3
+
+    def __init__(self, hexagon: CellSolver | None = None):
+        if hexagon is not None:
+            check_hexagon(hexagon)
+        #: the 2D solver of each hexagon
+        self.hexagon = ClosedFormSolver() if hexagon is None else hexagon
+        #: whether both hexagons are the compiled closed form (:func:`bihex_step_kernel`)
+        self.closed_form = type(self.hexagon) is ClosedFormSolver
+        #: the hexagon solver's name: ``closed-form``, ``surrogate``, ...
+        self.name = self.hexagon.name
+        #: exact to round-off in closed form; the hexagon solver's tolerance otherwise
+        self.stress_rtol = float(self.hexagon.stress_rtol)
+        #: two H-cells' state, flags and buffers (the 2D cell's, twice)
+        self.bytes_per_cell = 2 * int(self.hexagon.bytes_per_cell)
+
+    def __repr__(self) -> str:
+        return "BiHexSolver()" if self.closed_form else f"BiHexSolver(hexagon={self.hexagon!r})"
+
+    @property
+    def counts(self) -> dict | None:
+        """The hexagon solver's counters (a surrogate's cell updates, fallbacks; each hexagon
+        counts once), or None."""
+        return getattr(self.hexagon, "counts", None)
 
     def initial(self, params: Params, shape: tuple[int, ...] = ()) -> CellState:
         """Unloaded bi-hexagons of shape ``shape`` (opening angle params.alpha0)."""
@@ -190,16 +254,27 @@ class BiHexSolver:
         shape = state.values.shape[:-1]
         return out.reshape(*shape, 6), bihex_volume(params, state.values)
 
-    def kernel(self, params: Params) -> CellKernel:
-        """The compiled increment: the 2D closed form's packed parameters
+    def kernel(self, params: Params) -> CellKernel | None:
+        """None for a hexagon solver other than the closed form (the learned 3D cell runs on the
+        generic loading driver: the compiled 3D trial applies eq. 1.7). The closed form's
+        compiled increment: the 2D closed form's packed parameters
         (:func:`hmodel.cell.closed_form.kernel_params`), which both hexagons' increments take
         (:func:`bihex_increment`, called by the compiled 3D REV trial
         :func:`hmodel.rev.kernels3d.bihex_trial`)."""
         check_params(params)
+        if not self.closed_form:
+            return None
         return CellKernel(kernel_params(params))
 
     def fractions(self, params: Params, state: CellState) -> dict[str, np.ndarray]:
-        return {}
+        """The hexagon solver's own diagnostics (a gated surrogate's ``gated``), as the mean of
+        the two hexagons of each bi-hexagon; none in closed form."""
+        if self.closed_form:
+            return {}
+        v = np.asarray(state.values, float)
+        both = CellState(np.ascontiguousarray(np.stack([v[..., :8], v[..., 8:]], axis=-2)))
+        return {k: np.mean(np.asarray(hit, float), axis=-1)
+                for k, hit in self.hexagon.fractions(params, both).items()}
 
     def step(self, params: Params, state: CellState, dl1, dl2, dl3) -> tuple[CellState, CellFlags]:
         """One increment of every bi-hexagon.
@@ -227,6 +302,10 @@ class BiHexSolver:
         dl = np.empty((flat.shape[0], 3))
         for k, d in enumerate((dl1, dl2, dl3)):
             dl[:, k] = np.broadcast_to(d, shape).reshape(-1)
+        if not self.closed_form:
+            out, flags = self.compose(params, flat, dl)
+            return (CellState(out.reshape(*shape, len(BIHEX_FIELDS))),
+                    CellFlags(flags.reshape(*shape, len(BIHEX_FLAGS))))
         out = np.empty_like(flat)
         flags = np.empty((flat.shape[0], len(BIHEX_FLAGS)), dtype=np.bool_)
         p = kernel_params(params)
@@ -239,6 +318,23 @@ class BiHexSolver:
         return (CellState(out.reshape(*shape, len(BIHEX_FIELDS))),
                 CellFlags(flags.reshape(*shape, len(BIHEX_FLAGS))))
 
+    def compose(self, params: Params, flat: np.ndarray, dl: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bi-hexagons (S, 16) advanced by ``dl`` (S, 3) with the hexagon solver: hexagons A
+        (S, 8) driven by (δl1, δl2) and B (S, 8) by (δl1, δl3), stacked as one batch of 2S
+        H-cells in one ``hexagon.step`` call; returns the states (S, 16) and flags (S, 11)."""
+        S = flat.shape[0]
+        cells = CellState(np.concatenate([flat[:, :8], flat[:, 8:]]))
+        new, fl = self.hexagon.step(params, cells, np.concatenate([dl[:, 0], dl[:, 0]]),
+                                    np.concatenate([dl[:, 1], dl[:, 2]]))
+        nv, nf = np.asarray(new.values, float), np.asarray(fl.flags, bool)
+        out = np.ascontiguousarray(np.concatenate([nv[:S], nv[S:]], axis=1))
+        flags = np.empty((S, len(BIHEX_FLAGS)), dtype=np.bool_)
+        flags[:, :5], flags[:, 5:10] = nf[:S], nf[S:]
+        two_r = 2.0 * params.radius
+        dn = 0.5 * (out[:, 1] - out[:, 9])
+        flags[:, 10] = dn * dn + 0.25 * (out[:, 7] ** 2 + out[:, 15] ** 2) < two_r * two_r
+        return out, flags
+
 
 __all__ = ["BIHEX_FIELDS", "BIHEX_FLAGS", "VOLUMES_3D", "BiHexSolver", "bihex_increment",
-           "bihex_volume", "bihex_vsigma", "check_params", "initial_bihex"]
+           "bihex_volume", "bihex_vsigma", "check_hexagon", "check_params", "initial_bihex"]

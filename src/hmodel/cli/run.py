@@ -210,14 +210,34 @@ def _sphere(order: int | None, azimuths: int | None, fabric: float) -> Sphere:
     return Sphere(**kw, alpha_omega=fabric, axis=(1.0, 0.0, 0.0))
 
 
-def _points_3d(param: list[str] | None, n_pressures: int) -> Params | list[Params]:
+Solver3DOpt = Annotated[str, typer.Option(
+    "--solver", help="Cell solver of the hexagons of every bi-hexagon: closed-form (compiled), or a "
+                     "surrogate of the 2D H-cell, surrogate[:MODEL] (the learned 3D cell, on the "
+                     "generic driver; sliding_rhs defaults to the one the model was trained with).")]
+
+
+def _solver_3d(spec: str):
+    """The 3D cell of --solver: the closed-form bi-hexagon, or a bi-hexagon whose hexagons a 2D
+    H-cell solver steps (refused in one line for richer or DEM cells: check_hexagon)."""
+    from ..cell.bihex import BiHexSolver
+
+    solver = get_solver(spec)
+    return BiHexSolver() if spec == "closed-form" else BiHexSolver(hexagon=solver)
+
+
+def _points_3d(param: list[str] | None, n_pressures: int, solver=None) -> Params | list[Params]:
     """``--param`` of a 3D test (:func:`_material_points`): the 2D model's own parameters are
     refused, naming their 3D equivalent; ``sliding_rhs`` defaults to ``equilibrium`` (with the
-    report's λ the mixed-control driver cannot yet pass the jumps of the 3D cells' events)."""
+    report's λ the mixed-control driver cannot yet pass the jumps of the 3D cells' events), or
+    for a learned hexagon to the one its model was trained with (a surrogate refuses others)."""
     names = [item.partition("=")[0].strip() for item in param or []]
     check_3d_params(names)
     if "sliding_rhs" not in names:
-        param = ["sliding_rhs=equilibrium", *(param or [])]
+        rhs = "equilibrium"
+        f = getattr(getattr(solver, "hexagon", None), "formulation", None)
+        if f is not None:
+            rhs = (f.to_dict().get("params") or {}).get("sliding_rhs", rhs)
+        param = [f"sliding_rhs={rhs}", *(param or [])]
     return _material_points(param, n_pressures)
 
 
@@ -235,16 +255,17 @@ def triaxial(p0: P0Opt = "200kPa", axial_strain: AxialOpt = 0.1,
                  "--extension", help="Axial unloading at constant radial stress (sig11 < sig22 = sig33).")] = False,
              param: Param3DOpt = None, order: OrderOpt = None, azimuths: AzimuthsOpt = None,
              fabric: FabricOpt = 0.0, out: OutOpt = Path("results/triaxial"), step: StepOpt = AXIAL_STEP,
-             iso_step: IsoStepOpt = ISO_STEP) -> None:
+             iso_step: IsoStepOpt = ISO_STEP, solver: Solver3DOpt = "closed-form") -> None:
     """The 3D H-model's triaxial test: isotropic consolidation to p0, then drained (sig22 = sig33
     = p0) or undrained axial compression, or extension, along axis 1."""
     pressures = parse_pressures(p0)
-    params = _points_3d(param, len(pressures))
+    cells = _solver_3d(solver)
+    params = _points_3d(param, len(pressures), cells)
     _axial(axial_strain)
     sphere = _sphere(order, azimuths, fabric)
     with LazyProgress("triaxial test") as progress:
         result = run_triaxial(params, pressures, axial_strain, undrained=undrained, extension=extension,
-                              sphere=sphere, iso_step=_positive(iso_step, "--iso-step"),
+                              sphere=sphere, solver=cells, iso_step=_positive(iso_step, "--iso-step"),
                               step=_positive(step, "--step"), progress=progress)
     _finish(result, out)
 
@@ -258,15 +279,16 @@ def true_triaxial(p0: P0Opt = "200kPa",
                   axial_strain: AxialOpt = 0.1, param: Param3DOpt = None, order: OrderOpt = None,
                   azimuths: AzimuthsOpt = None, fabric: FabricOpt = 0.0,
                   out: OutOpt = Path("results/true-triaxial"), step: StepOpt = AXIAL_STEP,
-                  iso_step: IsoStepOpt = ISO_STEP) -> None:
+                  iso_step: IsoStepOpt = ISO_STEP, solver: Solver3DOpt = "closed-form") -> None:
     """Drained true triaxial test at constant p = p0 and constant b: isotropic consolidation,
     then compression along axis 1 (the major principal stress)."""
     pressures = parse_pressures(p0)
-    params = _points_3d(param, len(pressures))
+    cells = _solver_3d(solver)
+    params = _points_3d(param, len(pressures), cells)
     _axial(axial_strain)
     sphere = _sphere(order, azimuths, fabric)
     with LazyProgress("true triaxial test") as progress:
-        result = run_true_triaxial(params, pressures, b, axial_strain, sphere=sphere,
+        result = run_true_triaxial(params, pressures, b, axial_strain, sphere=sphere, solver=cells,
                                    iso_step=_positive(iso_step, "--iso-step"),
                                    step=_positive(step, "--step"), progress=progress)
     _finish(result, out)
@@ -276,15 +298,16 @@ def true_triaxial(p0: P0Opt = "200kPa",
 def oedometer(p0: P0Opt = "200kPa", axial_strain: AxialOpt = 0.05, param: Param3DOpt = None,
               order: OrderOpt = None, azimuths: AzimuthsOpt = None, fabric: FabricOpt = 0.0,
               out: OutOpt = Path("results/oedometer"), step: StepOpt = AXIAL_STEP,
-              iso_step: IsoStepOpt = ISO_STEP) -> None:
+              iso_step: IsoStepOpt = ISO_STEP, solver: Solver3DOpt = "closed-form") -> None:
     """Oedometric compression of the 3D H-model (eps22 = eps33 = 0) from isotropic consolidation
     to p0; K0 = sig_r/sig_a at its end is printed and is the column K0 of result.csv."""
     pressures = parse_pressures(p0)
-    params = _points_3d(param, len(pressures))
+    cells = _solver_3d(solver)
+    params = _points_3d(param, len(pressures), cells)
     _axial(axial_strain)
     sphere = _sphere(order, azimuths, fabric)
     with LazyProgress("oedometric test") as progress:
-        result = run_oedometer(params, pressures, axial_strain, sphere=sphere,
+        result = run_oedometer(params, pressures, axial_strain, sphere=sphere, solver=cells,
                                iso_step=_positive(iso_step, "--iso-step"),
                                step=_positive(step, "--step"), progress=progress)
     _finish(result, out)

@@ -71,8 +71,10 @@ class Rev3D:
     sphere : Sphere, optional
         Lebedev order, azimuths per direction and transversely isotropic fabric (default
         ``Sphere()``).
-    solver : BiHexSolver, optional
-        The 3D cell solver (default the closed form).
+    solver : BiHexSolver or 2D CellSolver, optional
+        The 3D cell solver (default the closed-form bi-hexagon), or a 2D H-cell solver, which
+        then steps each hexagon of every bi-hexagon (``BiHexSolver(hexagon=solver)``; e.g. a
+        surrogate of the closed-form H-cell: the learned 3D cell, docs/model3d.md).
 
     Examples
     --------
@@ -87,9 +89,11 @@ class Rev3D:
 
     def __init__(self, params: Params | Sequence[Params], sphere: Sphere | None = None,
                  solver: BiHexSolver | None = None):
-        self.solver = BiHexSolver() if solver is None else solver
-        if not hasattr(self.solver, "n_lengths") or self.solver.n_lengths != 3:
-            raise InputError(f"Rev3D takes a 3D cell solver (three cell lengths), got {self.solver!r}")
+        if solver is None:
+            solver = BiHexSolver()
+        elif getattr(solver, "n_lengths", 2) != 3:  # a 2D H-cell solver steps the hexagons
+            solver = BiHexSolver(hexagon=solver)
+        self.solver = solver
         #: the parameter sets (K,), and the first, whose shared fields all sets have
         self.sets = check_batch(params)
         for s in self.sets:
