@@ -124,3 +124,67 @@ def test_cli_triaxial_takes_a_learned_solver(tmp_path):
                                  "--axial-strain", "0.002", "--step", "5e-4", "--out", str(tmp_path / "y")])
     assert r.exit_code == 0, r.output
     assert (tmp_path / "y" / "result.csv").is_file()
+
+
+# ---------------------------------------------------------------- 3D database and evaluation
+
+def _small_3d_spec(**kw):
+    from hmodel.data.generator import DatasetSpec
+    opts = dict(kind=2, dim=3, n_directions=3, theta_min=-60.0, theta_max=150.0, alpha0_min=40.0,
+                alpha0_max=60.0, alpha0_step=20.0, max_strain=0.01, step=0.001, start_every=0.005,
+                magnitude=0.004, magnitude_min=0.0, n_increments=8, substeps=4)
+    return DatasetSpec(**{**opts, **kw})
+
+
+def test_3d_rows_are_the_closed_form_bihexagon_with_substeps(tmp_path):
+    from hmodel.cell.bihex import BIHEX_FIELDS
+    from hmodel.data import Dataset, generate
+    from hmodel.data.generator import DatasetSpec
+    from hmodel.data.schema import COLUMNS_3D
+    from hmodel.surrogate.evaluation import bihex_rows
+
+    spec, params = _small_3d_spec(), Params()
+    ds = generate(spec, params, tmp_path / "d3")
+    assert ds.dim == 3 and ds.manifest["columns"] == list(COLUMNS_3D) and ds.n_rows == spec.n_rows == 3 * 2 * 2 * 8
+    cols = ds.read()
+    before, after, dl = bihex_rows(cols, params)
+    # the next state is the closed-form bi-hexagon's, in spec.substeps equal sub-steps
+    state = CellState(np.ascontiguousarray(before))
+    for _ in range(spec.substeps):
+        state, flags = BiHexSolver().step(params, state, *(dl / spec.substeps).T)
+    assert np.array_equal(state.values, after)
+    assert np.array_equal(np.column_stack([cols[c] for c in ("sliding", "open1_b", "cross")]),
+                          flags.flags[:, [0, 6, 10]])
+    assert np.array_equal(cols["l1"], cols["l1_b"]) and np.array_equal(cols["l1_next"], cols["l1_b_next"])
+    # both hexagons loaded, differently (the lateral strain split between l2 and l3)
+    assert np.abs(cols["N1"]).max() > 0 and not np.array_equal(cols["l2"], cols["l3"])
+    assert BIHEX_FIELDS[15] == "l3"
+    # a 2D spec's options (manifests, fingerprints) carry no dim
+    assert "dim" not in DatasetSpec().to_dict() and spec.to_dict()["dim"] == 3
+    assert Dataset.open(tmp_path / "d3").spec == spec
+
+
+def test_learned_3d_cell_on_3d_rows():
+    from hmodel.data.generator import compute_shard
+    from hmodel.data.schema import column_array
+    from hmodel.surrogate.evaluation import evaluate_bihex
+
+    spec = _small_3d_spec(magnitude=0.002, substeps=1)
+    t = compute_shard(spec, Params(), 0)
+    cols = {c: column_array(t, c) for c in t.column_names}
+    exact = evaluate_bihex(ClosedFormSolver(), cols, Params(), "x", spec.substeps)
+    assert all(r["max_abs"] == 0.0 for r in exact)
+    learned = evaluate_bihex(get_solver("surrogate:default"), cols, Params(), "x", spec.substeps)
+    by = {(r["quantity"], r["output"]): r for r in learned}
+    assert {q for q, _ in by} == {"state after", "increment", "meso-stress"}
+    assert by[("state after", "N1_b_next")]["r2"] > 0.999 and by[("meso-stress", "Vs_nn_next")]["r2"] > 0.999
+
+
+def test_dim_3_refuses_2d_only_data_options():
+    from hmodel.data.generator import DatasetSpec
+    with pytest.raises(InputError, match="dataset 1 is the 2D H-cell's only"):
+        _small_3d_spec(kind=1)
+    with pytest.raises(InputError, match="2D cell solver option"):
+        _small_3d_spec(solver="dem:standard")
+    with pytest.raises(InputError, match="dim must be 2 or 3"):
+        DatasetSpec(dim=4)

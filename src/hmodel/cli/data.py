@@ -12,8 +12,8 @@ import typer
 from ..errors import InputError
 from ..io import write_outputs
 from ..params import Params
-from .progress import LazyProgress
 from .options import out_folder
+from .progress import LazyProgress
 from .run import ParamOpt
 
 app = typer.Typer(no_args_is_help=True, help="Generate, sample and inspect H-cell databases.")
@@ -55,23 +55,31 @@ def generate(
                                                 "2: increments from their states; 3: increments from "
                                                 "the states of a REV's cells (--rev-paths).")],
     out: out_folder("Dataset folder (Parquet shards + manifest.json)."),
-    directions: Annotated[int, typer.Option(help="Path directions theta over the --theta range, inclusive.")] = 91,
-    theta: Annotated[str, typer.Option(help="Range MIN:MAX [deg] of the path directions in the (eps1, eps2) "
-                                            "plane; 0:360 adds paths in extension.")] = "0:90",
-    alpha0: Annotated[str, typer.Option(help="Initial opening angles MIN:MAX:STEP [deg].")] = "32:88:2",
-    max_strain: Annotated[float, typer.Option(help="Total cell strain of a path.")] = 0.30,
+    directions: Annotated[Optional[int], typer.Option(help="Path directions theta over the --theta range, inclusive "
+                                                           "(default 91; --dim 3: 12).")] = None,
+    theta: Annotated[Optional[str], typer.Option(help="Range MIN:MAX [deg] of the path directions in the (eps1, eps2) "
+                                                      "plane; 0:360 adds paths in extension (default 0:90; --dim 3: "
+                                                      "-60:150, eps2 split between l2 and l3).")] = None,
+    alpha0: Annotated[Optional[str], typer.Option(help="Initial opening angles MIN:MAX:STEP [deg] "
+                                                       "(default 32:88:2; --dim 3: 40:60:10).")] = None,
+    max_strain: Annotated[Optional[float], typer.Option(help="Total cell strain of a path (default 0.3; "
+                                                             "--dim 3: 0.1).")] = None,
     step: Annotated[float, typer.Option(help="Strain step of a path (recorded in Dataset 1).")] = 0.001,
-    start_every: Annotated[float, typer.Option(help="Dataset 2: strain between start states.")] = 0.01,
+    start_every: Annotated[Optional[float], typer.Option(help="Dataset 2: strain between start states "
+                                                              "(default 0.01; --dim 3: 0.005).")] = None,
     from_unloaded: Annotated[bool, typer.Option("--from-unloaded", help="Dataset 2: increments from the unloaded cell too.")] = False,
     prestrain: Annotated[float, typer.Option(help="Isotropic cell strain applied before every path, as a REV's consolidation.")] = 0.0,
     rev_paths: Annotated[str, typer.Option(help="Dataset 3: the REV's loading paths, drained:P0 or undrained:P0 [Pa], "
                                                 "comma-separated; --directions cells, sheared in axial steps of "
                                                 "--step to --max-strain.")] = "",
-    magnitude: Annotated[float, typer.Option(help="Dataset 2: strain magnitude of an increment.")] = 0.01,
+    magnitude: Annotated[Optional[float], typer.Option(help="Dataset 2: strain magnitude of an increment "
+                                                            "(default 0.01; --dim 3: 0.002).")] = None,
     magnitude_min: Annotated[Optional[float], typer.Option(help="Dataset 2: spread the magnitudes over "
-                                                                "[MIN, --magnitude] (default: all equal).")] = None,
-    increments: Annotated[int, typer.Option(help="Dataset 2: increment directions over [0, 360) deg.")] = 168,
-    substeps: Annotated[int, typer.Option(help="Dataset 2: equal sub-steps of an increment.")] = 10,
+                                                                "[MIN, --magnitude] (default: all equal; --dim 3: 0).")] = None,
+    increments: Annotated[Optional[int], typer.Option(help="Dataset 2: increment directions over [0, 360) deg "
+                                                           "(default 168; --dim 3: 26 on the sphere).")] = None,
+    substeps: Annotated[Optional[int], typer.Option(help="Dataset 2: equal sub-steps of an increment "
+                                                         "(default 10; --dim 3: 1).")] = None,
     shard_rows: Annotated[int, typer.Option(help="Rows per shard, about.")] = 250_000,
     param: ParamOpt = None,
     workers: Annotated[Optional[int], typer.Option(help="Local worker processes (default: one per CPU).")] = None,
@@ -80,10 +88,32 @@ def generate(
     solver: Annotated[str, typer.Option(help="Cell solver: closed-form or dem (YADE cells, see --mesostructure).")] = "closed-form",
     mesostructure: Annotated[Optional[str], typer.Option(help="With --solver dem: standard (default), hexagon-center "
                                                               "or hexagon-unequal, with options after a colon: ratio=R and DEM settings such as tol=1e-7,max_iter=100000.")] = None,
+    dim: Annotated[int, typer.Option("--dim", help="2: H-cell rows; 3: bi-hexagon rows of the 3D H-model "
+                                                   "(dataset 2, closed form; small defaults).")] = 2,
 ) -> None:
     """Compute a database into --out; re-running the same command resumes an interrupted run."""
     from ..data import DatasetSpec
     from ..data import generate as run
+    from ..data.generator import DIM3_DEFAULTS
+
+    if dim not in (2, 3):
+        raise InputError(f"--dim must be 2 or 3, got {dim}")
+    if dim == 3 and (solver != "closed-form" or mesostructure is not None):
+        raise InputError("--dim 3 rows are the closed-form bi-hexagon's; --solver and --mesostructure are "
+                         "2D cell solver options only")
+    if dim == 3 and rev_paths:
+        raise InputError("--rev-paths (dataset 3, a 2D REV's cells) is a 2D option; --dim 3 writes dataset 2")
+    given = {"n_directions": directions, "theta": theta, "alpha0": alpha0, "max_strain": max_strain,
+             "start_every": start_every, "magnitude": magnitude, "magnitude_min": magnitude_min,
+             "n_increments": increments, "substeps": substeps}
+    defaults = DIM3_DEFAULTS if dim == 3 else {"n_directions": 91, "theta": "0:90", "alpha0": "32:88:2",
+                                              "max_strain": 0.30, "start_every": 0.01, "magnitude": 0.01,
+                                              "magnitude_min": None, "n_increments": 168, "substeps": 10}
+    o = {k: defaults[k] if v is None else v for k, v in given.items()}
+    directions, theta, alpha0, max_strain, start_every = (o[k] for k in ("n_directions", "theta", "alpha0",
+                                                                         "max_strain", "start_every"))
+    magnitude, magnitude_min, increments, substeps = (o[k] for k in ("magnitude", "magnitude_min",
+                                                                     "n_increments", "substeps"))
 
     a_min, a_max, a_step = _alpha0_range(alpha0)
     t_min, t_max = _theta_range(theta)
@@ -91,12 +121,13 @@ def generate(
                        alpha0_step=a_step, max_strain=max_strain, step=step, start_every=start_every, from_unloaded=from_unloaded,
                        prestrain=prestrain, rev_paths=rev_paths,
                        magnitude=magnitude, magnitude_min=magnitude_min, n_increments=increments, substeps=substeps,
-                       shard_rows=shard_rows, solver=_solver(solver, mesostructure))
+                       shard_rows=shard_rows, solver=_solver(solver, mesostructure), dim=dim)
     params = Params.parse_assignments(param)
-    with LazyProgress(f"dataset {dataset}: {spec.n_rows:,} rows") as progress:
+    what = f"dataset {dataset}" + (" (3D, bi-hexagons)" if dim == 3 else "")
+    with LazyProgress(f"{what}: {spec.n_rows:,} rows") as progress:
         ds = run(spec, params, out, workers=workers or os.cpu_count() or 1, scheduler=scheduler,
                  progress=progress, overwrite=overwrite)
-    typer.echo(f"dataset {dataset}: {ds.n_rows:,} rows in {len(ds.shards())} shards, {out}")
+    typer.echo(f"{what}: {ds.n_rows:,} rows in {len(ds.shards())} shards, {out}")
 
 
 @app.command("sample")

@@ -152,6 +152,9 @@ def evaluate_cmd(
     s = modelfile.load(model_path(model))
     table, writers = [], {}
     for i, d in enumerate(data):
+        if _dim(d) == 3:  # bi-hexagon rows: the learned 3D cell (two learned hexagons sharing dl1)
+            table += _evaluate_3d(s, d, rows, seed)
+            continue
         cols, info = read_rows(d, "test", rows, seed)
         label = f"{d.name} (dataset {info['provenance']['kind']})"
         table += evaluate(s, cols, label)
@@ -159,10 +162,38 @@ def evaluate_cmd(
             s, c, p, f"{Path(model).name}: {lab}, {len(c['deps1']):,} rows"))(cols, label)
     write_outputs(out, {"metrics.csv": lambda p: write_rows(table, p), **writers})
     for r in table:
-        if r["quantity"] == "state after":
+        if r["quantity"] in ("state after", "meso-stress"):
             typer.echo(f"{r['data']:<40} {r['output']:<11} R² {r['r2']:.6f}  MAE {r['mae']:.4g}  "
                        f"max {r['max_abs']:.4g}")
     typer.echo(f"wrote {out / 'metrics.csv'} and {len(writers)} parity plot(s)")
+
+
+def _dim(folder: Path) -> int:
+    """3 for a dataset folder of bi-hexagon rows (``hmodel data generate --dim 3``), else 2."""
+    import json
+
+    try:
+        m = json.loads((Path(folder) / "manifest.json").read_text())
+    except (OSError, ValueError):
+        return 2
+    return int((m.get("options") or {}).get("dim", 2)) if m.get("format") == "hmodel-cell-dataset" else 2
+
+
+def _evaluate_3d(s, folder: Path, rows: int | None, seed: int) -> list[dict]:
+    """Metric rows of the learned 3D cell of model ``s`` (``BiHexSolver(hexagon=SurrogateSolver(s))``)
+    on ``rows`` random rows (all where fewer) of a 3D dataset, against its closed-form rows."""
+    import numpy as np
+
+    from ..data import Dataset
+    from ..surrogate.evaluation import evaluate_bihex
+    from ..surrogate.solver import SurrogateSolver
+
+    ds = Dataset.open(folder)
+    pick = None
+    if rows is not None and rows < ds.n_rows:
+        pick = np.sort(np.random.default_rng(seed).choice(ds.n_rows, rows, replace=False))
+    label = f"{Path(folder).name} (3D dataset {ds.manifest['kind']})"
+    return evaluate_bihex(SurrogateSolver(s), ds.read(rows=pick), ds.params, label, ds.spec.substeps)
 
 
 @app.command("trust")

@@ -25,6 +25,16 @@ has α0 number j and θ number i.
   ``start_strain`` the axial strain since consolidation; the α0 and θ grids and ``prestrain``
   do not apply.
 
+**3D rows** (``dim = 3``, issue 34): Dataset 2 of the bi-hexagon of the 3D H-model
+(docs/model3d.md), solved in closed form (``BiHexSolver``): path ``path_id`` loads a
+bi-hexagon of opening angle α0 along the cell-strain direction (cos θ, sin θ cos ψ, sin θ sin ψ)
+of its three lengths (l1 along n, l2 and l3 the two hexagons' columns), ψ ∈ [0, π/2] spread over
+the paths by the golden-ratio sequence (so that the two hexagons see different lateral
+strains); from its states every ``start_every``, increments of the spec's magnitudes in
+``n_increments`` directions of (δε1, δε2, δε3) on the unit sphere (a Fibonacci lattice), in
+``substeps`` sub-steps. Columns: :data:`~hmodel.data.schema.COLUMNS_3D`. Small defaults:
+:data:`DIM3_DEFAULTS`. Dataset 2 only, closed form only.
+
 Cell strains are measured on the initial lengths, compression positive: δl = −(l10, l20)·δε.
 A shard is a contiguous range of paths, so that any shard can be computed alone, in any
 process, and always gives the same rows.
@@ -40,15 +50,34 @@ import numpy as np
 import pyarrow as pa
 
 from ..cell import CellState
-from ..solvers import get_solver
+from ..cell.bihex import BiHexSolver
 from ..errors import InputError
 from ..params import Params
-from .schema import EXTRA_COLUMNS, FLAG_COLUMNS, STATE, arrow_schema, to_arrow
+from ..solvers import get_solver
+from .schema import (
+    EXTRA_COLUMNS,
+    FLAG_COLUMNS,
+    FLAG_COLUMNS_3D,
+    STATE,
+    STATE_B,
+    arrow_schema,
+    to_arrow,
+)
 
 #: The REV loading paths of Dataset 3.
 REV_LOADINGS = ("drained", "undrained")
 #: Field order of the packed cell state (hmodel.cell.state.FIELDS) for each schema column.
 _PACKED = {"d1": 0, "d2": 1, "alpha": 2, "N1": 3, "N2": 4, "T1": 5, "l1": 6, "l2": 7}
+#: The same for hexagon B's columns of a bi-hexagon state (hmodel.cell.bihex.BIHEX_FIELDS).
+_PACKED_B = {b: 8 + _PACKED[a] for a, b in zip(STATE, STATE_B)}
+#: Options of a ``dim = 3`` dataset where ``hmodel data generate --dim 3`` is given none: single
+#: REV-scale increments (≤ 0.2 %, as the shipped default network's REV_DATASET) from 12 paths
+#: × 3 opening angles × 20 start states, 26 directions: 18,720 rows.
+DIM3_DEFAULTS = {"n_directions": 12, "theta": "-60:150", "alpha0": "40:60:10", "max_strain": 0.1,
+                 "start_every": 0.005, "magnitude": 0.002, "magnitude_min": 0.0, "n_increments": 26,
+                 "substeps": 1}
+#: Golden ratio's fractional part: the low-discrepancy sequences of ψ and of the sphere lattice.
+_GOLDEN = 0.6180339887498949
 
 
 @dataclass(frozen=True)
@@ -83,6 +112,8 @@ class DatasetSpec:
     prestrain: float = 0.0
     #: Dataset 3: the REV's loading paths, ``drained:P0`` or ``undrained:P0`` [Pa], comma-separated.
     rev_paths: str = ""
+    #: 2: H-cell rows; 3: bi-hexagon rows of the 3D H-model (Dataset 2, closed form only).
+    dim: int = 2
 
     def __post_init__(self) -> None:
         # One spelling per value (45 and 45.0 alike), so that manifests and shard bytes match.
@@ -92,6 +123,14 @@ class DatasetSpec:
                 object.__setattr__(self, f.name, float(v))
         if self.kind not in (1, 2, 3):
             raise InputError(f"dataset must be 1, 2 or 3, got {self.kind}")
+        if self.dim not in (2, 3):
+            raise InputError(f"dim must be 2 or 3, got {self.dim!r}")
+        if self.dim == 3 and self.kind != 2:
+            raise InputError(f"--dim 3 writes dataset 2 (bi-hexagon increments from the states of "
+                             f"bi-hexagon paths); dataset {self.kind} is the 2D H-cell's only")
+        if self.dim == 3 and self.solver != "closed-form":
+            raise InputError(f"--dim 3 rows are the closed-form bi-hexagon's; --solver {self.solver} "
+                             "is a 2D cell solver option only")
         if (self.kind == 3) != bool(self.rev_paths.strip()):
             raise InputError("rev_paths (the REV's loading paths) must be given for dataset 3 and "
                              f"only for it, got {self.rev_paths!r} for dataset {self.kind}")
@@ -196,6 +235,22 @@ class DatasetSpec:
         return np.arange(0 if self.from_unloaded else every, self.n_steps + 1, every)
 
     @property
+    def psi(self) -> np.ndarray:
+        """3D paths: the split ψ [rad] of each path's lateral cell strain between l2 (cos ψ) and
+        l3 (sin ψ), over [0, π/2] by the golden-ratio sequence of the path index."""
+        return 0.5 * math.pi * np.modf((np.arange(self.n_paths) + 0.5) * _GOLDEN)[0]
+
+    @property
+    def increment_directions_3d(self) -> np.ndarray:
+        """3D: the ``n_increments`` unit directions (J, 3) of (δε1, δε2, δε3), a Fibonacci
+        lattice on the sphere."""
+        k = np.arange(self.n_increments)
+        z = 1.0 - 2.0 * (k + 0.5) / self.n_increments
+        r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+        phi = 2.0 * math.pi * np.modf(k * _GOLDEN)[0]
+        return np.column_stack([z, r * np.cos(phi), r * np.sin(phi)])
+
+    @property
     def rows_per_path(self) -> int:
         return self.n_steps if self.kind == 1 else len(self.start_steps) * self.n_increments
 
@@ -220,7 +275,10 @@ class DatasetSpec:
         return np.arange(start, min(start + self.paths_per_shard, self.n_paths))
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        d = asdict(self)
+        if d["dim"] == 2:  # 2D manifests (and the fingerprints of models trained on them) unchanged
+            del d["dim"]
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "DatasetSpec":
@@ -238,6 +296,8 @@ def _ratio(total: float, step: float, a: str, b: str) -> int:
 def compute_shard(spec: DatasetSpec, params: Params, shard: int) -> pa.Table:
     """The rows of one shard, in path order (a pure function of its arguments)."""
     paths = spec.shard_paths(shard)
+    if spec.dim == 3:
+        return _bihex_increments(spec, params, paths)
     if spec.kind == 3:
         return _rev_histories(spec, params, shard, paths)
     alpha0 = np.radians(spec.alpha0_deg)[paths // spec.n_directions]
@@ -285,7 +345,10 @@ def _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta, l0) -
 
 def _rev_histories(spec, params, shard, paths) -> pa.Table:
     """Dataset 3: the increments from the states of a REV's cells along one loading path."""
-    from ..loading.named_paths import biaxial, consolidate  # the loading layer sits above the data's
+    from ..loading.named_paths import (  # the loading layer sits above the data's
+        biaxial,
+        consolidate,
+    )
     from ..rev import Rev
 
     loading, p0 = spec.rev_loadings[shard]
@@ -353,6 +416,54 @@ def increment_rows(spec: DatasetSpec, params: Params, solver, start: np.ndarray,
               np.tile(np.repeat(strain, J), P))
     return _table(np.tile(deps, (P * L, 1)), before.values.reshape(-1, nf),
                   state.values.reshape(-1, nf), f.flags.reshape(-1, len(FLAG_COLUMNS)), labels)
+
+
+def _bihex_increments(spec: DatasetSpec, params: Params, paths: np.ndarray) -> pa.Table:
+    """3D Dataset 2: bi-hexagon increments from the states of bi-hexagon paths (module doc)."""
+    solver = BiHexSolver()
+    alpha0 = np.radians(spec.alpha0_deg)[paths // spec.n_directions]
+    theta = spec.theta[paths % spec.n_directions]
+    psi = spec.psi[paths]
+    cells = solver.initial_cells(params, alpha0)
+    l0 = [cells.values[:, k].copy() for k in (6, 7, 15)]  # l10, l20, l30
+    for _ in range(spec.prestrain_steps):
+        cells, _ = solver.step(params, cells, *(-l * spec.step for l in l0))
+    direction = (np.cos(theta), np.sin(theta) * np.cos(psi), np.sin(theta) * np.sin(psi))
+    dl = [-l * spec.step * d for l, d in zip(l0, direction)]
+    state = cells
+
+    def advance() -> np.ndarray:
+        nonlocal state
+        state, _ = solver.step(params, state, *dl)
+        return state.values
+
+    start = _start_states(spec, cells.values, advance)  # (P, L, 16)
+    P, L, nf = start.shape
+    J = spec.n_increments
+    deps = spec.increment_magnitudes[:, None] * spec.increment_directions_3d  # (J, 3)
+    sub = [-np.broadcast_to(l[:, None, None], (P, L, J)) * deps[:, k] / spec.substeps
+           for k, l in enumerate(l0)]
+    before = CellState(np.ascontiguousarray(np.broadcast_to(start[:, :, None, :], (P, L, J, nf))))
+    new = before
+    for _ in range(spec.substeps):
+        new, f = solver.step(params, new, *sub)
+    labels = (np.repeat(alpha0, L * J), np.repeat(paths, L * J), np.repeat(theta, L * J),
+              np.tile(np.repeat(spec.step * spec.start_steps, J), P))
+    b, a = before.values.reshape(-1, nf), new.values.reshape(-1, nf)
+    deps = np.tile(deps, (P * L, 1))
+    cols = {"deps1": deps[:, 0], "deps2": deps[:, 1], "deps3": deps[:, 2]}
+    for packed in (_PACKED, _PACKED_B):
+        for c, k in packed.items():
+            cols[c] = b[:, k]
+    for packed in (_PACKED, _PACKED_B):
+        for c, k in packed.items():
+            cols[f"{c}_next"] = a[:, k]
+    flags = f.flags.reshape(-1, len(FLAG_COLUMNS_3D))
+    for j, c in enumerate(FLAG_COLUMNS_3D):
+        cols[c] = flags[:, j]
+    cols.update(alpha0=labels[0], path_id=labels[1].astype(np.int32), theta=labels[2], start_strain=labels[3])
+    schema = arrow_schema(dim=3)
+    return pa.Table.from_arrays([to_arrow(cols[fl.name], fl.type) for fl in schema], schema=schema)
 
 
 def _table(deps, before, after, flags, labels) -> pa.Table:

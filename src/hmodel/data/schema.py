@@ -19,6 +19,14 @@ more columns, :data:`EXTRA_COLUMNS` ``state_extra`` and ``state_extra_next``: fi
 of float64, the state fields 9.. before and after the increment, whose names (units m, then N)
 the manifest lists under ``extra_fields``. Every other column is unchanged; datasets of the
 closed form and of ``dem:standard`` have no extra column.
+
+**3D rows** (``dim = 3``, :data:`COLUMNS_3D`; issue 34): one row is one increment of a
+bi-hexagon (docs/model3d.md), the cell strains ``deps1, deps2, deps3`` of its three lengths
+(δl1 = −l10·δε1, δl2 = −l20·δε2, δl3 = −l30·δε3, l30 = l20) applied to hexagon A's state
+(the 2D columns above, l2 its column length) and hexagon B's (:data:`STATE_B`: the same fields
+with ``_b``, l3 its column length, l1_b = l1), giving both after (``*_next``) and the 11 flags
+of the bi-hexagon (:data:`FLAG_COLUMNS_3D`: A's five, B's five ``*_b``, ``cross``). The labels
+are the 2D ones (``theta``: the path's angle between the axial cell strain and the lateral ones).
 """
 
 from __future__ import annotations
@@ -35,6 +43,12 @@ FLAG_COLUMNS = ("sliding", "open1", "open2", "contact14", "contact26")
 STRAIN = ("deps1", "deps2")
 LABELS = ("alpha0", "path_id", "theta", "start_strain")
 COLUMNS = STRAIN + STATE + STATE_NEXT + FLAG_COLUMNS + LABELS
+#: 3D (bi-hexagon) datasets: three cell strains, hexagon B's state, eleven flags.
+STRAIN_3D = ("deps1", "deps2", "deps3")
+STATE_B = ("alpha_b", "l1_b", "l3", "d1_b", "d2_b", "N1_b", "N2_b", "T1_b")
+STATE_B_NEXT = tuple(f"{c}_next" for c in STATE_B)
+FLAG_COLUMNS_3D = FLAG_COLUMNS + tuple(f"{c}_b" for c in FLAG_COLUMNS) + ("cross",)
+COLUMNS_3D = STRAIN_3D + STATE + STATE_B + STATE_NEXT + STATE_B_NEXT + FLAG_COLUMNS_3D + LABELS
 #: Extra state of richer cells (only when the cell state has more than 8 fields).
 EXTRA_COLUMNS = ("state_extra", "state_extra_next")
 
@@ -46,14 +60,23 @@ UNITS = {
     **{c: "bool" for c in FLAG_COLUMNS}, "alpha0": "rad", "path_id": "-", "theta": "rad",
     "start_strain": "-",
 }
+UNITS_3D = {**UNITS, "deps3": "-",
+            **{c: UNITS[base] for c, base in zip(STATE_B + STATE_B_NEXT, STATE + STATE_NEXT)},
+            **{c: "bool" for c in FLAG_COLUMNS_3D}}
 
 
-def arrow_schema(metadata: dict[bytes, bytes] | None = None, n_extra: int = 0) -> pa.Schema:
+def columns_for(dim: int = 2) -> tuple[str, ...]:
+    """The columns of a 2D (H-cell) or 3D (bi-hexagon) dataset's rows."""
+    return COLUMNS_3D if dim == 3 else COLUMNS
+
+
+def arrow_schema(metadata: dict[bytes, bytes] | None = None, n_extra: int = 0, dim: int = 2) -> pa.Schema:
     """The Arrow schema of every shard (float64 values, bool flags, int32 path ids), with the
-    :data:`EXTRA_COLUMNS` (lists of ``n_extra`` float64) when ``n_extra`` > 0."""
+    :data:`EXTRA_COLUMNS` (lists of ``n_extra`` float64) when ``n_extra`` > 0; ``dim = 3``: the
+    bi-hexagon's :data:`COLUMNS_3D`."""
     fields = []
-    for c in COLUMNS:
-        if c in FLAG_COLUMNS:
+    for c in columns_for(dim):
+        if c in FLAG_COLUMNS_3D:
             t = pa.bool_()
         elif c == "path_id":
             t = pa.int32()

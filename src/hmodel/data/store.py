@@ -31,7 +31,15 @@ from ..io import check_output_folder
 from ..limits import check_disk
 from ..params import Params
 from .generator import DatasetSpec, compute_shard
-from .schema import COLUMNS, EXTRA_COLUMNS, SCHEMA_VERSION, UNITS, arrow_schema, column_array
+from .schema import (
+    EXTRA_COLUMNS,
+    SCHEMA_VERSION,
+    UNITS,
+    UNITS_3D,
+    arrow_schema,
+    column_array,
+    columns_for,
+)
 from .workers import run_tasks
 
 #: Disk a dataset row takes, at most [bytes] (Parquet shards; measured about 61 B a row on a
@@ -67,7 +75,7 @@ def _header(spec: DatasetSpec, params: Params) -> dict:
     """The part of a manifest that identifies what the dataset is."""
     header = {"format": FORMAT, "schema_version": SCHEMA_VERSION, "kind": spec.kind,
               "options": spec.to_dict(), "params": params.to_dict(), "seed": None,
-              "columns": list(COLUMNS), "units": UNITS}
+              "columns": list(columns_for(spec.dim)), "units": UNITS_3D if spec.dim == 3 else UNITS}
     if spec.solver.startswith("dem"):  # richer DEM cells: names of the extra state fields
         from ..solvers import get_solver
         extra = list(get_solver(spec.solver).field_names()[8:])
@@ -240,9 +248,14 @@ class Dataset:
 
     def iter_tables(self, columns: list[str] | None = None) -> Iterator[pa.Table]:
         """Shard by shard (bounded memory)."""
-        cols = _check_columns(columns, self.n_extra)
+        cols = _check_columns(columns, self.n_extra, self.dim)
         for path in self.shards():
             yield pq.read_table(path, columns=cols)
+
+    @property
+    def dim(self) -> int:
+        """2: H-cell rows; 3: bi-hexagon rows (:data:`~hmodel.data.schema.COLUMNS_3D`)."""
+        return self.spec.dim
 
     @property
     def n_extra(self) -> int:
@@ -252,7 +265,8 @@ class Dataset:
     def read(self, columns: list[str] | None = None, rows: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Columns as NumPy arrays, all rows or the sorted global row indices ``rows``; the
         extra state columns of a richer cell (read by default when present) as (rows, n_extra)."""
-        cols = _check_columns(columns, self.n_extra) or list(COLUMNS) + list(EXTRA_COLUMNS if self.n_extra else ())
+        cols = (_check_columns(columns, self.n_extra, self.dim)
+                or list(columns_for(self.dim)) + list(EXTRA_COLUMNS if self.n_extra else ()))
         parts: dict[str, list[np.ndarray]] = {c: [] for c in cols}
         offset = 0
         for e, path in zip(self.manifest["shards"], self.shards()):
@@ -269,19 +283,19 @@ class Dataset:
                 t = pq.read_table(path, columns=cols)
             for c in cols:
                 parts[c].append(column_array(t, c))
-        return {c: (np.concatenate(v) if v else _empty(c, self.n_extra)) for c, v in parts.items()}
+        return {c: (np.concatenate(v) if v else _empty(c, self.n_extra, self.dim)) for c, v in parts.items()}
 
 
-def _empty(column: str, n_extra: int) -> np.ndarray:
+def _empty(column: str, n_extra: int, dim: int = 2) -> np.ndarray:
     if column in EXTRA_COLUMNS:
         return np.empty((0, n_extra))
-    return np.array([], dtype=arrow_schema().field(column).type.to_pandas_dtype())
+    return np.array([], dtype=arrow_schema(dim=dim).field(column).type.to_pandas_dtype())
 
 
-def _check_columns(columns: list[str] | None, n_extra: int = 0) -> list[str] | None:
+def _check_columns(columns: list[str] | None, n_extra: int = 0, dim: int = 2) -> list[str] | None:
     if columns is None:
         return None
-    known = list(COLUMNS) + list(EXTRA_COLUMNS if n_extra else ())
+    known = list(columns_for(dim)) + list(EXTRA_COLUMNS if n_extra else ())
     unknown = [c for c in columns if c not in known]
     if unknown:
         raise InputError(f"unknown dataset column(s) {', '.join(unknown)} (known: {', '.join(known)})")

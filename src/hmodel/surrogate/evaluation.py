@@ -67,3 +67,51 @@ def parity_plot(s: Surrogate, cols: dict[str, np.ndarray], path: Path, title: st
             ax.set_title(f"R² = {m[j]['r2']:.6f}, max |err| = {m[j]['max_abs']:.3g}", fontsize=9)
     fig.suptitle(title)
     fig.savefig(path, dpi=130)
+
+
+#: The outputs of a 3D (bi-hexagon) row compared by :func:`evaluate_bihex`: both hexagons'.
+OUTPUTS_3D = ("alpha_next", "N1_next", "N2_next", "T1_next",
+              "alpha_b_next", "N1_b_next", "N2_b_next", "T1_b_next")
+#: The bi-hexagon's meso-stress components (V σ in the cell frame, N m) of :func:`evaluate_bihex`.
+MESO_3D = ("Vs_nn_next", "Vs_t1t1_next", "Vs_t2t2_next")
+
+
+def bihex_rows(cols: dict[str, np.ndarray], params) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The bi-hexagon states before and after (n, 16) and length increments (n, 3) of 3D
+    dataset rows (:data:`hmodel.data.schema.COLUMNS_3D`): δl_k = −l_k0 δε_k on the initial
+    lengths of each row's α0 (l30 = l20)."""
+    from ..cell.bihex import BIHEX_FIELDS
+    from ..cell.state import initial_lengths
+
+    names = BIHEX_FIELDS  # the dataset's column names are the state's field names
+    before = np.column_stack([cols[n] for n in names])
+    after = np.column_stack([cols[f"{n}_next"] for n in names])
+    l10, l20 = initial_lengths(params.radius, np.asarray(cols["alpha0"], float))
+    dl = -np.column_stack([l10 * cols["deps1"], l20 * cols["deps2"], l20 * cols["deps3"]])
+    return before, after, dl
+
+
+def evaluate_bihex(solver, cols: dict[str, np.ndarray], params, label: str, substeps: int = 1) -> list[dict]:
+    """The learned 3D cell on 3D dataset rows: ``BiHexSolver(hexagon=solver)`` (``solver`` a 2D
+    H-cell solver, e.g. a :class:`~hmodel.surrogate.solver.SurrogateSolver`) steps each row's
+    bi-hexagon by its increment in ``substeps`` equal sub-steps (as the rows were made), and its
+    next state (both hexagons' α′, N1′, N2′, T1′: the state after and the increments, as
+    :func:`evaluate`) and meso-stress (V σ_nn, V σ_t1t1, V σ_t2t2 of the next state, N m) are
+    compared with the rows' closed-form ones. Metric rows as :func:`evaluate`."""
+    from ..cell import CellState
+    from ..cell.bihex import BIHEX_FIELDS, BiHexSolver
+
+    cell = BiHexSolver(hexagon=solver)
+    before, after, dl = bihex_rows(cols, params)
+    state = CellState(np.ascontiguousarray(before))
+    for _ in range(substeps):
+        state, _ = cell.step(params, state, *(dl / substeps).T)
+    pred = state.values
+    idx = [BIHEX_FIELDS.index(o[:-5]) for o in OUTPUTS_3D]
+    rows = metrics_table(after[:, idx], pred[:, idx], OUTPUTS_3D, data=label, quantity="state after")
+    rows += metrics_table(after[:, idx] - before[:, idx], pred[:, idx] - before[:, idx],
+                          [f"d{k[:-5]}" for k in OUTPUTS_3D], data=label, quantity="increment")
+    true_meso = cell.meso(params, CellState(np.ascontiguousarray(after)))[0][:, :3]
+    pred_meso = cell.meso(params, CellState(np.ascontiguousarray(pred)))[0][:, :3]
+    rows += metrics_table(true_meso, pred_meso, MESO_3D, data=label, quantity="meso-stress")
+    return rows
