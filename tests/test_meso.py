@@ -32,6 +32,7 @@ class SummaryOfClosedForm:
     name = "summary-of-closed-form"
     stress_rtol = 0.0
     bytes_per_cell = 1024
+    n_lengths = 2
 
     def __init__(self, form: MesoFormulation):
         self.form, self.cf = form, ClosedFormSolver()

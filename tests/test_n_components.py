@@ -10,12 +10,20 @@ import numpy as np
 import pytest
 
 from hmodel.cell import CellFlags, CellState
-from hmodel.loading import (Control, Recorder, Segment, Tangent, consolidate, run_segment,
-                            solve_increment, strain_path)
+from hmodel.loading import (
+    Control,
+    Recorder,
+    Segment,
+    Tangent,
+    consolidate,
+    run_segment,
+    solve_increment,
+    strain_path,
+)
 from hmodel.loading.newton import free_direction, solve
 from hmodel.loading.result import columns_for, lode_b
 from hmodel.rev import RevState
-from hmodel.rev.rev import deviatoric_stress, equivalent_stress, mean_stress
+from hmodel.rev.state import deviatoric_stress, equivalent_stress, mean_stress
 
 LAM, MU = 40e6, 25e6  # Lame constants [Pa]
 E = MU * (3 * LAM + 2 * MU) / (LAM + MU)

@@ -63,7 +63,7 @@ from .loading.result import PathResult, Recorder, lode_b
 from .loading.segment import Segment, run_segment
 from .params import Params
 from .rev import Rev3D, Sphere
-from .rev.rev import equivalent_stress
+from .rev.state import equivalent_stress
 
 #: Increments of a path between two checks of its peak.
 CHUNK = 200

@@ -73,11 +73,15 @@ class CellSolver(Protocol):
         Working memory of one cell in a running REV [bytes], state, buffers and the solver's
         own arrays together: the work-size guard (:mod:`hmodel.limits`) multiplies it by the
         cells of a request before anything is allocated.
+    n_lengths : int
+        Length increments one cell takes in :meth:`step`: 2 for the H-cells of the 2D model
+        (dl1, dl2), 3 for the bi-hexagons of the 3D model (dl1, dl2, dl3).
     """
 
     name: str
     stress_rtol: float
     bytes_per_cell: int
+    n_lengths: int
 
     def initial(self, params: Params, shape: tuple[int, ...] = ()) -> CellState:
         """Unloaded cells of shape S = ``shape``, in this solver's state layout."""

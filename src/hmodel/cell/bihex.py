@@ -159,12 +159,12 @@ def check_hexagon(solver) -> None:
     meso-stress is eq. 1.12 of them; a richer cell (a learned ``meso`` state or a DEM cell with
     more grains), a surrogate learned from DEM cells and a DEM cell solver are not such a
     hexagon here."""
-    name = getattr(solver, "name", repr(solver))
-    if getattr(solver, "n_lengths", 2) != 2:
-        raise InputError(f"the hexagons of a bi-hexagon are 2D cells (two lengths), got the 3D cell "
-                         f"solver {name!r}")
     if not isinstance(solver, CellSolver):
         raise InputError(f"not a cell solver: {solver!r}")
+    name = solver.name
+    if solver.n_lengths != 2:
+        raise InputError(f"the hexagons of a bi-hexagon are 2D cells (two lengths), got the 3D cell "
+                         f"solver {name!r}")
     if name.startswith("dem"):
         raise InputError(f"the 3D H-model's hexagons are H-cells of the closed form or a surrogate of it; "
                          f"{name!r} is a DEM cell solver (YADE), which the bi-hexagon does not drive "
@@ -172,7 +172,7 @@ def check_hexagon(solver) -> None:
     f = getattr(solver, "formulation", None)
     if f is not None:
         cell = f.to_dict().get("cell", "closed-form")
-        if getattr(f, "richer", False) or str(cell).startswith("dem"):
+        if f.richer or str(cell).startswith("dem"):
             raise InputError(f"the surrogate learned the DEM cell {cell!r}, not the closed-form H-cell: "
                              "the 3D H-model's bi-hexagon is two closed-form H-cells sharing dl1, and "
                              "its learned 3D cell takes a surrogate of that H-cell (e.g. surrogate:default)")

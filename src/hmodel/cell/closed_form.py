@@ -164,6 +164,7 @@ class ClosedFormSolver:
     stress_rtol = 0.0
     #: measured: about 570 B a cell (peak RSS of drained biaxial runs at nθ = 2·10⁴ and 2·10⁵)
     bytes_per_cell = 1024
+    n_lengths = 2
 
     @classmethod
     def from_spec(cls, spec: str = "closed-form") -> "ClosedFormSolver":

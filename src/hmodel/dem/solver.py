@@ -76,6 +76,7 @@ class DEMSolver:
         #: the Python side of a cell (its state and the rows sent to YADE); the YADE scenes
         #: hold a batch of cells at a time (``max_cells``)
         self.bytes_per_cell = 4096
+        self.n_lengths = 2
         self._server: YadeServer | None = None
         #: (params, unique rows, new states, flags) of the last request, see :meth:`_solve`.
         self._last: tuple | None = None

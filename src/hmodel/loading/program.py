@@ -179,7 +179,7 @@ class Program:
             if chunk is not None:  # the stability probes (hmodel.stability) are 2D ones
                 raise InputError("the stability analysis runs 2D programs only: its probes of a "
                                  "dim = 3 program are not implemented yet")
-            if solver is not None and getattr(solver, "n_lengths", 2) != 3:
+            if solver is not None and solver.n_lengths != 3:
                 if solver.name != "closed-form":
                     raise InputError(f"a 3D program runs on the closed-form bi-hexagon; the cell "
                                      f"solver {solver.name!r} is a 2D one")

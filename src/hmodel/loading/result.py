@@ -11,7 +11,12 @@ from pathlib import Path
 import numpy as np
 
 from ..rev import RevState
-from ..rev.rev import deviatoric_stress, equivalent_stress, mean_stress, volumetric_strain
+from ..rev.state import (
+    deviatoric_stress,
+    equivalent_stress,
+    mean_stress,
+    volumetric_strain,
+)
 
 #: Tensor components of a state's strain and stress, by their number n (2D: 3, 3D: 6).
 COMPONENTS = {3: ("11", "22", "12"), 6: ("11", "22", "33", "23", "13", "12")}

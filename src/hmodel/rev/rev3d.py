@@ -17,12 +17,12 @@ import numpy as np
 from ..cell import CellFlags, CellState
 from ..cell.bihex import BIHEX_FLAGS, BiHexSolver, check_params
 from ..errors import InputError, SolverError
-from ..limits import check_memory
 from ..params import Params, check_batch
+from .batch import RevBatch
 from .kernels import LOC_BOX, LOC_CELL
 from .kernels3d import geometry
-from .rev import RevState
 from .sphere import Sphere
+from .state import RevState
 
 #: Voigt positions (11, 22, 33, 23, 13, 12) of the index pairs (i, j).
 VOIGT = ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))
@@ -58,7 +58,7 @@ def dyads(frames: np.ndarray) -> np.ndarray:
     return np.stack([e[..., i] * e[..., j] for i, j in VOIGT], axis=-1)
 
 
-class Rev3D:
+class Rev3D(RevBatch):
     """Directional averaging of bi-hexagons over the sphere, for a batch of material points.
 
     Parameters
@@ -91,7 +91,7 @@ class Rev3D:
                  solver: BiHexSolver | None = None):
         if solver is None:
             solver = BiHexSolver()
-        elif getattr(solver, "n_lengths", 2) != 3:  # a 2D H-cell solver steps the hexagons
+        elif solver.n_lengths != 3:  # a 2D H-cell solver steps the hexagons
             solver = BiHexSolver(hexagon=solver)
         self.solver = solver
         #: the parameter sets (K,), and the first, whose shared fields all sets have
@@ -122,49 +122,17 @@ class Rev3D:
         """Bi-hexagons per material point (directions × azimuths)."""
         return len(self.weights)
 
-    @property
-    def volume0(self) -> float:
-        """Initial macro volume of the first set's points [m^3]."""
-        return float(self.volumes0[0])
+    def _describe(self, n_points: int) -> str:
+        return (f"a 3D REV of {n_points:,} material point{'s' if n_points != 1 else ''} × "
+                f"{self.n_cells} bi-hexagons (Lebedev order {self.sphere.order})")
 
-    @property
-    def kernel(self):
-        """The first set's compiled increment (None: the solver has none)."""
-        return None if self.kernels is None else self.kernels[0]
+    def _no_flags(self, shape: tuple[int, ...]) -> CellFlags:
+        return CellFlags(np.zeros((*shape, len(BIHEX_FLAGS)), bool))
 
     def geometry(self) -> np.ndarray:
         """Per-cell inputs (C, 36) of the compiled trial: the projector rows of the localization
         and the weighted dyads of the averaging (:func:`hmodel.rev.kernels3d.geometry`)."""
         return geometry(self._proj, self._wdyads)
-
-    @property
-    def n_sets(self) -> int:
-        return len(self.sets)
-
-    def check_size(self, n_points: int, what: str = "") -> None:
-        """Refuse (:class:`~hmodel.limits.WorkTooLarge`) ``n_points`` material points whose
-        cells would not fit in the memory budget of :mod:`hmodel.limits`."""
-        cells = float(n_points) * float(self.n_cells)
-        check_memory(cells * self.solver.bytes_per_cell,
-                     what or f"a 3D REV of {n_points:,} material point{'s' if n_points != 1 else ''} × "
-                             f"{self.n_cells} bi-hexagons (Lebedev order {self.sphere.order})")
-
-    def initial(self, n_points: int = 1) -> RevState:
-        """B unloaded material points; with K > 1 parameter sets, the K points (B = K or 1)."""
-        K = self.n_sets
-        self.check_size(max(n_points, K))
-        C = self.n_cells
-        if K == 1:
-            shape = (n_points, C)
-            return RevState(self.solver.initial(self.params, shape),
-                            CellFlags(np.zeros((*shape, len(BIHEX_FLAGS)), bool)),
-                            np.zeros((n_points, 6)), np.zeros((n_points, 6)))
-        if n_points not in (1, K):
-            raise InputError(f"{K} parameter sets and {n_points} material points: give one "
-                             "value or as many as the sets")
-        cells = np.stack([self.solver.initial(s, (C,)).values for s in self.sets])
-        return RevState(CellState(cells), CellFlags(np.zeros((K, C, len(BIHEX_FLAGS)), bool)),
-                        np.zeros((K, 6)), np.zeros((K, 6)), np.arange(K))
 
     def localize(self, cells: CellState, deps: np.ndarray) -> np.ndarray:
         """Length increments (B, C, 3) of every cell for strain increments (B, 6):
@@ -195,38 +163,11 @@ class Rev3D:
                 vsig += np.einsum("bc,c,cj->bj", vs[..., k], self.weights, tensor_to_voigt(sym))
         return vsig / self.macro_volume(eps, None if sets is None else idx)[:, None]
 
-    def solver_fractions(self, state: RevState) -> dict[str, np.ndarray]:
-        """The cell solver's own diagnostics as fractions of each point's cells, name -> (B,)."""
-        idx = state.set_index
-        out: dict[str, np.ndarray] = {}
-        for k in np.unique(idx):
-            rows = idx == k
-            for name, hit in self.solver.fractions(self.sets[k], CellState(state.cells.values[rows])).items():
-                frac = np.mean(np.reshape(hit, (int(rows.sum()), -1)), axis=1)
-                out.setdefault(name, np.full(state.n_points, np.nan))[rows] = frac
-        return out
-
     def flag_fractions(self, state: RevState) -> dict[str, np.ndarray]:
         """Fraction of each point's hexagons (two per bi-hexagon) sliding, open, with the extra
         contacts (:meth:`RevState.fractions`), and of bi-hexagons whose hexagons' grains cross,
         name -> (B,)."""
         return {**state.fractions(), "frac_cross": state.flags.flags[..., 10].mean(axis=1)}
-
-    def _by_set(self, idx: np.ndarray, call):
-        """``call(set, rows)`` for each parameter set present in idx (B,), outputs (tuples of
-        arrays over the rows' points) put back in point order."""
-        present = np.unique(idx)
-        if len(present) == 1:
-            return call(self.sets[present[0]], slice(None))
-        parts = [(np.flatnonzero(idx == k), call(self.sets[k], idx == k)) for k in present]
-        out = []
-        for j in range(len(parts[0][1])):
-            first = parts[0][1][j]
-            arr = np.empty((len(idx), *first.shape[1:]), first.dtype)
-            for rows, piece in parts:
-                arr[rows] = piece[j]
-            out.append(arr)
-        return tuple(out)
 
     def step(self, state: RevState, deps: np.ndarray) -> RevState:
         """Apply macro strain increments ``deps`` (B, 6) in one cell increment."""

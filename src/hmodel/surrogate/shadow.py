@@ -67,6 +67,7 @@ class ShadowedSolver:
         self.stress_rtol = max(surrogate.stress_rtol, fallback.stress_rtol)
         # every cell carries both solvers' states
         self.bytes_per_cell = surrogate.bytes_per_cell + fallback.bytes_per_cell
+        self.n_lengths = 2
         self.n_summary, self.n_full = f.n_state, geometry.n_fields
         self.n_state = self.n_summary + self.n_full + 2
         self.counts = surrogate.counts

@@ -85,6 +85,7 @@ class SurrogateSolver:
     #: measured: about 2.7 kB a cell with the shipped network (peak RSS of drained biaxial runs
     #: at nθ = 2·10⁴ and 2·10⁵): the network's inputs, outputs and cached responses
     bytes_per_cell = 4096
+    n_lengths = 2
     #: Most sub-steps of the largest trained increment one cell increment may be cut into
     #: (strain-input formulations); a larger request is refused with a SolverError.
     max_substeps = 100

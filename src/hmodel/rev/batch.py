@@ -1,0 +1,111 @@
+"""What the 2D and the 3D REV share: a batch of material points of one or more parameter sets.
+
+:class:`RevBatch` holds the parameter sets, the work-size guard, the unloaded points, the
+dispatch of a call to the points of each set and the cell solver's diagnostics; the 2D
+:class:`~hmodel.rev.Rev` and the 3D :class:`~hmodel.rev.rev3d.Rev3D` add their directions,
+localization and averaging.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..cell import CellFlags, CellState
+from ..errors import InputError
+from ..limits import check_memory
+from ..params import Params
+from .state import RevState
+
+
+class RevBatch:
+    """The shared part of a REV. A subclass sets ``sets``, ``params``, ``solver``,
+    ``volumes0`` and ``kernels`` and defines :attr:`n_cells`, :meth:`_describe` and
+    :meth:`_no_flags`."""
+
+    #: strain and stress components of its states
+    n_components: int
+    sets: tuple[Params, ...]
+    params: Params
+    volumes0: np.ndarray
+    kernels: tuple | None
+
+    @property
+    def n_cells(self) -> int:
+        """Cells per material point."""
+        raise NotImplementedError
+
+    def _describe(self, n_points: int) -> str:
+        """What a request of ``n_points`` points is, for the size guard's message."""
+        raise NotImplementedError
+
+    def _no_flags(self, shape: tuple[int, ...]) -> CellFlags:
+        """The flags of unloaded cells of ``shape``."""
+        raise NotImplementedError
+
+    @property
+    def n_sets(self) -> int:
+        return len(self.sets)
+
+    @property
+    def volume0(self) -> float:
+        """Initial macro volume of the first set's points."""
+        return float(self.volumes0[0])
+
+    @property
+    def kernel(self):
+        """The first set's compiled increment (None: the solver has none)."""
+        return None if self.kernels is None else self.kernels[0]
+
+    def check_size(self, n_points: int, what: str = "") -> None:
+        """Refuse (:class:`~hmodel.limits.WorkTooLarge`) ``n_points`` material points whose
+        cells would not fit in the memory budget of :mod:`hmodel.limits`; ``what`` names the
+        request (default: the REV's points and cells)."""
+        cells = float(n_points) * float(self.n_cells)
+        check_memory(cells * self.solver.bytes_per_cell, what or self._describe(n_points))
+
+    def initial(self, n_points: int = 1) -> RevState:
+        """B unloaded material points; with K > 1 parameter sets, the K points (B = K or 1)."""
+        K, C, n = self.n_sets, self.n_cells, self.n_components
+        self.check_size(max(n_points, K))
+        if K == 1:
+            shape = (n_points, C)
+            return RevState(self.solver.initial(self.params, shape), self._no_flags(shape),
+                            np.zeros((n_points, n)), np.zeros((n_points, n)))
+        if n_points not in (1, K):
+            raise InputError(f"{K} parameter sets and {n_points} material points: give one "
+                             "value or as many as the sets")
+        cells = np.stack([self.solver.initial(s, (C,)).values for s in self.sets])
+        return RevState(CellState(cells), self._no_flags((K, C)), np.zeros((K, n)),
+                        np.zeros((K, n)), np.arange(K))
+
+    def solver_fractions(self, state: RevState) -> dict[str, np.ndarray]:
+        """The cell solver's own diagnostics (:meth:`hmodel.cell.CellSolver.fractions`) as the
+        fraction of each point's cells, name -> (B,)."""
+        idx = state.set_index
+        out: dict[str, np.ndarray] = {}
+        for k in np.unique(idx):
+            rows = idx == k
+            cells = CellState(state.cells.values[rows])
+            for name, hit in self.solver.fractions(self.sets[k], cells).items():
+                frac = np.mean(np.reshape(hit, (int(rows.sum()), -1)), axis=1)
+                out.setdefault(name, np.full(state.n_points, np.nan))[rows] = frac
+        return out
+
+    def _by_set(self, idx: np.ndarray, call):
+        """``call(set, rows)`` for each parameter set present in idx (B,), its outputs (arrays
+        or tuples of arrays over the rows' points) put back in point order."""
+        if self.n_sets == 1:
+            return call(self.params, slice(None))
+        present = np.unique(idx)
+        if len(present) == 1:
+            return call(self.sets[present[0]], slice(None))
+        parts = [(np.flatnonzero(idx == k), call(self.sets[k], idx == k)) for k in present]
+
+        def merge(pieces):
+            out = np.empty((len(idx), *pieces[0][1].shape[1:]), pieces[0][1].dtype)
+            for rows, piece in pieces:
+                out[rows] = piece
+            return out
+        if isinstance(parts[0][1], tuple):
+            return tuple(merge([(r, p[j]) for r, p in parts]) for j in range(len(parts[0][1])))
+        return merge(parts)
