@@ -248,6 +248,22 @@ def _axial(axial_strain: float) -> float:
     return axial_strain
 
 
+def _setup_3d(p0, param, axial_strain, order, azimuths, fabric, solver):
+    """What every 3D test reads from its options, checked before any work: the pressures, the
+    material points' parameters, the sphere and the cell solver."""
+    pressures = parse_pressures(p0)
+    cells = _solver_3d(solver)
+    params = _points_3d(param, len(pressures), cells)
+    _axial(axial_strain)
+    return pressures, params, _sphere(order, azimuths, fabric), cells
+
+
+def _steps_3d(sphere, cells, iso_step: float, step: float) -> dict:
+    """The keywords every 3D lab test takes from its options."""
+    return {"sphere": sphere, "solver": cells, "iso_step": _positive(iso_step, "--iso-step"),
+            "step": _positive(step, "--step")}
+
+
 @app.command("triaxial")
 def triaxial(p0: P0Opt = "200kPa", axial_strain: AxialOpt = 0.1,
              undrained: Annotated[bool, typer.Option("--undrained", help="Undrained: eps_v = 0, eps22 = eps33.")] = False,
@@ -258,15 +274,11 @@ def triaxial(p0: P0Opt = "200kPa", axial_strain: AxialOpt = 0.1,
              iso_step: IsoStepOpt = ISO_STEP, solver: Solver3DOpt = "closed-form") -> None:
     """The 3D H-model's triaxial test: isotropic consolidation to p0, then drained (sig22 = sig33
     = p0) or undrained axial compression, or extension, along axis 1."""
-    pressures = parse_pressures(p0)
-    cells = _solver_3d(solver)
-    params = _points_3d(param, len(pressures), cells)
-    _axial(axial_strain)
-    sphere = _sphere(order, azimuths, fabric)
+    pressures, params, sphere, cells = _setup_3d(p0, param, axial_strain, order, azimuths, fabric,
+                                                 solver)
     with LazyProgress("triaxial test") as progress:
         result = run_triaxial(params, pressures, axial_strain, undrained=undrained, extension=extension,
-                              sphere=sphere, solver=cells, iso_step=_positive(iso_step, "--iso-step"),
-                              step=_positive(step, "--step"), progress=progress)
+                              progress=progress, **_steps_3d(sphere, cells, iso_step, step))
     _finish(result, out)
 
 
@@ -282,15 +294,11 @@ def true_triaxial(p0: P0Opt = "200kPa",
                   iso_step: IsoStepOpt = ISO_STEP, solver: Solver3DOpt = "closed-form") -> None:
     """Drained true triaxial test at constant p = p0 and constant b: isotropic consolidation,
     then compression along axis 1 (the major principal stress)."""
-    pressures = parse_pressures(p0)
-    cells = _solver_3d(solver)
-    params = _points_3d(param, len(pressures), cells)
-    _axial(axial_strain)
-    sphere = _sphere(order, azimuths, fabric)
+    pressures, params, sphere, cells = _setup_3d(p0, param, axial_strain, order, azimuths, fabric,
+                                                 solver)
     with LazyProgress("true triaxial test") as progress:
-        result = run_true_triaxial(params, pressures, b, axial_strain, sphere=sphere, solver=cells,
-                                   iso_step=_positive(iso_step, "--iso-step"),
-                                   step=_positive(step, "--step"), progress=progress)
+        result = run_true_triaxial(params, pressures, b, axial_strain, progress=progress,
+                                   **_steps_3d(sphere, cells, iso_step, step))
     _finish(result, out)
 
 
@@ -301,15 +309,11 @@ def oedometer(p0: P0Opt = "200kPa", axial_strain: AxialOpt = 0.05, param: Param3
               iso_step: IsoStepOpt = ISO_STEP, solver: Solver3DOpt = "closed-form") -> None:
     """Oedometric compression of the 3D H-model (eps22 = eps33 = 0) from isotropic consolidation
     to p0; K0 = sig_r/sig_a at its end is printed and is the column K0 of result.csv."""
-    pressures = parse_pressures(p0)
-    cells = _solver_3d(solver)
-    params = _points_3d(param, len(pressures), cells)
-    _axial(axial_strain)
-    sphere = _sphere(order, azimuths, fabric)
+    pressures, params, sphere, cells = _setup_3d(p0, param, axial_strain, order, azimuths, fabric,
+                                                 solver)
     with LazyProgress("oedometric test") as progress:
-        result = run_oedometer(params, pressures, axial_strain, sphere=sphere, solver=cells,
-                               iso_step=_positive(iso_step, "--iso-step"),
-                               step=_positive(step, "--step"), progress=progress)
+        result = run_oedometer(params, pressures, axial_strain, progress=progress,
+                               **_steps_3d(sphere, cells, iso_step, step))
     _finish(result, out)
     p0s = result.meta["p0"]
     for k, k0 in enumerate(result.meta["K0"]):

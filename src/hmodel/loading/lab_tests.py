@@ -74,17 +74,29 @@ def run_biaxial(params: Params | Sequence[Params], p0, axial_strain: float, *, u
     rec = Recorder(_meta(params, rev, "undrained biaxial" if undrained else "drained biaxial",
                          p0=p0.tolist(), axial_strain=axial_strain, iso_step=iso_step, step=step),
                    rev.solver_fractions)
+
+    def shear(state, p0, progress, failures):
+        named_paths.biaxial(rev, state, axial_strain, undrained=undrained, lateral_stress=p0,
+                            step=step, recorder=rec, progress=progress, failures=failures,
+                            compiled=compiled)
+    _consolidate_then(rev, rec, p0, shear, iso_step=iso_step, progress=progress,
+                      drop_failed=drop_failed, compiled=compiled)
+    return rec.result()
+
+
+def _consolidate_then(rev, rec: Recorder, p0: np.ndarray, shear, *, iso_step: float,
+                      progress: Progress, drop_failed: bool, compiled: bool | None) -> None:
+    """Isotropic consolidation of ``rev``'s points to each ``p0`` (the first tenth of the
+    progress), then ``shear(state, p0 per point (B,), progress, failures)``; with
+    ``drop_failed``, the points that fail are dropped and listed in ``rec.meta["failed"]``."""
     consolidation = None if progress is None else (lambda f: progress(0.1 * f))
-    shear = None if progress is None else (lambda f: progress(0.1 + 0.9 * f))
+    rest = None if progress is None else (lambda f: progress(0.1 + 0.9 * f))
     failures = {} if drop_failed else None
     state = named_paths.consolidate(rev, p0, step=iso_step, recorder=rec, progress=consolidation,
-                              failures=failures, compiled=compiled)
-    p0 = np.broadcast_to(p0, state.n_points)
-    named_paths.biaxial(rev, state, axial_strain, undrained=undrained, lateral_stress=p0, step=step,
-                  recorder=rec, progress=shear, failures=failures, compiled=compiled)
+                                    failures=failures, compiled=compiled)
+    shear(state, np.broadcast_to(p0, state.n_points).copy(), rest, failures)
     if drop_failed:
         rec.meta["failed"] = {int(b): why for b, why in sorted(failures.items())}
-    return rec.result()
 
 
 def run_strain_path(params: Params | Sequence[Params], eps, *, solver: CellSolver | None = None,
@@ -113,7 +125,7 @@ def check_3d_params(names, where: str = "--param") -> None:
 
 def _run_3d(params, p0, test: str, rows, n_steps: int, *, sphere: Sphere | None,
             solver, iso_step: float, progress: Progress, drop_failed: bool,
-            compiled: bool | None, **meta) -> tuple[Recorder, dict | None]:
+            compiled: bool | None, **meta) -> Recorder:
     """Isotropic consolidation of a :class:`Rev3D` to each ``p0``, then the stage whose rows
     ``rows(p0)`` gives (p0 per point, (B,)) in ``n_steps`` increments, recorded as ``shear``."""
     sets = (params,) if isinstance(params, Params) else tuple(params)
@@ -128,17 +140,13 @@ def _run_3d(params, p0, test: str, rows, n_steps: int, *, sphere: Sphere | None,
                                  "alpha_omega": s.alpha_omega, "axis": list(s.axis),
                                  "cells": rev.n_cells}),
                    rev.solver_fractions)
-    consolidation = None if progress is None else (lambda f: progress(0.1 * f))
-    shear = None if progress is None else (lambda f: progress(0.1 + 0.9 * f))
-    failures = {} if drop_failed else None
-    state = named_paths.consolidate(rev, p0, step=iso_step, recorder=rec, progress=consolidation,
-                                    failures=failures, compiled=compiled)
-    p0 = np.broadcast_to(p0, state.n_points).copy()
-    seg = Stage("shear", rows(p0), steps=n_steps).segment(state)
-    run_segment(rev, state, seg, rec, progress=shear, failures=failures, compiled=compiled)
-    if drop_failed:
-        rec.meta["failed"] = {int(b): why for b, why in sorted(failures.items())}
-    return rec, failures
+
+    def shear(state, p0, progress, failures):
+        seg = Stage("shear", rows(p0), steps=n_steps).segment(state)
+        run_segment(rev, state, seg, rec, progress=progress, failures=failures, compiled=compiled)
+    _consolidate_then(rev, rec, p0, shear, iso_step=iso_step, progress=progress,
+                      drop_failed=drop_failed, compiled=compiled)
+    return rec
 
 
 _SHEARS = {"eps23": 0.0, "eps13": 0.0, "eps12": 0.0}
@@ -168,7 +176,7 @@ def run_triaxial(params: Params | Sequence[Params], p0, axial_strain: float, *,
             return {"eps11": d, "eps_v": 0.0, "eps22-eps33": 0.0, **_SHEARS}
         return {"eps11": d, "sig22": p0, "sig33": p0, **_SHEARS}
     test = f"{'undrained' if undrained else 'drained'} triaxial {'extension' if extension else 'compression'}"
-    rec, _ = _run_3d(params, p0, test, rows, n, sphere=sphere, solver=solver, iso_step=iso_step,
+    rec = _run_3d(params, p0, test, rows, n, sphere=sphere, solver=solver, iso_step=iso_step,
                      progress=progress, drop_failed=drop_failed, compiled=compiled,
                      axial_strain=axial_strain, step=step)
     return rec.result()
@@ -187,7 +195,7 @@ def run_true_triaxial(params: Params | Sequence[Params], p0, b: float, axial_str
     Other arguments: as :func:`run_triaxial`."""
     b = check_b(b, "true triaxial test")
     n = named_paths.strain_steps(axial_strain, step, "axial strain")
-    rec, _ = _run_3d(params, p0, "true triaxial", lambda p0: {"eps11": axial_strain, "p": p0, "b": b,
+    rec = _run_3d(params, p0, "true triaxial", lambda p0: {"eps11": axial_strain, "p": p0, "b": b,
                                                               **_SHEARS},
                      n, sphere=sphere, solver=solver, iso_step=iso_step, progress=progress,
                      drop_failed=drop_failed, compiled=compiled, b=b, axial_strain=axial_strain,
@@ -207,7 +215,7 @@ def run_oedometer(params: Params | Sequence[Params], p0, axial_strain: float, *,
     the column ``K0`` of every row and, at the end of the test, ``meta["K0"]`` (one per point;
     NaN for a point dropped by ``drop_failed``). Other arguments: as :func:`run_triaxial`."""
     n = named_paths.strain_steps(axial_strain, step, "axial strain")
-    rec, failures = _run_3d(params, p0, "oedometer", lambda p0: {"eps11": axial_strain, "eps22": 0.0,
+    rec = _run_3d(params, p0, "oedometer", lambda p0: {"eps11": axial_strain, "eps22": 0.0,
                                                                  "eps33": 0.0, **_SHEARS},
                             n, sphere=sphere, solver=solver, iso_step=iso_step, progress=progress,
                             drop_failed=drop_failed, compiled=compiled, axial_strain=axial_strain,
@@ -219,6 +227,6 @@ def run_oedometer(params: Params | Sequence[Params], p0, axial_strain: float, *,
     k0 = []
     for b in range(int(cols["point"].max()) + 1 if len(cols["point"]) else 0):
         rows = (cols["point"] == b) & (cols["stage"] == "shear")
-        done = rows.any() and not (failures and b in failures)
+        done = rows.any() and b not in rec.meta.get("failed", {})
         k0.append(float(cols["K0"][rows][-1]) if done else float("nan"))
     return PathResult(cols, {**result.meta, "K0": k0})

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..cell import CellFlags, CellState
-from ..errors import InputError
+from ..errors import InputError, SolverError
 from ..limits import check_memory
 from ..params import Params
 from .state import RevState
@@ -20,7 +20,7 @@ from .state import RevState
 class RevBatch:
     """The shared part of a REV. A subclass sets ``sets``, ``params``, ``solver``,
     ``volumes0`` and ``kernels`` and defines :attr:`n_cells`, :meth:`_describe` and
-    :meth:`_no_flags`."""
+    :meth:`_no_flags`, ``localize`` and ``stress``."""
 
     #: strain and stress components of its states
     n_components: int
@@ -90,6 +90,24 @@ class RevBatch:
                 frac = np.mean(np.reshape(hit, (int(rows.sum()), -1)), axis=1)
                 out.setdefault(name, np.full(state.n_points, np.nan))[rows] = frac
         return out
+
+    def step(self, state: RevState, deps: np.ndarray) -> RevState:
+        """Apply macro strain increments ``deps`` (B, n) in one cell increment: localization
+        (eq. 1.1), the cell solver on each set's points (its ``n_lengths`` length increments),
+        averaging (eq. 1.15)."""
+        deps = np.asarray(deps, dtype=float)
+        if not np.all(np.isfinite(deps)):
+            raise SolverError(f"non-finite strain increment at strain {state.eps.tolist()}")
+        dl = self.localize(state.cells, deps)
+
+        def cell_step(s, rows):
+            lengths = [dl[rows, :, k] for k in range(self.solver.n_lengths)]
+            new, flags = self.solver.step(s, CellState(state.cells.values[rows]), *lengths)
+            return new.values, flags.flags
+        values, flags = self._by_set(state.set_index, cell_step)
+        cells = CellState(values)
+        eps = state.eps + deps
+        return RevState(cells, CellFlags(flags), eps, self.stress(cells, eps, state.sets), state.sets)
 
     def _by_set(self, idx: np.ndarray, call):
         """``call(set, rows)`` for each parameter set present in idx (B,), its outputs (arrays

@@ -22,7 +22,7 @@ from ..cell import (
     ClosedFormSolver,
     meso_volume,
 )
-from ..errors import InputError, SolverError
+from ..errors import InputError
 from ..params import Params, check_batch
 from .batch import RevBatch
 from .directions import Directions
@@ -148,19 +148,3 @@ class Rev(RevBatch):
                          dot(nn, ws2) + dot(tt, wc2) + 2.0 * dot(nt, wsc),
                          dot(nn - tt, wsc) + dot(nt, c2s2)], axis=-1)
 
-    def step(self, state: RevState, deps: np.ndarray) -> RevState:
-        """Apply macro strain increments ``deps`` (B, 3) in one cell increment."""
-        deps = np.asarray(deps, dtype=float)
-        if not np.all(np.isfinite(deps)):
-            raise SolverError(f"non-finite strain increment at strain {state.eps.tolist()}")
-        dl = self.localize(state.cells, deps)
-        idx = state.set_index
-
-        def cell_step(s, rows):
-            new, flags = self.solver.step(s, CellState(state.cells.values[rows]), dl[rows, :, 0],
-                                          dl[rows, :, 1])
-            return new.values, flags.flags
-        values, flags = self._by_set(idx, cell_step)
-        cells = CellState(values)
-        eps = state.eps + deps
-        return RevState(cells, CellFlags(flags), eps, self.stress(cells, eps, state.sets), state.sets)

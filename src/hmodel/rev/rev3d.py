@@ -16,7 +16,7 @@ import numpy as np
 
 from ..cell import CellFlags, CellState
 from ..cell.bihex import BIHEX_FLAGS, BiHexSolver, check_params
-from ..errors import InputError, SolverError
+from ..errors import InputError
 from ..params import Params, check_batch
 from .batch import RevBatch
 from .kernels import LOC_BOX, LOC_CELL
@@ -174,16 +174,4 @@ class Rev3D(RevBatch):
         deps = np.asarray(deps, dtype=float)
         if deps.shape != state.eps.shape:
             raise InputError(f"a 3D strain increment has shape {state.eps.shape}, got {deps.shape}")
-        if not np.all(np.isfinite(deps)):
-            raise SolverError(f"non-finite strain increment at strain {state.eps.tolist()}")
-        dl = self.localize(state.cells, deps)
-        idx = state.set_index
-
-        def cell_step(s, rows):
-            new, flags = self.solver.step(s, CellState(state.cells.values[rows]), dl[rows, :, 0],
-                                          dl[rows, :, 1], dl[rows, :, 2])
-            return new.values, flags.flags
-        values, flags = self._by_set(idx, cell_step)
-        cells = CellState(values)
-        eps = state.eps + deps
-        return RevState(cells, CellFlags(flags), eps, self.stress(cells, eps, state.sets), state.sets)
+        return super().step(state, deps)
