@@ -117,16 +117,22 @@ def draw_cmd(
 @app.command("sample")
 def sample_cmd(
     p0: Annotated[str, typer.Option("--p0", help="Consolidation pressure(s) [N/m, i.e. Pa for unit "
-                                                 "thickness]: 100kPa, or a comma list "
+                                                 "thickness; Pa for spheres]: 100kPa, or a comma list "
                                                  "100kPa,200kPa (one test and CSV each).")] = "100kPa",
-    undrained: Annotated[bool, typer.Option("--undrained", help="Constant-area (undrained) test "
-                                                                "instead of drained (σ22 held at p0).")] = False,
+    dim: Annotated[int, typer.Option(help="2: disks, biaxial tests; 3: spheres, triaxial tests.")] = 2,
+    undrained: Annotated[bool, typer.Option("--undrained", help="Constant-area (constant-volume with "
+                                                                "spheres: undrained) test instead of "
+                                                                "drained (lateral stresses held at p0).")] = False,
+    extension: Annotated[bool, typer.Option("--extension", help="Drained triaxial extension (--dim 3): "
+                                                                "the axial strain is an extension.")] = False,
     axial_strain: Annotated[float, typer.Option(help="Axial strain of the test (logarithmic).")] = 0.1,
-    disks: Annotated[int, typer.Option(help="Number of disks.")] = 2000,
+    disks: Annotated[Optional[int], typer.Option("--disks", "--spheres", help="Number of disks, or of "
+                                                 "spheres with --dim 3 (default 2000 disks, 1500 spheres).")] = None,
     radius: Annotated[float, typer.Option(help="Mean radius (r_min + r_max)/2 [m].")] = 1.0,
     radius_ratio: Annotated[float, typer.Option(help="r_max / r_min.")] = 2.0,
-    distribution: Annotated[str, typer.Option(help="Radii: uniform (in [r_min, r_max]) or equal-area "
-                                                   "(every radius interval holds the same solid area).")] = "uniform",
+    distribution: Annotated[str, typer.Option(help="Radii: uniform (in [r_min, r_max]), equal-area (disks: "
+                                                   "every radius interval holds the same solid area) or "
+                                                   "equal-volume (spheres: the same solid volume).")] = "uniform",
     kn: Annotated[float, typer.Option(help="Normal contact stiffness [N/m].")] = 2.0e8,
     kt_kn: Annotated[float, typer.Option(help="kt / kn.")] = 0.5,
     phi_g: Annotated[float, typer.Option(help="Contact friction angle φg during the test [deg].")] = 30.0,
@@ -136,7 +142,8 @@ def sample_cmd(
     porosity: Annotated[Optional[float], typer.Option(
         help="Target porosity: the consolidation lowers the friction from --compaction-friction "
              "step by step until the porosity at p0 is at most this.")] = None,
-    density: Annotated[float, typer.Option(help="Grain density [kg/m³] (disks of unit thickness).")] = 2650.0,
+    density: Annotated[float, typer.Option(help="Grain density [kg/m³] (disks of unit thickness, or "
+                                                "spheres).")] = 2650.0,
     inertial_number: Annotated[Optional[float], typer.Option(
         help="Inertial number I = ε̇ d̄ √(ρ/p0) that sets the axial strain rate (default 1e-4).")] = None,
     strain_rate: Annotated[Optional[float], typer.Option(help="Axial strain rate [1/s], instead of "
@@ -148,21 +155,32 @@ def sample_cmd(
     out: out_folder("Folder for the CSVs, sample.json and sample.png.") = Path("results/dem-sample"),
 ) -> None:
     """A DEM sample to calibrate on: a periodic 2D assembly of polydisperse disks in YADE,
-    consolidated to p0 and sheared (drained or undrained biaxial test); writes KIND_P0kPa.csv
-    (eps11,q,eps_v,p) and .npz per test, sample.json and sample.png. A test whose CSV exists in
-    the folder is not run again."""
+    consolidated to p0 and sheared (drained or undrained biaxial test), or with --dim 3 of
+    spheres (drained or undrained triaxial compression, drained triaxial extension); writes
+    KIND_P0kPa.csv (eps11,q,eps_v,p; for spheres eps_a,q,eps_v,p, coordination, sliding
+    fraction, the stress tensor) and .npz per test, sample.json and sample.png. A test whose CSV
+    exists in the folder is not run again."""
     from ..dem.sample import SampleSettings, run_sample
     from ..units import parse_pressures
 
     pressures = parse_pressures(p0)
     if inertial_number is not None and strain_rate is not None:
         raise InputError("give --inertial-number or --strain-rate, not both")
+    if extension and dim != 3:
+        raise InputError("--extension is a triaxial test of a sphere sample: add --dim 3 "
+                         "(a disk sample runs drained and undrained biaxial compression)")
+    if extension and undrained:
+        raise InputError("--undrained --extension: a sphere sample runs drained and undrained "
+                         "compression and drained extension")
     extra = {} if inertial_number is None else {"inertial_number": inertial_number}
     settings = SampleSettings(
-        disks=disks, radius=radius, radius_ratio=radius_ratio, distribution=distribution, kn=kn,
+        disks=disks if disks is not None else 2000 if dim == 2 else 1500, radius=radius,
+        radius_ratio=radius_ratio, distribution=distribution, kn=kn,
         kt_kn=kt_kn, phi_g=phi_g, compaction_friction=compaction_friction, porosity=porosity,
         density=density, axial_strain=axial_strain, rows=rows, strain_rate=strain_rate, seed=seed,
-        damping=damping, timeout=timeout, **extra)
+        damping=damping, timeout=timeout, dim=dim, **extra)
     kind = "undrained" if undrained else "drained"
+    if dim == 3:
+        kind = "triaxial-" + ("extension" if extension else kind)
     meta = run_sample(settings, pressures, kind, out, progress=typer.echo)
     typer.echo(f"wrote {out} ({len(meta['tests'])} test(s) in sample.json)")

@@ -1,5 +1,7 @@
 """A DEM sample to calibrate on: a 2D periodic assembly of polydisperse disks in YADE, consolidated
-isotropically to p0 and sheared in a drained or undrained biaxial test.
+isotropically to p0 and sheared in a drained or undrained biaxial test; or, with ``dim = 3``, a
+3D periodic assembly of polydisperse spheres sheared in a drained or undrained triaxial
+compression or a drained triaxial extension (the differences are listed at the end).
 
 - :mod:`~hmodel.dem.sample.settings`: :class:`SampleSettings` (everything but a test's kind and
   p0), the strain rate and inertial number;
@@ -31,16 +33,25 @@ sample of unit thickness), as hmodel's DEM cells
 (:meth:`hmodel.cell.geometry.CellGeometry.love_weber`). Masses are those of
 disks of unit thickness, ``density`` pi r^2, and the inertial number is
 I = strain rate x mean diameter x sqrt(density / p).
+
+Spheres (``dim = 3``, YADE side :mod:`hmodel.dem.yade.scripts.triaxial`): test kinds
+``triaxial-drained``, ``triaxial-undrained``, ``triaxial-extension`` (files
+``triaxial-drained_100kPa.csv``...); the CSV has :data:`CSV_COLUMNS_3D` (``eps_a, q, eps_v, p``
+with q = s11 - (s22 + s33) / 2 and p = tr(s) / 3, the coordination number, the sliding
+fraction and the six stress components), stresses are the 3D Love-Weber stress (1/V) sum f (x) l
+in Pa, masses density 4/3 pi r^3, and sample.png shows the tests' curves.
 """
 
-from .draw import draw_sample
+from .draw import draw_curves, draw_sample
 from .packing import initial_packing, mean_diameter, radii
-from .result import CSV_COLUMNS, ROW_COLUMNS, SampleTest, file_stem
+from .result import CSV_COLUMNS, CSV_COLUMNS_3D, ROW_COLUMNS, ROW_COLUMNS_3D, SampleTest, file_stem
 from .run import RESUME_FREE, run_sample, run_test
-from .settings import DISTRIBUTIONS, KINDS, SampleSettings, inertial_number, option_name, strain_rate
-from .state import CONTACT_COLUMNS, SampleState
+from .settings import (DISTRIBUTIONS, DISTRIBUTIONS_3D, KINDS, KINDS_3D, SampleSettings, inertial_number,
+                       kinds, option_name, strain_rate)
+from .state import CONTACT_COLUMNS, CONTACT_COLUMNS_3D, SampleState
 
-__all__ = ["CONTACT_COLUMNS", "CSV_COLUMNS", "DISTRIBUTIONS", "KINDS", "RESUME_FREE", "ROW_COLUMNS",
-           "SampleSettings", "SampleState", "SampleTest", "draw_sample", "file_stem", "inertial_number",
-           "initial_packing", "mean_diameter", "option_name", "radii", "run_sample", "run_test",
-           "strain_rate"]
+__all__ = ["CONTACT_COLUMNS", "CONTACT_COLUMNS_3D", "CSV_COLUMNS", "CSV_COLUMNS_3D", "DISTRIBUTIONS",
+           "DISTRIBUTIONS_3D", "KINDS", "KINDS_3D", "RESUME_FREE", "ROW_COLUMNS", "ROW_COLUMNS_3D",
+           "SampleSettings", "SampleState", "SampleTest", "draw_curves", "draw_sample", "file_stem",
+           "inertial_number", "initial_packing", "kinds", "mean_diameter", "option_name", "radii",
+           "run_sample", "run_test", "strain_rate"]

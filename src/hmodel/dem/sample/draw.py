@@ -1,4 +1,5 @@
-"""The figure of a DEM sample: its packings side by side with their force chains."""
+"""The figure of a DEM sample: for disks its packings side by side with their force chains, for
+spheres the tests' curves."""
 
 from __future__ import annotations
 
@@ -61,3 +62,32 @@ def draw_sample(states: list[tuple[str, SampleState]], path: "str | os.PathLike"
     for ax in axes[len(states):]:
         ax.set_axis_off()
     fig.savefig(path, dpi=110 if max(len(st.radii) for _, st in states) <= 1000 else 160)
+
+
+def draw_curves(tests: list[tuple[str, "dict[str, np.ndarray] | None"]], path: "str | os.PathLike") -> None:
+    """The triaxial tests of a sphere sample (tables of :data:`~hmodel.dem.sample.result.CSV_COLUMNS_3D`
+    by test name; None is left out): q, eps_v, the stress path and the coordination number and
+    sliding fraction against the axial strain."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(11, 8), layout="constrained")
+    (aq, av), (ap, az) = fig.subplots(2, 2)
+    for k, (name, t) in enumerate(tests):
+        if t is None:
+            continue
+        c = f"C{k}"
+        ea = 100 * t["eps_a"]
+        aq.plot(ea, t["q"] / 1e3, color=c, label=name)
+        av.plot(ea, 100 * t["eps_v"], color=c)
+        ap.plot(t["p"] / 1e3, t["q"] / 1e3, color=c)
+        az.plot(ea, t["coordination"], color=c)
+        az.plot(ea, 10 * t["sliding"], color=c, ls="--")
+    aq.set(xlabel="axial strain eps_a [%]", ylabel="q = s11 - (s22 + s33)/2 [kPa]")
+    av.set(xlabel="axial strain eps_a [%]", ylabel="volumetric strain eps_v [%] (compaction > 0)")
+    ap.set(xlabel="p = tr(s)/3 [kPa]", ylabel="q [kPa]", title="stress path")
+    az.set(xlabel="axial strain eps_a [%]",
+           ylabel="coordination z (solid), 10 x sliding fraction (dashed)")
+    aq.legend(fontsize=8)
+    for ax in (aq, av, ap, az):
+        ax.grid(alpha=0.3)
+    fig.savefig(path, dpi=110)

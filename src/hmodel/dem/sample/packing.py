@@ -1,4 +1,5 @@
-"""The initial packing of a DEM sample: seeded radii and a granular gas without overlap."""
+"""The initial packing of a DEM sample: seeded radii and a granular gas of disks or spheres
+without overlap."""
 
 from __future__ import annotations
 
@@ -10,28 +11,36 @@ from .settings import SampleSettings
 
 
 def radii(settings: SampleSettings, rng: np.random.Generator) -> np.ndarray:
-    """The disks' radii, in random order."""
+    """The grains' radii, in random order."""
     a, b = settings.r_min, settings.r_max
     u = rng.random(settings.disks)
     if settings.distribution == "uniform" or a == b:
         return a + (b - a) * u
-    return 1.0 / (1.0 / a - u * (1.0 / a - 1.0 / b))  # equal-area: pdf ~ r^-2
+    if settings.dim == 2:
+        return 1.0 / (1.0 / a - u * (1.0 / a - 1.0 / b))  # equal-area: pdf ~ r^-2
+    # equal-volume: pdf ~ r^-3, inverse of the CDF (a^-2 - r^-2) / (a^-2 - b^-2) (derived here)
+    return (a ** -2 - u * (a ** -2 - b ** -2)) ** -0.5
 
 
-def initial_packing(settings: SampleSettings) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
-    """(radii, centres (n, 2), (Lx, Ly)): a granular gas, every disk inside its own square of a
-    jittered lattice of spacing 2.1 r_max (no overlap), in random sites."""
+def initial_packing(settings: SampleSettings) -> tuple[np.ndarray, np.ndarray, tuple[float, ...]]:
+    """(radii, centres (n, dim), cell size): a granular gas, every grain inside its own square
+    (cube) of a jittered lattice of spacing 2.1 r_max (no overlap), in random sites."""
     rng = np.random.default_rng(settings.seed)
     r = radii(settings, rng)
-    n = settings.disks
-    nx = math.ceil(math.sqrt(n))
-    ny = math.ceil(n / nx)
+    n, dim = settings.disks, settings.dim
+    if dim == 2:
+        nx = math.ceil(math.sqrt(n))
+        shape = (nx, math.ceil(n / nx))
+    else:
+        nx = round(n ** (1.0 / 3.0))
+        nx += nx ** 3 < n
+        shape = (nx, nx, math.ceil(n / nx ** 2))
     s = 2.1 * settings.r_max
-    sites = rng.permutation(nx * ny)[:n]
-    ij = np.stack([sites % nx, sites // nx], axis=1).astype(float)
+    sites = rng.permutation(math.prod(shape))[:n]
+    ij = np.stack(np.unravel_index(sites, shape, order="F"), axis=1).astype(float)
     slack = (0.5 * s - r)[:, None]
-    pos = (ij + 0.5) * s + rng.uniform(-1.0, 1.0, (n, 2)) * slack
-    return r, pos, (nx * s, ny * s)
+    pos = (ij + 0.5) * s + rng.uniform(-1.0, 1.0, (n, dim)) * slack
+    return r, pos, tuple(k * s for k in shape)
 
 
 def mean_diameter(r: np.ndarray) -> float:

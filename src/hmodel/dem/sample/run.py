@@ -1,5 +1,5 @@
-"""Biaxial tests of a DEM sample run in YADE (task ``biaxial`` of :mod:`hmodel.dem.yade`), one
-at a time or into a folder that a later run resumes.
+"""Tests of a DEM sample run in YADE (task ``biaxial`` of :mod:`hmodel.dem.yade` for disks,
+``triaxial`` for spheres), one at a time or into a folder that a later run resumes.
 
 :func:`run_test` builds the sample, consolidates it to p0, shears it and returns a
 :class:`~hmodel.dem.sample.result.SampleTest`. :func:`run_sample` runs a test per pressure into
@@ -21,18 +21,26 @@ import numpy as np
 from ...errors import InputError
 from ...io import check_output_folder, write_outputs
 from ..yade import DEMError, run
-from .draw import draw_sample
+from .draw import draw_curves, draw_sample
 from .packing import initial_packing, mean_diameter
-from .result import ROW_COLUMNS, SampleTest, file_stem
-from .settings import KINDS, SampleSettings, inertial_number, option_name, strain_rate
+from .result import SampleTest, file_stem, row_columns
+from .settings import SampleSettings, inertial_number, kinds, option_name, strain_rate
 from .state import SampleState
 
 #: Settings that may differ between the runs that fill one folder.
 RESUME_FREE = ("timeout",)
 
 
+def _check_kind(settings: SampleSettings, kind: str) -> None:
+    known = kinds(settings.dim)
+    if kind not in known:
+        what = "disk sample (--dim 2)" if settings.dim == 2 else "sphere sample (--dim 3)"
+        raise InputError(f"a {what} runs {', '.join(known)} tests, not {kind!r}")
+
+
 def run_test(settings: SampleSettings, kind: str, p0: float) -> SampleTest:
-    """Build the sample, consolidate it to p0 and run one biaxial test in YADE.
+    """Build the sample, consolidate it to p0 and run one test in YADE (biaxial for disks,
+    triaxial for spheres).
 
     Raises
     ------
@@ -42,8 +50,7 @@ def run_test(settings: SampleSettings, kind: str, p0: float) -> SampleTest:
         YADE missing, crashed or timed out; EquilibriumError when the consolidation does not
         reach p0 in equilibrium within ``max_steps``.
     """
-    if kind not in KINDS:
-        raise InputError(f"test kind must be drained or undrained, got {kind!r}")
+    _check_kind(settings, kind)
     if not (isinstance(p0, (int, float)) and math.isfinite(p0) and p0 > 0):
         raise InputError(f"p0 must be a positive pressure, got {p0}")
     r, pos, cell = initial_packing(settings)
@@ -54,7 +61,8 @@ def run_test(settings: SampleSettings, kind: str, p0: float) -> SampleTest:
         "kn": settings.kn, "kt_kn": settings.kt_kn, "phi_g": math.radians(settings.phi_g),
         "phi_compact": math.radians(settings.friction_compact), "porosity": settings.porosity,
         "density": settings.density, "damping": settings.damping, "dt_safety": settings.dt_safety,
-        "p0": p0, "kind": kind, "strain_rate": rate, "axial_strain": settings.axial_strain,
+        "p0": p0, "kind": "undrained" if kind.endswith("undrained") else "drained",
+        "extension": kind == "triaxial-extension", "strain_rate": rate, "axial_strain": settings.axial_strain,
         "rows": settings.rows,
         "rate_compact": settings.compaction_inertial_number / (d_mean * math.sqrt(settings.density / p0)),
         "period": settings.period, "check": settings.check, "gain": settings.gain,
@@ -64,14 +72,17 @@ def run_test(settings: SampleSettings, kind: str, p0: float) -> SampleTest:
     }
     t0 = time.perf_counter()
     try:
-        out = run("biaxial", spec, timeout=settings.timeout)
+        out = run("biaxial" if settings.dim == 2 else "triaxial", spec, timeout=settings.timeout)
     except DEMError as e:
         if "target porosity" in str(e):
             raise InputError(str(e).removeprefix("DEM: ")) from None
         raise
     wall = time.perf_counter() - t0
-    rows = np.asarray(out["rows"], float).reshape(-1, len(ROW_COLUMNS))
-    p_min = float(np.min(0.5 * (rows[:, 2] + rows[:, 3])))
+    rows = np.asarray(out["rows"], float).reshape(-1, len(row_columns(settings.dim)))
+    test = SampleTest(kind=kind, p0=float(p0), rows=rows,
+                      consolidated=SampleState.from_json(out["consolidated"]),
+                      final=SampleState.from_json(out["final"]), info={})
+    p_min = float(np.min(test.table()["p"]))
     info = {"strain_rate": rate, "mean_diameter": d_mean,
             "inertial_number": inertial_number(rate, d_mean, settings.density, p0),
             "inertial_number_max": inertial_number(rate, d_mean, settings.density, p_min),
@@ -80,9 +91,8 @@ def run_test(settings: SampleSettings, kind: str, p0: float) -> SampleTest:
             "shear_steps": out["shear"]["steps"],
             "wall_s": wall, "consolidation_wall_s": out["consolidation"]["wall_s"],
             "shear_wall_s": out["shear"]["wall_s"], "yade_version": out["yade_version"]}
-    return SampleTest(kind=kind, p0=float(p0), rows=rows,
-                      consolidated=SampleState.from_json(out["consolidated"]),
-                      final=SampleState.from_json(out["final"]), info=info)
+    test.info.update(info)
+    return test
 
 
 def _read_json(path: Path) -> dict | None:
@@ -100,8 +110,18 @@ def _load_state(path: Path) -> SampleState | None:
                            positions=z["final_positions"], contacts=z["final_contacts"])
 
 
+def _read_table(path: Path) -> dict[str, np.ndarray] | None:
+    """A test CSV's columns, or None for a CSV removed by hand."""
+    if not path.exists():
+        return None
+    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    header = path.read_text().split("\n", 1)[0].split(",")
+    return {c: data[:, k] for k, c in enumerate(header)}
+
+
 def _title(rec: dict, st: SampleState) -> str:
-    return (f"{rec['kind']} {rec['p0'] / 1e3:g} kPa, eps11 = {100 * rec['axial_strain']:g} %: "
+    axial = "eps11" if st.dim == 2 else "eps_a"
+    return (f"{rec['kind']} {rec['p0'] / 1e3:g} kPa, {axial} = {100 * rec['axial_strain']:g} %: "
             f"n = {st.porosity:.3f}, z = {st.coordination:.2f}")
 
 
@@ -112,7 +132,7 @@ def _open_folder(out: Path, settings: SampleSettings, names: list[str]) -> dict:
     wanted = settings.to_dict()
     meta = _read_json(out / "sample.json")
     if meta is not None:
-        old = meta.get("settings", {})
+        old = {"dim": 2, **meta.get("settings", {})}  # folders written before --dim: disks
         diff = sorted(k for k in set(old) | set(wanted)
                       if k not in RESUME_FREE and old.get(k) != wanted.get(k))
         if diff:
@@ -134,8 +154,7 @@ def run_sample(settings: SampleSettings, pressures: list[float], kind: str,
     A folder written with other settings is refused (InputError), so that every test of a
     sample.json shares one sample; each test's files appear together, once it has succeeded.
     """
-    if kind not in KINDS:
-        raise InputError(f"test kind must be drained or undrained, got {kind!r}")
+    _check_kind(settings, kind)
     if not pressures:
         raise InputError("no pressure given")
     for p0 in pressures:
@@ -162,6 +181,10 @@ def run_sample(settings: SampleSettings, pressures: list[float], kind: str,
         meta["tests"] = dict(sorted(meta["tests"].items(), key=lambda kv: (kv[1]["kind"], kv[1]["p0"])))
 
         def draw(path: Path, meta=meta, test=test, name=name) -> None:
+            if settings.dim == 3:  # spheres: the tests' curves (the CSVs hold them)
+                draw_curves([(n, test.table() if n == name else _read_table(out / f"{n}.csv"))
+                             for n in meta["tests"]], path)
+                return
             states = []
             for n, r in meta["tests"].items():
                 st = test.final if n == name else _load_state(out / f"{n}.npz")

@@ -1,7 +1,8 @@
 """The settings of a DEM sample and its tests (everything but a test's kind and p0), and the
 strain rate and inertial number they set.
 
-Units: lengths in m, kn in N/m, pressures in N/m (Pa for unit thickness), angles in degrees.
+Units: lengths in m, kn in N/m, pressures in N/m for disks (Pa for unit thickness) and Pa for
+spheres, angles in degrees.
 """
 
 from __future__ import annotations
@@ -11,8 +12,25 @@ from dataclasses import asdict, dataclass
 
 from ...errors import InputError
 
+#: Test kinds of a disk sample (biaxial).
 KINDS = ("drained", "undrained")
+#: Test kinds of a sphere sample (dim = 3), named as ``hmodel calibrate --data`` names them.
+KINDS_3D = ("triaxial-drained", "triaxial-undrained", "triaxial-extension")
+#: Radius distributions of a disk sample.
 DISTRIBUTIONS = ("uniform", "equal-area")
+#: Radius distributions of a sphere sample.
+DISTRIBUTIONS_3D = ("uniform", "equal-volume")
+#: Solid fraction of the densest sphere packing: a sphere sample's cell is never smaller than
+#: its solid volume over this.
+DENSEST_3D = math.pi / math.sqrt(18.0)
+#: A sphere sample's cell edge must hold this many of its largest diameters, so that no
+#: sphere reaches its own periodic image and the cell is more than a few grains.
+MIN_DIAMETERS_3D = 3.0
+
+
+def kinds(dim: int) -> tuple[str, ...]:
+    """The test kinds of a sample of dimension ``dim``."""
+    return KINDS if dim == 2 else KINDS_3D
 
 
 @dataclass(frozen=True)
@@ -22,14 +40,15 @@ class SampleSettings:
     Attributes
     ----------
     disks : int
-        Number of disks.
+        Number of disks (spheres when ``dim`` is 3).
     radius : float
         Mean of r_min and r_max [m].
     radius_ratio : float
         r_max / r_min (1: monodisperse).
     distribution : str
         ``uniform`` (radius uniform in [r_min, r_max]) or ``equal-area`` (density proportional
-        to r^-2: every radius interval holds the same solid area).
+        to r^-2: every radius interval holds the same solid area); with spheres ``uniform`` or
+        ``equal-volume`` (density proportional to r^-3: the same solid volume).
     kn : float
         Normal contact stiffness [N/m].
     kt_kn : float
@@ -44,7 +63,7 @@ class SampleSettings:
         friction (tan phi x 0.9 per step, each followed by a new equilibrium at p0) until the
         porosity is at most this.
     density : float
-        Grain density [kg/m^3] (disks of unit thickness).
+        Grain density [kg/m^3] (disks of unit thickness, or spheres).
     axial_strain : float
         Axial strain of the test (logarithmic).
     rows : int
@@ -77,6 +96,8 @@ class SampleSettings:
         Time steps allowed for the consolidation.
     timeout : float
         Wall-clock limit of one test's YADE run [s].
+    dim : int
+        2: disks, biaxial tests (:data:`KINDS`); 3: spheres, triaxial tests (:data:`KINDS_3D`).
     """
 
     disks: int = 2000
@@ -106,6 +127,7 @@ class SampleSettings:
     lateral_rate_factor: float = 10.0
     max_steps: int = 5_000_000
     timeout: float = 3600.0
+    dim: int = 2
 
     def __post_init__(self) -> None:
         def finite(name):
@@ -117,13 +139,18 @@ class SampleSettings:
                      "compaction_inertial_number", "gain", "lateral_rate_factor", "timeout"):
             if not (finite(name) and getattr(self, name) > 0):
                 raise InputError(f"{option_name(name)} must be a positive number, got {getattr(self, name)}")
-        if self.disks < 20:
+        if self.dim not in (2, 3):
+            raise InputError(f"--dim must be 2 (disks) or 3 (spheres), got {self.dim}")
+        if self.dim == 2 and self.disks < 20:
             raise InputError(f"--disks must be at least 20, got {self.disks}")
         if self.radius_ratio < 1:
             raise InputError(f"--radius-ratio must be >= 1 (r_max / r_min), got {self.radius_ratio}")
-        if self.distribution not in DISTRIBUTIONS:
-            raise InputError(f"--distribution must be one of {', '.join(DISTRIBUTIONS)}, "
-                             f"got {self.distribution!r}")
+        names = DISTRIBUTIONS if self.dim == 2 else DISTRIBUTIONS_3D
+        if self.distribution not in names:
+            raise InputError(f"--distribution must be one of {', '.join(names)}"
+                             f"{'' if self.dim == 2 else ' with spheres'}, got {self.distribution!r}")
+        if self.dim == 3:
+            self._check_periodic()
         if not (finite("phi_g") and 0 < self.phi_g < 90):
             raise InputError(f"--phi-g must lie in (0, 90) degrees, got {self.phi_g}")
         if self.compaction_friction is not None and not (
@@ -146,6 +173,22 @@ class SampleSettings:
         if not (0 <= self.damping < 1 and 0 < self.dt_safety <= 1 and 0 < self.gain_i
                 and self.period >= 1 and self.check >= 1 and self.max_steps >= 1):
             raise InputError(f"invalid numerical settings of the DEM sample: {self}")
+
+    def _check_periodic(self) -> None:
+        """A sphere sample's cell at its densest (solid fraction :data:`DENSEST_3D`) must be
+        :data:`MIN_DIAMETERS_3D` largest diameters wide; the expected solid volume is used, so
+        the check does not depend on the seed."""
+        a, b = self.r_min, self.r_max
+        if self.distribution == "uniform" or a == b:
+            r3 = (a ** 3 + a * a * b + a * b * b + b ** 3) / 4.0  # mean of r^3, r uniform in [a, b]
+        else:
+            r3 = 2.0 * (b - a) / (a ** -2 - b ** -2)  # mean of r^3, density ~ r^-3 in [a, b]
+        solid = 4.0 / 3.0 * math.pi * r3
+        need = math.ceil((MIN_DIAMETERS_3D * 2.0 * b) ** 3 * DENSEST_3D / solid)
+        if self.disks < need:
+            raise InputError(f"--spheres {self.disks} is too small a sample to be periodic: its "
+                             f"densest cell is narrower than {MIN_DIAMETERS_3D:g} largest "
+                             f"diameters; use at least {need} spheres (or a smaller --radius-ratio)")
 
     @property
     def r_min(self) -> float:

@@ -1,9 +1,9 @@
 """A state of a DEM sample and its measures: porosity, void ratio, coordination numbers,
-rattlers, contact forces and the 2D Love-Weber stress.
+rattlers, contact forces and the Love-Weber stress.
 
-Stresses are (1/A) sum f (x) l over the contacts, A the cell's area, in N/m (Pa m: Pa for a
-sample of unit thickness), as hmodel's DEM cells
-(:meth:`hmodel.cell.geometry.CellGeometry.love_weber`).
+Stresses are (1/V) sum f (x) l over the contacts, V the cell's volume: for disks its area, and
+the stress in N/m (Pa m: Pa for a sample of unit thickness), as hmodel's DEM cells
+(:meth:`hmodel.cell.geometry.CellGeometry.love_weber`); for spheres in Pa.
 """
 
 from __future__ import annotations
@@ -17,32 +17,47 @@ import numpy as np
 #: force f.(e_y, -e_x), branch vector l from i to j (across the periodic boundary if need be);
 #: f is the force on j by i, e = l / |l|.
 CONTACT_COLUMNS = ("i", "j", "fn", "ft", "lx", "ly")
+#: Columns of a contact row of a sphere sample: fn as for disks, the tangential force vector
+#: ft = f - fn e, the branch vector l from i to j.
+CONTACT_COLUMNS_3D = ("i", "j", "fn", "ftx", "fty", "ftz", "lx", "ly", "lz")
+
+
+def contact_columns(dim: int) -> tuple[str, ...]:
+    return CONTACT_COLUMNS if dim == 2 else CONTACT_COLUMNS_3D
 
 
 @dataclass(frozen=True)
 class SampleState:
-    """A state of the sample: cell size (Lx, Ly), radii, centres wrapped into the cell, contacts
-    (columns :data:`CONTACT_COLUMNS`)."""
+    """A state of the sample: cell size (Lx, Ly) or (Lx, Ly, Lz), radii, centres wrapped into the
+    cell, contacts (columns :data:`CONTACT_COLUMNS` or :data:`CONTACT_COLUMNS_3D`)."""
 
-    cell: tuple[float, float]
+    cell: tuple[float, ...]
     radii: np.ndarray
     positions: np.ndarray
     contacts: np.ndarray = field(repr=False)
 
     @classmethod
     def from_json(cls, d: dict) -> "SampleState":
-        return cls(cell=(float(d["cell"][0]), float(d["cell"][1])),
+        dim = len(d["cell"])
+        return cls(cell=tuple(float(v) for v in d["cell"]),
                    radii=np.asarray(d["radii"], float),
-                   positions=np.asarray(d["pos"], float).reshape(-1, 2),
-                   contacts=np.asarray(d["contacts"], float).reshape(-1, len(CONTACT_COLUMNS)))
+                   positions=np.asarray(d["pos"], float).reshape(-1, dim),
+                   contacts=np.asarray(d["contacts"], float).reshape(-1, len(contact_columns(dim))))
 
     @property
-    def area(self) -> float:
-        return self.cell[0] * self.cell[1]
+    def dim(self) -> int:
+        return len(self.cell)
+
+    @property
+    def volume(self) -> float:
+        """The cell's area (disks) or volume (spheres)."""
+        return math.prod(self.cell)
 
     @property
     def porosity(self) -> float:
-        return 1.0 - float(np.sum(math.pi * self.radii ** 2)) / self.area
+        r = self.radii
+        solid = math.pi * r ** 2 if self.dim == 2 else 4.0 / 3.0 * math.pi * r ** 3
+        return 1.0 - float(np.sum(solid)) / self.volume
 
     @property
     def void_ratio(self) -> float:
@@ -50,7 +65,7 @@ class SampleState:
         return n / (1.0 - n)
 
     def contact_counts(self) -> np.ndarray:
-        """Contacts of every disk."""
+        """Contacts of every grain."""
         c = self.contacts[:, :2].astype(int).ravel()
         return np.bincount(c, minlength=len(self.radii))
 
@@ -61,28 +76,35 @@ class SampleState:
 
     @property
     def rattlers(self) -> float:
-        """Fraction of disks with fewer than 2 contacts."""
+        """Fraction of grains with fewer than 2 contacts."""
         return float(np.mean(self.contact_counts() < 2))
 
     @property
     def mechanical_coordination(self) -> float:
-        """z without the rattlers (disks with 0 or 1 contact) and their contacts."""
+        """z without the rattlers (grains with 0 or 1 contact) and their contacts."""
         counts = self.contact_counts()
         keep = counts >= 2
         i, j = self.contacts[:, 0].astype(int), self.contacts[:, 1].astype(int)
         both = keep[i] & keep[j]
         return 2.0 * int(np.sum(both)) / max(int(np.sum(keep)), 1)
 
+    def branches(self) -> np.ndarray:
+        """Branch vectors l from i to j, (c, dim) [m]."""
+        return self.contacts[:, -self.dim:]
+
     def forces(self) -> np.ndarray:
-        """Contact forces on j by i, (c, 2) [N]."""
-        fn, ft, l = self.contacts[:, 2], self.contacts[:, 3], self.contacts[:, 4:6]
+        """Contact forces on j by i, (c, dim) [N]."""
+        fn, l = self.contacts[:, 2], self.branches()
         e = l / np.linalg.norm(l, axis=1)[:, None]
+        if self.dim == 3:
+            return fn[:, None] * e + self.contacts[:, 3:6]
         t = np.stack([e[:, 1], -e[:, 0]], axis=1)
-        return fn[:, None] * e + ft[:, None] * t
+        return fn[:, None] * e + self.contacts[:, 3, None] * t
 
     def stress(self) -> np.ndarray:
-        """2D Love-Weber stress (1/A) sum f (x) l, compression positive, (2, 2) [N/m]."""
-        return np.einsum("ca,cb->ab", self.forces(), self.contacts[:, 4:6]) / self.area
+        """Love-Weber stress (1/V) sum f (x) l, compression positive, (dim, dim) [N/m for disks,
+        Pa for spheres] (report's homogenization, as the cells'; the sum is over the contacts)."""
+        return np.einsum("ca,cb->ab", self.forces(), self.branches()) / self.volume
 
     def summary(self) -> dict:
         return {"porosity": self.porosity, "void_ratio": self.void_ratio,

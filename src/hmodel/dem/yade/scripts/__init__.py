@@ -6,7 +6,9 @@ text into one folder and YADE executes ``serve.py`` there).
   engines, time step, driving, relaxation, contact rows), shared by the two cell tasks;
 - ``cell_runs``: task ``runs``, every cell under its own list of increments;
 - ``cell_increment``: task ``increment``, one increment of cells given by their states;
-- ``biaxial``: task ``biaxial``, a periodic disk sample consolidated and sheared;
+- ``biaxial``: task ``biaxial``, a periodic disk sample consolidated and sheared (and the
+  servo control the sphere sample shares);
+- ``triaxial``: task ``triaxial``, a periodic sphere sample consolidated and sheared;
 - ``common``: what every scene shares (the linear contact stiffnesses, stepping).
 
 Each runs in YADE's own Python: standard library only, YADE imported inside the functions that

@@ -79,7 +79,11 @@ def _state(O, utils, ids, radii):
 
 
 class _Test:
-    """The scene of one request and its stress, servo and strain-rate control."""
+    """The scene of one request and its stress, servo and strain-rate control; the control is
+    written for ``axes`` stress-controlled axes (2 here, 3 in the sphere sample of
+    :mod:`~hmodel.dem.yade.scripts.triaxial`, which overrides the scene's grains and records)."""
+
+    axes = 2
 
     def __init__(self, spec):
         from yade import O, utils
@@ -90,43 +94,68 @@ class _Test:
         O.reset()
         radii = spec["radii"]
         r_max, r_min = max(radii), min(radii)
-        kn, rho = spec["kn"], spec["density"]
-        lx0, ly0 = spec["cell"]
-        lz = 8.0 * r_max
+        kn = spec["kn"]
         O.periodic = True
-        O.cell.hSize = Matrix3(lx0, 0, 0, 0, ly0, 0, 0, 0, lz)
-        mat = O.materials.append(w.FrictMat(young=kn / r_max, poisson=spec["kt_kn"], density=rho,
-                                            frictionAngle=spec["phi_compact"]))
-        self.ids = []
-        for (x, y), r in zip(spec["pos"], radii):
-            b = utils.sphere((x, y, 0.5 * lz), r, material=mat)
-            b.state.blockedDOFs = "zXY"
-            m = rho * math.pi * r * r
-            b.state.mass = m
-            b.state.inertia = (0.5 * m * r * r,) * 3
-            self.ids.append(O.bodies.append(b))
+        O.cell.hSize = self.cell(spec["cell"], r_max)
+        mat = O.materials.append(w.FrictMat(young=kn / r_max, poisson=spec["kt_kn"],
+                                            density=spec["density"], frictionAngle=spec["phi_compact"]))
+        self.ids = [O.bodies.append(self.grain(utils, x, r, mat)) for x, r in zip(spec["pos"], radii)]
         O.engines = [w.ForceResetter(),
                      w.InsertionSortCollider([w.Bo1_Sphere_Aabb()], verletDist=0.1 * r_min),
                      w.InteractionLoop([w.Ig2_Sphere_Sphere_ScGeom()], [stiffness(w, kn, spec["kt_kn"])],
                                        [w.Law2_ScGeom_FrictPhys_CundallStrack()]),
                      w.NewtonIntegrator(damping=spec["damping"], gravity=(0, 0, 0))]
-        m_min = rho * math.pi * r_min * r_min
-        O.dt = spec["dt_safety"] * math.sqrt(m_min / kn)
+        O.dt = spec["dt_safety"] * math.sqrt(self.mass(r_min) / kn)
         self.dt = O.dt
-        self.solid = sum(math.pi * r * r for r in radii)
+        self.solid = sum(self.size(r) for r in radii)
 
-    def area(self):
+    def cell(self, size, r_max):
+        """The cell's hSize: Lx x Ly, and Lz = 8 r_max so that a disk never meets its image."""
+        return self.Matrix3(size[0], 0, 0, 0, size[1], 0, 0, 0, 8.0 * r_max)
+
+    def mass(self, r):
+        """A disk of unit thickness."""
+        return self.spec["density"] * math.pi * r * r
+
+    def size(self, r):
+        """Solid area of a grain."""
+        return math.pi * r * r
+
+    def grain(self, utils, x, r, mat):
+        """A disk: a sphere in the plane z = Lz/2 that moves in the plane and spins about z."""
+        b = utils.sphere((x[0], x[1], 0.5 * self.O.cell.hSize[2, 2]), r, material=mat)
+        b.state.blockedDOFs = "zXY"
+        m = self.mass(r)
+        b.state.mass = m
+        b.state.inertia = (0.5 * m * r * r,) * 3
+        return b
+
+    def volume(self):
+        """The cell's area (2D)."""
         h = self.O.cell.hSize
         return h[0, 0] * h[1, 1]
 
     def porosity(self):
-        return 1.0 - self.solid / self.area()
+        return 1.0 - self.solid / self.volume()
 
-    def stress(self):
-        """(s11, s22, s12, C1111, C2222): 2D stress (compression positive), affine stiffness."""
-        a = self.area()
-        s, c = self.utils.getStressAndTangent(a * 1.0, False)
-        return -s[0, 0], -s[1, 1], -0.5 * (s[0, 1] + s[1, 0]), c[0, 0], c[1, 1]
+    def normal(self):
+        """([sigma_ii], [C_iiii]) over the controlled axes: stress (compression positive) and
+        affine stiffness."""
+        s, c = self.utils.getStressAndTangent(self.volume() * 1.0, False)
+        return [-s[i, i] for i in range(self.axes)], [c[i, i] for i in range(self.axes)]
+
+    def row(self, h0):
+        """A recorded row, strains since the cell h0 (see the module docstring)."""
+        h = self.O.cell.hSize
+        s, _ = self.utils.getStressAndTangent(self.volume() * 1.0, False)
+        return [math.log(h0[0, 0] / h[0, 0]), math.log(h0[1, 1] / h[1, 1]), -s[0, 0], -s[1, 1],
+                -0.5 * (s[0, 1] + s[1, 0]), self.utils.unbalancedForce(),
+                self.O.interactions.countReal()]
+
+    def undrained_rate(self, rate):
+        """The lateral compression rate that keeps the area constant to round-off under the axial
+        one: the cell update h += dt L h multiplies it by (1 - r dt)(1 + r' dt) = 1."""
+        return -rate / (1.0 - rate * self.dt)
 
     def servo_rate(self, sig, goal, stiff, rate_max):
         """Compression-positive strain rate moving sig towards goal."""
@@ -136,8 +165,10 @@ class _Test:
             rate = self.spec["gain"] * (goal - sig) / (stiff * self.spec["period"] * self.dt)
         return max(-rate_max, min(rate_max, rate))
 
-    def set_rates(self, r11, r22):
-        self.O.cell.velGrad = self.Matrix3(-r11, 0, 0, 0, -r22, 0, 0, 0, 0)
+    def set_rates(self, rates):
+        """Compression-positive strain rates of the controlled axes (a diagonal velGrad)."""
+        r = list(rates) + [0.0] * (3 - len(rates))
+        self.O.cell.velGrad = self.Matrix3(-r[0], 0, 0, 0, -r[1], 0, 0, 0, -r[2])
 
     def state(self):
         return _state(self.O, self.utils, self.ids, self.spec["radii"])
@@ -154,13 +185,13 @@ class _Test:
         reductions = 0
         done = 0
         next_check = 0
-        s11 = s22 = 0.0
+        sig = [0.0] * self.axes
         t_c = time.time()
         while True:
-            s11, s22, s12, c11, c22 = self.stress()
+            sig, stiff = self.normal()
             if done >= next_check:
                 next_check += spec["check"]
-                err = max(abs(s11 - p0), abs(s22 - p0)) / p0
+                err = max(abs(s - p0) for s in sig) / p0
                 unb = utils.unbalancedForce()
                 if err <= spec["tol_stress"] and unb <= spec["tol_unbalanced"]:
                     n = self.porosity()
@@ -188,64 +219,62 @@ class _Test:
                     message = (f"consolidation to p0 = {p0:g} not reached within {done} steps "
                                f"({what})")
                     break
-            self.set_rates(self.servo_rate(s11, p0, c11, rate_c), self.servo_rate(s22, p0, c22, rate_c))
+            self.set_rates([self.servo_rate(s, p0, c, rate_c) for s, c in zip(sig, stiff)])
             steps(O, period)
             done += period
-        self.set_rates(0.0, 0.0)
+        self.set_rates([0.0] * self.axes)
         return status, message, {"steps": done, "wall_s": time.time() - t_c,
-                                 "unbalanced": utils.unbalancedForce(), "stress": [s11, s22],
+                                 "unbalanced": utils.unbalancedForce(), "stress": list(sig),
                                  "friction_deg": math.degrees(math.atan(tan_phi)),
                                  "friction_reductions": reductions}
 
     def shear(self):
-        """The drained or undrained shear at the axial strain rate; returns (rows, record)."""
-        O, utils, spec, dt = self.O, self.utils, self.spec, self.dt
+        """The drained or undrained shear at the axial strain rate (axial extension when
+        ``extension``); returns (rows, record)."""
+        O, spec, dt = self.O, self.spec, self.dt
         p0, period, gain = spec["p0"], spec["period"], spec["gain"]
-        utils.setContactFriction(spec["phi_g"])
+        self.utils.setContactFriction(spec["phi_g"])
         t_s = time.time()
         rate = spec["strain_rate"]
-        lx_c, ly_c = O.cell.hSize[0, 0], O.cell.hSize[1, 1]
+        axial = -rate if spec.get("extension") else rate
+        h0 = self.Matrix3(O.cell.hSize)
         n_rows, eps_end = spec["rows"], spec["axial_strain"]
         n_total = max(n_rows, int(round(eps_end / (rate * dt))))
-        rows = []
-
-        def record():
-            h = O.cell.hSize
-            s11, s22, s12, _, _ = self.stress()
-            rows.append([math.log(lx_c / h[0, 0]), math.log(ly_c / h[1, 1]), s11, s22, s12,
-                         utils.unbalancedForce(), O.interactions.countReal()])
-
-        record()
+        rows = [self.row(h0)]
         drained = spec["kind"] == "drained"
         rate_lat = spec["lateral_rate_factor"] * rate
+        lateral = range(1, self.axes)
+        integral = [0.0] * self.axes
         done = 0
-        integral = 0.0
         for k in range(1, n_rows + 1):
             end = int(round(k * n_total / n_rows))
             while done < end:
-                if drained:
-                    s11, s22, s12, c11, c22 = self.stress()
-                    u = (p0 - s22) / (c22 * period * dt) if c22 > 0 else 0.0
-                    integral = max(-rate_lat, min(rate_lat, integral + spec["gain_i"] * u))
-                    self.set_rates(rate, max(-rate_lat, min(rate_lat, gain * u + integral)))
+                rates = [axial] * self.axes
+                if drained:  # each lateral stress servoed to p0 on its own
+                    sig, stiff = self.normal()
+                    for i in lateral:
+                        u = (p0 - sig[i]) / (stiff[i] * period * dt) if stiff[i] > 0 else 0.0
+                        integral[i] = max(-rate_lat, min(rate_lat, integral[i] + spec["gain_i"] * u))
+                        rates[i] = max(-rate_lat, min(rate_lat, gain * u + integral[i]))
                 else:
-                    self.set_rates(rate, -rate / (1.0 - rate * dt))  # (1 - r dt)(1 + r' dt) = 1
+                    rates[1:] = [self.undrained_rate(axial)] * (self.axes - 1)
+                self.set_rates(rates)
                 n = min(period, end - done)
                 steps(O, n)
                 done += n
-            record()
-        self.set_rates(0.0, 0.0)
+            rows.append(self.row(h0))
+        self.set_rates([0.0] * self.axes)
         return rows, {"steps": done, "wall_s": time.time() - t_s, "strain_rate": rate}
 
 
-def run(spec):
-    """The answer to one request (see the module docstring)."""
+def run(spec, scene=_Test):
+    """The answer to one request (see the module docstring); ``scene`` builds and controls it."""
     try:
         from yade import config
         version = str(config.version)
     except Exception:  # pragma: no cover - YADE without config.version
         version = "unknown"
-    test = _Test(spec)
+    test = scene(spec)
     status, message, consolidation = test.consolidate()
     result = {"status": status, "message": message, "dt": test.dt, "yade_version": version,
               "consolidation": consolidation, "consolidated": test.state(), "rows": []}

@@ -4,8 +4,8 @@ stdout prefixed by ``MARK`` (YADE's own output is skipped by the client); an emp
 ends it. It first answers ``{"status": "ready"}``.
 
 A request names its ``task``: ``runs`` (:mod:`~hmodel.dem.yade.scripts.cell_runs`),
-``increment`` (:mod:`~hmodel.dem.yade.scripts.cell_increment`) or ``biaxial``
-(:mod:`~hmodel.dem.yade.scripts.biaxial`). An answer has ``status`` (``"ok"``,
+``increment`` (:mod:`~hmodel.dem.yade.scripts.cell_increment`), ``biaxial``
+(:mod:`~hmodel.dem.yade.scripts.biaxial`) or ``triaxial`` (:mod:`~hmodel.dem.yade.scripts.triaxial`). An answer has ``status`` (``"ok"``,
 ``"no-equilibrium"`` or ``"error"``), ``message`` and ``wall_s``, the request's time in YADE [s];
 an exception is answered as an ``error`` with its first line, and the process goes on.
 """
@@ -16,17 +16,19 @@ import sys
 import time
 
 try:  # pytest collecting the package's doctests
-    from . import biaxial, cell_increment, cell_runs
+    from . import biaxial, cell_increment, cell_runs, triaxial
 except ImportError:  # in YADE: the scripts lie side by side in the working directory
     sys.path.insert(0, os.getcwd())
     import biaxial
     import cell_increment
     import cell_runs
+    import triaxial
 
 
 def answer(request):
     """The answer to one request (a dict), never an exception."""
-    tasks = {"runs": cell_runs.run, "increment": cell_increment.run, "biaxial": biaxial.run}
+    tasks = {"runs": cell_runs.run, "increment": cell_increment.run, "biaxial": biaxial.run,
+             "triaxial": triaxial.run}
     task = request.get("task")
     if task not in tasks:
         return {"status": "error", "message": f"unknown task {task!r} (known: {', '.join(tasks)})"}
