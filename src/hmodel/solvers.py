@@ -10,12 +10,17 @@ hmodel does not load PyTorch, YADE's client or a model file.
 
 from __future__ import annotations
 
+from importlib import import_module
 from importlib.metadata import entry_points
 
 from .cell import CellSolver
 from .errors import InputError
 
 GROUP = "hmodel.cell_solvers"
+#: Solvers of hmodel's own named by a longer prefix than their entry point's first word, looked up
+#: first (``module:factory``, imported only when a spec names it): the DEM bi-hexagon is a cell of
+#: its own under the ``dem`` solvers (``dem:bihexagon[:K=V,...]``, 3D, three lengths).
+PREFIXED = {"dem:bihexagon": "hmodel.dem.bihex:DEMBiHexSolver"}
 
 
 def available() -> list[str]:
@@ -33,9 +38,13 @@ def get_solver(spec: "str | CellSolver") -> CellSolver:
         if not isinstance(spec, CellSolver):
             raise InputError(f"not a cell solver: {spec!r}")
         return spec
+    for prefix, target in PREFIXED.items():
+        if spec == prefix or spec.startswith(prefix + ":"):
+            module, _, factory = target.partition(":")
+            return getattr(import_module(module), factory)(spec)
     name = spec.split(":", 1)[0]
     found = [ep for ep in entry_points(group=GROUP) if ep.name == name]
     if not found:
         raise InputError(f"unknown cell solver {spec!r} (available: closed-form, "
-                         f"surrogate[:MODEL_FILE], dem:MESOSTRUCTURE)")
+                         f"surrogate[:MODEL_FILE], dem:MESOSTRUCTURE, dem:bihexagon)")
     return found[0].load()(spec)

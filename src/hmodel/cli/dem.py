@@ -35,25 +35,46 @@ def validate_cmd(
     alpha0: Annotated[Optional[float], typer.Option(help="Opening angle α0 [deg].")] = None,
     strain: Annotated[float, typer.Option(help="Total cell strain of every path.")] = 0.03,
     steps: Annotated[int, typer.Option(help="Increments per path.")] = 30,
-    directions: Annotated[str, typer.Option(help="Path directions θ in the (ε1, ε2) plane [deg], "
-                                                 "comma-separated.")] = "0,45,90,-30",
-    probes: Annotated[int, typer.Option(help="Probe directions per start state (0: none).")] = 8,
+    dim: Annotated[int, typer.Option(help="2: the standard H-cell; 3: the bi-hexagon of the 3D "
+                                          "model (ten spheres).")] = 2,
+    directions: Annotated[Optional[str], typer.Option(
+        help="2D: path directions θ in the (ε1, ε2) plane [deg], comma-separated "
+             "(default 0,45,90,-30).")] = None,
+    probes: Annotated[Optional[int], typer.Option(
+        help="2D: probe directions per start state (0: none; default 8).")] = None,
+    paths: Annotated[Optional[str], typer.Option(
+        help="3D: comma-separated paths, each a name (axial, triaxial, plane, mixed, opening, "
+             "isotropic, unequal; default all) or a direction εn:εt1:εt2.")] = None,
+    cross: Annotated[bool, typer.Option(
+        "--cross/--no-cross", help="3D: also run every path with the two hexagons' lateral grains "
+                                   "free to touch (contacts the closure ignores).")] = True,
     param: ParamOpt = None,
     out: out_folder("Folder for the CSV table and PNG figures.") = Path("results/dem-validate"),
 ) -> None:
-    """The DEM standard cell against the closed form on monotonic paths and single-increment
-    probes; writes deviations.csv, paths.csv, validation.png and cell.png."""
+    """The DEM cell against the closed form. --dim 2: the standard cell on monotonic paths and
+    single-increment probes (deviations.csv, paths.csv, validation.png, cell.png); --dim 3: the
+    bi-hexagon on sliding and opening paths (deviations.csv, paths.csv, validation.png)."""
+    params = _params(param, alpha0)
+    if steps < 1:
+        raise InputError(f"--steps must be a positive integer, got {steps}")
+    if dim == 3:
+        if directions is not None or probes is not None:
+            raise InputError("--directions and --probes are the 2D cell's; the bi-hexagon's paths are --paths")
+        return _validate_bihex(params, strain, steps, paths, cross, out)
+    if dim != 2:
+        raise InputError(f"--dim must be 2 or 3, got {dim}")
+    if paths is not None:
+        raise InputError("--paths is the bi-hexagon's (--dim 3); the 2D cell's paths are --directions")
     from ..dem.validate import plot_validation, validate, draw_cell
 
-    params = _params(param, alpha0)
+    directions = "0,45,90,-30" if directions is None else directions
+    probes = 8 if probes is None else probes
     try:
         dirs = [float(d) for d in directions.split(",") if d.strip()]
     except ValueError:
         raise InputError(f"--directions expects comma-separated angles, got {directions!r}") from None
     if not dirs or not all(math.isfinite(d) for d in dirs):
         raise InputError(f"--directions expects finite angles, got {directions!r}")
-    if steps < 1:
-        raise InputError(f"--steps must be a positive integer, got {steps}")
     if probes < 0:
         raise InputError(f"--probes must be >= 0, got {probes}")
     with LazyProgress("DEM vs closed form") as progress:
@@ -80,6 +101,37 @@ def validate_cmd(
     typer.echo("max deviation from the refined closed form (relative to each quantity's range): "
                + ", ".join(f"{q} {100 * d:.2f} %" for q, d in worst.items())
                + f"; YADE {v.wall_s:.1f} s for {len(v.runs)} cells; wrote {out}")
+
+
+def _validate_bihex(params: Params, strain: float, steps: int, paths: str | None, cross: bool,
+                    out: Path) -> None:
+    """``hmodel dem validate --dim 3``: the DEM bi-hexagon against the closed form."""
+    from ..dem.validate3d import PATHS, path_rows, plot_bihex_validation, validate_bihex
+
+    chosen = []
+    for item in (paths.split(",") if paths is not None else list(PATHS)):
+        item = item.strip()
+        if ":" in item:
+            try:
+                d = [float(x) for x in item.split(":")]
+            except ValueError:
+                raise InputError(f"--paths expects names or directions εn:εt1:εt2, got {item!r}") from None
+            if len(d) != 3:
+                raise InputError(f"a --paths direction has 3 components εn:εt1:εt2, got {item!r}")
+            chosen.append((item, d))
+        elif item:
+            chosen.append(item)
+    with LazyProgress("DEM bi-hexagon vs closed form") as progress:
+        v = validate_bihex(params, strain=strain, steps=steps, paths=chosen, cross=cross, progress=progress)
+    write_outputs(out, {"deviations.csv": lambda p: write_rows(v.rows, p),
+                        "paths.csv": lambda p: write_rows(path_rows(v), p),
+                        "validation.png": lambda p: plot_bihex_validation(v, p)})
+    worst = v.worst()
+    typer.echo(f"max |ΔF| / max |F| {worst['dev_force']:.2e}, max |Δα| {worst['dev_alpha']:.2e} rad, "
+               f"max |ΔVσ| / max |Vσ| {worst['dev_stress']:.2e} over {len(v.names)} path(s)"
+               + ("" if not cross else
+                  " (with cross contacts: {dev_force:.2e}, {dev_alpha:.2e} rad, {dev_stress:.2e})".format(**v.worst(True)))
+               + f"; YADE {v.wall_s:.1f} s; wrote {out}")
 
 
 @app.command("draw")

@@ -213,16 +213,20 @@ def _sphere(order: int | None, azimuths: int | None, fabric: float) -> Sphere:
 Solver3DOpt = Annotated[str, typer.Option(
     "--solver", help="Cell solver of the hexagons of every bi-hexagon: closed-form (compiled), or a "
                      "surrogate of the 2D H-cell, surrogate[:MODEL] (the learned 3D cell, on the "
-                     "generic driver; sliding_rhs defaults to the one the model was trained with).")]
+                     "generic driver; sliding_rhs defaults to the one the model was trained with); "
+                     "or dem:bihexagon[:K=V,...], the bi-hexagon of spheres in YADE (slow).")]
 
 
 def _solver_3d(spec: str):
-    """The 3D cell of --solver: the closed-form bi-hexagon, or a bi-hexagon whose hexagons a 2D
-    H-cell solver steps (refused in one line for richer or DEM cells: check_hexagon)."""
+    """The 3D cell of --solver: the closed-form bi-hexagon, a 3D cell solver (``dem:bihexagon``),
+    or a bi-hexagon whose hexagons a 2D H-cell solver steps (refused in one line for richer or
+    DEM cells: check_hexagon)."""
     from ..cell.bihex import BiHexSolver
 
     solver = get_solver(spec)
-    return BiHexSolver() if spec == "closed-form" else BiHexSolver(hexagon=solver)
+    if spec == "closed-form":
+        return BiHexSolver()
+    return solver if solver.n_lengths == 3 else BiHexSolver(hexagon=solver)
 
 
 def _points_3d(param: list[str] | None, n_pressures: int, solver=None) -> Params | list[Params]:

@@ -60,6 +60,33 @@ _NUMERICS = ("tol", "max_iter", "substeps", "damping", "dt_safety", "check_every
 _INTEGER = ("max_iter", "substeps", "check_every", "max_cells")
 
 
+def measure(geo: CellGeometry, params: Params, pos: np.ndarray, contacts: list) -> tuple[np.ndarray, np.ndarray]:
+    """State rows (n, n_fields) and flags (n, 5) of DEM cells of ``geo``, from their grain
+    centres (n, g, 2) and closed-contact rows (n lists of rows [i, j, fn, ft, ...], the columns
+    of :data:`hmodel.dem.scene.CONTACT_COLUMNS`); see the module docstring for the flags."""
+    n = len(pos)
+    new_ft = np.zeros((n, len(geo.pairs)))
+    col = geo.pair_columns()
+    contact = np.zeros((n, len(geo.pairs)), bool)
+    fn = np.zeros((n, len(geo.pairs)))
+    for k, rows in enumerate(contacts):
+        for row in rows:
+            p = col[(int(row[0]), int(row[1]))]
+            contact[k, p] = True
+            fn[k, p] = row[2]
+            new_ft[k, p] = row[3]
+    out = geo.pack(params, pos, new_ft)
+    t1 = [col[c] for c in TYPE1]
+    t2 = [col[c] for c in TYPE2]
+    mu = math.tan(params.phi_g)
+    sliding = np.any(contact[:, t1] & (np.abs(new_ft[:, t1]) >= mu * fn[:, t1] * (1 - 5e-3))
+                     & (fn[:, t1] > 0), axis=1)
+    flags = np.stack([sliding, ~contact[:, t1].all(axis=1), ~contact[:, t2].all(axis=1),
+                      contact[:, col[(0, 3)]], contact[:, col[(1, 5)]] | contact[:, col[(2, 4)]]],
+                     axis=1)
+    return out, flags
+
+
 class DEMSolver:
     """YADE cells of one mesostructure; see the module docstring for the state layout."""
 
@@ -119,36 +146,47 @@ class DEMSolver:
     # -- solver interface -------------------------------------------------------------
     def step(self, params: Params, state: CellState, dl1: np.ndarray,
              dl2: np.ndarray) -> tuple[CellState, CellFlags]:
+        return self._step(params, state, (dl1, dl2))
+
+    #: columns of a state's lengths, one per length increment (l1, l2)
+    length_columns = (6, 7)
+    #: flags of a cell (:data:`hmodel.cell.state.FLAGS`)
+    n_flags = len(FLAGS)
+
+    def _step(self, params: Params, state: CellState, dls: tuple) -> tuple[CellState, CellFlags]:
+        """:meth:`step` for ``dls``, one increment array per length (:attr:`length_columns`)."""
         values = np.asarray(state.values, float)
         if values.shape[-1] != self.n_fields:
             raise InputError(f"{self.name}: cell states have {values.shape[-1]} fields, this solver "
                              f"needs {self.n_fields} (start from its initial state)")
         shape = values.shape[:-1]
-        dl = np.stack(np.broadcast_arrays(np.asarray(dl1, float), np.asarray(dl2, float)), -1)
-        dl = np.broadcast_to(dl, (*shape, 2)).reshape(-1, 2)
+        n = len(dls)
+        dl = np.stack(np.broadcast_arrays(*(np.asarray(d, float) for d in dls)), -1)
+        dl = np.broadcast_to(dl, (*shape, n)).reshape(-1, n)
         if not np.all(np.isfinite(dl)):
             raise InputError("DEM increments must be finite")
         flat = values.reshape(-1, self.n_fields)
         # A length increment as long as the cell itself is no cell increment (a run-away
         # Newton trial): refused before YADE is asked to drive grains through each other.
-        worst = np.abs(dl) / np.maximum(np.abs(flat[:, 6:8]), 1e-300) if len(flat) else np.zeros((0, 2))
+        lengths = flat[:, list(self.length_columns)]
+        worst = np.abs(dl) / np.maximum(np.abs(lengths), 1e-300) if len(flat) else np.zeros((0, n))
         if worst.size and worst.max() >= 1.0:
             k = np.unravel_index(int(np.argmax(worst)), worst.shape)
             raise SolverError(f"{self.name}: a cell length increment of {dl[k]:.3g} m on a cell of "
-                              f"length {flat[k[0], 6 + k[1]]:.3g} m (at most the cell's length)")
+                              f"length {lengths[k]:.3g} m (at most the cell's length)")
         if flat.shape[0] == 0:
-            return CellState(values.copy()), CellFlags.none(shape)
+            return CellState(values.copy()), CellFlags(np.zeros((*shape, self.n_flags), bool))
         rows, inverse = np.unique(np.hstack([flat, dl]), axis=0, return_inverse=True)
         new, flags = self._solve(params, rows)
         inverse = inverse.reshape(-1)
         return (CellState(np.ascontiguousarray(new[inverse].reshape(*shape, self.n_fields))),
-                CellFlags(np.ascontiguousarray(flags[inverse].reshape(*shape, len(FLAGS)))))
+                CellFlags(np.ascontiguousarray(flags[inverse].reshape(*shape, self.n_flags))))
 
     def _solve(self, params: Params, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """New states and flags of unique (state, increment) rows; those of the previous request
         are taken from it (the answer depends on the row only), the others run in YADE."""
         new = np.empty((len(rows), self.n_fields))
-        flags = np.empty((len(rows), len(FLAGS)), bool)
+        flags = np.empty((len(rows), self.n_flags), bool)
         todo = np.ones(len(rows), bool)
         last = self._last
         if last is not None and last[0] == params:
@@ -158,7 +196,8 @@ class DEMSolver:
             todo = src >= len(last[1])
             new[~todo], flags[~todo] = last[2][src[~todo]], last[3][src[~todo]]
         if todo.any():
-            new[todo], flags[todo] = self._run(params, rows[todo, :-2], rows[todo, -2:])
+            n = len(self.length_columns)
+            new[todo], flags[todo] = self._run(params, rows[todo, :-n], rows[todo, -n:])
         self._last = (params, rows, new, flags)
         return new, flags
 
@@ -183,28 +222,8 @@ class DEMSolver:
         for k in range(0, len(cells), o.max_cells):
             done += self.yade().request("increment", {**req, "cells": cells[k:k + o.max_cells]},
                                         timeout=o.timeout)["cells"]
-        n = len(values)
-        new_pos = np.array([c["pos"] for c in done], float).reshape(n, geo.n_grains, 2)
-        new_ft = np.zeros((n, len(geo.pairs)))
-        col = geo.pair_columns()
-        contact = np.zeros((n, len(geo.pairs)), bool)
-        fn = np.zeros((n, len(geo.pairs)))
-        for k, c in enumerate(done):
-            for row in c["contacts"]:
-                p = col[(int(row[0]), int(row[1]))]
-                contact[k, p] = True
-                fn[k, p] = row[2]
-                new_ft[k, p] = row[3]
-        out = geo.pack(params, new_pos, new_ft)
-        t1 = [col[c] for c in TYPE1]
-        t2 = [col[c] for c in TYPE2]
-        mu = math.tan(params.phi_g)
-        sliding = np.any(contact[:, t1] & (np.abs(new_ft[:, t1]) >= mu * fn[:, t1] * (1 - 5e-3))
-                         & (fn[:, t1] > 0), axis=1)
-        flags = np.stack([sliding, ~contact[:, t1].all(axis=1), ~contact[:, t2].all(axis=1),
-                          contact[:, col[(0, 3)]], contact[:, col[(1, 5)]] | contact[:, col[(2, 4)]]],
-                         axis=1)
-        return out, flags
+        new_pos = np.array([c["pos"] for c in done], float).reshape(len(values), geo.n_grains, 2)
+        return measure(geo, params, new_pos, [c["contacts"] for c in done])
 
     # -- meso-stress hook for the REV -------------------------------------------------
     def meso(self, params: Params, state: CellState) -> tuple[np.ndarray, np.ndarray] | None:

@@ -45,8 +45,7 @@ def build(O, utils, w, spec, origins, blocked):
     touching to round-off start in contact. Returns ``owner``.
     """
     kn, r_ref = spec["kn"], spec["r_ref"]
-    mat = O.materials.append(w.FrictMat(young=kn / r_ref, poisson=spec["kt_kn"], density=spec["density"],
-                                        frictionAngle=spec["phi_g"]))
+    mat = material(O, w, spec)
     owner = {}
     for c, (cell, origin) in enumerate(zip(spec["cells"], origins)):
         cell["_origin"] = origin
@@ -59,6 +58,20 @@ def build(O, utils, w, spec, origins, blocked):
         for k, bid in enumerate(cell["ids"]):
             owner[bid] = (c, k)
         cell["f_floor"] = 1e-12 * kn * r_ref
+    start(O, utils, w, spec)
+    return owner
+
+
+def material(O, w, spec):
+    """The grains' material (its young and poisson only set PWaveTimeStep's stiffness; the
+    contacts' kn, ks are :func:`~hmodel.dem.yade.scripts.common.stiffness`); returns its id."""
+    return O.materials.append(w.FrictMat(young=spec["kn"] / spec["r_ref"], poisson=spec["kt_kn"],
+                                         density=spec["density"], frictionAngle=spec["phi_g"]))
+
+
+def start(O, utils, w, spec):
+    """Engines and time step of a scene whose grains are placed, then the first time step, which
+    creates the contacts of touching grains (detection margin ``detect_margin``, that step only)."""
     enlarge = 1.0 + spec["detect_margin"]
     collider = w.InsertionSortCollider([w.Bo1_Sphere_Aabb(aabbEnlargeFactor=enlarge)])
     # avoidGranularRatcheting=False: shear increment = tangential part of (v2 - v1) dt, i.e.
@@ -69,14 +82,13 @@ def build(O, utils, w, spec, origins, blocked):
     # as absent); a touching contact created at the detection margin is therefore never lost.
     law = w.Law2_ScGeom_FrictPhys_CundallStrack(neverErase=True)
     O.engines = [w.ForceResetter(), collider,
-                 w.InteractionLoop([ig2], [stiffness(w, kn, spec["kt_kn"])], [law]),
+                 w.InteractionLoop([ig2], [stiffness(w, spec["kn"], spec["kt_kn"])], [law]),
                  w.NewtonIntegrator(damping=spec["damping"], gravity=(0, 0, 0))]
     O.dt = spec["dt_safety"] * utils.PWaveTimeStep()
     O.step()
     ig2.interactionDetectionFactor = 1.0
     for f in collider.boundDispatcher.functors:
         f.aabbEnlargeFactor = 1.0
-    return owner
 
 
 def blocked_dofs(drive):

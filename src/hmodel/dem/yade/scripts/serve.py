@@ -16,10 +16,11 @@ import sys
 import time
 
 try:  # pytest collecting the package's doctests
-    from . import biaxial, cell_increment, cell_runs, triaxial
+    from . import biaxial, bihex_cells, cell_increment, cell_runs, triaxial
 except ImportError:  # in YADE: the scripts lie side by side in the working directory
     sys.path.insert(0, os.getcwd())
     import biaxial
+    import bihex_cells
     import cell_increment
     import cell_runs
     import triaxial
@@ -28,7 +29,7 @@ except ImportError:  # in YADE: the scripts lie side by side in the working dire
 def answer(request):
     """The answer to one request (a dict), never an exception."""
     tasks = {"runs": cell_runs.run, "increment": cell_increment.run, "biaxial": biaxial.run,
-             "triaxial": triaxial.run}
+             "triaxial": triaxial.run, "bihex": bihex_cells.run}
     task = request.get("task")
     if task not in tasks:
         return {"status": "error", "message": f"unknown task {task!r} (known: {', '.join(tasks)})"}

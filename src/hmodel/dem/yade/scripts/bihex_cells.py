@@ -1,0 +1,212 @@
+"""Task ``bihex`` (YADE side, see :mod:`hmodel.dem.yade.scripts`): bi-hexagons of spheres, the
+3D H-model's cell (docs/model3d.md), each from its state under its own increments of
+(l1, l2, l3) (:mod:`hmodel.dem.bihex`: the cell solver ``dem:bihexagon`` and ``hmodel dem
+validate --dim 3``).
+
+Scene. Ten spheres per cell, cell frame (n, t1, t2) = (x, y, z): grains 1 and 4 (indices 0, 3)
+on n, hexagon A's grains 2, 3, 5, 6 (1, 2, 4, 5) in the plane z = 0, hexagon B's grains 7, 8,
+9, 10 (6, 7, 8, 9) in the plane y = 0. Material, contact law, stiffnesses, shear kinematics,
+detection margin and time step are the 2D cells' (:mod:`~hmodel.dem.yade.scripts.cell_scene`):
+rotations are blocked for the same reason (eq. 1.8's tangential displacement is that of the
+branch vector's ends without spin). Each grain's driven axis is kinematic: 1 and 4 along n with
+l1, A's grains along t1 with l2, B's along t2 with l3 (affine about the cell centre); its other
+two translations are free (grain 2 balances along n, eq. 1.5; across its plane by the mirror
+symmetry). With ``cross`` false, A's and B's lateral grains never interact (collision masks:
+A 1, B 2, grains 1 and 4 both): the cell of the closure, whose twelve contacts the state holds;
+with ``cross`` true they touch where they meet (the closure ignores those contacts).
+
+Request: the scene's settings (:func:`hmodel.dem.scene.scene_settings`) and ``cells``, each
+with ``radii``, ``pos`` (10 rows (n, t1, t2), cell frame), ``drive`` (``"n"``, ``"t1"``,
+``"t2"`` per grain), ``l`` = (l1, l2, l3), ``shear`` rows [i, j, fx, fy, fz] (tangential force
+on grain j by grain i, i < j, of a closed contact), ``increments`` (S rows (dl1, dl2, dl3), S
+the same for every cell) and ``cross``.
+
+1. grains at their centres, every degree of freedom blocked; one time step creates the contacts
+   of touching grains with their normal forces, then the tangential forces are restored;
+2. per increment: the driven grains move at constant velocity over ``substeps`` time steps,
+   then the scene relaxes; a cell is frozen (every degree of freedom blocked, at rest) as soon
+   as max(max |F_free| - f_round, 0) / mean |f| <= ``tol`` (f_round = 1000 eps kn |x|, the
+   force that round-off of the coordinates can cause; cells on a square grid centred on the
+   origin), so that its answer does not depend on the other cells; the next increment frees it.
+
+Answer: for every cell one record per increment: ``pos`` (cell frame), contact rows
+[i, j, fn, fx, fy, fz, bx, by, bz] (i < j, f the force on j by i, b = x_j - x_i, fn = f.b/|b|,
+compression positive), ``unbalanced``, ``iterations`` (relaxation steps); ``dt``.
+``status = "no-equilibrium"`` past ``max_iter`` relaxation steps of an increment.
+"""
+
+import math
+
+try:  # pytest collecting the package's doctests
+    from .cell_scene import material, start
+    from .common import steps
+except ImportError:  # in YADE: the scripts lie side by side in the working directory
+    from cell_scene import material, start
+    from common import steps
+
+EPS = 2.220446049250313e-16
+AXIS = {"n": 0, "t1": 1, "t2": 2}
+#: collision masks without cross contacts: YADE lets two bodies interact when masks share a bit
+MASK = {"n": 3, "t1": 1, "t2": 2}
+
+
+def _origins(req):
+    """Cell origins on a square grid of the plane z = 0 centred on the origin; sets each cell's
+    ``f_abs`` (the unbalanced force that round-off of its coordinates can cause)."""
+    cells = req["cells"]
+    half = max(abs(p[k]) + r for c in cells for p, r in zip(c["pos"], c["radii"]) for k in range(3))
+    pitch = 2.0 * half + req["gap"]
+    side = int(math.ceil(math.sqrt(len(cells))))
+    out = []
+    for c, cell in enumerate(cells):
+        o = ((c % side - 0.5 * (side - 1)) * pitch, (c // side - 0.5 * (side - 1)) * pitch, 0.0)
+        cell["f_abs"] = 1e3 * EPS * req["kn"] * (abs(o[0]) + abs(o[1]) + pitch)
+        out.append(o)
+    return out
+
+
+def _build(O, utils, w, req):
+    """The grains of every cell, all blocked; engines, time step and the first step. Returns
+    ``owner`` (body id -> (cell, local grain))."""
+    mat = material(O, w, req)
+    owner = {}
+    for c, (cell, o) in enumerate(zip(req["cells"], _origins(req))):
+        cell["_origin"] = o
+        cell["ids"] = []
+        for p, r, drive in zip(cell["pos"], cell["radii"], cell["drive"]):
+            b = utils.sphere((o[0] + p[0], o[1] + p[1], o[2] + p[2]), r, material=mat,
+                             mask=3 if cell["cross"] else MASK[drive])
+            b.state.blockedDOFs = "xyzXYZ"
+            b.state.mass = req["mass"]  # mass scaling: one mass for all grains
+            owner[O.bodies.append(b)] = (c, len(cell["ids"]))
+            cell["ids"].append(b.id)
+        cell["f_floor"] = 1e-12 * req["kn"] * req["r_ref"]
+    start(O, utils, w, req)
+    return owner
+
+
+def _restore_shear(O, cells):
+    """The tangential forces of the closed contacts, from the request's ``shear`` rows."""
+    want = {}
+    for cell in cells:
+        for i, j, fx, fy, fz in cell["shear"]:
+            want[(cell["ids"][int(i)], cell["ids"][int(j)])] = (fx, fy, fz)
+    for I in O.interactions:
+        if not I.isReal or I.geom.penetrationDepth < 0:
+            continue
+        a, b = (I.id1, I.id2) if I.id1 < I.id2 else (I.id2, I.id1)
+        t = want.get((a, b))
+        if t is None:
+            continue
+        s = 1.0 if I.id1 == a else -1.0  # shearForce is the force on id2 by id1
+        I.phys.shearForce = (s * t[0], s * t[1], s * t[2])
+
+
+def _apply(O, cells, k, substeps):
+    """Increment k of every cell: the driven grains at constant velocity over ``substeps`` time
+    steps (each grain free but along its driven axis), then stopped; the lengths updated."""
+    for cell in cells:
+        dl = cell["increments"][k]
+        for g, bid in enumerate(cell["ids"]):
+            st = O.bodies[bid].state
+            a = AXIS[cell["drive"][g]]
+            st.blockedDOFs = "XYZ" + "xyz"[a]
+            v = [0.0, 0.0, 0.0]
+            v[a] = (st.pos[a] - cell["_origin"][a]) * dl[a] / cell["l"][a] / (substeps * O.dt)
+            st.vel = v
+    steps(O, substeps)
+    for cell in cells:
+        dl = cell["increments"][k]
+        cell["l"] = [cell["l"][a] + dl[a] for a in range(3)]
+        for bid in cell["ids"]:  # every grain is driven: all stopped, as the 2D cells' driven ones
+            O.bodies[bid].state.vel = (0.0, 0.0, 0.0)
+
+
+def contacts(O, cells, owner):
+    """Closed contacts of every cell, rows [i, j, fn, fx, fy, fz, bx, by, bz] sorted by (i, j)
+    (see the module docstring)."""
+    out = [[] for _ in cells]
+    for I in O.interactions:
+        if not I.isReal or I.geom.penetrationDepth < 0:  # kept by neverErase but open
+            continue
+        c, i = owner[I.id1]
+        c2, j = owner[I.id2]
+        if c != c2:
+            continue
+        f = I.phys.normalForce + I.phys.shearForce  # force on id2 by id1
+        f = [f[0], f[1], f[2]]
+        if i > j:
+            i, j, f = j, i, [-x for x in f]
+        pi = O.bodies[cells[c]["ids"][i]].state.pos
+        pj = O.bodies[cells[c]["ids"][j]].state.pos
+        b = [pj[k] - pi[k] for k in range(3)]
+        norm = math.sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2])
+        out[c].append([i, j, (f[0] * b[0] + f[1] * b[1] + f[2] * b[2]) / norm] + f + b)
+    return [sorted(o) for o in out]
+
+
+def _unbalanced(O, cell, rows):
+    """max(max |F| on a free DOF - f_abs, 0) / mean |f| over ``rows``; 0 for a cell whose mean
+    contact force is at most ``f_floor`` (nothing to balance)."""
+    mean_f = sum(math.sqrt(c[3] ** 2 + c[4] ** 2 + c[5] ** 2) for c in rows) / max(len(rows), 1)
+    if mean_f <= cell["f_floor"]:
+        return 0.0
+    worst = -cell["f_abs"]
+    for g, bid in enumerate(cell["ids"]):
+        f = O.forces.f(bid)
+        driven = AXIS[cell["drive"][g]]
+        worst = max([worst] + [abs(f[a]) for a in range(3) if a != driven])
+    return max(worst, 0.0) / mean_f
+
+
+def _relax(O, cells, owner, req):
+    """Time steps until every cell is balanced (each frozen as it is) or ``max_iter`` steps are
+    spent. Returns (pending cells, ratios, steps of each cell, contact rows)."""
+    pending = list(range(len(cells)))
+    ratios = [0.0] * len(cells)
+    iters = [0] * len(cells)
+    it = 0
+    while True:
+        rows = contacts(O, cells, owner)
+        still = []
+        for c in pending:
+            ratios[c] = _unbalanced(O, cells[c], rows[c])
+            if ratios[c] > req["tol"]:
+                still.append(c)
+                continue
+            iters[c] = it
+            for bid in cells[c]["ids"]:
+                st = O.bodies[bid].state
+                st.vel = (0.0, 0.0, 0.0)
+                st.blockedDOFs = "xyzXYZ"
+        pending = still
+        if not pending or it >= req["max_iter"]:
+            return pending, ratios, iters, rows
+        steps(O, req["check_every"])
+        it += req["check_every"]
+
+
+def run(req):
+    """The answer to one request (see the module docstring)."""
+    from yade import O, utils
+    import yade.wrapper as w
+
+    O.reset()
+    cells = req["cells"]
+    owner = _build(O, utils, w, req)
+    _restore_shear(O, cells)
+    records = [[] for _ in cells]
+    for k in range(len(cells[0]["increments"])):
+        _apply(O, cells, k, req["substeps"])
+        pending, ratios, iters, rows = _relax(O, cells, owner, req)
+        if pending:
+            return {"status": "no-equilibrium",
+                    "message": (f"equilibrium not reached at increment {k + 1} within {req['max_iter']} "
+                                f"iterations (unbalanced force ratio {max(ratios[c] for c in pending):.3g} "
+                                f"> {req['tol']:g} in {len(pending)} of {len(cells)} bi-hexagon(s))")}
+        for c, cell in enumerate(cells):
+            o = cell["_origin"]
+            pos = [[O.bodies[b].state.pos[a] - o[a] for a in range(3)] for b in cell["ids"]]
+            records[c].append({"pos": pos, "contacts": rows[c], "unbalanced": ratios[c],
+                               "iterations": iters[c]})
+    return {"status": "ok", "message": "", "dt": O.dt, "cells": records}
