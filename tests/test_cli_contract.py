@@ -141,8 +141,10 @@ CASES = [
      "one parameter set"),
     ("failure surface given n_theta", ["failure-surface", "-p", "n_theta=72", "--out", "o"], 1, "--order N"),
     ("failure surface unknown order", ["failure-surface", "--order", "25", "--out", "o"], 1, "Lebedev rule order"),
-    ("stability of a 3D program", ["stability", "--program", "iso_3d.toml", "--out", "o"], 1,
-     "runs 2D programs only"),
+    ("stability of a 3D program given --order", ["stability", "--program", "iso_3d.toml", "--order",
+                                                  "9", "--out", "o"], 1, "does not apply with --program"),
+    ("stability of a 3D test given n_theta", ["stability", "--test", "triaxial", "-p", "n_theta=72",
+                                              "--out", "o"], 1, "--order N"),
     ("3D hexagon-consistent volume", ["run", "triaxial", "-p", "volume=hexagon-consistent", "--out", "o"], 1,
      "hexagon, rectangle, box for the 3D H-model"),
 ]

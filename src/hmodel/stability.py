@@ -3,18 +3,27 @@
 From any state, *probes* apply small increments in many directions to copies of the state, in
 one batched call (the state itself is never changed):
 
-- strain probes: dε of magnitude m in N directions of the (ε11, ε22) plane (or, with shear, of
-  (ε11, ε22, √2 ε12) space); the responses dσ draw Gudehus' response envelope;
-- stress probes (mixed control): dσ of magnitude m·p in N directions of the (σ11, σ22) plane
-  with σ12 held; the strain responses dε. A probe the material cannot sustain (Newton finds no
-  strain increment) has a NaN response: controllability is lost in that direction.
+- strain probes: dε of magnitude m in N directions (:func:`probe_directions`): in 2D of the
+  (ε11, ε22) plane (or, with shear, of (ε11, ε22, √2 ε12) space); in 3D of the principal
+  (ε11, ε22, ε33) space (or, with shear, of all six components); the responses dσ draw
+  Gudehus' response envelope;
+- stress probes (mixed control): dσ of magnitude m·p in N directions of a plane of normal
+  stresses (:func:`section_directions`: the (σ11, σ22) plane in 2D, the Rendulic plane
+  (σ11, √2 σr), σr = σ22 = σ33, in 3D) with the other components held; the strain responses dε.
+  A probe the material cannot sustain (Newton finds no strain increment) has a NaN response:
+  controllability is lost in that direction.
 
-Second-order work (Hill): d²W = dσ : dε = dσ11 dε11 + dσ22 dε22 + 2 dσ12 dε12, normalized by
-|dσ| |dε| (tensor norms), i.e. the cosine between the two increments. Directions with
-d²W ≤ 0 form the instability cone; its minimum over directions is the scalar indicator; the
-first state along a path where it is ≤ 0 enters the bifurcation domain. The d²W of the path's
-own increments changes sign where controllability is lost under the path's control (the peak of
-q on an undrained path, the peak of σ11 on a drained one).
+Second-order work (Hill): d²W = dσ : dε = Σ dσij dεij (derived here in the REV's Voigt
+components: dσ11 dε11 + dσ22 dε22 + 2 dσ12 dε12 in 2D; the three normal products plus twice
+each of the three shear products in 3D), normalized by |dσ| |dε| (tensor norms), i.e. the
+cosine between the two increments. Directions with d²W ≤ 0 form the instability cone; its
+minimum over directions is the scalar indicator; the first state along a path where it is ≤ 0
+enters the bifurcation domain. The d²W of the path's own increments changes sign where
+controllability is lost under the path's control (the peak of q on an undrained path, the peak
+of σ11 on a drained one; on a drained triaxial test σ11 - p0 = q).
+
+Everything here is written for n components: 3 (the 2D REV, (11, 22, 12)) or 6 (the 3D REV,
+:class:`hmodel.rev.rev3d.Rev3D`, (11, 22, 33, 23, 13, 12), tensor shear components).
 """
 
 from __future__ import annotations
@@ -29,7 +38,9 @@ import numpy as np
 from .errors import InputError
 from .loading.probes import strain_responses, stress_responses, supports
 from .loading.newton import NewtonSettings
+from .loading.result import COMPONENTS
 from .rev import Rev, RevState
+from .rev.sphere import Sphere
 
 
 #: Newton's settings for the stress probes (those of the loading paths).
@@ -43,33 +54,109 @@ def _check(n: int, magnitude: float) -> None:
         raise InputError(f"the probe magnitude must be positive and finite, got {magnitude!r}")
 
 
-def probe_directions(n: int, shear: bool = False) -> np.ndarray:
-    """Unit directions (n, 3) in (11, 22, 12) with tensor norm 1: a circle in the (11, 22)
-    plane, or with ``shear`` a Fibonacci sphere in (11, 22, √2·12)."""
-    if not shear:
-        t = 2 * math.pi * np.arange(n) / n
-        return np.column_stack([np.cos(t), np.sin(t), np.zeros(n)])
+def shear_factors(n: int) -> np.ndarray:
+    """Weights (n,) of the Voigt components (:data:`hmodel.loading.result.COMPONENTS`) in
+    a:b = Σ a_ij b_ij: 1 on the normal components, 2 on the shear ones (tensor, not
+    engineering, shear components: each appears twice in the sum)."""
+    if n not in COMPONENTS:
+        raise InputError(f"increments have 3 (2D) or 6 (3D) components, got {n}")
+    return np.array([1.0 if c[0] == c[1] else 2.0 for c in COMPONENTS[n]])
+
+
+def _fibonacci(n: int) -> np.ndarray:
+    """n nearly uniform unit vectors (n, 3) on the sphere: the Fibonacci (golden-angle) spiral."""
     k = np.arange(n) + 0.5
     z = 1 - 2 * k / n
     r = np.sqrt(1 - z * z)
     phi = math.pi * (3 - math.sqrt(5)) * k
-    return np.column_stack([r * np.cos(phi), r * np.sin(phi), z / math.sqrt(2)])
+    return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
+
+
+def _halton_sphere(n: int, dim: int) -> np.ndarray:
+    """n quasi-uniform unit vectors (n, dim): points 1..n of the Halton sequence (primes 2, 3,
+    5, ...; point 0 is the cube's corner) mapped to a normal sample by the inverse normal CDF,
+    then normalized (a normal vector's direction is uniform on the sphere). Deterministic, for
+    any n, and low-discrepancy where a seeded random sample clusters."""
+    from scipy.special import ndtri
+    from scipy.stats import qmc
+
+    h = qmc.Halton(d=dim, scramble=False)
+    h.fast_forward(1)
+    g = ndtri(h.random(n))
+    return g / np.linalg.norm(g, axis=1, keepdims=True)
+
+
+def probe_directions(n: int, shear: bool = False, components: int = 3) -> np.ndarray:
+    """Unit directions (n, components) with tensor norm 1, in the Voigt order of a REV of
+    ``components`` components (:data:`hmodel.loading.result.COMPONENTS`).
+
+    2D (3 components, (11, 22, 12)): a circle in the (11, 22) plane, or with ``shear`` a
+    Fibonacci sphere in (11, 22, √2·12). 3D (6 components): a Fibonacci sphere in the principal
+    space (11, 22, 33), the shears zero; or with ``shear`` a Halton set on the unit sphere of
+    (11, 22, 33, √2·23, √2·13, √2·12) (:func:`_halton_sphere`)."""
+    if components == 3 and not shear:
+        t = 2 * math.pi * np.arange(n) / n
+        return np.column_stack([np.cos(t), np.sin(t), np.zeros(n)])
+    if components == 3:
+        return _fibonacci(n) / np.sqrt(shear_factors(3))
+    if components != 6:
+        shear_factors(components)  # raises
+    if not shear:
+        return np.column_stack([_fibonacci(n), np.zeros((n, 3))])
+    # Euclidean coordinates with the √2 on the shears have the tensor norm: back to components
+    return _halton_sphere(n, 6) / np.sqrt(shear_factors(6))
+
+
+def section_directions(n: int, components: int = 3) -> np.ndarray:
+    """n unit directions (n, components) on a circle of a plane of normal components: the
+    (11, 22) plane in 2D (:func:`probe_directions` without shear), the Rendulic plane of
+    axisymmetric increments in 3D, (cos t, sin t/√2, sin t/√2, 0, 0, 0), whose coordinates
+    are (x11, √2 xr) with xr = x22 = x33 (:func:`section`)."""
+    if components != 6:
+        return probe_directions(n, False, components)
+    t = 2 * math.pi * np.arange(n) / n
+    s = np.sin(t) / math.sqrt(2)
+    return np.column_stack([np.cos(t), s, s, np.zeros((n, 3))])
+
+
+def triaxial_directions(n: int, shear: bool = False) -> np.ndarray:
+    """Probe directions (n, 6) of an axisymmetric (triaxial) path: ⌈n/2⌉ on the Rendulic circle
+    (:func:`section_directions`), the rest spread (:func:`probe_directions` of 6 components).
+
+    Derived here, and measured (docs/stability.md, "3D"): a state of a triaxial path is
+    transversely isotropic about axis 1 (fabric and stress), its d²W is unchanged by swapping
+    axes 2 and 3, and its instability cone opens in the plane dε22 = dε33 first: 36 directions
+    there and 36 spread find the least d²W of 2000 spread ones, which 72 spread ones miss."""
+    half = (n + 1) // 2
+    return np.vstack([section_directions(half, 6), probe_directions(n - half, shear, 6)])
+
+
+def section(x: np.ndarray) -> np.ndarray:
+    """Coordinates (..., 2) of tensors x (..., n) in the plane of :func:`section_directions`:
+    (x11, x22) in 2D; (x11, √2 xr), xr = (x22 + x33)/2, in 3D (the orthogonal projection on the
+    Rendulic plane, in tensor norm)."""
+    x = np.asarray(x, float)
+    if x.shape[-1] != 6:
+        return x[..., :2]
+    return np.stack([x[..., 0], (x[..., 1] + x[..., 2]) / math.sqrt(2)], axis=-1)
 
 
 def tensor_norm(x: np.ndarray) -> np.ndarray:
-    return np.sqrt(x[..., 0] ** 2 + x[..., 1] ** 2 + 2 * x[..., 2] ** 2)
+    """|x| = √(x:x) of tensors in Voigt components (..., 3 or 6)."""
+    return np.sqrt(np.sum(shear_factors(x.shape[-1]) * x ** 2, axis=-1))
 
 
 def second_order_work(deps: np.ndarray, dsig: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(d²W, d²W / (|dσ| |dε|)) of increments (..., 3)."""
-    w = dsig[..., 0] * deps[..., 0] + dsig[..., 1] * deps[..., 1] + 2 * dsig[..., 2] * deps[..., 2]
+    """(d²W, d²W / (|dσ| |dε|)) of increments (..., 3 or 6): d²W = dσ:dε, the shear products
+    counted twice (:func:`shear_factors`)."""
+    w = np.sum(shear_factors(deps.shape[-1]) * (dsig * deps), axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):
         return w, w / (tensor_norm(deps) * tensor_norm(dsig))
 
 
 @dataclass(frozen=True)
 class Envelope:
-    """Probes from one state: increments applied and responses, both (n, 3), and d²W."""
+    """Probes from one state: increments applied and responses, both (n, 3 or 6), and d²W."""
 
     kind: str  # "strain" or "stress"
     deps: np.ndarray
@@ -90,10 +177,18 @@ class Envelope:
 
 
 def strain_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1e-5,
-                    shear: bool = False, point: int = 0) -> Envelope:
-    """Stress responses to ``n`` strain probes of ``magnitude`` from material point ``point``."""
+                    shear: bool = False, point: int = 0,
+                    directions: np.ndarray | None = None) -> Envelope:
+    """Stress responses to ``n`` strain probes of ``magnitude`` from material point ``point``
+    of a 2D or 3D REV, in the directions of :func:`probe_directions`, or in the unit
+    ``directions`` (n, components) given (e.g. :func:`section_directions`)."""
     _check(n, magnitude)
-    probes = magnitude * probe_directions(n, shear)
+    c = rev.n_components
+    if directions is None:
+        directions = probe_directions(n, shear, c)
+    elif np.shape(directions) != (n, c):
+        raise InputError(f"probe directions must have shape ({n}, {c}), got {np.shape(directions)}")
+    probes = magnitude * np.asarray(directions, float)
     one = state.select(slice(point, point + 1))
     if supports(rev):
         sig = strain_responses(rev, one, probes)
@@ -104,13 +199,16 @@ def strain_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1
 
 def stress_envelope(rev: Rev, state: RevState, n: int = 72, magnitude: float = 1e-3,
                     point: int = 0) -> Envelope:
-    """Strain responses to ``n`` stress probes dσ = magnitude·p·(cos t, sin t, 0) from material
-    point ``point`` (mixed control solved per probe; NaN where no response exists)."""
+    """Strain responses to ``n`` stress probes dσ = magnitude·p·u from material point
+    ``point``, u on the circle of :func:`section_directions` ((cos t, sin t, 0) in 2D, the
+    Rendulic plane in 3D; the other components held), mixed control solved per probe; NaN
+    where no response exists."""
     _check(n, magnitude)
     if not supports(rev):
-        raise InputError("stress probes need a compiled cell solver (the closed form or a meso surrogate)")
+        raise InputError("stress probes need a compiled cell solver (the closed form or a meso "
+                         "surrogate; in 3D the closed-form bi-hexagon)")
     one = state.select(slice(point, point + 1))
-    dsig = magnitude * float(one.p[0]) * probe_directions(n)
+    dsig = magnitude * float(one.p[0]) * section_directions(n, rev.n_components)
     deps = stress_responses(rev, one, one.sig[0] + dsig, SETTINGS)
     return Envelope("stress", deps, dsig)
 
@@ -173,6 +271,60 @@ def along_biaxial(params, p0: float, axial_strain: float, undrained: bool = Fals
     """Drained or undrained biaxial test from p0 with strain probes (see :func:`along_program`)
     and full envelopes (strain probes, stress probes of ``stress_magnitude``·p) at the axial
     strains ``at``; ``shear`` probes ε12 too."""
+    lateral = {} if undrained else {"sig22": float(p0)}
+    program, at_steps = _lab_program("undrained biaxial" if undrained else "drained biaxial", p0,
+                                     axial_strain, "undrained" if undrained else "drained",
+                                     lateral, at, step)
+    return along_program(program, params, every, n_probes, magnitude, shear=shear,
+                         progress=progress, loading_probe=loading_probe, near=near,
+                         at_steps=at_steps, stress_magnitude=stress_magnitude)
+
+
+def along_triaxial(params, p0: float, axial_strain: float, undrained: bool = False,
+                   extension: bool = False, sphere: Sphere | None = None, every: int = 10,
+                   n_probes: int = 72, magnitude: float | None = None, at: tuple[float, ...] = (),
+                   step: float | None = None, stress_magnitude: float = 1e-3, shear: bool = False,
+                   progress=None, loading_probe: bool = True, near: float = NEAR,
+                   solver=None, rendulic: bool = True) -> PathStability:
+    """The triaxial test of the 3D H-model (:func:`hmodel.loading.lab_tests.run_triaxial`: axis
+    1 axial, the shear strains held) from p0, drained (σ22 = σ33 = p0) or undrained (tr ε = 0,
+    ε22 = ε33), in compression or with ``extension`` (ε11 decreasing), with strain probes
+    along it (see :func:`along_program`; directions of :func:`triaxial_directions`, half on
+    the Rendulic circle, or with ``rendulic=False`` all of :func:`probe_directions`; all six
+    components with ``shear``) and envelopes in the Rendulic plane (strain probes and stress
+    probes of ``stress_magnitude``·p, :func:`section_directions`) at the axial strains ``at``
+    (magnitudes). ``sphere``: the 3D REV's directions (default ``Sphere()``); ``solver``: as
+    :meth:`hmodel.loading.Program.run` of a 3D program. The located points are axial strains
+    since consolidation (negative in extension)."""
+    from .loading.lab_tests import check_3d_params
+
+    for name in ("alpha_omega", "beta_omega"):  # as run_triaxial: the 3D fabric is the sphere's
+        if getattr(params, name, 0) != 0:
+            check_3d_params([name], "parameters")
+    kind = "undrained" if undrained else "drained"
+    lateral = {} if undrained else {"sig22": float(p0), "sig33": float(p0)}
+    program, at_steps = _lab_program(
+        f"{kind} triaxial {'extension' if extension else 'compression'}", p0, axial_strain, kind,
+        lateral, at, step, sign=-1.0 if extension else 1.0,
+        sphere=sphere if sphere is not None else Sphere())
+    _check(n_probes, 1.0)
+    directions = triaxial_directions(n_probes, shear) if rendulic else None
+    return along_program(program, params, every, n_probes, magnitude, shear=shear,
+                         progress=progress, loading_probe=loading_probe, near=near,
+                         at_steps=at_steps, stress_magnitude=stress_magnitude, solver=solver,
+                         directions=directions)
+
+
+def _lab_program(name: str, p0: float, axial_strain: float, preset: str, lateral: dict,
+                 at: tuple[float, ...], step: float | None, sign: float = 1.0,
+                 sphere: Sphere | None = None):
+    """The program of a laboratory test (isotropic consolidation to p0, then the stage named
+    ``shear``: ``preset`` driven by ε11 = sign·axial_strain in increments ``step``, with the
+    stress rows ``lateral``) and the increments of its shear stage where envelopes are drawn,
+    labelled by their signed axial strain (the strains ``at`` are magnitudes). A 2D program,
+    or with a ``sphere`` a 3D one."""
+    from dataclasses import replace
+
     from .loading import AXIAL_STEP, Program
 
     step = step or AXIAL_STEP
@@ -182,23 +334,22 @@ def along_biaxial(params, p0: float, axial_strain: float, undrained: bool = Fals
     if bad:
         raise InputError(f"--at strains must lie on the path, in (0, {axial_strain}], got {bad}")
     n = max(1, math.ceil(axial_strain / step - 1e-9))
-    shear_stage = {"name": "shear", "preset": "undrained" if undrained else "drained",
-                   "eps11": axial_strain, "steps": n}
-    if not undrained:
-        shear_stage["sig22"] = float(p0)
-    program = Program.from_dict({"name": "undrained biaxial" if undrained else "drained biaxial",
+    shear_stage = {"name": "shear", "preset": preset, "eps11": sign * axial_strain, "steps": n,
+                   **lateral}
+    program = Program.from_dict({"name": name, "dim": 2 if sphere is None else 3,
                                  "stage": [{"preset": "iso", "p": float(p0)}, shear_stage]})
-    at_steps = {max(1, round(a / step)): a for a in at}
-    return along_program(program, params, every, n_probes, magnitude, shear=shear,
-                         progress=progress, loading_probe=loading_probe, near=near,
-                         at_steps=at_steps, stress_magnitude=stress_magnitude)
+    if sphere is not None:
+        program = replace(program, sphere=sphere)
+    return program, {max(1, round(a / step)): sign * a for a in at}
 
 
 def along_program(program, params, every: int = 10, n_probes: int = 72,
                   magnitude: float | None = None, shear: bool = False, progress=None,
                   loading_probe: bool = True, near: float = NEAR, at_steps: dict | None = None,
-                  stress_magnitude: float = 1e-3, solver=None) -> PathStability:
-    """Second-order work along a loading program (:class:`hmodel.loading.Program`).
+                  stress_magnitude: float = 1e-3, solver=None,
+                  directions: np.ndarray | None = None) -> PathStability:
+    """Second-order work along a loading program (:class:`hmodel.loading.Program`), 2D or 3D
+    (``dim = 3``: probes of six components, on the program's REV, :meth:`Program.make_rev`).
 
     Strain probes (``n_probes`` directions) at every ``every``-th increment, and at every
     increment from when the least normalized d²W seen (probes or loading increments) is below
@@ -209,7 +360,8 @@ def along_program(program, params, every: int = 10, n_probes: int = 72,
     from: the loading direction is itself a direction of the bifurcation domain's definition,
     so the domain is never found after the loss of controllability. ``at_steps`` maps
     increments of the stage named ``shear`` to labels (axial strains) where full envelopes are
-    drawn.
+    drawn (in 3D in the Rendulic plane, :func:`section_directions`). ``directions``: the
+    probes' unit directions (n_probes, components) (default :func:`probe_directions`).
     """
     from .loading import ProgramFailed
 
@@ -217,9 +369,13 @@ def along_program(program, params, every: int = 10, n_probes: int = 72,
     if not (isinstance(every, (int, np.integer)) and every >= 1):
         raise InputError(f"--every must be a positive integer, got {every!r}")
     at_steps = dict(at_steps or {})
-    rev = Rev(params, solver)
+    rev = program.make_rev(params, solver)
+    cells = (f"{params.n_theta:.4g} directions" if rev.n_components == 3
+             else f"{rev.n_cells:,} bi-hexagons")
     # every probe of a state is a material point of one batched call
-    rev.check_size(n_probes, f"{n_probes:,} probes of {params.n_theta:.4g} directions")
+    rev.check_size(n_probes, f"{n_probes:,} probes of {cells}")
+    # 3D envelopes: a section, the Rendulic plane
+    drawn = section_directions(n_probes, 6) if rev.n_components == 6 else None
     seen = {"min": 1.0, "k": None, "eps": None, "sig": None, "mag": None, "entered": False}
     probed: dict[tuple, tuple[float, float]] = {}
     envs: dict = {}
@@ -236,12 +392,13 @@ def along_program(program, params, every: int = 10, n_probes: int = 72,
         mag = magnitude or seen["mag"] or DEFAULT_MAGNITUDE
         key = tuple(e)
         if key not in probed:
-            env = strain_envelope(rev, state, n_probes, mag, shear)
+            env = strain_envelope(rev, state, n_probes, mag, shear, directions=directions)
             probed[key] = (env.min_normalized, mag)
             seen["min"] = min(seen["min"], env.min_normalized)
             seen["entered"] |= env.min_normalized <= 0
         if k - 1 in at_steps and at_steps[k - 1] not in envs:
-            envs[at_steps[k - 1]] = (strain_envelope(rev, state, n_probes, mag, shear),
+            envs[at_steps[k - 1]] = (strain_envelope(rev, state, n_probes, mag, shear,
+                                                     directions=drawn),
                                      stress_envelope(rev, state, n_probes, stress_magnitude))
         seen["k"], seen["eps"], seen["sig"] = k, e.copy(), state.sig[0].copy()
         # every state between the approach of the domain and its entry by the probes
@@ -277,8 +434,9 @@ def _located(res, probed: dict, envs: dict, loading_probe: bool) -> PathStabilit
     cons = res["stage"] == "consolidation"
     first = int(np.flatnonzero(~cons)[0]) if (~cons).any() else len(res)
     start = max(first - 1, 0)  # the consolidated state, then every state after it
-    eps = np.column_stack([res["eps11"], res["eps22"], res["eps12"]])[start:]
-    sig = np.column_stack([res["sig11"], res["sig22"], res["sig12"]])[start:]
+    comps = _components(res)  # the state's order: the probed states' strains are its rows
+    eps = np.column_stack([res[f"eps{c}"] for c in comps])[start:]
+    sig = np.column_stack([res[f"sig{c}"] for c in comps])[start:]
     steps = res["step"][start:]
     _, lw = loading_work(eps, sig)  # lw[i]: increment from row i to row i + 1
     e0 = eps[0, 0]
@@ -311,6 +469,11 @@ def _located(res, probed: dict, envs: dict, loading_probe: bool) -> PathStabilit
         float(steps[entry]) if entry is not None else float("nan"), lost_step, by)
 
 
+def _components(res) -> tuple[str, ...]:
+    """The Voigt components of a path table's states, in the REV's order (2D or 3D)."""
+    return COMPONENTS[6 if "eps33" in res.columns else 3]
+
+
 def _first_persistent(values: np.ndarray, persist: int = 5) -> int | None:
     """Index of the increment where :func:`first_sign_change` locates the sign change."""
     v = np.asarray(values, float)
@@ -329,17 +492,18 @@ def table_writers(ps: PathStability) -> dict:
     ``probes.csv`` (the probes' minimum per probed state), ``summary.csv`` (bifurcation-domain
     entry and loss of controllability) and, with envelopes, ``envelopes.csv``."""
 
+    comps = _components(ps.result)
+    normal = [f"{x}{c}" for x in ("eps", "sig") for c in comps if c[0] == c[1]]
+
     def write_path(p: Path) -> None:
         sh = ps.result
         sh = type(sh)({k: v[sh["stage"] != "consolidation"] for k, v in sh.columns.items()}, sh.meta)
         with open(p, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["step", "stage", "axial_strain", "eps11", "eps22", "sig11", "sig22", "q", "p",
-                        "d2W_loading_normalized"])
+            w.writerow(["step", "stage", "axial_strain", *normal, "q", "p", "d2W_loading_normalized"])
             for i in range(len(ps.shear_strain)):
-                w.writerow([sh["step"][i], sh["stage"][i], ps.shear_strain[i], sh["eps11"][i],
-                            sh["eps22"][i], sh["sig11"][i], sh["sig22"][i], sh["q"][i], sh["p"][i],
-                            ps.loading_w[i]])
+                w.writerow([sh["step"][i], sh["stage"][i], ps.shear_strain[i],
+                            *(sh[c][i] for c in normal), sh["q"][i], sh["p"][i], ps.loading_w[i]])
 
     def write_checks(p: Path) -> None:
         with open(p, "w", newline="") as fh:
@@ -350,8 +514,8 @@ def table_writers(ps: PathStability) -> dict:
     def write_envelopes(p: Path) -> None:
         with open(p, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["axial_strain", "probe", "kind", "deps11", "deps22", "deps12", "dsig11",
-                        "dsig22", "dsig12", "d2W", "d2W_normalized"])
+            w.writerow(["axial_strain", "probe", "kind", *(f"deps{c}" for c in comps),
+                        *(f"dsig{c}" for c in comps), "d2W", "d2W_normalized"])
             for strain, envs in sorted(ps.envelopes.items()):
                 for env in envs:
                     for k in range(len(env.deps)):
@@ -371,27 +535,34 @@ def table_writers(ps: PathStability) -> dict:
 
 
 def plot_envelopes(envelopes: dict, path, title: str) -> None:
-    """Strain-probe response envelopes in the (dσ11, dσ22) plane, stress-probe strain responses
-    in the (dε11, dε22) plane, and polar plots of the normalized d²W with the instability cone."""
+    """Strain-probe response envelopes, stress-probe strain responses and polar plots of the
+    normalized d²W with the instability cone, in the plane of :func:`section`: (dσ11, dσ22) and
+    (dε11, dε22) in 2D; in 3D the Rendulic plane (dσ11, √2 dσr) and (dε11, √2 dεr), r the
+    lateral (radial) mean (σ22 + σ33)/2 of an axisymmetric state."""
     from matplotlib.figure import Figure
 
+    three_d = any(se.deps.shape[1] == 6 for se, _ in envelopes.values())
+    lat = ("√2 dσr", "√2 dεr") if three_d else ("dσ22", "dε22")
     fig = Figure(figsize=(15, 4.8), layout="constrained")
     a = fig.add_subplot(1, 3, 1)
     b = fig.add_subplot(1, 3, 2)
     c = fig.add_subplot(1, 3, 3, projection="polar")
     for strain, (se, te) in sorted(envelopes.items()):
         lab = f"ε11 = {100 * strain:.2f} %"
-        ds = np.vstack([se.dsig, se.dsig[:1]]) / 1e3
+        ds = section(np.vstack([se.dsig, se.dsig[:1]])) / 1e3
         a.plot(ds[:, 0], ds[:, 1], "-", label=lab)
-        de = np.vstack([te.deps, te.deps[:1]]) * 1e6
+        de = section(np.vstack([te.deps, te.deps[:1]])) * 1e6
         b.plot(de[:, 0], de[:, 1], ".-", ms=3, label=lab)
-        t = np.arctan2(se.deps[:, 1], se.deps[:, 0])
+        u = section(se.deps)
+        t = np.arctan2(u[:, 1], u[:, 0])
         order = np.argsort(t)
         line, = c.plot(np.r_[t[order], t[order][:1]], np.r_[se.normalized[order], se.normalized[order][:1]], label=lab)
         neg = se.normalized[order] <= 0
         c.fill_between(t[order], -1, 1, where=neg, color=line.get_color(), alpha=0.15, step="mid")
-    a.set(xlabel="dσ11 [kPa]", ylabel="dσ22 [kPa]", title="strain probes: stress response envelopes")
-    b.set(xlabel="dε11 [10⁻⁶]", ylabel="dε22 [10⁻⁶]", title="stress probes: strain responses")
+    plane = " (Rendulic plane, σr = (σ22 + σ33)/2)" if three_d else ""
+    a.set(xlabel="dσ11 [kPa]", ylabel=f"{lat[0]} [kPa]",
+          title=f"strain probes: stress response envelopes{plane}")
+    b.set(xlabel="dε11 [10⁻⁶]", ylabel=f"{lat[1]} [10⁻⁶]", title="stress probes: strain responses")
     c.set_title("normalized d²W against strain-probe direction\n(shaded: instability cone, d²W ≤ 0)", fontsize=9)
     c.set_ylim(-1, 1)
     a.legend(fontsize=8)
@@ -410,7 +581,8 @@ def plot_path(ps: PathStability, path, title: str) -> None:
 
     r = ps.result
     sh = {k: v[r["stage"] != "consolidation"] for k, v in r.columns.items()}
-    monotonic = bool(np.all(np.diff(ps.shear_strain) >= 0))
+    d = np.diff(ps.shear_strain)
+    monotonic = bool(np.all(d >= 0) or np.all(d <= 0))  # compression or extension
     if monotonic:
         x, xc, xb, xl = (100 * ps.shear_strain, 100 * ps.check_strain, 100 * ps.bifurcation,
                          100 * ps.controllability)

@@ -4,9 +4,11 @@ compiled kernel: the public face of the compiled point for stability analyses
 
 :func:`strain_responses` applies each strain increment to the point's cells (one trial each,
 eq. 1.7 or the solver's learned response); :func:`stress_responses` solves, for each stress
-target, the strain increment that reaches it (the loading paths' mixed-control Newton with all
-three rows stress-controlled; NaN where it does not converge). Both leave the state as it was.
-They need a solver with a compiled kernel (:func:`supports`).
+target, the strain increment that reaches it (the loading paths' mixed-control Newton with every
+row stress-controlled; NaN where it does not converge). Both leave the state as it was.
+Both run on the kernels of :mod:`hmodel.loading.compiled`, written for n components: the 2D
+REV's three (the H-cell trial) and the 3D REV's six (the bi-hexagon trial,
+:mod:`hmodel.loading.compiled3d`). They need a solver with a compiled kernel (:func:`supports`).
 """
 
 from __future__ import annotations
@@ -15,27 +17,30 @@ import numpy as np
 from numba import njit
 
 from ..rev import Rev, RevState
-from .compiled import NOT_CONVERGED, cell_responses_of, fd_tangent, kernel_inputs, solve_point, supports, trial
+from .compiled import (NOT_CONVERGED, any_trial, cell_responses_of, fd_tangent, kernel_inputs,
+                       solve_point, supports)
+from .compiled3d import kernel_inputs3d
 from .newton import NewtonSettings
 
 __all__ = ["strain_responses", "stress_responses", "supports"]
 
 
 @njit(cache=True, error_model="numpy")
-def _strain_kernel(values, eps, probes, geo, p, mode, volume0, sig, resp):
+def _strain_kernel(values, n_flags, eps, probes, geo, p, mode, volume0, sig, resp):
     out = np.empty_like(values)
-    flags = np.empty((values.shape[0], 5), dtype=np.bool_)
+    flags = np.empty((values.shape[0], n_flags), dtype=np.bool_)
     for k in range(probes.shape[0]):
-        trial(values, eps, probes[k], geo, p, mode, volume0, out, flags, sig[k], resp)
+        any_trial(values, eps, probes[k], geo, p, mode, volume0, out, flags, sig[k], resp)
 
 
 @njit(cache=True, error_model="numpy")
 def _stress_kernel(values, flags, eps, sig, K, targets, geo, p, mode, volume0, c, deps_out, resp):
     n, m = values.shape
+    n_comp = eps.shape[0]
     buf = np.empty((4, n, m))
-    bufflags = np.empty((4, n, 5), dtype=np.bool_)
-    S = np.ones(3, dtype=np.bool_)
-    M = np.eye(3)
+    bufflags = np.empty((4, n, flags.shape[1]), dtype=np.bool_)
+    S = np.ones(n_comp, dtype=np.bool_)
+    M = np.eye(n_comp)
     for k in range(targets.shape[0]):
         v = values.copy()
         f = flags.copy()
@@ -45,36 +50,46 @@ def _stress_kernel(values, flags, eps, sig, K, targets, geo, p, mode, volume0, c
         has = np.ones(1, dtype=np.bool_)
         status = solve_point(v, f, e, s, Kk, has, S, M, targets[k], geo, p, mode, volume0, c, 0,
                              buf, bufflags, resp, np.empty(0), np.zeros(1, dtype=np.int64))
-        for j in range(3):
+        for j in range(n_comp):
             deps_out[k, j] = np.nan if status == NOT_CONVERGED else e[j] - eps[j]
 
 
+def _point_inputs(rev: Rev, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """(geo, p) of the kernel for a point of parameter set k, of a 2D or a 3D REV."""
+    if rev.n_components == 6:
+        geo, p = kernel_inputs3d(rev)  # one geometry for every set
+        return geo[0], np.ascontiguousarray(p[k])
+    return kernel_inputs(rev, k)
+
+
 def strain_responses(rev: Rev, one: RevState, deps: np.ndarray) -> np.ndarray:
-    """Stresses (n, 3) after each strain increment ``deps`` (n, 3) from the single material
-    point ``one``."""
+    """Stresses (n, c) after each strain increment ``deps`` (n, c) from the single material
+    point ``one`` (c: the REV's components, 3 in 2D, 6 in 3D)."""
     k = int(one.set_index[0])
-    geo, p = kernel_inputs(rev, k)
-    sig = np.empty((len(deps), 3))
+    geo, p = _point_inputs(rev, k)
+    sig = np.empty((len(deps), one.n_components))
     values = np.ascontiguousarray(one.cells.values[0])
-    _strain_kernel(values, one.eps[0], np.ascontiguousarray(deps), geo, p, rev.mode,
-                   rev.volumes0[k], sig, cell_responses_of(rev.kernels[k], values))
+    _strain_kernel(values, one.flags.flags.shape[-1], one.eps[0], np.ascontiguousarray(deps, float),
+                   geo, p, rev.mode, rev.volumes0[k], sig, cell_responses_of(rev.kernels[k], values))
     return sig
 
 
 def stress_responses(rev: Rev, one: RevState, targets: np.ndarray,
                      settings: NewtonSettings = NewtonSettings()) -> np.ndarray:
-    """Strain increments (n, 3) that reach each stress ``targets`` (n, 3) from the single
+    """Strain increments (n, c) that reach each stress ``targets`` (n, c) from the single
     material point ``one`` (NaN rows where Newton does not converge), starting every solve
     from the point's finite-difference tangent."""
     k = int(one.set_index[0])
-    geo, p = kernel_inputs(rev, k)
+    geo, p = _point_inputs(rev, k)
+    c = one.n_components
     values = np.ascontiguousarray(one.cells.values[0])
     flags = np.ascontiguousarray(one.flags.flags[0])
-    K = np.empty((3, 3))
+    K = np.empty((c, c))
     resp = cell_responses_of(rev.kernels[k], values)
-    fd_tangent(values, one.eps[0], np.zeros(3), geo, p, rev.mode, rev.volumes0[k], settings.fd_step,
+    fd_tangent(values, one.eps[0], np.zeros(c), geo, p, rev.mode, rev.volumes0[k], settings.fd_step,
                np.empty_like(values), np.empty_like(flags), K, resp)
-    deps = np.empty((len(targets), 3))
-    _stress_kernel(values, flags, one.eps[0].copy(), one.sig[0].copy(), K, np.ascontiguousarray(targets),
-                   geo, p, rev.mode, rev.volumes0[k], settings.packed(), deps, resp)
+    deps = np.empty((len(targets), c))
+    _stress_kernel(values, flags, one.eps[0].copy(), one.sig[0].copy(), K,
+                   np.ascontiguousarray(targets, float), geo, p, rev.mode, rev.volumes0[k],
+                   settings.packed(), deps, resp)
     return deps

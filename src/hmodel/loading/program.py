@@ -173,18 +173,7 @@ class Program:
         """
         if not isinstance(params, Params):
             raise InputError("a program runs one material point: give one parameter set")
-        if self.sphere is None:
-            rev = Rev(params, solver)
-        else:
-            if chunk is not None:  # the stability probes (hmodel.stability) are 2D ones
-                raise InputError("the stability analysis runs 2D programs only: its probes of a "
-                                 "dim = 3 program are not implemented yet")
-            if solver is not None and solver.n_lengths != 3:
-                if solver.name != "closed-form":
-                    raise InputError(f"a 3D program runs on the closed-form bi-hexagon; the cell "
-                                     f"solver {solver.name!r} is a 2D one")
-                solver = None  # "closed-form" of the command line: the bi-hexagon's in 3D
-            rev = Rev3D(params, self.sphere, solver)
+        rev = self.make_rev(params, solver)
         meta = {"test": "program", "program": self.name, "params": params.to_dict(), "dim": self.dim,
                 "solver": rev.solver.name, "stopped": [], "cycles": {},
                 "undrained_stages": self.undrained_stages}
@@ -204,6 +193,18 @@ class Program:
             raise ProgramFailed(str(e), rec.result()) from None
         rec.meta["p0"] = [run.p0] if run.p0 is not None else None
         return rec.result()
+
+    def make_rev(self, params: Params, solver: CellSolver | None = None) -> Rev | Rev3D:
+        """The REV the program runs on (also the stability probes' REV, :mod:`hmodel.stability`):
+        a 2D :class:`Rev`, or for ``dim = 3`` a :class:`Rev3D` of the program's sphere."""
+        if self.sphere is None:
+            return Rev(params, solver)
+        if solver is not None and solver.n_lengths != 3:
+            if solver.name != "closed-form":
+                raise InputError(f"a 3D program runs on the closed-form bi-hexagon; the cell "
+                                 f"solver {solver.name!r} is a 2D one")
+            solver = None  # "closed-form" of the command line: the bi-hexagon's in 3D
+        return Rev3D(params, self.sphere, solver)
 
     @property
     def undrained_stages(self) -> list[str]:
