@@ -62,6 +62,7 @@ def main() -> None:
             rows += [(f"{name}: YADE wall time (consolidation + shear) [s]", t["wall_s"],
                       f"<= {TARGET_S:g}" if kind == "triaxial-drained" else "-"),
                      (f"{name}: consolidation wall time [s]", t["consolidation_wall_s"], "-"),
+                     (f"{name}: YADE CPU time [s]", t.get("yade_cpu_s", float("nan")), "-"),
                      (f"{name}: inertial number at p0", t["inertial_number"], f"<= {TARGET_I:g}"),
                      (f"{name}: largest inertial number (lowest p)", t["inertial_number_max"],
                       f"<= {TARGET_I:g}"),

@@ -186,7 +186,7 @@ class _Test:
         done = 0
         next_check = 0
         sig = [0.0] * self.axes
-        t_c = time.time()
+        t_c, cpu_c = time.time(), time.process_time()
         while True:
             sig, stiff = self.normal()
             if done >= next_check:
@@ -224,6 +224,7 @@ class _Test:
             done += period
         self.set_rates([0.0] * self.axes)
         return status, message, {"steps": done, "wall_s": time.time() - t_c,
+                                 "cpu_s": time.process_time() - cpu_c,
                                  "unbalanced": utils.unbalancedForce(), "stress": list(sig),
                                  "friction_deg": math.degrees(math.atan(tan_phi)),
                                  "friction_reductions": reductions}
@@ -234,7 +235,7 @@ class _Test:
         O, spec, dt = self.O, self.spec, self.dt
         p0, period, gain = spec["p0"], spec["period"], spec["gain"]
         self.utils.setContactFriction(spec["phi_g"])
-        t_s = time.time()
+        t_s, cpu_s = time.time(), time.process_time()
         rate = spec["strain_rate"]
         axial = -rate if spec.get("extension") else rate
         h0 = self.Matrix3(O.cell.hSize)
@@ -264,7 +265,8 @@ class _Test:
                 done += n
             rows.append(self.row(h0))
         self.set_rates([0.0] * self.axes)
-        return rows, {"steps": done, "wall_s": time.time() - t_s, "strain_rate": rate}
+        return rows, {"steps": done, "wall_s": time.time() - t_s, "cpu_s": time.process_time() - cpu_s,
+                      "strain_rate": rate}
 
 
 def run(spec, scene=_Test):
