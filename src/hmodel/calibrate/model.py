@@ -9,11 +9,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..cell import CellSolver
-from ..errors import SolverError
-from ..loading import run_biaxial
+from ..errors import InputError, SolverError
 from ..params import Params
+from ..rev import Sphere
 from .data import Test
-
+from .kinds import Kind, dimension
 
 #: Consolidation increments of a calibration's runs: the last one is solved so that p = p0
 #: exactly, and 10 times the loading paths' default changes q by 3e-7 of its peak and εv by
@@ -42,42 +42,58 @@ class Prediction:
 class Model:
     """Runs the tests' loadings with the H-model: each test's kind and p0, sheared to its
     largest axial strain in increments of ``step`` after consolidation in isotropic increments
-    of ``iso_step``, with cell solver ``solver`` (None: the closed form).
+    of ``iso_step``, with cell solver ``solver`` (None: the closed form) and, for the 3D
+    model's triaxial kinds, the directions of ``sphere`` (None: ``Sphere()``).
 
-    One call of :meth:`predict` makes one engine run per kind of test (drained, undrained) for
-    all K parameter sets and all tests of that kind: K × (number of tests) material points,
+    One call of :meth:`predict` makes one engine run per kind of test (drained, undrained, ...)
+    for all K parameter sets and all tests of that kind: K × (number of tests) material points,
     each with its own parameter set. A set whose run fails is reported, never fatal: a point
     whose Newton fails is dropped by the engine while the others go on (``drop_failed``); a
     cell solver that refuses the whole batch (e.g. a surrogate outside its training domain)
-    has the batch bisected down to the failing sets.
+    has the batch bisected down to the failing sets. The tests must all be of one dimension,
+    which is the model's (2D kinds with a 3D cell solver or a sphere are refused).
     """
 
     tests: tuple[Test, ...]
     solver: CellSolver | None = None
     step: float = 1e-3
     iso_step: float = ISO_STEP
+    sphere: Sphere | None = None
+
+    def __post_init__(self) -> None:
+        if self.dim == 2 and self.sphere is not None:
+            raise InputError("a sphere of directions (--order, --azimuths, --fabric) is the 3D "
+                             "model's: the tests are 2D biaxial ones")
+        if self.dim == 2 and self.solver is not None and self.solver.n_lengths == 3:
+            raise InputError(f"cell solver {self.solver.name} is a 3D cell: the tests are 2D "
+                             "biaxial ones (give triaxial-... kinds to calibrate the 3D model)")
+
+    @property
+    def dim(self) -> int:
+        """The model's dimension: the tests' (2 or 3)."""
+        return dimension([t.kind for t in self.tests])
 
     def predict(self, sets: Sequence[Params]) -> Prediction:
         K = len(sets)
         q = [np.full((K, len(t.eps11)), np.nan) for t in self.tests]
         ev = [np.full((K, len(t.eps11)), np.nan) for t in self.tests]
         failed = [""] * K
-        for kind in ("drained", "undrained"):
-            idx = [i for i, t in enumerate(self.tests) if t.kind == kind]
+        for kind in Kind:
+            idx = [i for i, t in enumerate(self.tests) if t.kind is kind]
             if idx:
                 self._run(kind, idx, list(range(K)), sets, q, ev, failed)
         return Prediction(q, ev, failed)
 
-    def _run(self, kind, idx, which, sets, q, ev, failed) -> None:
+    def _run(self, kind: Kind, idx, which, sets, q, ev, failed) -> None:
         """The tests ``idx`` of one kind for the parameter sets ``which``; on a failure, each
         half of the sets again, down to single sets."""
         tests = [self.tests[i] for i in idx]
         batch = [sets[k] for k in which for _ in tests]
         p0 = [t.p0 for _ in which for t in tests]
-        strain = max(float(t.eps11[-1]) for t in tests)
+        strain = max(float(t.strain[-1]) for t in tests)
         try:
-            res = run_biaxial(batch, p0, strain, undrained=kind == "undrained", solver=self.solver,
-                              iso_step=self.iso_step, step=self.step, drop_failed=True)
+            res = kind.run(batch, p0, strain, solver=self.solver, sphere=self.sphere,
+                           step=self.step, iso_step=self.iso_step)
         except SolverError as e:  # the whole batch refused (a cell solver's error): bisect
             why = " ".join(str(e).split())[:300]
             if len(which) == 1:
@@ -98,11 +114,12 @@ class Model:
             mine = point == b
             cons = np.flatnonzero(mine & (stage == "consolidation"))[-1]
             shear = mine & (stage == "shear")
-            e = np.concatenate([[0.0], res["eps11"][shear] - res["eps11"][cons]])
+            # the axial strain's magnitude since consolidation (increasing in extension too)
+            e = kind.sign * np.concatenate([[0.0], res["eps11"][shear] - res["eps11"][cons]])
             t = tests[j]
-            q[idx[j]][k] = np.interp(t.eps11, e, np.concatenate([[res["q"][cons]], res["q"][shear]]))
-            ev[idx[j]][k] = np.interp(t.eps11, e, np.concatenate([[0.0], res["eps_v"][shear]
-                                                                  - res["eps_v"][cons]]))
+            q[idx[j]][k] = np.interp(t.strain, e, np.concatenate([[res["q"][cons]], res["q"][shear]]))
+            ev[idx[j]][k] = np.interp(t.strain, e, np.concatenate([[0.0], res["eps_v"][shear]
+                                                                   - res["eps_v"][cons]]))
 
 
 def residuals(tests: Sequence[Test], pred: Prediction, weighted: bool = True) -> np.ndarray:
@@ -122,7 +139,7 @@ def residuals(tests: Sequence[Test], pred: Prediction, weighted: bool = True) ->
 def has_eps_v(test: Test) -> bool:
     """Whether a test's εv enters the fit (drained tests that measured it; an undrained test's
     εv is zero by its definition)."""
-    return test.eps_v is not None and test.kind == "drained"
+    return test.eps_v is not None and not test.kind.undrained
 
 
 def eps_v_scales(tests: Sequence[Test]) -> np.ndarray:

@@ -38,7 +38,7 @@ class Space:
     base: Params
 
     @classmethod
-    def make(cls, names, bounds: dict | None = None, base: Params | None = None) -> "Space":
+    def make(cls, names, bounds: dict | None = None, base: Params | None = None) -> Space:
         names = tuple(names)
         if not names:
             raise InputError("give at least one parameter to fit (--fit)")

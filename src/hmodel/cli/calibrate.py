@@ -1,4 +1,5 @@
-"""``hmodel calibrate``: fit the H-model's parameters to measured biaxial tests."""
+"""``hmodel calibrate``: fit the H-model's parameters to measured biaxial (2D) or triaxial (3D)
+tests."""
 
 from __future__ import annotations
 
@@ -10,7 +11,8 @@ import typer
 
 from ..calibrate import fit, parse_data_spec
 from ..calibrate.bayes import Noise
-from ..calibrate.fitting import METHODS
+from ..calibrate.fitting import METHODS, SEARCH_RULE
+from ..calibrate.kinds import Kind, dimension
 from ..calibrate.model import ISO_STEP
 from ..calibrate.report import write
 from ..errors import InputError
@@ -18,6 +20,9 @@ from ..params import Params
 from ..solvers import get_solver
 from .options import out_folder
 from .progress import LazyProgress
+from .run import AzimuthsOpt, FabricOpt, OrderOpt, _points_3d, _solver_3d, _sphere
+
+_DEFAULT_SEARCH = f"{SEARCH_RULE[0]}:{SEARCH_RULE[1]}"
 
 
 def _bounds(items: list[str] | None) -> dict[str, tuple[float, float]]:
@@ -34,8 +39,20 @@ def _bounds(items: list[str] | None) -> dict[str, tuple[float, float]]:
     return out
 
 
+def _search_rule(text: str) -> tuple[int, int] | None:
+    """``--search-rule ORDER:AZIMUTHS`` or ``none``."""
+    if text.strip().lower() == "none":
+        return None
+    order, _, m = text.partition(":")
+    try:
+        return int(order), int(m)
+    except ValueError:
+        raise InputError(f"--search-rule expects ORDER:AZIMUTHS (e.g. {_DEFAULT_SEARCH}) or none, "
+                         f"got {text!r}") from None
+
+
 def calibrate(
-    data: Annotated[list[str], typer.Option("--data", help="A test, KIND:P0:FILE (drained or undrained; a CSV with columns eps11, q and optionally eps_v, p: strains since the end of consolidation, Pa); repeatable.")],
+    data: Annotated[list[str], typer.Option("--data", help=f"A test, KIND:P0:FILE; KIND: drained or undrained (2D biaxial), {', '.join(k for k in Kind if k.dim == 3)} (3D); a CSV with columns eps11 (or eps_a), q and optionally eps_v, p: strains since the end of consolidation, stresses in Pa, compression positive; repeatable.")],
     fit_: Annotated[str, typer.Option("--fit", help="Comma list of the parameters to fit (kn, kt_kn, phi_g, alpha0, alpha_omega, beta_omega).")] = "kn,kt_kn,phi_g,alpha0",
     bounds: Annotated[Optional[list[str]], typer.Option("--bounds", help="Search range NAME=LOW:HIGH (angles in degrees); repeatable. Default: a range wide enough for real materials.")] = None,
     param: Annotated[Optional[list[str]], typer.Option("--param", "-p", metavar="NAME=VALUE", help="A fixed parameter (angles in degrees); repeatable.")] = None,
@@ -47,12 +64,31 @@ def calibrate(
     seed: Annotated[int, typer.Option(help="Seed of the design of starting points.")] = 0,
     step: Annotated[float, typer.Option(help="Axial strain increment of the model's tests.")] = 1e-3,
     iso_step: Annotated[float, typer.Option(help="Strain increment of the model's consolidation.")] = ISO_STEP,
-    solver: Annotated[str, typer.Option(help="Cell solver: closed-form, surrogate[:FILE], dem:...")] = "closed-form",
+    solver: Annotated[str, typer.Option(help="Cell solver: closed-form, surrogate[:FILE], dem:... (3D: of the hexagons of every bi-hexagon).")] = "closed-form",
+    order: OrderOpt = None, azimuths: AzimuthsOpt = None, fabric: FabricOpt = 0.0,
+    search_rule: Annotated[str, typer.Option(help="3D: Lebedev order and azimuths ORDER:AZIMUTHS of the multi-start search, whose best point is then refined at the model's rule (--order, --azimuths); none: search at the model's rule.")] = _DEFAULT_SEARCH,
     out: out_folder("Output folder.") = Path("results/calibration"),
 ) -> None:
-    """Fit the H-model to measured biaxial tests (least squares from several starts, or Bayesian)."""
+    """Fit the H-model to measured biaxial (2D) or triaxial (3D) tests (least squares from several
+    starts, or Bayesian)."""
     tests = [parse_data_spec(d) for d in data]
-    base = Params.parse_assignments(param)
+    dim = dimension([t.kind for t in tests])
+    sphere = cells = None
+    if dim == 2:
+        given = [o for o, v in (("--order", order), ("--azimuths", azimuths)) if v is not None]
+        given += ["--fabric"] if fabric != 0.0 else []
+        given += ["--search-rule"] if search_rule != _DEFAULT_SEARCH else []
+        if given:
+            raise InputError(f"{', '.join(given)} set the 3D model's directions: the tests are 2D "
+                             "biaxial ones (give triaxial-... kinds to calibrate the 3D model)")
+        base = Params.parse_assignments(param)
+        cells = get_solver(solver)
+    else:
+        cells = _solver_3d(solver)
+        base = _points_3d(param, 1, cells)  # the 2D model's parameters refused, sliding_rhs's default
+        if not isinstance(base, Params):
+            raise InputError("--param gives one value per parameter in a calibration (no comma lists)")
+        sphere = _sphere(order, azimuths, fabric)
     names = [n.strip() for n in fit_.split(",") if n.strip()]
     fixed = {item.partition("=")[0].strip() for item in param or []}
     both = [n for n in names if n in fixed]
@@ -62,9 +98,9 @@ def calibrate(
         if not (math.isfinite(value) and value > 0):
             raise InputError(f"{name} must be a positive finite strain, got {value}")
     with LazyProgress("calibration (parameter sets run)") as progress:
-        cal = fit(tests, names, _bounds(bounds), base, method, get_solver(solver), starts, seed, step,
+        cal = fit(tests, names, _bounds(bounds), base, method, cells, starts, seed, step,
                   iso_step, walkers=walkers, steps=steps, noise=Noise.parse(noise) if noise else None,
-                  progress=progress)
+                  sphere=sphere, search_rule=_search_rule(search_rule), progress=progress)
     written = write(cal, out)
     fitted = ", ".join(f"{n} = {v:.5g} ± {cal.stderr[n]:.2g}" for n, v in cal.fitted.items())
     typer.echo(f"{fitted}; objective {cal.cost:.3g} after {cal.evaluations} parameter sets "
