@@ -9,6 +9,8 @@ text into one folder and YADE executes ``serve.py`` there).
 - ``biaxial``: task ``biaxial``, a periodic disk sample consolidated and sheared (and the
   servo control the sphere sample shares);
 - ``triaxial``: task ``triaxial``, a periodic sphere sample consolidated and sheared;
+- ``bihex_cells``: task ``bihex``, bi-hexagons of ten spheres (the 3D model's cell) from their
+  states under their increments (material and engines of ``cell_scene``);
 - ``common``: what every scene shares (the linear contact stiffnesses, stepping).
 
 Each runs in YADE's own Python: standard library only, YADE imported inside the functions that
