@@ -113,3 +113,19 @@ def test_bad_input_is_one_line(tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         assert message in err and len(err.splitlines()) == 1
     assert not (tmp_path / "v").exists()
+
+
+@pytest.mark.yade
+def test_validate_dim3_writes_its_table_paths_and_figure(tmp_path, capsys):
+    """``hmodel dem validate --dim 3``: one path, two increments, without cross contacts."""
+    import csv
+
+    assert main(["dem", "validate", "--dim", "3", "--paths", "mixed,1:0:0", "--steps", "2",
+                 "--strain", "0.002", "--no-cross", "--out", str(tmp_path / "v")]) == 0
+    assert sorted(p.name for p in (tmp_path / "v").iterdir()) == ["deviations.csv", "paths.csv",
+                                                                   "validation.png"]
+    rows = list(csv.DictReader(open(tmp_path / "v" / "deviations.csv")))
+    assert [r["path"] for r in rows] == ["mixed", "1:0:0"]
+    assert all(float(r["dev_force"]) <= 1e-3 for r in rows)
+    assert len(list(csv.DictReader(open(tmp_path / "v" / "paths.csv")))) == 2 * 3
+    assert "max |ΔF| / max |F|" in capsys.readouterr().out
