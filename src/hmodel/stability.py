@@ -559,7 +559,7 @@ def plot_envelopes(envelopes: dict, path, title: str) -> None:
         line, = c.plot(np.r_[t[order], t[order][:1]], np.r_[se.normalized[order], se.normalized[order][:1]], label=lab)
         neg = se.normalized[order] <= 0
         c.fill_between(t[order], -1, 1, where=neg, color=line.get_color(), alpha=0.15, step="mid")
-    plane = " (Rendulic plane, σr = (σ22 + σ33)/2)" if three_d else ""
+    plane = "\nin the Rendulic plane, σr = (σ22 + σ33)/2" if three_d else ""
     a.set(xlabel="dσ11 [kPa]", ylabel=f"{lat[0]} [kPa]",
           title=f"strain probes: stress response envelopes{plane}")
     b.set(xlabel="dε11 [10⁻⁶]", ylabel=f"{lat[1]} [10⁻⁶]", title="stress probes: strain responses")
