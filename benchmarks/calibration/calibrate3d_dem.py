@@ -1,0 +1,130 @@
+"""The 3D H-model calibrated on a DEM sphere sample (``hmodel dem sample --dim 3``), and its
+prediction of the tests it was not calibrated on (issue 35).
+
+Least squares of kn, kt/kn, φg and α0 on the sample's drained triaxial tests named by
+``--fit-on`` (default: the drained tests at the lowest and the highest pressure), at the model's
+rule (``--order``, ``--azimuths``; default the Sphere's, axis 1 axial as the command line's)
+with the default search (order 17, 2 azimuths, then refined); the calibrated model then
+predicts every other test of the folder (another pressure, the undrained test, the extension
+test). Per test: RMS and max of |Δq| / peak |q| and of |Δεv| (drained tests). With
+``--bayes-steps N``: emcee (``--walkers``) on the same tests at the search rule (order 17, 2
+azimuths: the default rule's batched calls would take hours), its posterior's 90 % intervals.
+
+Writes ``calibrate3d_dem.json`` (the calibration record, the DEM's settings, the errors) and the
+figure ``docs/figures/dem3d-calibration.png`` (every test, DEM against model).
+
+Usage: ``python -m benchmarks.calibration.calibrate3d_dem [SAMPLE_DIR] [--fit-on
+triaxial-drained_100kPa,triaxial-drained_400kPa] [--starts 8] [--bayes-steps 0] [--out PATH]``
+(SAMPLE_DIR default: ``benchmarks/dem/dem_sample3d``, where ``benchmarks/dem/dem_sample3d.py``
+keeps its CSVs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.calibration.dem_calibration import _figure
+from benchmarks.timing import FIGURES, ROOT, record, write_table
+from hmodel.calibrate import Kind, Test, fit
+from hmodel.calibrate.fitting import SEARCH_RULE
+from hmodel.calibrate.model import Model, has_eps_v
+from hmodel.rev import Sphere
+
+FITTED = ("kn", "kt_kn", "phi_g", "alpha0")
+AXIS = (1.0, 0.0, 0.0)  # the command line's axial axis
+
+
+def read_tests(folder: Path) -> dict[str, Test]:
+    """Every ``KIND_P0kPa.csv`` of a sample folder whose KIND is a triaxial kind."""
+    tests = {}
+    for f in sorted(folder.glob("*_*kPa.csv")):
+        kind, p0 = f.stem.split("_")
+        if kind in tuple(Kind) and Kind(kind).dim == 3:
+            tests[f.stem] = Test.from_csv(f, kind, float(p0.removesuffix("kPa")) * 1e3, f.stem)
+    return tests
+
+
+def errors(test: Test, q: np.ndarray, ev: np.ndarray) -> dict[str, float]:
+    """RMS and max |Δq| / peak |q|, and |Δεv| where the test's εv is fitted."""
+    dq = (q - test.q) / test.q_scale
+    out = {"rms_dq": float(np.sqrt(np.mean(dq ** 2))), "max_dq": float(np.abs(dq).max())}
+    if has_eps_v(test):
+        dv = ev - test.eps_v
+        out |= {"rms_deps_v": float(np.sqrt(np.mean(dv ** 2))), "max_deps_v": float(np.abs(dv).max())}
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("sample", type=Path, nargs="?", default=ROOT / "benchmarks" / "dem" / "dem_sample3d")
+    ap.add_argument("--fit-on", default="", help="comma list of test stems (default: the drained "
+                                                  "tests at the lowest and highest pressure)")
+    ap.add_argument("--starts", type=int, default=8)
+    ap.add_argument("--order", type=int, default=None)
+    ap.add_argument("--azimuths", type=int, default=None)
+    ap.add_argument("--bayes-steps", type=int, default=0)
+    ap.add_argument("--walkers", type=int, default=32)
+    ap.add_argument("--out", type=Path, default=Path(__file__).with_name("calibrate3d_dem.json"))
+    ap.add_argument("--figure", type=Path, default=FIGURES / "dem3d-calibration.png")
+    args = ap.parse_args()
+    tests = read_tests(args.sample)
+    drained = sorted((t for t in tests.values() if t.kind is Kind.TRIAXIAL_DRAINED), key=lambda t: t.p0)
+    chosen = args.fit_on.split(",") if args.fit_on else [t.name for t in (drained[:1] + drained[-1:])]
+    chosen = list(dict.fromkeys(chosen))
+    missing = [n for n in chosen if n not in tests]
+    if missing or not chosen:
+        sys.exit(f"no test {', '.join(missing) or '(none drained)'} in {args.sample}")
+    kw = {k: v for k, v in (("order", args.order), ("n_azimuth", args.azimuths)) if v is not None}
+    sphere = Sphere(**kw, axis=AXIS)
+    t0 = time.perf_counter()
+    cal = fit([tests[n] for n in chosen], FITTED, starts=args.starts, sphere=sphere)
+    wall = time.perf_counter() - t0
+    others = [t for n, t in tests.items() if n not in chosen]
+    pred = Model(tuple(others), sphere=sphere).predict([cal.params]) if others else None
+    rows = [(f"fitted {k}", v, f"± {cal.stderr[k]:.3g}") for k, v in cal.fitted.items()]
+    rows += [("objective (scaled residuals)", cal.cost, "-"),
+             (f"least squares, {args.starts} starts [s]", wall, "-"),
+             ("parameter sets evaluated / failed", float(cal.evaluations), f"{len(cal.failures)} failed")]
+    errs = {}
+    curves = [(t, cal.prediction.q[k][0], cal.prediction.eps_v[k][0], "calibrated on")
+              for k, t in enumerate(cal.tests)]
+    if pred is not None:
+        curves += [(t, pred.q[k][0], pred.eps_v[k][0], "predicted") for k, t in enumerate(others)]
+    for t, q, ev, how in curves:
+        if not np.all(np.isfinite(q)):
+            rows.append((f"{how} {t.name}: the model's test failed", float("nan"), "-"))
+            continue
+        e = errs[t.name] = {"how": how, **errors(t, q, ev)}
+        rows += [(f"{how} {t.name}: RMS |dq| / peak q [%]", 100 * e["rms_dq"], "-"),
+                 (f"{how} {t.name}: max |dq| / peak q [%]", 100 * e["max_dq"], "-")]
+        if "rms_deps_v" in e:
+            rows += [(f"{how} {t.name}: RMS |d eps_v| [%]", 100 * e["rms_deps_v"], "-"),
+                     (f"{how} {t.name}: max |d eps_v| [%]", 100 * e["max_deps_v"], "-")]
+    extra = {}
+    if args.bayes_steps:
+        coarse = Sphere(order=SEARCH_RULE[0], n_azimuth=SEARCH_RULE[1], axis=AXIS)
+        t0 = time.perf_counter()
+        bay = fit([tests[n] for n in chosen], FITTED, method="bayes", starts=args.starts, sphere=coarse,
+                  search_rule=None, walkers=args.walkers, steps=args.bayes_steps)
+        rows.append((f"emcee {args.walkers} x {args.bayes_steps} at order {coarse.order}, "
+                     f"m = {coarse.n_azimuth} (with its least squares) [s]", time.perf_counter() - t0, "-"))
+        for k, s in bay.posterior.summary.items():
+            rows.append((f"posterior {k}: mean (90 % interval)", s["mean"], f"{s['q05']:.4g} to {s['q95']:.4g}"))
+        extra["bayes"] = {**bay.posterior.to_dict(), "least_squares": bay.fitted}
+    info = json.loads((args.sample / "sample.json").read_text()) if (args.sample / "sample.json").exists() else {}
+    rec = record(__file__, args, 1, rows, sample=str(args.sample), dem_settings=info.get("settings"),
+                 fit_on=chosen, calibration=cal.to_dict(), errors=errs, **extra)
+    write_table(rows, args.out, rec)
+    if pred is not None:
+        _figure(cal, others, pred, args.figure)
+        print(f"written {args.figure}")
+
+
+if __name__ == "__main__":
+    main()
