@@ -62,36 +62,38 @@ def check_params(params: Params) -> None:
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def cross_contact(v, two_r):
+def cross_contact(dn, l2, l3, two_r):
     """Whether a grain of hexagon A (at (±d2/2, ±l2/2, 0) in the cell frame) and one of hexagon
-    B (at (±d2_b/2, 0, ±l3/2)) are closer than 2r."""
-    dn = 0.5 * (v[1] - v[9])
-    return dn * dn + 0.25 * (v[7] * v[7] + v[15] * v[15]) < two_r * two_r
+    B (at (±d2_b/2, 0, ±l3/2)) are closer than 2r; dn = (d2 - d2_b) / 2."""
+    return dn * dn + 0.25 * (l2 * l2 + l3 * l3) < two_r * two_r
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def bihex_increment(v, dl1, dl2, dl3, p, out, flags):
-    """Advance one bi-hexagon ``v`` (16,) by (δl1, δl2, δl3) into ``out`` (16,) and ``flags``
-    (11,): each hexagon is the 2D increment of eq. 1.7 (closed_form.cell_increment) with the
-    shared δl1. Returns False when either hexagon's increment failed."""
-    ok_a = cell_increment(v[:8], dl1, dl2, p, out[:8], flags[:5])
-    ok_b = cell_increment(v[8:], dl1, dl3, p, out[8:], flags[5:10])
-    flags[10] = cross_contact(out, 2.0 * p[P_R])
+def bihex_increment(values, i, dl1, dl2, dl3, p, out, flags):
+    """Advance bi-hexagon ``values[i]`` (16 fields) by (δl1, δl2, δl3) into ``out[i]`` and
+    ``flags[i]`` (11), indexed in place (no row views, see closed_form.cell_update): each
+    hexagon is the 2D increment of eq. 1.7 (closed_form.cell_increment) with the shared δl1. Returns False when either hexagon's increment failed."""
+    ok_a = cell_increment(values, i, dl1, dl2, p, out, flags, 0, 0)
+    ok_b = cell_increment(values, i, dl1, dl3, p, out, flags, 8, 5)
+    flags[i, 10] = cross_contact(0.5 * (out[i, 1] - out[i, 9]), out[i, 7], out[i, 15],
+                                 2.0 * p[P_R])
     return ok_a and ok_b
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def bihex_vsigma(v, kn, two_r):
-    """V σ in the cell frame, (nn, t1t1, t2t2), of one bi-hexagon state ``v`` (16,).
+def bihex_vsigma(v, i, kn, two_r):
+    """V σ in the cell frame, (nn, t1t1, t2t2), of bi-hexagon state ``v[i]`` (16 fields).
 
     Love-Weber (eq. 1.11) over the twelve contacts: each hexagon contributes eq. 1.12 in its own
     plane (its nn term to σ_nn, its tt term to σ_t1t1 for A, σ_t2t2 for B); the extra contacts
     of docs/model.md step 3 (Fig. 1.6): grains 1-4 once (shared) when l1 <= 2r, grains 2-6/3-5
     when l2 <= 2r, 7-10/8-9 when l3 <= 2r. Off-diagonal terms vanish by the mirror symmetries.
     """
-    ann, att = contact_vsigma(v[0], v[1], math.cos(v[2]), math.sin(v[2]), v[3], v[4], v[5])
-    bnn, btt = contact_vsigma(v[8], v[9], math.cos(v[10]), math.sin(v[10]), v[11], v[12], v[13])
-    l1, l2, l3 = v[6], v[7], v[15]
+    ann, att = contact_vsigma(v[i, 0], v[i, 1], math.cos(v[i, 2]), math.sin(v[i, 2]), v[i, 3],
+                              v[i, 4], v[i, 5])
+    bnn, btt = contact_vsigma(v[i, 8], v[i, 9], math.cos(v[i, 10]), math.sin(v[i, 10]),
+                              v[i, 11], v[i, 12], v[i, 13])
+    l1, l2, l3 = v[i, 6], v[i, 7], v[i, 15]
     nn = ann + bnn
     if l1 <= two_r:
         nn += kn * (two_r - l1) * l1
@@ -109,7 +111,7 @@ def bihex_step_kernel(values, dl, p, out, flags):
     -1."""
     bad = -1
     for i in range(values.shape[0]):
-        ok = bihex_increment(values[i], dl[i, 0], dl[i, 1], dl[i, 2], p, out[i], flags[i])
+        ok = bihex_increment(values, i, dl[i, 0], dl[i, 1], dl[i, 2], p, out, flags)
         if not ok and bad < 0:
             bad = i
     return bad
@@ -120,7 +122,7 @@ def bihex_vsigma_kernel(values, kn, two_r, out):
     """V σ in the cell frame, (nn, t1t1, t2t2) (n, 3), of bi-hexagon states (n, 16)
     (:func:`bihex_vsigma`)."""
     for i in range(values.shape[0]):
-        out[i, 0], out[i, 1], out[i, 2] = bihex_vsigma(values[i], kn, two_r)
+        out[i, 0], out[i, 1], out[i, 2] = bihex_vsigma(values, i, kn, two_r)
 
 
 def bihex_volume(params: Params, values: np.ndarray) -> np.ndarray:

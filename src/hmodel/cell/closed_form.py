@@ -48,16 +48,19 @@ def _solve3(a11, a12, a13, a21, a22, a23, a31, a32, a33, b1, b2, b3):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def cell_increment(v, dl1, dl2, p, out, flags):
-    """Advance one cell by (dl1, dl2); write its new state into ``out`` and ``flags``.
+def cell_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p):
+    """One cell's increment by (dl1, dl2) on scalars: the state's eight fields (d1, d2, α, N1,
+    N2, T1, l1, l2) in, ``(ok, *eight new fields, *five flags)`` out (:func:`finish_update`).
 
-    Returns False when the system of eq. 1.7 is singular or the result is not finite.
+    The kernel of every closed-form caller (:func:`cell_increment` writes it into arrays):
+    scalars in and out, so that a loop over cells makes no array views, each of which costs an
+    atomic reference count (the bi-hexagon's REV trial makes two such updates per cell).
+    ``ok`` is False when the system of eq. 1.7 is singular or the result is not finite.
     """
     kn = p[P_KN]
     kt = p[P_KT]
     tanphi = p[P_TAN]
     g2 = p[P_G2]
-    d1, a, n1, t1 = v[0], v[2], v[3], v[5]
     ca = math.cos(a)
     sa = math.sin(a)
     gs = g2 + sa
@@ -80,31 +83,70 @@ def cell_increment(v, dl1, dl2, p, out, flags):
     if sliding:
         a31 = ca + xi * tanphi * gs
         a33 = (n1 * sa - t1 * ca) / kn
-        lam = sliding_lambda(v, xi, p)
+        lam = sliding_lambda(a, n1, t1, xi, p)
         dd1, dd2, da, det = _solve3(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33, dl1, dl2, lam)
-    return det != 0.0 and finish_increment(v, dl1, dl2, dd1, dd2, da, sliding, xi, p, out, flags)
+    r = finish_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, dd1, dd2, da, sliding, xi, p)
+    return ((det != 0.0 and r[0]), r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], r[10],
+            r[11], r[12], r[13])
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def sliding_lambda(v, xi, p):
-    """Right-hand side λ of eq. 1.7's third row while sliding in the direction ξ (eq. 1.10)."""
-    gs = p[P_G2] + math.sin(v[2])
+def write_update(r, out, flags, i, k, f):
+    """Write a :func:`cell_update` result ``r`` into ``out[i, k:k + 8]`` and
+    ``flags[i, f:f + 5]`` (k, f: where the cell's fields and flags start: 0 for an H-cell, 8
+    and 5 for a bi-hexagon's hexagon B); returns its ``ok``."""
+    out[i, k] = r[1]
+    out[i, k + 1] = r[2]
+    out[i, k + 2] = r[3]
+    out[i, k + 3] = r[4]
+    out[i, k + 4] = r[5]
+    out[i, k + 5] = r[6]
+    out[i, k + 6] = r[7]
+    out[i, k + 7] = r[8]
+    flags[i, f] = r[9]
+    flags[i, f + 1] = r[10]
+    flags[i, f + 2] = r[11]
+    flags[i, f + 3] = r[12]
+    flags[i, f + 4] = r[13]
+    return r[0]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def cell_increment(values, i, dl1, dl2, p, out, flags, k, f):
+    """Advance cell i (its fields ``values[i, k:k + 8]``) by (dl1, dl2); write its new state
+    into ``out[i, k:k + 8]`` and ``flags[i, f:f + 5]`` (:func:`cell_update`; k = f = 0 for an
+    H-cell's states (n, 8)).
+
+    Returns False when the system of eq. 1.7 is singular or the result is not finite.
+    """
+    r = cell_update(values[i, k], values[i, k + 1], values[i, k + 2], values[i, k + 3],
+                    values[i, k + 4], values[i, k + 5], values[i, k + 6], values[i, k + 7], dl1,
+                    dl2, p)
+    return write_update(r, out, flags, i, k, f)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def sliding_lambda(a, n1, t1, xi, p):
+    """Right-hand side λ of eq. 1.7's third row while sliding in the direction ξ (eq. 1.10),
+    of a cell at (α, N1, T1)."""
+    gs = p[P_G2] + math.sin(a)
     if p[P_EQ_RHS] != 0.0:
-        return gs * (xi * p[P_TAN] * v[3] - v[5]) / p[P_KN]
-    return xi * gs * (p[P_TAN] * v[3] - v[5]) / p[P_KN]  # eq. 1.10 as corrected in docs/model.md
+        return gs * (xi * p[P_TAN] * n1 - t1) / p[P_KN]
+    return xi * gs * (p[P_TAN] * n1 - t1) / p[P_KN]  # eq. 1.10 as corrected in docs/model.md
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def finish_increment(v, dl1, dl2, dd1, dd2, da, sliding, xi, p, out, flags):
-    """New state of a cell from the solution (δd1, δd2, δα) of eq. 1.7 in its regime.
+def finish_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, dd1, dd2, da, sliding, xi, p):
+    """New state of a cell (its eight fields, scalars) from the solution (δd1, δd2, δα) of eq.
+    1.7 in its regime: ``(ok, d1, d2, α, N1, N2, T1, l1, l2, sliding, open1, open2, touch14,
+    touch26)``.
 
     Forces by eqs. 1.8-1.9 (δN = −kn δd, δT1 = kt d1 δα, or T1 on the Coulomb cone when
-    sliding), lengths, openings and extra contacts (docs/model.md step 3). Writes ``out`` and
-    ``flags``; returns False when the result is not finite.
+    sliding), lengths, openings and extra contacts (docs/model.md step 3); ``ok`` is False when
+    the result is not finite.
     """
     kn = p[P_KN]
     two_r = 2.0 * p[P_R]
-    d1, d2, a, n1, n2, t1, l1, l2 = v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7]
     n1_new = n1 - kn * dd1
     t1_new = xi * p[P_TAN] * n1_new if sliding else t1 + p[P_KT] * d1 * da  # on the cone (eq. 1.3)
     d1_new = d1 + dd1
@@ -126,21 +168,20 @@ def finish_increment(v, dl1, dl2, dd1, dd2, da, sliding, xi, p, out, flags):
         n2_new = 0.0
         t1_new = 0.0
         sliding = False
-    out[0] = d1_new
-    out[1] = d2_new
-    out[2] = a_new
-    out[3] = n1_new
-    out[4] = n2_new
-    out[5] = t1_new
-    out[6] = l1_new
-    out[7] = l2_new
-    flags[0] = sliding
-    flags[1] = open1
-    flags[2] = open2
-    flags[3] = l1_new <= two_r  # grains 1 and 4 touch (Fig. 1.6)
-    flags[4] = l2_new <= two_r  # grains 2-6 and 3-5 touch
     ok = math.isfinite(d1_new) and math.isfinite(d2_new) and math.isfinite(a_new)
-    return ok and math.isfinite(n1_new) and math.isfinite(n2_new) and math.isfinite(t1_new)
+    ok = ok and math.isfinite(n1_new) and math.isfinite(n2_new) and math.isfinite(t1_new)
+    return (ok, d1_new, d2_new, a_new, n1_new, n2_new, t1_new, l1_new, l2_new, sliding, open1,
+            open2, l1_new <= two_r, l2_new <= two_r)  # grains 1-4, 2-6 and 3-5 touch (Fig. 1.6)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def finish_increment(values, i, dl1, dl2, dd1, dd2, da, sliding, xi, p, out, flags):
+    """:func:`finish_update` of H-cell ``values[i]`` (8 fields) written into ``out[i]`` and
+    ``flags[i]``; returns False when the result is not finite."""
+    r = finish_update(values[i, 0], values[i, 1], values[i, 2], values[i, 3], values[i, 4],
+                      values[i, 5], values[i, 6], values[i, 7], dl1, dl2, dd1, dd2, da, sliding,
+                      xi, p)
+    return write_update(r, out, flags, i, 0, 0)
 
 
 @njit(cache=True, error_model="numpy")
@@ -151,7 +192,7 @@ def step_kernel(values, dl, p, out, flags):
     """
     bad = -1
     for i in range(values.shape[0]):
-        if not cell_increment(values[i], dl[i, 0], dl[i, 1], p, out[i], flags[i]) and bad < 0:
+        if not cell_increment(values, i, dl[i, 0], dl[i, 1], p, out, flags, 0, 0) and bad < 0:
             bad = i
     return bad
 

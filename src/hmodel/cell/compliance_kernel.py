@@ -44,28 +44,29 @@ def pack_responses(comp: np.ndarray, exact: np.ndarray | None = None) -> np.ndar
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def compliance_increment(v, dl1, dl2, resp, i, p, out, flags):
-    """Advance one cell ``v`` (8,) by (dl1, dl2) with its learned compliances ``resp[i, :24]``
-    (or eq. 1.7 itself where ``resp[i, EXACT]`` is set); write ``out`` (8,) and ``flags`` (5,).
+def compliance_increment(values, i, dl1, dl2, resp, p, out, flags):
+    """Advance cell i of ``values`` (n, 8) by (dl1, dl2) with its learned compliances
+    ``resp[i, :24]`` (or eq. 1.7 itself where ``resp[i, EXACT]`` is set); write ``out[i]`` and
+    ``flags[i]`` (indexed in place, no row views: see closed_form.cell_update).
     Returns False when the new state is not finite (or eq. 1.7 singular)."""
     if resp.shape[1] > EXACT and resp[i, EXACT] != 0.0:
-        return cell_increment(v, dl1, dl2, p, out, flags)
+        return cell_increment(values, i, dl1, dl2, p, out, flags, 0, 0)
     two_r = 2.0 * p[P_R]
     u1 = dl1 / two_r
     u2 = dl2 / two_r
     dd1 = two_r * (resp[i, 0] * u1 + resp[i, 1] * u2)
     dd2 = two_r * (resp[i, 2] * u1 + resp[i, 3] * u2)
     da = resp[i, 4] * u1 + resp[i, 5] * u2
-    t1 = v[5] + p[P_KT] * v[0] * da  # sticking trial, eqs. 1.8-1.9
-    sliding = abs(t1) >= p[P_TAN] * (v[3] - p[P_KN] * dd1)
+    t1 = values[i, 5] + p[P_KT] * values[i, 0] * da  # sticking trial, eqs. 1.8-1.9
+    sliding = abs(t1) >= p[P_TAN] * (values[i, 3] - p[P_KN] * dd1)
     xi = 1.0 if t1 >= 0.0 else -1.0
     if sliding:
         k = PLUS if xi > 0 else MINUS
-        lam = sliding_lambda(v, xi, p) / two_r
+        lam = sliding_lambda(values[i, 2], values[i, 3], values[i, 5], xi, p) / two_r
         dd1 = two_r * (resp[i, k] * u1 + resp[i, k + 1] * u2 + resp[i, k + 6] * lam)
         dd2 = two_r * (resp[i, k + 2] * u1 + resp[i, k + 3] * u2 + resp[i, k + 7] * lam)
         da = resp[i, k + 4] * u1 + resp[i, k + 5] * u2 + resp[i, k + 8] * lam
-    return finish_increment(v, dl1, dl2, dd1, dd2, da, sliding, xi, p, out, flags)
+    return finish_increment(values, i, dl1, dl2, dd1, dd2, da, sliding, xi, p, out, flags)
 
 
 @njit(cache=True, error_model="numpy")
@@ -75,6 +76,6 @@ def advance_cells(values, dl, resp, p, out, flags):
     index of the first non-finite cell, or -1."""
     bad = -1
     for i in range(values.shape[0]):
-        if not compliance_increment(values[i], dl[i, 0], dl[i, 1], resp, i, p, out[i], flags[i]) and bad < 0:
+        if not compliance_increment(values, i, dl[i, 0], dl[i, 1], resp, p, out, flags) and bad < 0:
             bad = i
     return bad

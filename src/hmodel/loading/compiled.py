@@ -182,9 +182,9 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
                 d12 += b12
         else:
             if law == LAW_COMPLIANCE:
-                ok &= compliance_increment(values[i], dl1, dl2, resp, i, p, out[i], flags[i])
+                ok &= compliance_increment(values, i, dl1, dl2, resp, p, out, flags)
             else:
-                ok &= cell_increment(values[i], dl1, dl2, p, out[i], flags[i])
+                ok &= cell_increment(values, i, dl1, dl2, p, out, flags, 0, 0)
             vnn, vtt = vsigma_local(out[i], kn, two_r)
         a11, a22, a12 = weighted_global(vnn, vtt, wcos2[i], wsin2[i], wsincos[i])
         s11 += a11
@@ -432,10 +432,19 @@ def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin
             # shared arrays' one counter, which the threads would then take turns to update.
             vals = values[b].copy()
             flg = flags[b].copy()
-            status[b] = solve_point(vals, flg, eps[b], sig[b], K[b], has_K[b:b + 1],
-                                    S, M, v, geo[_geo_row(geo, sets[b])].copy(), p[sets[b]].copy(), mode,
-                                    volume0[sets[b]], c, max_events, buf, bufflags, resp[b].copy(),
+            gb, pb, rb = geo[_geo_row(geo, sets[b])].copy(), p[sets[b]].copy(), resp[b].copy()
+            status[b] = solve_point(vals, flg, eps[b], sig[b], K[b], has_K[b:b + 1], S, M, v, gb,
+                                    pb, mode, volume0[sets[b]], c, max_events, buf, bufflags, rb,
                                     guess[b], trials[b:b + 1])
+            if status[b] != OK and has_K[b]:
+                # Once more from a fresh finite-difference tangent and the tangent predictor: a
+                # Newton carried in by Broyden's secants and the previous increment can stall
+                # where one from the increment's own tangent converges (the state was restored).
+                has_K[b] = False
+                guess[b, :] = np.nan
+                status[b] = solve_point(vals, flg, eps[b], sig[b], K[b], has_K[b:b + 1], S, M, v,
+                                        gb, pb, mode, volume0[sets[b]], c, max_events, buf,
+                                        bufflags, rb, guess[b], trials[b:b + 1])
             values[b] = vals
             flags[b] = flg
             _record(rec[k - k_begin, b], eps[b], sig[b], flags[b])

@@ -53,22 +53,23 @@ def bihex_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig):
     d0, d1, d2, d3, d4, d5 = deps[0], deps[1], deps[2], deps[3], deps[4], deps[5]
     s0 = s1 = s2 = s3 = s4 = s5 = 0.0
     ok = True
+    # Indexed in place, no row views (closed_form.cell_update says why).
     for i in range(values.shape[0]):
-        g = geo[i]
-        v = values[i]
-        e0 = g[0] * d0 + g[1] * d1 + g[2] * d2 + g[3] * d3 + g[4] * d4 + g[5] * d5
-        e1 = g[6] * d0 + g[7] * d1 + g[8] * d2 + g[9] * d3 + g[10] * d4 + g[11] * d5
-        e2 = g[12] * d0 + g[13] * d1 + g[14] * d2 + g[15] * d3 + g[16] * d4 + g[17] * d5
-        o = out[i]
-        ok &= bihex_increment(v, -(v[6] + add) * e0, -(v[7] + add) * e1, -(v[15] + add) * e2, p, o,
-                              flags[i])
-        nn, t1, t2 = bihex_vsigma(o, kn, two_r)
-        s0 += nn * g[18] + t1 * g[24] + t2 * g[30]
-        s1 += nn * g[19] + t1 * g[25] + t2 * g[31]
-        s2 += nn * g[20] + t1 * g[26] + t2 * g[32]
-        s3 += nn * g[21] + t1 * g[27] + t2 * g[33]
-        s4 += nn * g[22] + t1 * g[28] + t2 * g[34]
-        s5 += nn * g[23] + t1 * g[29] + t2 * g[35]
+        e0 = (geo[i, 0] * d0 + geo[i, 1] * d1 + geo[i, 2] * d2 + geo[i, 3] * d3 + geo[i, 4] * d4
+              + geo[i, 5] * d5)
+        e1 = (geo[i, 6] * d0 + geo[i, 7] * d1 + geo[i, 8] * d2 + geo[i, 9] * d3 + geo[i, 10] * d4
+              + geo[i, 11] * d5)
+        e2 = (geo[i, 12] * d0 + geo[i, 13] * d1 + geo[i, 14] * d2 + geo[i, 15] * d3
+              + geo[i, 16] * d4 + geo[i, 17] * d5)
+        ok &= bihex_increment(values, i, -(values[i, 6] + add) * e0, -(values[i, 7] + add) * e1,
+                              -(values[i, 15] + add) * e2, p, out, flags)
+        nn, t1, t2 = bihex_vsigma(out, i, kn, two_r)
+        s0 += nn * geo[i, 18] + t1 * geo[i, 24] + t2 * geo[i, 30]
+        s1 += nn * geo[i, 19] + t1 * geo[i, 25] + t2 * geo[i, 31]
+        s2 += nn * geo[i, 20] + t1 * geo[i, 26] + t2 * geo[i, 32]
+        s3 += nn * geo[i, 21] + t1 * geo[i, 27] + t2 * geo[i, 33]
+        s4 += nn * geo[i, 22] + t1 * geo[i, 28] + t2 * geo[i, 34]
+        s5 += nn * geo[i, 23] + t1 * geo[i, 29] + t2 * geo[i, 35]
     t = eps + deps  # total strain after the trial: the macro volume V0 det(I - eps)
     vol = volume0 * det_i_minus(t)
     sig[0] = s0 / vol

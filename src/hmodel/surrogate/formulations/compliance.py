@@ -185,7 +185,8 @@ def _packed(c: dict[str, np.ndarray]) -> np.ndarray:
 @njit(cache=True)
 def _lambda_kernel(values, regime, p, out):
     for i in range(values.shape[0]):
-        out[i] = sliding_lambda(values[i], 1.0 if regime[i] >= 0 else -1.0, p)
+        out[i] = sliding_lambda(values[i, 2], values[i, 3], values[i, 5],
+                                1.0 if regime[i] >= 0 else -1.0, p)
 
 
 def _lambda(values, regime, p):
