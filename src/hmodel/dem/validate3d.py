@@ -60,7 +60,7 @@ class Validation3D:
     """Result of :func:`validate_bihex`: ``rows`` the deviation table (one dict per path and
     cross setting); per path ``dem`` (P, S+1, 16) (``dem_cross``: with cross contacts, or
     None), ``cf``/``cf_fine`` the closed form's states, ``vsig_dem``/``vsig_cf`` (P, S+1, 3)
-    the cell-frame V σ; ``strain`` (S+1,) the strain along the paths; the DEM runs."""
+    the cell-frame V σ (``vsig_dem_cross``: with cross contacts, or None); ``strain`` (S+1,) the strain along the paths; the DEM runs."""
 
     params: Params
     names: list[str]
@@ -75,6 +75,7 @@ class Validation3D:
     rows: list[dict]
     runs: list[BiHexRuns] = field(repr=False)
     wall_s: float = 0.0
+    vsig_dem_cross: np.ndarray | None = None
 
     def worst(self, cross: bool = False) -> dict[str, float]:
         """Largest deviation of each kind over the paths (without or with cross contacts)."""
@@ -195,7 +196,7 @@ def validate_bihex(params: Params, strain: float = 0.03, steps: int = 30, paths=
     report(1.0)
     return Validation3D(params, names, dirs, (strain / steps) * np.arange(steps + 1), runs[0].values,
                         runs[1].values if cross else None, cf, cf_fine, vsig_dem[0], vsig_cf, rows,
-                        runs, wall)
+                        runs, wall, vsig_dem[1] if cross else None)
 
 
 def path_rows(v: Validation3D) -> list[dict]:
@@ -213,13 +214,15 @@ def path_rows(v: Validation3D) -> list[dict]:
             for tag, arr in arrays:
                 row.update({f"{f}_{tag}": arr[p, s, i] for i, f in enumerate(BIHEX_FIELDS)})
             row.update({f"{c}_dem": v.vsig_dem[p, s, i] for i, c in enumerate(comps)})
+            if v.vsig_dem_cross is not None:
+                row.update({f"{c}_dem_cross": v.vsig_dem_cross[p, s, i] for i, c in enumerate(comps)})
             row.update({f"{c}_cf_fine": v.vsig_cf[p, s, i] for i, c in enumerate(comps)})
             out.append(row)
     return out
 
 
 def plot_bihex_validation(v: Validation3D, path: str | Path) -> None:
-    """N1, N2, T1 of both hexagons and V σ_nn along every path: DEM (markers; crosses with
+    """N1, N2, T1 of both hexagons and V σ_t1t1 along every path: DEM (markers; crosses with
     cross contacts) over the refined closed form (lines; dashed: hexagon B)."""
     from matplotlib.figure import Figure
 
@@ -230,8 +233,10 @@ def plot_bihex_validation(v: Validation3D, path: str | Path) -> None:
     for ax, panel in zip(axes.flat, panels):
         for p, name in enumerate(v.names):
             if panel is None:
-                line, = ax.plot(x, v.vsig_cf[p, :, 0], "-", lw=1.2, label=name)
-                ax.plot(x, v.vsig_dem[p, :, 0], "o", ms=3, mfc="none", color=line.get_color())
+                line, = ax.plot(x, v.vsig_cf[p, :, 1], "-", lw=1.2, label=name)
+                ax.plot(x, v.vsig_dem[p, :, 1], "o", ms=3, mfc="none", color=line.get_color())
+                if v.vsig_dem_cross is not None:
+                    ax.plot(x, v.vsig_dem_cross[p, :, 1], "x", ms=3, color=line.get_color())
                 continue
             ia, ib = (BIHEX_FIELDS.index(f) for f in panel)
             line, = ax.plot(x, v.cf_fine[p, :, ia], "-", lw=1.2, label=name)
@@ -241,7 +246,7 @@ def plot_bihex_validation(v: Validation3D, path: str | Path) -> None:
                 if v.dem_cross is not None:
                     ax.plot(x, v.dem_cross[p, :, i], "x", ms=3, color=line.get_color())
         ax.set_xlabel("cell strain along the path [%]")
-        ax.set_ylabel("V σ_nn [N m]" if panel is None else f"{panel[0]} (A), {panel[1]} (B) [N]")
+        ax.set_ylabel("V σ_t1t1 [N m]" if panel is None else f"{panel[0]} (A), {panel[1]} (B) [N]")
         ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=7, title="lines: closed form (dashed: B); o: DEM; x: DEM, cross contacts",
                       title_fontsize=7)
