@@ -163,9 +163,11 @@ def test_cli_writes_a_3d_calibration_and_refuses_the_other_model_in_one_line(tmp
     out = tmp_path / "cal"
     args = ["calibrate", *specs, "--fit", "phi_g,alpha0", "--bounds", "phi_g=20:40", "--bounds",
             "alpha0=40:60", "--order", "9", "--azimuths", "2", "--search-rule", "9:1", "--starts", "1"]
-    assert main([*args, "--out", str(out)]) == 0
+    # the Bayesian method too (a short chain: that it runs in 3D, not its statistics)
+    assert main([*args, "--method", "bayes", "--walkers", "4", "--steps", "12", "--out", str(out)]) == 0
     record = json.loads((out / "calibration.json").read_text())
     assert record["fitted"]["phi_g"] == pytest.approx(28.0, rel=1e-4)
+    assert set(record["posterior"]) == {"phi_g", "alpha0"} and (out / "posterior.csv").exists()
     assert record["params"]["sliding_rhs"] == "equilibrium"  # the 3D commands' default
     assert record["sphere"]["order"] == 9 and record["search"]["n_azimuth"] == 1
     assert (out / "fit.png").stat().st_size > 1000
