@@ -121,6 +121,28 @@ def test_undrained_triaxial_work_turns_negative_at_the_peak_of_q():
     # loading_w[j]: the increment into shear row j (from the consolidated state for j = 0)
     assert ps.loading_w[i + 1] <= 0 < ps.loading_w[i]
     assert ps.bifurcation <= ps.shear_strain[i]
+    # the 3D default rule (the secant work) loses controllability at the peak
+    assert ps.controllability_by == "secant work" and ps.controllability == ps.shear_strain[i]
+
+
+def test_the_secant_rule_skips_a_recovered_drop_and_finds_a_sawtooth():
+    """One-component paths (the d²W of dε11 dσ11): an isolated drop that the next increment
+    makes up is skipped by both rules; after the peak of a sawtooth (single-increment drops,
+    stiff reloads that do not make them up) only the secant rule finds the loss, at the peak."""
+    from hmodel.stability import _first_persistent, _first_secant_loss, loading_work
+
+    def path(sig11):
+        eps = np.zeros((len(sig11), 6))
+        eps[:, 0] = np.arange(len(sig11))
+        sig = np.zeros((len(sig11), 6))
+        sig[:, 0] = sig11
+        return eps, sig, loading_work(eps, sig)[1]
+    rising = [0, 1, 2, 3, 2.9, 4, 5, 6, 7, 8, 9, 10]  # a drop at row 3, made up at once
+    eps, sig, lw = path(rising)
+    assert _first_secant_loss(eps, sig, lw) is None and _first_persistent(lw) is None
+    saw = [0, 2, 4, 6, 8, 6, 6.5, 7, 5, 5.5, 6, 4, 4.5, 5]  # peak at row 4
+    eps, sig, lw = path(saw)
+    assert _first_persistent(lw) is None and _first_secant_loss(eps, sig, lw) == 4
 
 
 def test_a_3d_program_is_probed_in_six_components():
@@ -163,6 +185,7 @@ def test_stability_command_triaxial(tmp_path, capsys):
     (["--test", "triaxial", "--p0", "100kPa,200kPa"], "one material point"),
     (["--test", "triaxial", "--at", "0.5"], "--at"),
     (["--test", "triaxial", "--step", "0"], "--step"),
+    (["--controllability", "peak"], "--controllability"),
     (["--program", "examples/triaxial-unload-reload.toml", "--test", "triaxial"], "--program"),
 ])
 def test_bad_3d_stability_inputs(tmp_path, capsys, args, word):

@@ -267,7 +267,8 @@ def along_biaxial(params, p0: float, axial_strain: float, undrained: bool = Fals
                   every: int = 10, n_probes: int = 72, magnitude: float | None = None,
                   at: tuple[float, ...] = (), step: float | None = None,
                   stress_magnitude: float = 1e-3, shear: bool = False, progress=None,
-                  loading_probe: bool = True, near: float = NEAR) -> PathStability:
+                  loading_probe: bool = True, near: float = NEAR,
+                  controllability: str | None = None) -> PathStability:
     """Drained or undrained biaxial test from p0 with strain probes (see :func:`along_program`)
     and full envelopes (strain probes, stress probes of ``stress_magnitude``·p) at the axial
     strains ``at``; ``shear`` probes ε12 too."""
@@ -277,7 +278,8 @@ def along_biaxial(params, p0: float, axial_strain: float, undrained: bool = Fals
                                      lateral, at, step)
     return along_program(program, params, every, n_probes, magnitude, shear=shear,
                          progress=progress, loading_probe=loading_probe, near=near,
-                         at_steps=at_steps, stress_magnitude=stress_magnitude)
+                         at_steps=at_steps, stress_magnitude=stress_magnitude,
+                         controllability=controllability)
 
 
 def along_triaxial(params, p0: float, axial_strain: float, undrained: bool = False,
@@ -285,7 +287,8 @@ def along_triaxial(params, p0: float, axial_strain: float, undrained: bool = Fal
                    n_probes: int = 72, magnitude: float | None = None, at: tuple[float, ...] = (),
                    step: float | None = None, stress_magnitude: float = 1e-3, shear: bool = False,
                    progress=None, loading_probe: bool = True, near: float = NEAR,
-                   solver=None, rendulic: bool = True) -> PathStability:
+                   solver=None, rendulic: bool = True,
+                   controllability: str | None = None) -> PathStability:
     """The triaxial test of the 3D H-model (:func:`hmodel.loading.lab_tests.run_triaxial`: axis
     1 axial, the shear strains held) from p0, drained (σ22 = σ33 = p0) or undrained (tr ε = 0,
     ε22 = ε33), in compression or with ``extension`` (ε11 decreasing), with strain probes
@@ -295,7 +298,8 @@ def along_triaxial(params, p0: float, axial_strain: float, undrained: bool = Fal
     probes of ``stress_magnitude``·p, :func:`section_directions`) at the axial strains ``at``
     (magnitudes). ``sphere``: the 3D REV's directions (default ``Sphere()``); ``solver``: as
     :meth:`hmodel.loading.Program.run` of a 3D program. The located points are axial strains
-    since consolidation (negative in extension)."""
+    since consolidation (negative in extension); ``controllability``: as :func:`along_program`
+    (default ``"secant"``)."""
     from .loading.lab_tests import check_3d_params
 
     for name in ("alpha_omega", "beta_omega"):  # as run_triaxial: the 3D fabric is the sphere's
@@ -312,7 +316,7 @@ def along_triaxial(params, p0: float, axial_strain: float, undrained: bool = Fal
     return along_program(program, params, every, n_probes, magnitude, shear=shear,
                          progress=progress, loading_probe=loading_probe, near=near,
                          at_steps=at_steps, stress_magnitude=stress_magnitude, solver=solver,
-                         directions=directions)
+                         directions=directions, controllability=controllability)
 
 
 def _lab_program(name: str, p0: float, axial_strain: float, preset: str, lateral: dict,
@@ -347,7 +351,8 @@ def along_program(program, params, every: int = 10, n_probes: int = 72,
                   magnitude: float | None = None, shear: bool = False, progress=None,
                   loading_probe: bool = True, near: float = NEAR, at_steps: dict | None = None,
                   stress_magnitude: float = 1e-3, solver=None,
-                  directions: np.ndarray | None = None) -> PathStability:
+                  directions: np.ndarray | None = None,
+                  controllability: str | None = None) -> PathStability:
     """Second-order work along a loading program (:class:`hmodel.loading.Program`), 2D or 3D
     (``dim = 3``: probes of six components, on the program's REV, :meth:`Program.make_rev`).
 
@@ -362,6 +367,10 @@ def along_program(program, params, every: int = 10, n_probes: int = 72,
     increments of the stage named ``shear`` to labels (axial strains) where full envelopes are
     drawn (in 3D in the Rendulic plane, :func:`section_directions`). ``directions``: the
     probes' unit directions (n_probes, components) (default :func:`probe_directions`).
+    ``controllability``: how its loss is located (:data:`RULES`): ``"increments"``, where the
+    loading increments' d²W turns ≤ 0 for 5 increments (the 2D default), or ``"secant"``, where
+    the path's secant work from a state stays ≤ 0 for 5 increments (the 3D default: the 3D
+    model softens in single-increment drops, between which it reloads stiffly).
     """
     from .loading import ProgramFailed
 
@@ -370,6 +379,7 @@ def along_program(program, params, every: int = 10, n_probes: int = 72,
         raise InputError(f"--every must be a positive integer, got {every!r}")
     at_steps = dict(at_steps or {})
     rev = program.make_rev(params, solver)
+    rule = _rule(controllability, rev.n_components)
     cells = (f"{params.n_theta:.4g} directions" if rev.n_components == 3
              else f"{rev.n_cells:,} bi-hexagons")
     # every probe of a state is a material point of one batched call
@@ -414,7 +424,7 @@ def along_program(program, params, every: int = 10, n_probes: int = 72,
         res = program.run(params, solver=solver, progress=watch, chunk=chunk)
     except ProgramFailed as e:
         res = e.result
-    ps = _located(res, probed, envs, loading_probe)
+    ps = _located(res, probed, envs, loading_probe, rule)
     failed = [s for s in res.meta.get("stopped", []) if "failure" in s]
     if failed and not math.isfinite(ps.controllability_step) and len(res):
         # no strain increment carries the next targets: controllability under the stage's own
@@ -429,8 +439,42 @@ def along_program(program, params, every: int = 10, n_probes: int = 72,
 DEFAULT_MAGNITUDE = 1e-5
 
 
-def _located(res, probed: dict, envs: dict, loading_probe: bool) -> PathStability:
-    """Locate the entry into the bifurcation domain and the loss of controllability on a path."""
+#: How the loss of controllability is located along a path (:func:`along_program`).
+RULES = ("increments", "secant")
+
+
+def _rule(rule: str | None, n_components: int) -> str:
+    """The rule of ``rule`` (None: ``increments`` in 2D, ``secant`` in 3D), checked."""
+    rule = rule or ("secant" if n_components == 6 else "increments")
+    if rule not in RULES:
+        raise InputError(f"the controllability rule must be one of {', '.join(RULES)}, got {rule!r}")
+    return rule
+
+
+def _first_secant_loss(eps: np.ndarray, sig: np.ndarray, lw: np.ndarray,
+                       persist: int = 5) -> int | None:
+    """Row i of the first state, after a loading increment of d²W > 0, from which the path's
+    secant work (σ_{i+m} − σ_i):(ε_{i+m} − ε_i) is ≤ 0 for m = 1 … ``persist`` (or to the end):
+    within ``persist`` increments the path does not regain what it had at i. A single cell
+    event followed by a reloading that passes its start is skipped, as by
+    :func:`first_sign_change`; a drop that the next increments do not make up is not, however
+    stiff they are (the sawtooth of the 3D model's cell families, docs/stability.md)."""
+    pos = np.flatnonzero(lw > 0)
+    if not len(pos):
+        return None
+    for i in np.flatnonzero((lw <= 0) & (np.arange(len(lw)) > pos[0])):
+        m = min(persist, len(eps) - 1 - i)
+        w = second_order_work(eps[i + 1:i + 1 + m] - eps[i], sig[i + 1:i + 1 + m] - sig[i])[0]
+        if np.all(w <= 0):
+            return int(i)
+    return None
+
+
+def _located(res, probed: dict, envs: dict, loading_probe: bool,
+             rule: str = "increments") -> PathStability:
+    """Locate the entry into the bifurcation domain and the loss of controllability on a path:
+    by the loading increments' own d²W (``rule="increments"``, :func:`first_sign_change`) or by
+    the path's secant work (``"secant"``, :func:`_first_secant_loss`)."""
     cons = res["stage"] == "consolidation"
     first = int(np.flatnonzero(~cons)[0]) if (~cons).any() else len(res)
     start = max(first - 1, 0)  # the consolidated state, then every state after it
@@ -457,16 +501,22 @@ def _located(res, probed: dict, envs: dict, loading_probe: bool) -> PathStabilit
         candidates.append((int(by_load[0]), "loading increment"))  # a probe from its start row
     entry, by = min(candidates) if candidates else (None, "")
     xs = np.r_[0.0, x]
-    lost = first_sign_change(x, lw)
     lost_step = float("nan")
-    if math.isfinite(lost):
-        i = _first_persistent(lw)
-        lost_step = float(steps[i + 1]) if i is not None else float("nan")
+    if rule == "secant":
+        i = _first_secant_loss(eps, sig, lw)
+        lost = float(xs[i]) if i is not None else float("nan")
+        lost_step = float(steps[i]) if i is not None else float("nan")
+    else:
+        lost = first_sign_change(x, lw)
+        if math.isfinite(lost):
+            i = _first_persistent(lw)
+            lost_step = float(steps[i + 1]) if i is not None else float("nan")
     return PathStability(
         res, x, lw, xs[checked], rowmin[checked], envs,
         float(xs[entry]) if entry is not None else float("nan"), lost,
         steps[checked], rowmag[checked],
-        float(steps[entry]) if entry is not None else float("nan"), lost_step, by)
+        float(steps[entry]) if entry is not None else float("nan"), lost_step, by,
+        controllability_by="loading increments" if rule == "increments" else "secant work")
 
 
 def _components(res) -> tuple[str, ...]:

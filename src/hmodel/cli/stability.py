@@ -58,6 +58,11 @@ def stability(
         "--rendulic/--no-rendulic",
         help="Triaxial test: half the strain probes on the Rendulic circle (dε22 = dε33), where "
              "the instability cone of an axisymmetric state opens first; the rest spread.")] = True,
+    controllability: Annotated[Optional[str], typer.Option(
+        "--controllability",
+        help="How the loss of controllability is located: increments (the loading increments' "
+             "d²W <= 0 for 5 increments; the 2D default) or secant (the path's secant work from "
+             "a state <= 0 for 5 increments; the 3D default).")] = None,
     step: Annotated[float, typer.Option(help="Axial strain increment of the laboratory test.")] = AXIAL_STEP,
     order: OrderOpt = None,
     azimuths: AzimuthsOpt = None,
@@ -68,7 +73,7 @@ def stability(
     over probe directions at every k-th state, envelopes at --at, the bifurcation-domain entry
     and the loss of controllability."""
     from ..loading import Program
-    from ..stability import (along_biaxial, along_program, along_triaxial, plot_envelopes,
+    from ..stability import (RULES, along_biaxial, along_program, along_triaxial, plot_envelopes,
                              plot_path, table_writers)
 
     if test not in TESTS:
@@ -110,9 +115,12 @@ def stability(
         raise InputError(f"--at expects comma-separated strains, got {at!r}") from None
     if not (math.isfinite(stress_magnitude) and stress_magnitude > 0):
         raise InputError(f"--stress-magnitude must be positive, got {stress_magnitude}")
+    if controllability is not None and controllability not in RULES:
+        raise InputError(f"--controllability must be one of {', '.join(RULES)}, got {controllability!r}")
     with LazyProgress("probing") as progress:
         common = {"every": every, "n_probes": probes, "magnitude": magnitude, "shear": shear,
-                  "progress": progress, "loading_probe": loading_probe}
+                  "progress": progress, "loading_probe": loading_probe,
+                  "controllability": controllability}
         if prog is not None:
             ps = along_program(prog, params, **common)
         elif test == "triaxial":
