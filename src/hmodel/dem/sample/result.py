@@ -111,7 +111,8 @@ class SampleTest:
         out = {"kind": self.kind, "p0": self.p0, "csv": self.name + ".csv",
                **self.info,
                "consolidated": self.consolidated.summary(), "final": self.final.summary(),
-               "peak_q": float(np.max(t["q"])),
+               # the q of largest magnitude: the peak, negative in extension
+               "peak_q": float(t["q"][np.argmax(np.abs(t["q"]))]),
                "max_unbalanced_shear": float(np.max(self.column("unbalanced")[1:])),
                "median_unbalanced_shear": float(np.median(self.column("unbalanced")[1:]))}
         if self.kind.endswith("undrained"):
@@ -120,6 +121,5 @@ class SampleTest:
             lateral = np.stack([self.column(f"s{i}{i}") for i in range(2, self.dim + 1)])
             out["max_lateral_stress_error"] = float(np.max(np.abs(lateral - self.p0)) / self.p0)
         if self.dim == 3:
-            out["peak_q"] = float(t["q"][np.argmax(np.abs(t["q"]))])  # extension: q < 0
             out["max_sliding"] = float(np.max(t["sliding"]))
         return out
