@@ -103,6 +103,13 @@ def test_bad_input_is_one_line(tmp_path, capsys):
         solver.step(PARAMS, get_solver("closed-form").initial(PARAMS, (2,)), 0.0, 0.0, 0.0)
     with pytest.raises(InputError, match="volume"):
         solver.step(Params(volume="hexagon-consistent"), solver.initial(PARAMS, (1,)), 0.0, 0.0, 0.0)
+    from hmodel.data import DatasetSpec
+    from hmodel.rev import Rev
+
+    with pytest.raises(InputError, match="2D REV's cells take two lengths"):
+        Rev(PARAMS, solver)
+    with pytest.raises(InputError, match="3D model's cell"):
+        DatasetSpec(kind=2, solver="dem:bihexagon")
     with pytest.raises(InputError, match="unknown bi-hexagon path 'shear'"):
         validate_bihex(PARAMS, paths=("shear",))
     with pytest.raises(InputError, match="3 finite numbers"):

@@ -131,6 +131,9 @@ class DatasetSpec:
         if self.dim == 3 and self.solver != "closed-form":
             raise InputError(f"--dim 3 rows are the closed-form bi-hexagon's; --solver {self.solver} "
                              "is a 2D cell solver option only")
+        if self.dim == 2 and self.solver.split(":")[:2] == ["dem", "bihexagon"]:
+            raise InputError("the DEM bi-hexagon (dem:bihexagon) is the 3D model's cell, not a 2D cell "
+                             "to make 2D rows of; --dim 3 rows are the closed-form bi-hexagon's")
         if (self.kind == 3) != bool(self.rev_paths.strip()):
             raise InputError("rev_paths (the REV's loading paths) must be given for dataset 3 and "
                              f"only for it, got {self.rev_paths!r} for dataset {self.kind}")

@@ -69,6 +69,10 @@ class Rev(RevBatch):
         elif not isinstance(solver, CellSolver):
             raise InputError(f"Rev takes a cell solver, got {solver!r} (resolve a spec with "
                              "hmodel.solvers.get_solver)")
+        elif solver.n_lengths != 2:
+            raise InputError(f"the 2D REV's cells take two lengths; {solver.name!r} is a 3D cell "
+                             f"solver ({solver.n_lengths} lengths: the 3D model's run triaxial, "
+                             "true-triaxial, oedometer)")
         #: the parameter sets (K,), and the first, whose shared fields all sets have
         self.sets = check_batch(params)
         self.params = params = self.sets[0]
