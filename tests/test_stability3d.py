@@ -127,8 +127,9 @@ def test_undrained_triaxial_work_turns_negative_at_the_peak_of_q():
 
 def test_the_secant_rule_skips_a_recovered_drop_and_finds_a_sawtooth():
     """One-component paths (the d²W of dε11 dσ11): an isolated drop that the next increment
-    makes up is skipped by both rules; after the peak of a sawtooth (single-increment drops,
-    stiff reloads that do not make them up) only the secant rule finds the loss, at the peak."""
+    makes up is skipped by both rules, one made up only after many increments by the secant
+    rule; after the peak of a sawtooth (single-increment drops, stiff reloads that do not make
+    them up) only the secant rule finds the loss, at the peak."""
     from hmodel.stability import _first_persistent, _first_secant_loss, loading_work
 
     def path(sig11):
@@ -140,6 +141,10 @@ def test_the_secant_rule_skips_a_recovered_drop_and_finds_a_sawtooth():
     rising = [0, 1, 2, 3, 2.9, 4, 5, 6, 7, 8, 9, 10]  # a drop at row 3, made up at once
     eps, sig, lw = path(rising)
     assert _first_secant_loss(eps, sig, lw) is None and _first_persistent(lw) is None
+    slow = [0, 1, 2, 3, 1, 1.2, 1.4, 1.6, 1.8, 2, 2.2, 2.4, 2.6, 2.8, 3.2, 4]  # made up at row 14
+    eps, sig, lw = path(slow)
+    assert _first_secant_loss(eps, sig, lw) is None
+    assert _first_secant_loss(eps, sig, lw, segment=np.arange(len(slow)) >= 10) == 3  # a new stage
     saw = [0, 2, 4, 6, 8, 6, 6.5, 7, 5, 5.5, 6, 4, 4.5, 5]  # peak at row 4
     eps, sig, lw = path(saw)
     assert _first_persistent(lw) is None and _first_secant_loss(eps, sig, lw) == 4

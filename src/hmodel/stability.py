@@ -368,9 +368,10 @@ def along_program(program, params, every: int = 10, n_probes: int = 72,
     drawn (in 3D in the Rendulic plane, :func:`section_directions`). ``directions``: the
     probes' unit directions (n_probes, components) (default :func:`probe_directions`).
     ``controllability``: how its loss is located (:data:`RULES`): ``"increments"``, where the
-    loading increments' d²W turns ≤ 0 for 5 increments (the 2D default), or ``"secant"``, where
-    the path's secant work from a state stays ≤ 0 for 5 increments (the 3D default: the 3D
-    model softens in single-increment drops, between which it reloads stiffly).
+    loading increments' d²W turns ≤ 0 for 5 increments (the 2D default), or ``"secant"``, the
+    first state from which the path's secant work to every later state of its stage is ≤ 0
+    (the 3D default: the 3D model softens in single-increment drops, between which it reloads
+    stiffly; :func:`_first_secant_loss`).
     """
     from .loading import ProgramFailed
 
@@ -452,19 +453,23 @@ def _rule(rule: str | None, n_components: int) -> str:
 
 
 def _first_secant_loss(eps: np.ndarray, sig: np.ndarray, lw: np.ndarray,
-                       persist: int = 5) -> int | None:
+                       segment: np.ndarray | None = None) -> int | None:
     """Row i of the first state, after a loading increment of d²W > 0, from which the path's
-    secant work (σ_{i+m} − σ_i):(ε_{i+m} − ε_i) is ≤ 0 for m = 1 … ``persist`` (or to the end):
-    within ``persist`` increments the path does not regain what it had at i. A single cell
-    event followed by a reloading that passes its start is skipped, as by
-    :func:`first_sign_change`; a drop that the next increments do not make up is not, however
-    stiff they are (the sawtooth of the 3D model's cell families, docs/stability.md)."""
+    secant work (σ_j − σ_i):(ε_j − ε_i) is ≤ 0 for every later state j of the same stage
+    (``segment`` (n,): a label per row, the stage of a row; None: one stage): the path never
+    makes up, under its stage's control, what it had at i (on a triaxial test, the peak of q).
+    A cell event that the path makes up later, in one increment or in many, is skipped,
+    whatever the increments' size; a drop made up by no later state is not, however stiffly the
+    path reloads between drops (the sawtooth of the 3D model, docs/stability.md)."""
+    segment = np.zeros(len(eps), int) if segment is None else np.asarray(segment)
     pos = np.flatnonzero(lw > 0)
     if not len(pos):
         return None
     for i in np.flatnonzero((lw <= 0) & (np.arange(len(lw)) > pos[0])):
-        m = min(persist, len(eps) - 1 - i)
-        w = second_order_work(eps[i + 1:i + 1 + m] - eps[i], sig[i + 1:i + 1 + m] - sig[i])[0]
+        # the increment i -> i + 1 belongs to the stage of row i + 1; its states from there
+        same = segment[i + 1:] == segment[i + 1]
+        end = i + 1 + (int(np.argmin(same)) if not same.all() else len(same))
+        w = second_order_work(eps[i + 1:end] - eps[i], sig[i + 1:end] - sig[i])[0]
         if np.all(w <= 0):
             return int(i)
     return None
@@ -503,7 +508,11 @@ def _located(res, probed: dict, envs: dict, loading_probe: bool,
     xs = np.r_[0.0, x]
     lost_step = float("nan")
     if rule == "secant":
-        i = _first_secant_loss(eps, sig, lw)
+        tags = [res["stage"][start:]] + ([res["cycle"][start:]] if "cycle" in res.columns else [])
+        change = np.zeros(len(eps), bool)
+        for t in tags:
+            change[1:] |= t[1:] != t[:-1]
+        i = _first_secant_loss(eps, sig, lw, np.cumsum(change))
         lost = float(xs[i]) if i is not None else float("nan")
         lost_step = float(steps[i]) if i is not None else float("nan")
     else:

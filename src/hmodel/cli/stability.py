@@ -61,8 +61,8 @@ def stability(
     controllability: Annotated[Optional[str], typer.Option(
         "--controllability",
         help="How the loss of controllability is located: increments (the loading increments' "
-             "d²W <= 0 for 5 increments; the 2D default) or secant (the path's secant work from "
-             "a state <= 0 for 5 increments; the 3D default).")] = None,
+             "d²W <= 0 for 5 increments; the 2D default) or secant (the first state from which "
+             "the secant work to every later state of its stage is <= 0; the 3D default).")] = None,
     step: Annotated[float, typer.Option(help="Axial strain increment of the laboratory test.")] = AXIAL_STEP,
     order: OrderOpt = None,
     azimuths: AzimuthsOpt = None,
