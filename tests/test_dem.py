@@ -152,7 +152,7 @@ def test_a_failing_request_is_a_one_line_error_and_the_process_goes_on(tmp_path,
     with it."""
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     with YadeServer() as yade:
-        with pytest.raises(DEMError, match=r"^DEM: unknown task 'draw' \(known: runs, increment, biaxial\)$"):
+        with pytest.raises(DEMError, match=r"^DEM: unknown task 'draw' \(known: runs, increment, biaxial, triaxial, bihex\)$"):
             yade.request("draw", {})
         with pytest.raises(DEMError, match=r"^DEM: KeyError: 'cells'$"):
             yade.request("runs", {})
