@@ -427,24 +427,17 @@ def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin
             bufflags = np.empty((4, n, flags.shape[2]), dtype=np.bool_)
             v = np.empty(S.shape[0])
             segment_targets(S, start[b], end[b], k, n_steps, v)
-            # The point's cells and parameters copied to arrays of this thread: views into the
-            # shared arrays, made per cell in the trials, would all count references on the
-            # shared arrays' one counter, which the threads would then take turns to update.
+            # The point's cells copied to arrays of this thread: views into the shared arrays,
+            # made per cell in the trials, would all count references on the shared arrays' one
+            # counter, which the threads would then take turns to update. The trials index the
+            # geometry and parameters in place (no per-cell views), so those are not copied:
+            # in 3D the geometry is one (cells, 36) block shared by every point.
             vals = values[b].copy()
             flg = flags[b].copy()
-            gb, pb, rb = geo[_geo_row(geo, sets[b])].copy(), p[sets[b]].copy(), resp[b].copy()
+            gb, pb, rb = geo[_geo_row(geo, sets[b])], p[sets[b]], resp[b].copy()
             status[b] = solve_point(vals, flg, eps[b], sig[b], K[b], has_K[b:b + 1], S, M, v, gb,
                                     pb, mode, volume0[sets[b]], c, max_events, buf, bufflags, rb,
                                     guess[b], trials[b:b + 1])
-            if status[b] != OK and has_K[b]:
-                # Once more from a fresh finite-difference tangent and the tangent predictor: a
-                # Newton carried in by Broyden's secants and the previous increment can stall
-                # where one from the increment's own tangent converges (the state was restored).
-                has_K[b] = False
-                guess[b, :] = np.nan
-                status[b] = solve_point(vals, flg, eps[b], sig[b], K[b], has_K[b:b + 1], S, M, v,
-                                        gb, pb, mode, volume0[sets[b]], c, max_events, buf,
-                                        bufflags, rb, guess[b], trials[b:b + 1])
             values[b] = vals
             flags[b] = flg
             _record(rec[k - k_begin, b], eps[b], sig[b], flags[b])
