@@ -19,7 +19,6 @@ FORCES = [BIHEX_FIELDS.index(f) for f in ("N1", "N2", "T1", "N1_b", "N2_b", "T1_
 
 
 @pytest.mark.yade
-@pytest.mark.slow
 def test_dem_bihexagon_follows_the_closed_form_and_its_contacts_give_its_stress():
     """Three paths from the unloaded cell (both hexagons sliding; B sliding, A not; A sliding, B
     opening), 5 increments of 0.1 % cell strain, each driven over 1000 time steps: the DEM cell and the closed form (another
@@ -51,7 +50,6 @@ def test_dem_bihexagon_follows_the_closed_form_and_its_contacts_give_its_stress(
 
 
 @pytest.mark.yade
-@pytest.mark.slow
 def test_a_bihexagon_loaded_in_one_plane_is_the_2d_dem_hexagon():
     """dl3 = 0: hexagon A follows (dl1, dl2) and hexagon B (dl1, 0) exactly as 2D DEM hexagons
     (dem:standard) do, two increments through the cell solvers (each rebuilds from the state)."""
@@ -71,7 +69,6 @@ def test_a_bihexagon_loaded_in_one_plane_is_the_2d_dem_hexagon():
 
 
 @pytest.mark.yade
-@pytest.mark.slow
 def test_rev3d_takes_the_dem_bihexagon():
     """One strain increment of a 3D REV of DEM bi-hexagons (Lebedev order 3, the increment driven
     over 1000 time steps): the stress of the closed-form REV (the increment in 10 steps) within

@@ -41,10 +41,10 @@ compression positive), ``unbalanced``, ``iterations`` (relaxation steps); ``dt``
 import math
 
 try:  # pytest collecting the package's doctests
-    from .cell_scene import material, start
+    from .cell_scene import contact_pairs, material, start
     from .common import steps
 except ImportError:  # in YADE: the scripts lie side by side in the working directory
-    from cell_scene import material, start
+    from cell_scene import contact_pairs, material, start
     from common import steps
 
 EPS = 2.220446049250313e-16
@@ -131,20 +131,7 @@ def contacts(O, cells, owner):
     """Closed contacts of every cell, rows [i, j, fn, fx, fy, fz, bx, by, bz] sorted by (i, j)
     (see the module docstring)."""
     out = [[] for _ in cells]
-    for I in O.interactions:
-        if not I.isReal or I.geom.penetrationDepth < 0:  # kept by neverErase but open
-            continue
-        c, i = owner[I.id1]
-        c2, j = owner[I.id2]
-        if c != c2:
-            continue
-        f = I.phys.normalForce + I.phys.shearForce  # force on id2 by id1
-        f = [f[0], f[1], f[2]]
-        if i > j:
-            i, j, f = j, i, [-x for x in f]
-        pi = O.bodies[cells[c]["ids"][i]].state.pos
-        pj = O.bodies[cells[c]["ids"][j]].state.pos
-        b = [pj[k] - pi[k] for k in range(3)]
+    for c, i, j, f, b in contact_pairs(O, cells, owner):
         norm = math.sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2])
         out[c].append([i, j, (f[0] * b[0] + f[1] * b[1] + f[2] * b[2]) / norm] + f + b)
     return [sorted(o) for o in out]

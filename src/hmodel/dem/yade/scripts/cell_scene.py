@@ -149,6 +149,16 @@ def contacts(O, cells, owner):
     ft = f.(e_y, -e_x) with e = b/|b|, b = x_j - x_i (m). Rows sorted by (i, j).
     """
     out = [[] for _ in cells]
+    for c, i, j, (fx, fy, _), (bx, by, _) in contact_pairs(O, cells, owner):
+        norm = math.hypot(bx, by)
+        ex, ey = bx / norm, by / norm
+        out[c].append([i, j, fx * ex + fy * ey, fx * ey - fy * ex, fx, fy, bx, by])
+    return [sorted(o) for o in out]
+
+
+def contact_pairs(O, cells, owner):
+    """(cell, i, j, f, b) of every closed contact between two grains of one cell: i < j local
+    grain indices, f the force on j by i and b = x_j - x_i (3-lists, N and m)."""
     for I in O.interactions:
         if not I.isReal or I.geom.penetrationDepth < 0:  # kept by neverErase but open
             continue
@@ -157,16 +167,12 @@ def contacts(O, cells, owner):
         if c != c2:
             continue
         f = I.phys.normalForce + I.phys.shearForce  # force on id2 by id1
-        fx, fy = f[0], f[1]
+        f = [f[0], f[1], f[2]]
         if i > j:
-            i, j, fx, fy = j, i, -fx, -fy
+            i, j, f = j, i, [-x for x in f]
         pi = O.bodies[cells[c]["ids"][i]].state.pos
         pj = O.bodies[cells[c]["ids"][j]].state.pos
-        bx, by = pj[0] - pi[0], pj[1] - pi[1]
-        norm = math.hypot(bx, by)
-        ex, ey = bx / norm, by / norm
-        out[c].append([i, j, fx * ex + fy * ey, fx * ey - fy * ex, fx, fy, bx, by])
-    return [sorted(o) for o in out]
+        yield c, i, j, f, [pj[k] - pi[k] for k in range(3)]
 
 
 def unbalanced(O, cell, rows, f_abs=0.0):
