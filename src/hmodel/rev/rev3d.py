@@ -72,7 +72,9 @@ class Rev3D(RevBatch):
         Lebedev order, azimuths per direction and transversely isotropic fabric (default
         ``Sphere()``).
     solver : BiHexSolver or 2D CellSolver, optional
-        The 3D cell solver (default the closed-form bi-hexagon), or a 2D H-cell solver, which
+        The 3D cell solver (default the closed-form bi-hexagon; any solver of ``n_lengths`` 3,
+        e.g. the DEM bi-hexagon ``dem:bihexagon``, runs on the generic loading driver when it
+        has no compiled kernel), or a 2D H-cell solver, which
         then steps each hexagon of every bi-hexagon (``BiHexSolver(hexagon=solver)``; e.g. a
         surrogate of the closed-form H-cell: the learned 3D cell, docs/model3d.md).
 
