@@ -28,9 +28,10 @@ the same for every cell) and ``cross``.
 2. per increment: the driven grains move at constant velocity over ``substeps`` time steps,
    then the scene relaxes (each grain free but along its driven axis and, for a lateral grain,
    across its hexagon's plane); a cell is frozen (every degree of freedom blocked, at rest) as soon
-   as max(max |F_free| - f_round, 0) / mean |f| <= ``tol`` (f_round = 1000 eps kn |x|, the
-   force that round-off of the coordinates can cause; cells on a square grid centred on the
-   origin), so that its answer does not depend on the other cells; the next increment frees it.
+   as max(max |F_free| - f_round, 0) / mean |f| <= ``tol`` (f_round = 10^4 eps kn r_ref, a bound
+   of the force that round-off of the coordinates can cause, the same for every cell; cells on a
+   square grid centred on the origin), so that its answer does not depend on the other cells;
+   the next increment frees it.
 
 Answer: for every cell one record per increment: ``pos`` (cell frame), contact rows
 [i, j, fn, fx, fy, fz, bx, by, bz] (i < j, f the force on j by i, b = x_j - x_i, fn = f.b/|b|,
@@ -41,10 +42,10 @@ compression positive), ``unbalanced``, ``iterations`` (relaxation steps); ``dt``
 import math
 
 try:  # pytest collecting the package's doctests
-    from .cell_scene import contact_pairs, material, start
+    from .cell_scene import contact_pairs, material, relax, start
     from .common import steps
 except ImportError:  # in YADE: the scripts lie side by side in the working directory
-    from cell_scene import contact_pairs, material, start
+    from cell_scene import contact_pairs, material, relax, start
     from common import steps
 
 EPS = 2.220446049250313e-16
@@ -56,8 +57,9 @@ MASK = {"n": 3, "t1": 1, "t2": 2}
 
 
 def _origins(req):
-    """Cell origins on a square grid of the plane z = 0 centred on the origin; sets each cell's
-    ``f_abs`` (the unbalanced force that round-off of its coordinates can cause)."""
+    """Cell origins on a square grid of the plane z = 0 centred on the origin (small coordinates,
+    small round-off); sets each cell's ``f_abs``, the unbalanced force that round-off of the
+    coordinates can cause."""
     cells = req["cells"]
     half = max(abs(p[k]) + r for c in cells for p, r in zip(c["pos"], c["radii"]) for k in range(3))
     pitch = 2.0 * half + req["gap"]
@@ -65,7 +67,9 @@ def _origins(req):
     out = []
     for c, cell in enumerate(cells):
         o = ((c % side - 0.5 * (side - 1)) * pitch, (c // side - 0.5 * (side - 1)) * pitch, 0.0)
-        cell["f_abs"] = 1e3 * EPS * req["kn"] * (abs(o[0]) + abs(o[1]) + pitch)
+        # the same for every cell, so that a cell's answer does not depend on where the request
+        # puts it: 1e4 eps kn r bounds by far what round-off of coordinates up to ~100 r causes
+        cell["f_abs"] = 1e4 * EPS * req["kn"] * req["r_ref"]
         out.append(o)
     return out
 
@@ -137,12 +141,12 @@ def contacts(O, cells, owner):
     return [sorted(o) for o in out]
 
 
-def _unbalanced(O, cell, rows):
-    """max(max |F| on a free DOF - f_abs, 0) / mean |f| over ``rows``; 0 for a cell whose mean
-    contact force is at most ``f_floor`` (nothing to balance)."""
+def _unbalanced(O, cell, rows, f_abs):
+    """(ratio, unloaded): max(max |F| on a free DOF - f_abs, 0) / mean |f| over ``rows``; ratio
+    0 and unloaded for a cell whose mean contact force is at most ``f_floor``."""
     mean_f = sum(math.sqrt(c[3] ** 2 + c[4] ** 2 + c[5] ** 2) for c in rows) / max(len(rows), 1)
     if mean_f <= cell["f_floor"]:
-        return 0.0
+        return 0.0, True
     worst = 0.0
     for g, bid in enumerate(cell["ids"]):
         f = O.forces.f(bid)
@@ -151,34 +155,7 @@ def _unbalanced(O, cell, rows):
     # a cell loaded by increments of 1e-7 (Newton's finite-difference trials from the unloaded
     # state) carries forces of ~10 N, whose 1e-10 is below what round-off of the coordinates
     # alone causes (kn eps |x| ~ 1e-7 N): without the allowance it never balances
-    return max(worst - cell["f_abs"], 0.0) / mean_f
-
-
-def _relax(O, cells, owner, req):
-    """Time steps until every cell is balanced (each frozen as it is) or ``max_iter`` steps are
-    spent. Returns (pending cells, ratios, steps of each cell, contact rows)."""
-    pending = list(range(len(cells)))
-    ratios = [0.0] * len(cells)
-    iters = [0] * len(cells)
-    it = 0
-    while True:
-        rows = contacts(O, cells, owner)
-        still = []
-        for c in pending:
-            ratios[c] = _unbalanced(O, cells[c], rows[c])
-            if ratios[c] > req["tol"]:
-                still.append(c)
-                continue
-            iters[c] = it
-            for bid in cells[c]["ids"]:
-                st = O.bodies[bid].state
-                st.vel = (0.0, 0.0, 0.0)
-                st.blockedDOFs = "xyzXYZ"
-        pending = still
-        if not pending or it >= req["max_iter"]:
-            return pending, ratios, iters, rows
-        steps(O, req["check_every"])
-        it += req["check_every"]
+    return max(worst - f_abs, 0.0) / mean_f, False
 
 
 def run(req):
@@ -191,9 +168,18 @@ def run(req):
     owner = _build(O, utils, w, req)
     _restore_shear(O, cells)
     records = [[] for _ in cells]
+    iters = [0] * len(cells)
+
+    def settle(c, unloaded, it):  # frozen: its answer does not depend on the other cells
+        iters[c] = it
+        for bid in cells[c]["ids"]:
+            st = O.bodies[bid].state
+            st.vel = (0.0, 0.0, 0.0)
+            st.blockedDOFs = "xyzXYZ"
+
     for k in range(len(cells[0]["increments"])):
         _apply(O, cells, k, req["substeps"])
-        pending, ratios, iters, rows = _relax(O, cells, owner, req)
+        pending, ratios, _, rows = relax(O, cells, owner, req, settle, contacts, _unbalanced)
         if pending:
             return {"status": "no-equilibrium",
                     "message": (f"equilibrium not reached at increment {k + 1} within {req['max_iter']} "

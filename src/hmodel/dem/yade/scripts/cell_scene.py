@@ -116,21 +116,24 @@ def apply(O, cells, increments, substeps):
                 O.bodies[bid].state.vel = (0.0, 0.0, 0.0)
 
 
-def relax(O, cells, owner, spec, settle):
+def relax(O, cells, owner, spec, settle, rows=None, ratio=None):
     """Time steps until every cell is balanced (ratio <= ``tol``) or ``max_iter`` steps are spent.
 
     ``settle(c, unloaded, it)`` is called once for each cell c as it is found balanced, after
-    ``it`` relaxation steps. Returns (pending cells, ratios, steps spent, contact rows of the
-    last check).
+    ``it`` relaxation steps. ``rows`` and ``ratio`` are the scene's :func:`contacts` and
+    :func:`unbalanced` (the 2D cells' by default; the bi-hexagons bring their own). Returns
+    (pending cells, ratios, steps spent, contact rows of the last check).
     """
+    rows = rows or contacts
+    ratio = ratio or unbalanced
     pending = list(range(len(cells)))
     ratios = [0.0] * len(cells)
     it = 0
     while True:
-        cons = contacts(O, cells, owner)
+        cons = rows(O, cells, owner)
         still = []
         for c in pending:
-            ratios[c], unloaded = unbalanced(O, cells[c], cons[c], cells[c].get("f_abs", 0.0))
+            ratios[c], unloaded = ratio(O, cells[c], cons[c], cells[c].get("f_abs", 0.0))
             if ratios[c] > spec["tol"]:
                 still.append(c)
             else:
