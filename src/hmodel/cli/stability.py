@@ -146,6 +146,10 @@ def stability(
     fmt = lambda v: "none" if not math.isfinite(v) else f"{100 * v:.3f} %"  # noqa: E731
     row = lambda v: "" if not math.isfinite(v) else f" (row {v:.0f})"  # noqa: E731
     by = f", by the {ps.bifurcation_by}" if ps.bifurcation_by else ""
+    reached = float(abs(ps.shear_strain[-1])) if len(ps.shear_strain) else 0.0
+    if prog is None and reached < axial_strain - 0.5 * step:  # the program caught its failure
+        typer.echo(f"the test ended at axial strain {100 * reached:.3f} %: the next increment "
+                   f"could not be solved")
     typer.echo(f"bifurcation domain entered at axial strain {fmt(ps.bifurcation)}{row(ps.bifurcation_step)}"
                f"{by}; loss of controllability at {fmt(ps.controllability)}"
                f"{row(ps.controllability_step)}; wrote {out}")
