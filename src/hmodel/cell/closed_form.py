@@ -174,7 +174,7 @@ def finish_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, dd1, dd2, da, sliding
             open2, l1_new <= two_r, l2_new <= two_r)  # grains 1-4, 2-6 and 3-5 touch (Fig. 1.6)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def finish_increment(values, i, dl1, dl2, dd1, dd2, da, sliding, xi, p, out, flags):
     """:func:`finish_update` of H-cell ``values[i]`` (8 fields) written into ``out[i]`` and
     ``flags[i]``; returns False when the result is not finite."""

@@ -43,7 +43,7 @@ def pack_responses(comp: np.ndarray, exact: np.ndarray | None = None) -> np.ndar
     return out
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def compliance_increment(values, i, dl1, dl2, resp, p, out, flags):
     """Advance cell i of ``values`` (n, 8) by (dl1, dl2) with its learned compliances
     ``resp[i, :24]`` (or eq. 1.7 itself where ``resp[i, EXACT]`` is set); write ``out[i]`` and

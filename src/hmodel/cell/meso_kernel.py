@@ -118,7 +118,7 @@ def _plus_flow(r, i, b, c, richer, z0, z1, z2, z3, z4, z5):
             z4 + c * r[i, b + 4] if richer else z4, z5 + c * r[i, b + 5] if richer else z5)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def meso_increment(values, i, dl1, dl2, p, resp, out, flags, tangent, ddl1, ddl2, dv):
     """Advance the summary state ``values[i]`` (11,) of cell i by length increments (dl1, dl2)
     with its packed response ``resp[i]``; write the new state into ``out[i]`` and its flags into

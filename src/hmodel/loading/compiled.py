@@ -150,7 +150,7 @@ def trial_tangent(values, eps, deps, geo, p, mode, volume0, out, flags, sig, res
                        dsig)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, tangent, u, dsig):
     cos2, sin2, sincos, wcos2, wsin2, wsincos = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5]
     two_r = 2.0 * p[P_R]
@@ -205,7 +205,7 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
     return ok
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def any_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
     """The REV trial of n = eps.shape[0] components: :func:`trial` (2D, n = 3) or the 3D REV's
     :func:`~hmodel.rev.kernels3d.bihex_trial` (n = 6, closed form, ``resp`` unused)."""
