@@ -212,7 +212,7 @@ def meso_increment(values, i, dl1, dl2, p, resp, out, flags, tangent, ddl1, ddl2
                 dvtt = dhtt + dw * (vtt - htt) + w * (dvtt - dhtt)
             vnn, vtt = hnn + w * (vnn - hnn), htt + w * (vtt - htt)
     else:  # an H-cell: eq. 1.12 of the fields
-        vnn, vtt = vsigma_local(o[i], p[P_KN], two_r)
+        vnn, vtt = vsigma_local(o, i, p[P_KN], two_r)
         if tangent:
             dvnn, dvtt = dhnn, dhtt
             if l1 <= two_r:  # the extra contacts of vsigma_local

@@ -25,15 +25,17 @@ def contact_vsigma(d1, d2, ca, sa, n1, n2, t1):
 
 
 @njit(cache=True, inline="always")
-def vsigma_local(v, kn, two_r):
-    """(V sigma_nn, V sigma_tt) of one cell from its packed state ``v`` (eq. 1.12).
+def vsigma_local(v, i, kn, two_r):
+    """(V sigma_nn, V sigma_tt) of cell i from its packed state ``v[i]`` (eq. 1.12), indexed in
+    place (no row view: see closed_form.cell_update).
 
     Over-compressed cells get the extra contacts of docs/model.md, step 3: kn (2r - l1) l1 on
     V sigma_nn when l1 <= 2r (grains 1-4) and 2 kn (2r - l2) l2 on V sigma_tt when l2 <= 2r
     (grains 2-6 and 3-5).
     """
-    l1, l2 = v[6], v[7]
-    vnn, vtt = contact_vsigma(v[0], v[1], math.cos(v[2]), math.sin(v[2]), v[3], v[4], v[5])
+    l1, l2 = v[i, 6], v[i, 7]
+    vnn, vtt = contact_vsigma(v[i, 0], v[i, 1], math.cos(v[i, 2]), math.sin(v[i, 2]), v[i, 3],
+                              v[i, 4], v[i, 5])
     if l1 <= two_r:
         vnn += kn * (two_r - l1) * l1
     if l2 <= two_r:
@@ -44,7 +46,7 @@ def vsigma_local(v, kn, two_r):
 @njit(cache=True)
 def _vsigma_all(values, kn, two_r, out):
     for i in range(values.shape[0]):
-        out[i, 0], out[i, 1] = vsigma_local(values[i], kn, two_r)
+        out[i, 0], out[i, 1] = vsigma_local(values, i, kn, two_r)
 
 
 def meso_vsigma(params: Params, state: CellState) -> np.ndarray:

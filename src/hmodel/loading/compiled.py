@@ -185,7 +185,7 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
                 ok &= compliance_increment(values, i, dl1, dl2, resp, p, out, flags)
             else:
                 ok &= cell_increment(values, i, dl1, dl2, p, out, flags, 0, 0)
-            vnn, vtt = vsigma_local(out[i], kn, two_r)
+            vnn, vtt = vsigma_local(out, i, kn, two_r)
         a11, a22, a12 = weighted_global(vnn, vtt, wcos2[i], wsin2[i], wsincos[i])
         s11 += a11
         s22 += a22
@@ -248,12 +248,13 @@ def _slope_trial(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp, e
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _cell_broken(f):
-    """Whether a cell with flags ``f`` (five per hexagon: one H-cell, or a bi-hexagon's two and
-    its own) has a contact open in some hexagon (``CellFlags.broken``)."""
+def _cell_broken(flags, i):
+    """Whether cell i with flags ``flags[i]`` (five per hexagon: one H-cell, or a bi-hexagon's
+    two and its own) has a contact open in some hexagon (``CellFlags.broken``); indexed in
+    place, no row view."""
     out = False
-    for h in range(f.shape[0] // 5):
-        out = out or f[5 * h + 1] or f[5 * h + 2]
+    for h in range(flags.shape[1] // 5):
+        out = out or flags[i, 5 * h + 1] or flags[i, 5 * h + 2]
     return out
 
 
@@ -261,7 +262,7 @@ def _cell_broken(f):
 def _same_events(flags_a, flags_b):
     """Whether the same cells are broken (a contact open) in two trials."""
     for i in range(flags_a.shape[0]):
-        if _cell_broken(flags_a[i]) != _cell_broken(flags_b[i]):
+        if _cell_broken(flags_a, i) != _cell_broken(flags_b, i):
             return False
     return True
 
@@ -270,7 +271,7 @@ def _same_events(flags_a, flags_b):
 def _broken(flags):
     n = 0
     for i in range(flags.shape[0]):
-        n += _cell_broken(flags[i])
+        n += _cell_broken(flags, i)
     return n
 
 
@@ -384,12 +385,11 @@ def _record(row, eps, sig, flags):
     c14 = 0.0
     c26 = 0.0
     for i in range(n):
-        f = flags[i]
-        c14 += f[3]
+        c14 += flags[i, 3]
         for h in range(nh):
-            slid += f[5 * h]
-            brk += f[5 * h + 1] or f[5 * h + 2]
-            c26 += f[5 * h + 4]
+            slid += flags[i, 5 * h]
+            brk += flags[i, 5 * h + 1] or flags[i, 5 * h + 2]
+            c26 += flags[i, 5 * h + 4]
     row[2 * m] = slid / (n * nh)
     row[2 * m + 1] = brk / (n * nh)
     row[2 * m + 2] = c14 / n
@@ -417,14 +417,18 @@ def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin
     caller chose to go on without) is left as it is, its records NaN.
     """
     B, n = values.shape[0], values.shape[1]
+    # Each point's trial buffers, allocated once for all increments (a new allocation of this
+    # size per increment is a fresh mapping of memory whose pages fault in on every use)
+    bufs = np.empty((B, 4, n, values.shape[2]))
+    bufsflags = np.empty((B, 4, n, flags.shape[2]), dtype=np.bool_)
     for k in range(k_begin, k_end):
         for b in prange(B):
             if dropped[b]:
                 status[b] = OK
                 rec[k - k_begin, b, :] = np.nan
                 continue
-            buf = np.empty((4, n, values.shape[2]))
-            bufflags = np.empty((4, n, flags.shape[2]), dtype=np.bool_)
+            buf = bufs[b]
+            bufflags = bufsflags[b]
             v = np.empty(S.shape[0])
             segment_targets(S, start[b], end[b], k, n_steps, v)
             # The point's cells copied to arrays of this thread: views into the shared arrays,

@@ -65,7 +65,7 @@ def average(values, wcos2, wsin2, wsincos, kn, sets, radius, vsig):
         s22 = 0.0
         s12 = 0.0
         for i in range(n_theta):
-            vnn, vtt = vsigma_local(values[b * n_theta + i], kn[k], two_r)
+            vnn, vtt = vsigma_local(values, b * n_theta + i, kn[k], two_r)
             a11, a22, a12 = weighted_global(vnn, vtt, wcos2[k, i], wsin2[k, i], wsincos[k, i])
             s11 += a11
             s22 += a22
