@@ -15,8 +15,8 @@ figure ``docs/figures/dem3d-calibration.png`` (every test, DEM against model).
 
 Usage: ``python -m benchmarks.calibration.calibrate3d_dem [SAMPLE_DIR] [--fit-on
 triaxial-drained_100kPa,triaxial-drained_400kPa] [--starts 8] [--bayes-steps 0] [--out PATH]``
-(SAMPLE_DIR default: ``benchmarks/dem/dem_sample3d``, where ``benchmarks/dem/dem_sample3d.py``
-keeps its CSVs).
+(SAMPLE_DIR default: ``benchmarks/dem/dem_sample3d_series``, the five tests of a 1,000-sphere
+sample that ``benchmarks/dem/dem_sample3d.py`` kept for the calibration, docs/dem.md).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.calibration.dem_calibration import _figure
-from benchmarks.timing import FIGURES, ROOT, record, write_table
+from benchmarks.timing import FIGURES, ROOT, input_files, record, write_table
 from hmodel.calibrate import Kind, Test, fit
 from hmodel.calibrate.fitting import SEARCH_RULE
 from hmodel.calibrate.model import Model, has_eps_v
@@ -53,7 +53,14 @@ def read_tests(folder: Path) -> dict[str, Test]:
 def errors(test: Test, q: np.ndarray, ev: np.ndarray) -> dict[str, float]:
     """RMS and max |Δq| / peak |q|, and |Δεv| where the test's εv is fitted."""
     dq = (q - test.q) / test.q_scale
-    out = {"rms_dq": float(np.sqrt(np.mean(dq ** 2))), "max_dq": float(np.abs(dq).max())}
+    peak, peak_model = np.argmax(np.abs(test.q)), np.argmax(np.abs(q))
+    out = {"rms_dq": float(np.sqrt(np.mean(dq ** 2))), "max_dq": float(np.abs(dq).max()),
+           "peak_q": float(test.q[peak]), "peak_q_model": float(q[peak_model]),
+           "peak_eps_a": float(test.eps11[peak]), "peak_eps_a_model": float(test.eps11[peak_model]),
+           "end_eps_a": float(test.eps11[-1]), "end_q": float(test.q[-1]), "end_q_model": float(q[-1])}
+    if test.eps_v is not None:
+        out |= {"end_eps_v": float(test.eps_v[-1]), "end_eps_v_model": float(ev[-1]),
+                "max_contraction": float(test.eps_v.max()), "max_contraction_model": float(ev.max())}
     if has_eps_v(test):
         dv = ev - test.eps_v
         out |= {"rms_deps_v": float(np.sqrt(np.mean(dv ** 2))), "max_deps_v": float(np.abs(dv).max())}
@@ -62,7 +69,7 @@ def errors(test: Test, q: np.ndarray, ev: np.ndarray) -> dict[str, float]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("sample", type=Path, nargs="?", default=ROOT / "benchmarks" / "dem" / "dem_sample3d")
+    ap.add_argument("sample", type=Path, nargs="?", default=ROOT / "benchmarks" / "dem" / "dem_sample3d_series")
     ap.add_argument("--fit-on", default="", help="comma list of test stems (default: the drained "
                                                   "tests at the lowest and highest pressure)")
     ap.add_argument("--starts", type=int, default=8)
@@ -118,7 +125,9 @@ def main() -> None:
             rows.append((f"posterior {k}: mean (90 % interval)", s["mean"], f"{s['q05']:.4g} to {s['q95']:.4g}"))
         extra["bayes"] = {**bay.posterior.to_dict(), "least_squares": bay.fitted}
     info = json.loads((args.sample / "sample.json").read_text()) if (args.sample / "sample.json").exists() else {}
-    rec = record(__file__, args, 1, rows, sample=str(args.sample), dem_settings=info.get("settings"),
+    csvs = input_files({"tests": [str(args.sample / f"{n}.csv") for n in tests]})  # their SHA-256
+    rec = record(__file__, args, 1, rows, sample=str(args.sample), test_files=csvs,
+                 dem_settings=info.get("settings"),
                  fit_on=chosen, calibration=cal.to_dict(), errors=errs, **extra)
     write_table(rows, args.out, rec)
     if pred is not None:
