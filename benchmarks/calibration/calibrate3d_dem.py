@@ -119,8 +119,8 @@ def main() -> None:
         t0 = time.perf_counter()
         bay = fit([tests[n] for n in chosen], FITTED, method="bayes", starts=args.starts, sphere=coarse,
                   search_rule=None, walkers=args.walkers, steps=args.bayes_steps)
-        rows.append((f"emcee {args.walkers} x {args.bayes_steps} at order {coarse.order}, "
-                     f"m = {coarse.n_azimuth} (with its least squares) [s]", time.perf_counter() - t0, "-"))
+        rows.append(((f"emcee {args.walkers} x {args.bayes_steps} at order {coarse.order}, "
+                      f"m = {coarse.n_azimuth} (with its least squares) [s]"), time.perf_counter() - t0, "-"))
         for k, s in bay.posterior.summary.items():
             rows.append((f"posterior {k}: mean (90 % interval)", s["mean"], f"{s['q05']:.4g} to {s['q95']:.4g}"))
         extra["bayes"] = {**bay.posterior.to_dict(), "least_squares": bay.fitted}
