@@ -58,9 +58,8 @@ def test_handed_back_increments_are_solved_by_the_generic_driver(monkeypatch):
     import hmodel.loading.compiled as compiled
 
     def failing_kernel(*args):
-        status = args[-6]  # (..., rec, status, resp, guess, trials, sets, dropped)
-        status[:] = compiled.NOT_CONVERGED
-        return args[11]  # k_begin: the first increment failed
+        k_from, k_end, stop = args[11], args[12], args[-6]  # (..., k_rec, stop, resp, guess,
+        stop[:] = np.minimum(k_from, k_end)  # trials, sets, dropped): every first increment fails
 
     rev = Rev(SMALL)
     s0 = consolidate(rev, [1e5, 2e5])

@@ -402,53 +402,53 @@ def _geo_row(geo, k):
     return k if geo.shape[0] > 1 else 0
 
 
-def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_begin, k_end,
-           geo, p, mode, volume0, c, max_events, rec, status, resp, guess, trials, sets, dropped):
-    """Increments k_begin..k_end-1 (1-based k of n_steps) of a segment for B material points of
-    m components (3 or 6).
+def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_from, k_end,
+           geo, p, mode, volume0, c, max_events, rec, k_rec, stop, resp, guess, trials, sets,
+           dropped):
+    """Increments k_from[b]..k_end-1 (1-based k of n_steps) of a segment for each of B material
+    points of m components (3 or 6).
 
-    Stops after the first increment where a point fails (``status[b] != OK``) and returns its
-    k; returns k_end when all went through. ``rec[k - k_begin, b]`` receives eps (m), sig (m)
-    and the cell fractions sliding, broken, contact14, contact26. Point b runs with parameter
-    set ``sets[b]``: its rows of ``geo`` (K, ...; one row shared by all sets where the
-    geometry does not depend on the set, as in 3D), ``p`` (K, P) and ``volume0`` (K,).
-    The points of an increment are independent: compiled with ``parallel=True``
-    (:data:`_run_steps_parallel`) they run on all cores. A ``dropped`` point (a failed one the
-    caller chose to go on without) is left as it is, its records NaN.
+    Each point runs its increments on its own and stops at the first it fails:
+    ``stop[b]`` is that increment (the point's state is the one before it), or k_end when all
+    went through. ``rec[k - k_rec, b]`` receives eps (m), sig (m) and the cell fractions
+    sliding, broken, contact14, contact26. Point b runs with parameter set ``sets[b]``: its
+    rows of ``geo`` (K, ...; one row shared by all sets where the geometry does not depend on
+    the set, as in 3D), ``p`` (K, P) and ``volume0`` (K,). The points are independent:
+    compiled with ``parallel=True`` (:data:`_run_steps_parallel`) they run on all cores, each
+    through all its increments (a point that needs more Newton trials than the others then
+    holds up no increment of theirs). A ``dropped`` point (a failed one the caller chose to go
+    on without) is left as it is, its records NaN.
     """
     B, n = values.shape[0], values.shape[1]
-    # Each point's trial buffers, allocated once for all increments (a new allocation of this
-    # size per increment is a fresh mapping of memory whose pages fault in on every use)
-    bufs = np.empty((B, 4, n, values.shape[2]))
-    bufsflags = np.empty((B, 4, n, flags.shape[2]), dtype=np.bool_)
-    for k in range(k_begin, k_end):
-        for b in prange(B):
-            if dropped[b]:
-                status[b] = OK
-                rec[k - k_begin, b, :] = np.nan
-                continue
-            buf = bufs[b]
-            bufflags = bufsflags[b]
-            v = np.empty(S.shape[0])
+    for b in prange(B):
+        stop[b] = k_end
+        if dropped[b]:
+            for k in range(k_from[b], k_end):
+                rec[k - k_rec, b, :] = np.nan
+            continue
+        if k_from[b] >= k_end:
+            continue
+        buf = np.empty((4, n, values.shape[2]))
+        bufflags = np.empty((4, n, flags.shape[2]), dtype=np.bool_)
+        v = np.empty(S.shape[0])
+        # The point's cells copied to arrays of this thread: views into the shared arrays, made
+        # per cell in the trials, would all count references on the shared arrays' one counter,
+        # which the threads would then take turns to update. The trials index the geometry and
+        # parameters in place (no per-cell views), so those are not copied: in 3D the geometry
+        # is one (cells, 36) block shared by every point.
+        vals = values[b].copy()
+        flg = flags[b].copy()
+        gb, pb, rb = geo[_geo_row(geo, sets[b])], p[sets[b]], resp[b].copy()
+        for k in range(k_from[b], k_end):
             segment_targets(S, start[b], end[b], k, n_steps, v)
-            # The point's cells copied to arrays of this thread: views into the shared arrays,
-            # made per cell in the trials, would all count references on the shared arrays' one
-            # counter, which the threads would then take turns to update. The trials index the
-            # geometry and parameters in place (no per-cell views), so those are not copied:
-            # in 3D the geometry is one (cells, 36) block shared by every point.
-            vals = values[b].copy()
-            flg = flags[b].copy()
-            gb, pb, rb = geo[_geo_row(geo, sets[b])], p[sets[b]], resp[b].copy()
-            status[b] = solve_point(vals, flg, eps[b], sig[b], K[b], has_K[b:b + 1], S, M, v, gb,
-                                    pb, mode, volume0[sets[b]], c, max_events, buf, bufflags, rb,
-                                    guess[b], trials[b:b + 1])
-            values[b] = vals
-            flags[b] = flg
-            _record(rec[k - k_begin, b], eps[b], sig[b], flags[b])
-        for b in range(B):
-            if status[b] != OK:
-                return k
-    return k_end
+            if solve_point(vals, flg, eps[b], sig[b], K[b], has_K[b:b + 1], S, M, v, gb, pb, mode,
+                           volume0[sets[b]], c, max_events, buf, bufflags, rb, guess[b],
+                           trials[b:b + 1]) != OK:
+                stop[b] = k  # solve_point restored the state before increment k
+                break
+            _record(rec[k - k_rec, b], eps[b], sig[b], flg)
+        values[b] = vals
+        flags[b] = flg
 
 
 def _iso_steps(values, flags, eps, sig, geo, p, mode, volume0, sets, step, p0, rec, done, failed,
@@ -511,7 +511,7 @@ def _renamed(fn, name: str):
 
 
 #: :func:`_steps` on one core, and on all cores for batches of several points (a thread team
-#: per increment costs more than one point's increment saves when there is one point).
+#: costs more than it saves when there is one point).
 _run_steps = njit(cache=True, error_model="numpy")(_steps)
 _run_steps_parallel = njit(cache=True, parallel=True, error_model="numpy")(
     _renamed(_steps, "_steps_parallel"))
@@ -611,24 +611,24 @@ class CompiledSegment:
         """Increments k_begin..k_end-1; returns their records (k_end - k_begin, B, 2n + 4)."""
         B, n = self.eps.shape
         rec = np.empty((k_end - k_begin, B, 2 * n + 4))
-        status = np.zeros(B, dtype=np.int64)
         # A meso surrogate's responses belong to the states an increment starts from: one
         # increment per kernel call, the network evaluated between them for every cell at once.
         stride = 1 if self.meso else k_end - k_begin
-        k = k_begin
-        while k < k_end:
+        steps = _run_steps_parallel if B > 1 else _run_steps
+        for k0 in range(k_begin, k_end, stride):
+            k1 = min(k0 + stride, k_end)
+            k_from = np.full(B, k0, dtype=np.int64)
             resp = cell_responses(self.rev, self.values, self._sets)
-            end = min(k + stride, k_end)
-            steps = _run_steps_parallel if B > 1 else _run_steps
-            k = steps(self.values, self.flags, self.eps, self.sig, self.K, self.has_K,
-                           self.S, self.M, self.start, self.end, self.n_steps, k, end, self.geo,
-                           self.p, self.rev.mode, self.rev.volumes0, self.c,
-                           self.settings.max_events, rec[k - k_begin:], status, resp, self.guess,
-                           self.trials, self.sets, self.dropped)
-            if k < end:  # increment k failed for some points
-                self._hand_back(k, status != OK, rec[k - k_begin])
-                status[:] = OK
-                k += 1
+            while (k_from < k1).any():
+                stop = np.empty(B, dtype=np.int64)
+                steps(self.values, self.flags, self.eps, self.sig, self.K, self.has_K, self.S,
+                      self.M, self.start, self.end, self.n_steps, k_from, k1, self.geo, self.p,
+                      self.rev.mode, self.rev.volumes0, self.c, self.settings.max_events, rec,
+                      k_begin, stop, resp, self.guess, self.trials, self.sets, self.dropped)
+                failed = stop < k1
+                for k in np.unique(stop[failed]):  # each failed increment to the generic driver
+                    self._hand_back(int(k), stop == k, rec[k - k_begin])
+                k_from = np.where(failed, stop + 1, k1)
         self.tangent.K = self.K.copy()
         if self.guess.shape[1]:
             self.tangent.previous = self.guess.copy()
