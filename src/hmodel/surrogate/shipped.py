@@ -30,7 +30,8 @@ from .training import TrainConfig
 SHIPPED = {"default": "h-cell-default.safetensors", "increment": "h-cell-increment.safetensors",
            "hexagon-center-0": "hexagon-center-0.safetensors", "hexagon-center-1": "hexagon-center-1.safetensors",
            "ensemble-0": "h-cell-ensemble-0.safetensors", "ensemble-1": "h-cell-ensemble-1.safetensors",
-           "ensemble-2": "h-cell-ensemble-2.safetensors"}
+           "ensemble-2": "h-cell-ensemble-2.safetensors",
+           "equilibrium": "h-cell-equilibrium.safetensors"}
 #: Shipped ensembles by name: their members, the one holding the ensemble's trust first.
 ENSEMBLES = {"ensemble": ("ensemble-0", "ensemble-1", "ensemble-2"),
              "hexagon-center": ("hexagon-center-0", "hexagon-center-1")}
