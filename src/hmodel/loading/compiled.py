@@ -73,7 +73,7 @@ from .newton import (
 )
 from .result import FRACTIONS
 
-# Kernel status per material point and increment.
+# Outcome of solve_point (one increment of one material point).
 OK, NOT_CONVERGED = 0, 1
 
 
@@ -470,8 +470,8 @@ def _iso_steps(values, flags, eps, sig, geo, p, mode, volume0, sets, step, p0, r
         flg = flags[b].copy()
         out = np.empty_like(vals)
         oflags = np.empty_like(flg)
-        gk = geo[_geo_row(geo, sets[b])].copy()
-        pk = p[sets[b]].copy()
+        gk = geo[_geo_row(geo, sets[b])]  # indexed in place, not copied: as in _steps
+        pk = p[sets[b]]
         rb = resp[b].copy()
         m = eps.shape[1]
         normal = 2 if m == 3 else 3
