@@ -57,9 +57,9 @@ def test_drained_test_holds_the_lateral_stress_and_builds_up_q(sample_dir):
     out, walls = sample_dir
     assert walls["drained"] < 60.0, walls
     header, data = _read_csv(out / "drained_100kPa.csv")
-    assert header == ["eps11", "q", "eps_v", "p"]
+    assert header == ["eps11", "q", "eps_v", "p", "coordination", "sliding"]
     assert len(data) == 11
-    eps11, q, eps_v, p = data.T
+    eps11, q, eps_v, p, z, sliding = data.T
     assert eps11[0] == 0.0 and eps_v[0] == 0.0 and np.all(np.diff(eps11) > 0)
     assert eps11[-1] == pytest.approx(0.01, rel=1e-3)
     assert abs(q[0]) < 0.01 * 1e5 and abs(p[0] - 1e5) < 0.01 * 1e5  # consolidated to p0
@@ -77,14 +77,23 @@ def test_drained_test_holds_the_lateral_stress_and_builds_up_q(sample_dir):
         rec["consolidated"]["porosity"] / (1 - rec["consolidated"]["porosity"]))
     assert 3.0 < rec["consolidated"]["coordination"] <= rec["consolidated"]["mechanical_coordination"]
     assert rec["wall_s"] > 0 and rec["shear_steps"] > 0 and rec["csv"] == "drained_100kPa.csv"
+    # the recorded coordination counts the same contacts as the exported states
+    assert z[0] == pytest.approx(rec["consolidated"]["coordination"], rel=0.02)
+    assert z[-1] == pytest.approx(rec["final"]["coordination"], rel=0.02)
+    # frictionless consolidation, then friction: no contact slides at rest, some under shear
+    assert sliding[0] < 0.01 and 0 < sliding[-1] < 1 and rec["max_sliding"] == sliding.max()
+    # the last row's sliding fraction from the exported contacts: |ft| on tan(phi_g) fn
+    f = np.load(out / "drained_100kPa.npz")["final_contacts"]
+    on_limit = np.abs(f[:, 3]) >= (1 - 1e-5) * np.tan(np.radians(30.0)) * f[:, 2]
+    assert sliding[-1] == pytest.approx(on_limit.mean(), abs=0.01)
 
 
 @pytest.mark.yade
 def test_undrained_test_keeps_the_area(sample_dir):
     out, walls = sample_dir
     header, data = _read_csv(out / "undrained_100kPa.csv")
-    assert header == ["eps11", "q", "eps_v", "p"]
-    eps11, q, eps_v, p = data.T
+    assert header == ["eps11", "q", "eps_v", "p", "coordination", "sliding"]
+    eps11, q, eps_v, p = data.T[:4]
     assert np.all(np.diff(eps11) > 0) and np.max(np.abs(eps_v)) < 1e-9
     assert q[-1] > 0.5e5 and abs(q[0]) < 1e3
     meta = json.loads((out / "sample.json").read_text())

@@ -11,10 +11,12 @@ import numpy as np
 
 from .state import SampleState, contact_columns
 
-#: Columns of the test CSV (the ``--data`` format of ``hmodel calibrate``).
-CSV_COLUMNS = ("eps11", "q", "eps_v", "p")
-#: Columns of a recorded row (``rows`` of the npz file).
-ROW_COLUMNS = ("eps11", "eps22", "s11", "s22", "s12", "unbalanced", "contacts")
+#: Columns of the test CSV: the ``--data`` format of ``hmodel calibrate`` (eps11, q, eps_v, p),
+#: then the coordination number and the sliding fraction (ignored by ``--data``).
+CSV_COLUMNS = ("eps11", "q", "eps_v", "p", "coordination", "sliding")
+#: Columns of a recorded row (``rows`` of the npz file); contacts: YADE's real interactions,
+#: sliding: the fraction of the contacts at the Coulomb limit.
+ROW_COLUMNS = ("eps11", "eps22", "s11", "s22", "s12", "unbalanced", "contacts", "sliding")
 #: Columns of a sphere sample's test CSV: the triaxial ``--data`` format (eps_a, q, eps_v, p),
 #: then the coordination number, the sliding fraction and the stress tensor [Pa].
 CSV_COLUMNS_3D = ("eps_a", "q", "eps_v", "p", "coordination", "sliding",
@@ -76,12 +78,14 @@ class SampleTest:
         return self.rows[:, row_columns(self.dim).index(name)]
 
     def table(self) -> dict[str, np.ndarray]:
-        """The CSV's columns: eps11, q, eps_v, p for disks (q = s11 - s22, p = (s11 + s22) / 2);
+        """The CSV's columns: :data:`CSV_COLUMNS` for disks (q = s11 - s22, p = (s11 + s22) / 2);
         :data:`CSV_COLUMNS_3D` for spheres (q = s11 - (s22 + s33) / 2, p = tr(s) / 3)."""
         if self.dim == 2:
             e1, e2 = self.column("eps11"), self.column("eps22")
             s1, s2 = self.column("s11"), self.column("s22")
-            return {"eps11": e1, "q": s1 - s2, "eps_v": e1 + e2, "p": 0.5 * (s1 + s2)}
+            return {"eps11": e1, "q": s1 - s2, "eps_v": e1 + e2, "p": 0.5 * (s1 + s2),
+                    "coordination": 2.0 * self.column("contacts") / len(self.final.radii),
+                    "sliding": self.column("sliding")}
         e = [self.column(f"eps{i}{i}") for i in (1, 2, 3)]
         s = {c: self.column("s" + c) for c in ("11", "22", "33", "12", "13", "23")}
         return {"eps_a": e[0], "q": s["11"] - 0.5 * (s["22"] + s["33"]), "eps_v": e[0] + e[1] + e[2],
@@ -120,6 +124,5 @@ class SampleTest:
         else:
             lateral = np.stack([self.column(f"s{i}{i}") for i in range(2, self.dim + 1)])
             out["max_lateral_stress_error"] = float(np.max(np.abs(lateral - self.p0)) / self.p0)
-        if self.dim == 3:
-            out["max_sliding"] = float(np.max(t["sliding"]))
+        out["max_sliding"] = float(np.max(t["sliding"]))
         return out

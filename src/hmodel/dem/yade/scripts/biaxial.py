@@ -37,7 +37,9 @@ stiffness of ``utils.getStressAndTangent``, an upper bound of the sample's), cli
    constant to round-off). A row is recorded at every ``axial_strain / rows`` of axial strain
    (a whole number of steps each).
 
-Answer: rows ``[eps11, eps22, s11, s22, s12, unbalanced, contacts]``, the consolidated
+Answer: rows ``[eps11, eps22, s11, s22, s12, unbalanced, contacts, sliding]`` (sliding: the
+fraction of the contacts with a non-negative overlap whose shear force is on the Coulomb limit,
+as in :mod:`~hmodel.dem.yade.scripts.triaxial`), the consolidated
 and final states (radii, positions wrapped into the cell, cell size, contacts
 ``[i, j, fn, ft, lx, ly]`` with l the branch vector from i to j, fn compression positive),
 time step, step counts, wall times, YADE version.
@@ -50,6 +52,23 @@ try:  # pytest collecting the package's doctests
     from .common import steps, stiffness
 except ImportError:  # in YADE: the scripts lie side by side in the working directory
     from common import steps, stiffness
+
+
+#: The Coulomb limit is reached when |ft| is at least this fraction of tan(phi) fn: the law
+#: scales the shear force back onto the limit, so a sliding contact sits on it to round-off.
+SLIDING = 1.0 - 1e-6
+
+
+def sliding_fraction(O):
+    """The fraction of the contacts (overlap >= 0) whose shear force is on the Coulomb limit."""
+    n = sliding = 0
+    for I in O.interactions:
+        if not I.isReal or I.geom.penetrationDepth < 0:
+            continue
+        n += 1
+        limit = I.phys.tangensOfFrictionAngle * I.phys.normalForce.norm()
+        sliding += limit > 0 and I.phys.shearForce.norm() >= SLIDING * limit
+    return sliding / n if n else 0.0
 
 
 def _state(O, utils, ids, radii):
@@ -150,7 +169,7 @@ class _Test:
         s, _ = self.utils.getStressAndTangent(self.volume() * 1.0, False)
         return [math.log(h0[0, 0] / h[0, 0]), math.log(h0[1, 1] / h[1, 1]), -s[0, 0], -s[1, 1],
                 -0.5 * (s[0, 1] + s[1, 0]), self.utils.unbalancedForce(),
-                self.O.interactions.countReal()]
+                self.O.interactions.countReal(), sliding_fraction(self.O)]
 
     def undrained_rate(self, rate):
         """The lateral compression rate that keeps the area constant to round-off under the axial

@@ -31,15 +31,11 @@ counts, wall times, YADE version.
 import math
 
 try:  # pytest collecting the package's doctests
-    from .biaxial import _Test, run as _run
+    from .biaxial import SLIDING, _Test, run as _run
     from .common import steps
 except ImportError:  # in YADE: the scripts lie side by side in the working directory
-    from biaxial import _Test, run as _run
+    from biaxial import SLIDING, _Test, run as _run
     from common import steps
-
-#: The Coulomb limit is reached when |ft| is at least this fraction of tan(phi) fn: the law
-#: scales the shear force back onto the limit, so a sliding contact sits on it to round-off.
-SLIDING = 1.0 - 1e-6
 
 
 def _contacts(O, index):
