@@ -66,9 +66,40 @@ class Problem:
     free: np.ndarray = field(init=False)
 
     def __post_init__(self):
-        mask = np.ones(self.basis.N, bool)
+        mask = np.ones(self.n_dofs, bool)
         mask[self.fixed] = False
         self.free = np.flatnonzero(mask)
+
+    # A regularized problem (hmodel.fem.regularization) adds unknowns after the displacements
+    # and overrides the methods below; the global Newton only goes through them.
+    @property
+    def n_dofs(self) -> int:
+        """Unknowns of the global Newton (here the nodal displacements)."""
+        return self.basis.N
+
+    def evaluate(self, du: np.ndarray):
+        """Trial of the increment ``du`` from the committed state: (trial, internal forces,
+        residual), each of the problem's unknowns."""
+        trial = self.material.trial(strain_hm(self.basis, du))
+        f_int = internal_force(self.basis, trial.sig)
+        return trial, f_int, f_int - self.f_ext
+
+    def tangent(self, trial):
+        """Jacobian of the residual at ``trial`` (sparse n_dofs x n_dofs)."""
+        return stiffness(self.basis, trial.D)
+
+    def reference_force(self) -> float:
+        """Norm of the committed state's internal forces (the residual's scale)."""
+        return float(np.linalg.norm(internal_force(self.basis, self.material.sig)))
+
+    def commit(self, trial) -> None:
+        self.material.commit(trial)
+
+    def checkpoint(self):
+        return self.material.checkpoint()
+
+    def restore(self, saved) -> None:
+        self.material.restore(saved)
 
 
 @dataclass
@@ -101,13 +132,11 @@ def _broken(obj) -> int:
 def _evaluate(pb: Problem, du: np.ndarray):
     """Material trial and internal forces of the displacement increment ``du``."""
     try:
-        trial = pb.material.trial(strain_hm(pb.basis, du))
+        return pb.evaluate(du)
     except HModelError as e:
         why = " ".join(str(e).split())
         raise NotConverged("a material point refused its increment ("
                            + (why if len(why) < 200 else why[:200] + "...") + ")") from None
-    f_int = internal_force(pb.basis, trial.sig)
-    return trial, f_int, f_int - pb.f_ext
 
 
 def newton_step(pb: Problem, d_lambda: float, guess: np.ndarray | None,
@@ -118,14 +147,14 @@ def newton_step(pb: Problem, d_lambda: float, guess: np.ndarray | None,
     A correction that raises the residual is halved up to ``settings.line_search`` times
     (the best trial is kept): where cells change regime between iterates (sliding starts or
     stops at a kink of the response) the full correction can cycle between two states."""
-    du = np.zeros(pb.basis.N) if guess is None else guess.copy()
+    du = np.zeros(pb.n_dofs) if guess is None else guess.copy()
     du[pb.fixed] = d_lambda * pb.g[pb.fixed]
     if guess is None and d_lambda != 0:
         # no previous step to extrapolate: the committed state's tangent predicts the free
         # nodes (moving only the prescribed ones puts large strains into the boundary
         # elements, where cells may open and leave interior nodes without stiffness)
-        t0, _, r0 = _evaluate(pb, np.zeros(pb.basis.N))
-        du = solve(*condense(stiffness(pb.basis, t0.D), -r0, x=du, D=pb.fixed))
+        t0, _, r0 = _evaluate(pb, np.zeros(pb.n_dofs))
+        du = solve(*condense(pb.tangent(t0), -r0, x=du, D=pb.fixed))
     trial, f_int, r = _evaluate(pb, du)
     # an unstressed start: the forces of the prescribed motion set the scale
     scale = max(scale, float(np.linalg.norm(f_int)))
@@ -148,7 +177,7 @@ def newton_step(pb: Problem, d_lambda: float, guess: np.ndarray | None,
             if most[0] > broken0:
                 return StepResult(most[1], most[2], most[3], residuals[:trials.index(most) + 1],
                                   d_lambda, event=True)
-        ddu = solve(*condense(stiffness(pb.basis, trial.D), -r, D=pb.fixed))
+        ddu = solve(*condense(pb.tangent(trial), -r, D=pb.fixed))
         best = None
         for k in range(settings.line_search + 1):
             cand = du + ddu / 2 ** k
@@ -208,26 +237,26 @@ def run_steps(pb: Problem, n_steps: int, on_step: Callable[[StepResult, float], 
 
 def _scale(pb: Problem) -> float:
     """Reference force: the norm of the committed state's internal forces."""
-    return max(float(np.linalg.norm(internal_force(pb.basis, pb.material.sig))), 1e-300)
+    return max(pb.reference_force(), 1e-300)
 
 
 def _step_with_events(pb: Problem, d_lam: float, guess, settings: GlobalNewtonSettings) -> StepResult:
     """One load step, committed on success, with the event fallback; on failure the material
     is back in its state at the start of the step."""
-    start = pb.material.checkpoint()
+    start = pb.checkpoint()
     scale = _scale(pb)
     step = newton_step(pb, d_lam, guess, settings, scale, settings.max_events)
     du, residuals = step.du, list(step.residuals)
     events = 0
     while step.event:
         events += 1
-        pb.material.commit(step.trial)
+        pb.commit(step.trial)
         try:  # restore equilibrium at the reached load, from the event state
             step = newton_step(pb, 0.0, None, settings, scale, settings.max_events - events)
         except NotConverged:
-            pb.material.restore(start)
+            pb.restore(start)
             raise
         du = du + step.du
         residuals += step.residuals
-    pb.material.commit(step.trial)
+    pb.commit(step.trial)
     return StepResult(du, step.trial, step.f_int, residuals, d_lam)

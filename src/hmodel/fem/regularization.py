@@ -1,0 +1,264 @@
+"""Regularized H-model: nonlocal inelastic stress averaged by an implicit-gradient operator.
+
+The local model has no length: past the peak its shear band is one element wide and the
+softening depends on the mesh (docs/fem.md). Here each Gauss point keeps its unchanged local
+H-model (any cell solver, a black box), and only the part of its stress that departs from
+elasticity is averaged over an internal length ``ell``:
+
+    g = D_e : (eps - eps0) - (sig_loc(eps) - sig0)          inelastic stress of the point
+    gbar - ell^2 lap(gbar) = g   in the body,  grad(gbar).n = 0 on its boundary
+    sig = sig0 + D_e : (eps - eps0) - gbar                  stress in the equilibrium
+
+(nonlocal inelastic stress after Bazant & Lin 1988 and the nonlocal microplane model of
+Bazant & Ozbolt 1990; its average by the screened-Poisson (Helmholtz) equation, whose Green's
+function is a kernel of width ell, after Peerlings, de Borst, Brekelmans & de Vree 1996, so that
+the system stays sparse). eps0, sig0: the consolidated state; D_e: the points' elastic stiffness
+there (the REV's tangent at the consolidated state, all contacts sticking). A homogeneous field
+has gbar = g and sig = sig_loc: the regularized specimen still is the material point.
+
+gbar (3 components, hmodel's order (11, 22, 12)) is a nodal field with the displacement's
+interpolation. The global Newton solves for (u, gbar) together, with the consistent Jacobian
+
+    [ K_e                          -int B^T W N  ] [du   ]     [ r_u ]
+    [ -int N^T (D_e - D_t) B       M + ell^2 L   ] [dgbar]  = -[ r_g ]
+
+(signs for hmodel's compression-positive strain eps = B u; W = diag(1, 1, 2) for the tensor
+shear component; D_t the material's consistent tangent, which the FEM already has from finite
+differences). Only the lower-left block changes between iterations. The Helmholtz rows are
+divided by the element size, so that their residual is a force like the equilibrium's and one
+norm measures both.
+
+Everything here works on Gauss-point operators built once from scikit-fem's basis: B (3B x N)
+maps nodal displacements to the points' strains, N (B x n) a nodal scalar to its point values.
+The material is anything with the law interface of :mod:`hmodel.fem.material` (``trial``,
+``commit``, ``checkpoint``, ``restore``, ``sig``), which the 1D verification uses with a
+bilinear softening law.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from skfem import Basis
+
+from ..errors import InputError
+from .material import Trial
+from .newton import Problem
+
+KINDS = ("local", "nonlocal")
+
+
+@dataclass(frozen=True)
+class Regularization:
+    """``kind``: ``local`` (none) or ``nonlocal`` (inelastic stress averaged over ``ell`` [m])."""
+
+    kind: str = "local"
+    ell: float | None = None
+
+    def __post_init__(self):
+        if self.kind not in KINDS:
+            raise InputError(f"unknown regularization {self.kind!r} (known: local, nonlocal:ell=LENGTH)")
+        if self.kind == "nonlocal":
+            if self.ell is None or not (np.isfinite(self.ell) and self.ell > 0):
+                raise InputError(f"the nonlocal regularization needs a length ell > 0 [m], got {self.ell!r}")
+        elif self.ell is not None:
+            raise InputError("the local model takes no length (use nonlocal:ell=LENGTH)")
+
+    def __str__(self) -> str:
+        return self.kind if self.kind == "local" else f"nonlocal:ell={self.ell:g}"
+
+
+def parse_regularization(spec) -> Regularization:
+    """``None``/``"local"`` -> no regularization; ``"nonlocal:ell=0.005"`` (metres; also
+    ``nonlocal:0.005``) -> :class:`Regularization`; a :class:`Regularization` passes through."""
+    if spec is None:
+        return Regularization()
+    if isinstance(spec, Regularization):
+        return spec
+    kind, _, opts = str(spec).strip().partition(":")
+    kind = kind.strip().lower()
+    if kind not in KINDS:
+        raise InputError(f"unknown regularization {spec!r} (known: local, nonlocal:ell=LENGTH)")
+    if kind == "local":
+        if opts.strip():
+            raise InputError(f"the local model takes no options, got {spec!r}")
+        return Regularization()
+    name, eq, value = opts.partition("=")
+    if not eq:
+        name, value = "ell", name
+    if name.strip().lower() != "ell":
+        raise InputError(f"the nonlocal regularization takes ell=LENGTH [m], got {spec!r}")
+    try:
+        ell = float(value)
+    except ValueError:
+        raise InputError(f"the nonlocal regularization's ell must be a length in metres, got {value!r}") from None
+    return Regularization("nonlocal", ell)
+
+
+def element_size(basis: Basis) -> float:
+    """Largest element edge of the mesh [m] (the resolution that ell is compared with)."""
+    m = basis.mesh
+    p = m.p[:, m.facets]  # (2, 2, n_facets)
+    return float(np.sqrt(((p[:, 0] - p[:, 1]) ** 2).sum(axis=0)).max())
+
+
+def unresolved(reg: Regularization, basis: Basis) -> str | None:
+    """A warning where ell is below the element size (the band, a few ell wide, is then not
+    resolved by the mesh), else None."""
+    if reg.kind != "nonlocal":
+        return None
+    h = element_size(basis)
+    if reg.ell < h:
+        return (f"the nonlocal length ell = {reg.ell:g} m is below the element size {h:.3g} m: the band "
+                "is not resolved (refine the mesh or take a larger ell)")
+    return None
+
+
+def strain_operator(basis: Basis) -> sp.csr_matrix:
+    """B (3 B x N): the Gauss points' strains in hmodel's convention, point-major rows
+    (3 b + c; c in (11, 22, 12) = (-yy, -xx, -xy)), of the nodal displacements of ``basis``
+    (a vector basis; points element-major as :func:`hmodel.fem.mesh.gauss_points`)."""
+    nel, nqp = basis.nelems, basis.X.shape[-1]
+    npts = nel * nqp
+    rows, cols, vals = [], [], []
+    b = np.arange(npts)
+    for i, phi in enumerate(basis.basis):
+        g = phi[0].grad  # (2, 2, nel, nqp): d phi_k / dx_j
+        dofs = np.repeat(basis.element_dofs[i], nqp)
+        for c, v in enumerate((-g[1, 1], -g[0, 0], -0.5 * (g[0, 1] + g[1, 0]))):
+            rows.append(3 * b + c), cols.append(dofs), vals.append(np.asarray(v).ravel())
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(3 * npts, basis.N))
+
+
+def scalar_operators(basis: Basis) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_matrix]:
+    """N, d/dx, d/dy (each B x n) of a scalar basis: nodal values to Gauss-point values."""
+    nel, nqp = basis.nelems, basis.X.shape[-1]
+    b = np.arange(nel * nqp)
+    out = []
+    for part in ("value", "dx", "dy"):
+        rows, cols, vals = [], [], []
+        for i, phi in enumerate(basis.basis):
+            f = phi[0]
+            v = f.value if part == "value" else f.grad[0 if part == "dx" else 1]
+            rows.append(b), cols.append(np.repeat(basis.element_dofs[i], nqp))
+            vals.append(np.asarray(v).ravel())
+        out.append(sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                                 shape=(nel * nqp, basis.N)))
+    return tuple(out)
+
+
+def _blocks(D: np.ndarray) -> sp.bsr_matrix:
+    """Block-diagonal (3 B x 3 B) of per-point 3 x 3 matrices D (B, 3, 3)."""
+    n = len(D)
+    return sp.bsr_matrix((np.ascontiguousarray(D), np.arange(n), np.arange(n + 1)), shape=(3 * n, 3 * n))
+
+
+@dataclass
+class CoupledTrial:
+    """A trial of the coupled problem: the material's own (local stress, consistent tangent,
+    state) and the nodal field gbar (n, 3, total), with ``sig`` the stress that enters the
+    equilibrium (B, 3)."""
+
+    local: Trial
+    gbar: np.ndarray
+    sig: np.ndarray
+
+    @property
+    def state(self):
+        return self.local.state
+
+    @property
+    def D(self):
+        return self.local.D
+
+
+@dataclass
+class NonlocalProblem(Problem):
+    """A :class:`~hmodel.fem.newton.Problem` whose unknowns are the nodal displacements and,
+    after them, the nodal nonlocal inelastic stress gbar (node-major, 3 per node). ``D_e``
+    (B, 3, 3): the points' elastic stiffness; None takes the material's tangent at its
+    committed state (symmetrized), which for the H-model at the consolidated state is the
+    stiffness with every contact sticking."""
+
+    ell: float = 0.0
+    D_e: np.ndarray | None = None
+    scalar: Basis = field(init=False)
+
+    def __post_init__(self):
+        b = self.basis
+        self.scalar = Basis(b.mesh, b.elem.elem, quadrature=b.quadrature)
+        self.n_u, self.n_g = b.N, 3 * self.scalar.N
+        super().__post_init__()
+        pad = np.zeros(self.n_g)
+        self.g = np.concatenate([self.g, pad])
+        self.f_ext = np.concatenate([self.f_ext, pad])
+        dx = b.dx.ravel()
+        npts = dx.size
+        self.B = strain_operator(b)
+        N, Nx, Ny = scalar_operators(self.scalar)
+        I3 = sp.identity(3, format="csr")
+        self.N3 = sp.kron(N, I3, format="csr")  # gbar (3 n) -> points (3 B), point-major
+        self.dx3 = np.repeat(dx, 3)
+        w = np.tile([1.0, 1.0, 2.0], npts)  # tensor shear component counts twice in e : s
+        Wdx = sp.diags(self.dx3 * w)
+        self.BtW = (self.B.T @ Wdx).tocsr()  # internal forces: f = B^T W dx sig
+        if self.D_e is None:
+            D = self.material.trial(np.zeros((npts, 3))).D
+            self.D_e = 0.5 * (D + np.swapaxes(D, 1, 2))
+        self.K_e = (self.BtW @ _blocks(self.D_e) @ self.B).tocsr()
+        A = N.T @ sp.diags(dx) @ N + self.ell ** 2 * (Nx.T @ sp.diags(dx) @ Nx + Ny.T @ sp.diags(dx) @ Ny)
+        h = element_size(b)
+        self.row_scale = 1.0 / h  # Helmholtz rows [Pa m^2] to forces [Pa m]
+        self.A3 = (sp.kron(A, I3, format="csr") * self.row_scale).tocsr()
+        self.K_ug = -(self.BtW @ self.N3).tocsr()
+        self.NtDx = (self.N3.T @ sp.diags(self.dx3)).tocsr() * self.row_scale
+        self.eps = np.zeros((npts, 3))  # committed strain since the start
+        self.sig0 = self.material.sig.copy()
+        self.gbar = np.zeros((self.scalar.N, 3))  # committed nodal gbar
+        self.sig = self.sig0  # committed stress of the equilibrium
+
+    @property
+    def n_dofs(self) -> int:
+        return self.n_u + self.n_g
+
+    def _split(self, x: np.ndarray):
+        return x[: self.n_u], x[self.n_u:].reshape(-1, 3)
+
+    def evaluate(self, dx: np.ndarray):
+        du, dg = self._split(dx)
+        deps = (self.B @ du).reshape(-1, 3)
+        local = self.material.trial(deps)
+        eps = self.eps + deps
+        gbar = self.gbar + dg
+        elastic = np.einsum("bij,bj->bi", self.D_e, eps)
+        g = elastic - (local.sig - self.sig0)  # the points' inelastic stress
+        gbar_pts = (self.N3 @ gbar.ravel()).reshape(-1, 3)
+        sig = self.sig0 + elastic - gbar_pts
+        f_int = self.BtW @ sig.ravel()
+        r_g = self.A3 @ gbar.ravel() - self.NtDx @ g.ravel()
+        trial = CoupledTrial(local, gbar, sig)
+        f = np.concatenate([f_int, np.zeros(self.n_g)])
+        return trial, f, np.concatenate([f_int - self.f_ext[: self.n_u], r_g])
+
+    def tangent(self, trial: CoupledTrial):
+        K_gu = -(self.NtDx @ _blocks(self.D_e - trial.D) @ self.B)
+        return sp.bmat([[self.K_e, self.K_ug], [K_gu, self.A3]], format="csr")
+
+    def commit(self, trial: CoupledTrial) -> None:
+        self.material.commit(trial.local)
+        self.eps = self.eps + trial.local.deps
+        self.gbar = trial.gbar
+        self.sig = trial.sig
+
+    def checkpoint(self):
+        return self.material.checkpoint(), self.eps, self.gbar, self.sig
+
+    def restore(self, saved) -> None:
+        state, self.eps, self.gbar, self.sig = saved
+        self.material.restore(state)
+
+    def reference_force(self) -> float:
+        return float(np.linalg.norm(self.BtW @ self.sig.ravel()))
