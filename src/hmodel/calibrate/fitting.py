@@ -178,6 +178,10 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
     autocorrelation time and acceptance fraction, a warning when the chain is shorter than 50
     autocorrelation times, and the 90 % posterior predictive band of every test.
 
+    A cell solver with a training domain (a family surrogate's ``domain``) bounds the search:
+    the default bounds of a fitted parameter are its domain, given ``bounds`` reaching outside it
+    and fixed parameters outside it are refused (:meth:`Space.make`).
+
     The tests' kinds choose the model: the 2D one for biaxial kinds, the 3D one for triaxial
     kinds, whose directions are ``sphere`` (None: ``Sphere()``), the 2D model's own parameters
     (n_theta, alpha_omega, beta_omega) then neither fitted nor given in ``base``; its ``base``
@@ -206,7 +210,8 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
         sphere = Sphere() if sphere is None else sphere
         searcher = _search_sphere(sphere, search_rule)
     model = Model(tests, solver, step, iso_step, sphere)
-    space = Space.make(fit, bounds, base)
+    # a family model's training domain bounds the search (None: any material)
+    space = Space.make(fit, bounds, base, getattr(solver, "domain", None))
     obj = _Objective(model if searcher is None else Model(tests, solver, step, iso_step, searcher), space)
     t0 = time.perf_counter()
     design = qmc.LatinHypercube(space.n, seed=seed).random(starts)

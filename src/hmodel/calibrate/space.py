@@ -38,7 +38,13 @@ class Space:
     base: Params
 
     @classmethod
-    def make(cls, names, bounds: dict | None = None, base: Params | None = None) -> Space:
+    def make(cls, names, bounds: dict | None = None, base: Params | None = None,
+             domain: dict | None = None) -> Space:
+        """The space of ``names`` within ``bounds`` (CLI units; default :data:`DEFAULT_BOUNDS`),
+        the others fixed in ``base``. ``domain``: a cell solver's training domain (its
+        ``domain``, Params units: angles in radians; None: any material), which the default
+        bounds of a fitted parameter become, which given bounds must stay within, and in which
+        ``base``'s fixed parameters must lie."""
         names = tuple(names)
         if not names:
             raise InputError("give at least one parameter to fit (--fit)")
@@ -51,9 +57,17 @@ class Space:
         for n in bounds:
             if n not in names:
                 raise InputError(f"--bounds names {n!r}, which is not fitted (--fit)")
+        base = base or Params()
+        trained = _domain_cli(domain)
+        for n, (dlo, dhi) in trained.items():
+            v = getattr(base, n)
+            v = math.degrees(v) if n in ANGLE_PARAMS else v
+            if n not in names and not dlo <= v <= dhi:
+                raise InputError(f"{n} = {v:g} (fixed) lies outside the model's training domain "
+                                 f"({_span(n, dlo, dhi)}): fit it (--fit) or give a value inside")
         out = []
         for n in names:
-            lo, hi = (float(b) for b in bounds.get(n, DEFAULT_BOUNDS[n]))
+            lo, hi = (float(b) for b in bounds.get(n, trained.get(n, DEFAULT_BOUNDS[n])))
             vlo, vhi, open_ = _VALID[n]
             if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
                 raise InputError(f"bounds of {n} must be finite with low < high, got {lo:g}:{hi:g}")
@@ -62,8 +76,11 @@ class Space:
                                  f"{'(' if open_ else '['}{vlo:g}, {vhi:g}{')' if open_ else ']'}")
             if n in LOG and lo <= 0:
                 raise InputError(f"bounds of {n} must be positive (log scale), got {lo:g}:{hi:g}")
+            if n in trained and not trained[n][0] <= lo < hi <= trained[n][1]:
+                raise InputError(f"--bounds {n}={lo:g}:{hi:g} reaches outside the model's training "
+                                 f"domain ({_span(n, *trained[n])})")
             out.append((lo, hi))
-        return cls(names, tuple(out), base or Params())
+        return cls(names, tuple(out), base)
 
     @property
     def n(self) -> int:
@@ -107,3 +124,18 @@ class Space:
     def as_dict(self, values: np.ndarray) -> dict[str, float]:
         """The fitted values by name, CLI units."""
         return {n: float(v) for n, v in zip(self.names, values)}
+
+
+def _domain_cli(domain: dict | None) -> dict[str, tuple[float, float]]:
+    """A solver's training domain (Params units) in the CLI's units, fittable parameters only."""
+    out = {}
+    for n, (lo, hi) in (domain or {}).items():
+        if n in FITTABLE:
+            out[n] = ((math.degrees(lo), math.degrees(hi)) if n in ANGLE_PARAMS
+                      else (float(lo), float(hi)))
+    return out
+
+
+def _span(name: str, lo: float, hi: float) -> str:
+    """``10–45°``, ``0.2–1``: a range as the error messages show it."""
+    return f"{lo:.4g}–{hi:.4g}{'°' if name in ANGLE_PARAMS else ''}"

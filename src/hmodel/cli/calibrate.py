@@ -54,7 +54,7 @@ def _search_rule(text: str) -> tuple[int, int] | None:
 def calibrate(
     data: Annotated[list[str], typer.Option("--data", help=f"A test, KIND:P0:FILE; KIND: drained or undrained (2D biaxial), {', '.join(k for k in Kind if k.dim == 3)} (3D); a CSV with columns eps11 (or eps_a), q and optionally eps_v, p: strains since the end of consolidation, stresses in Pa, compression positive; repeatable.")],
     fit_: Annotated[str, typer.Option("--fit", help="Comma list of the parameters to fit (kn, kt_kn, phi_g, alpha0, alpha_omega, beta_omega).")] = "kn,kt_kn,phi_g,alpha0",
-    bounds: Annotated[Optional[list[str]], typer.Option("--bounds", help="Search range NAME=LOW:HIGH (angles in degrees); repeatable. Default: a range wide enough for real materials.")] = None,
+    bounds: Annotated[Optional[list[str]], typer.Option("--bounds", help="Search range NAME=LOW:HIGH (angles in degrees); repeatable. Default: a range wide enough for real materials, or the cell model's training domain (a family surrogate), outside which bounds are refused.")] = None,
     param: Annotated[Optional[list[str]], typer.Option("--param", "-p", metavar="NAME=VALUE", help="A fixed parameter (angles in degrees); repeatable.")] = None,
     method: Annotated[str, typer.Option(help=f"Calibration method: {', '.join(METHODS)}.")] = "least-squares",
     starts: Annotated[int, typer.Option(help="Starting points of the least-squares fits (a Latin hypercube over the bounds).")] = 8,
@@ -64,7 +64,7 @@ def calibrate(
     seed: Annotated[int, typer.Option(help="Seed of the design of starting points.")] = 0,
     step: Annotated[float, typer.Option(help="Axial strain increment of the model's tests.")] = 1e-3,
     iso_step: Annotated[float, typer.Option(help="Strain increment of the model's consolidation.")] = ISO_STEP,
-    solver: Annotated[str, typer.Option(help="Cell solver: closed-form, surrogate[:FILE], dem:... (3D: of the hexagons of every bi-hexagon).")] = "closed-form",
+    solver: Annotated[str, typer.Option(help="Cell solver: closed-form, surrogate[:NAME|:FILE] (a family model fits any material of its training domain), dem:... (3D: of the hexagons of every bi-hexagon).")] = "closed-form",
     order: OrderOpt = None, azimuths: AzimuthsOpt = None, fabric: FabricOpt = 0.0,
     search_rule: Annotated[str, typer.Option(help="3D: Lebedev order and azimuths ORDER:AZIMUTHS of the multi-start search, whose best point is then refined at the model's rule (--order, --azimuths); none: search at the model's rule.")] = _DEFAULT_SEARCH,
     out: out_folder("Output folder.") = Path("results/calibration"),

@@ -1,0 +1,89 @@
+"""Calibrating a cell model trained over a range of materials (a family model): its training
+domain bounds the search, and a fit recovers the parameters of curves it made itself."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hmodel import Params
+from hmodel.calibrate import fit
+from hmodel.calibrate.data import Test
+from hmodel.calibrate.model import ISO_STEP
+from hmodel.calibrate.space import Space
+from hmodel.cell import ClosedFormSolver
+from hmodel.cli.app import main
+from hmodel.errors import InputError
+from hmodel.loading import run_biaxial
+
+#: A training domain as a family model stores it (Params units: angles in radians).
+DOMAIN = {"kt_kn": (0.2, 1.0), "phi_g": (math.radians(10.0), math.radians(45.0)),
+          "alpha0": (math.radians(35.0), math.radians(75.0))}
+
+
+class FamilyLike(ClosedFormSolver):
+    """The closed form with a family model's stored training domain: the calibration sees what
+    it sees of a family surrogate (``domain``), with exact curves to recover."""
+
+    name = "family-like"
+    domain = DOMAIN
+
+
+def test_default_bounds_of_a_family_model_are_its_domain():
+    s = Space.make(["phi_g", "alpha0", "kn"], None, Params(), DOMAIN)
+    b = dict(zip(s.names, s.bounds))
+    assert b["phi_g"] == pytest.approx((10.0, 45.0)) and b["alpha0"] == pytest.approx((35.0, 75.0))
+    assert b["kn"] == (1e6, 1e11)  # not in the domain (scaled out): the general range
+    # bounds inside the domain are kept as given
+    s = Space.make(["phi_g"], {"phi_g": (15.0, 40.0)}, Params(), DOMAIN)
+    assert s.bounds == ((15.0, 40.0),)
+
+
+@pytest.mark.parametrize("bounds, word", [({"phi_g": (5.0, 60.0)}, "phi_g=5:60"),
+                                          ({"phi_g": (10.0, 46.0)}, "phi_g=10:46"),
+                                          ({"kt_kn": (0.1, 0.8)}, "kt_kn=0.1:0.8")])
+def test_bounds_outside_the_training_domain_are_refused(bounds, word):
+    with pytest.raises(InputError, match=f"--bounds {word} reaches outside the model's training domain"):
+        Space.make(list(bounds), bounds, Params(), DOMAIN)
+
+
+def test_a_fixed_parameter_outside_the_domain_is_refused():
+    with pytest.raises(InputError, match=r"kt_kn = 0.1 \(fixed\) lies outside the model's training domain"):
+        Space.make(["phi_g"], None, Params(kt_kn=0.1), DOMAIN)
+    # no domain (the closed form): any valid material
+    assert Space.make(["phi_g"], None, Params(kt_kn=0.1), None).bounds == ((5.0, 60.0),)
+
+
+def test_cli_refuses_bounds_outside_the_domain_in_one_line(tmp_path, capsys, monkeypatch):
+    import hmodel.cli.calibrate as cli_cal
+
+    monkeypatch.setattr(cli_cal, "get_solver", lambda spec: FamilyLike())
+    csv = tmp_path / "d.csv"
+    csv.write_text("eps11,q\n0,0\n0.01,1e5\n")
+    out = tmp_path / "out"
+    code = main(["calibrate", "--data", f"drained:100kPa:{csv}", "--fit", "phi_g",
+                 "--bounds", "phi_g=5:60", "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1 and not out.exists()
+    assert err == ["hmodel: error: --bounds phi_g=5:60 reaches outside the model's training domain (10–45°)"]
+
+
+def test_a_family_fit_recovers_the_parameters_of_its_own_curves():
+    """Two drained tests made by the model at φg = 27°, α0 = 52° (inside the domain); least
+    squares from two starts over the domain's default bounds finds them again."""
+    truth = Params(n_theta=36, phi_g=math.radians(27.0), alpha0=math.radians(52.0))
+    res = run_biaxial([truth], [1e5, 4e5], 0.02, step=1e-3, iso_step=ISO_STEP)
+    tests = []
+    for b, p0 in enumerate((1e5, 4e5)):
+        c, s = res.point(b).stage("consolidation"), res.point(b).stage("shear")
+        # strains since the end of consolidation, its state first (as a measured test has it)
+        e = np.concatenate([[0.0], s["eps11"] - c["eps11"][-1]])
+        q = np.concatenate([[c["q"][-1]], s["q"]])
+        ev = np.concatenate([[0.0], s["eps_v"] - c["eps_v"][-1]])
+        tests.append(Test("drained", p0, e[::2], q[::2], ev[::2], name=f"d{b}"))
+    cal = fit(tests, ["phi_g", "alpha0"], base=Params(n_theta=36), solver=FamilyLike(), starts=2)
+    assert dict(zip(cal.space.names, cal.space.bounds))["phi_g"] == pytest.approx((10.0, 45.0))
+    assert cal.fitted["phi_g"] == pytest.approx(27.0, abs=0.05)
+    assert cal.fitted["alpha0"] == pytest.approx(52.0, abs=0.05)
