@@ -26,6 +26,10 @@ StepsOpt = Annotated[int, typer.Option("--steps", help="Nominal load steps (a fa
 SchedulerOpt = Annotated[Optional[str], typer.Option(
     help="Dask scheduler address (tcp://HOST:8786): the Gauss points' material updates run on its "
          "workers, one chunk of points each (worth it for DEM cells); same results as locally.")]
+RegOpt = Annotated[str, typer.Option(
+    help="local (default) or nonlocal:ell=LENGTH: the points' inelastic stress averaged over the "
+         "internal length ell [m] by an implicit-gradient operator (mesh-objective shear bands; "
+         "docs/fem.md#regularization).")]
 OutOpt = out_folder("Output folder (result.csv, fields_*.vtu, fields.pvd, fields.png, curve.png, "
                     "meta.json).")
 
@@ -51,6 +55,18 @@ def _common(param, steps, solver):
     return Params.parse_assignments(param), get_solver(solver)
 
 
+def _regularization(text: str, domain):
+    """The parsed --regularization; a length the mesh does not resolve is a warning, before the
+    run."""
+    from ..fem.regularization import parse_regularization, unresolved
+
+    reg = parse_regularization(text)
+    warning = unresolved(reg, domain)
+    if warning:
+        typer.echo(f"hmodel: warning: {warning}", err=True)
+    return reg
+
+
 @app.command("biaxial")
 def biaxial_cmd(
     p0: Annotated[str, typer.Option(help="Confining pressure, e.g. 200kPa.")] = "200kPa",
@@ -68,11 +84,12 @@ def biaxial_cmd(
     solver: SolverOpt = "closed-form",
     param: ParamOpt = None,
     scheduler: SchedulerOpt = None,
+    regularization: RegOpt = "local",
     out: OutOpt = Path("results/fem-biaxial"),
 ) -> None:
     """Plane-strain biaxial specimen: consolidation to p0, then drained (lateral pressure p0)
     or undrained compression by the top platen."""
-    from ..fem import biaxial, parse_pair
+    from ..fem import Domain, biaxial, parse_pair
 
     pressure = parse_pressure(p0)
     if not (math.isfinite(axial_strain) and 0 < axial_strain < 1):
@@ -80,10 +97,11 @@ def biaxial_cmd(
     nxy = parse_pair(mesh, "--mesh", integer=True)
     wh = parse_pair(size, "--size", integer=False)
     params, cell_solver = _common(param, steps, solver)
+    reg = _regularization(regularization, Domain(*wh, *nxy, element.lower()))
     with LazyProgress("FEM biaxial") as progress:
         res = biaxial(params, pressure, axial_strain, size=wh, mesh=nxy, element=element.lower(),
                       platens=platens, undrained=undrained, imperfection=imperfection, n_steps=steps,
-                      solver=cell_solver, scheduler=scheduler, progress=progress)
+                      solver=cell_solver, scheduler=scheduler, progress=progress, regularization=reg)
     _finish(res, out)
 
 
@@ -100,17 +118,19 @@ def footing_cmd(
     solver: SolverOpt = "closed-form",
     param: ParamOpt = None,
     scheduler: SchedulerOpt = None,
+    regularization: RegOpt = "local",
     out: OutOpt = Path("results/fem-footing"),
 ) -> None:
     """Rigid strip footing on a layer consolidated to p0: the load-settlement curve."""
-    from ..fem import footing, parse_pair
+    from ..fem import Domain, footing, parse_pair
 
     pressure = parse_pressure(p0)
     nxy = parse_pair(mesh, "--mesh", integer=True)
     lh = parse_pair(layer, "--layer", integer=False)
     params, cell_solver = _common(param, steps, solver)
+    reg = _regularization(regularization, Domain(*lh, *nxy, element.lower()))
     with LazyProgress("FEM footing") as progress:
         res = footing(params, pressure, settlement, width=width, layer=lh, mesh=nxy,
                       element=element.lower(), rough=not smooth, n_steps=steps, solver=cell_solver,
-                      scheduler=scheduler, progress=progress)
+                      scheduler=scheduler, progress=progress, regularization=reg)
     _finish(res, out)

@@ -64,11 +64,35 @@ def band_inclination(x: np.ndarray, values: np.ndarray, dx: np.ndarray, top: flo
     return float(np.degrees(np.arctan2(abs(v[1]), abs(v[0]))))
 
 
+def band_width(x: np.ndarray, values: np.ndarray, dx: np.ndarray, angle_deg: float, level: float = 0.5,
+               mask: np.ndarray | None = None) -> float:
+    """Width [m] of a straight band inclined at ``angle_deg`` from the horizontal: the Gauss
+    points (coordinates (2, B), weights ``dx``) whose ``values`` reach ``level`` times the
+    largest, their volume-weighted spread across the band (distance d to the line through
+    their centroid), width = sqrt(12 <d^2>). For a top-hat profile across the band this is its
+    width; for a bell-shaped one at ``level`` 0.5, its full width at half maximum (the points
+    above half the maximum fill |d| < FWHM/2 uniformly). ``mask`` as in :func:`band_inclination`."""
+    if mask is not None:
+        x, values, dx = x[:, mask], values[mask], dx[mask]
+    keep = values >= level * values.max()
+    x, dx = x[:, keep], dx[keep]
+    a = math.radians(angle_deg)
+    # the band's direction (cos a, sin a) up to its sign: try both and keep the narrower
+    widths = []
+    for s in (1.0, -1.0):
+        n = np.array([-s * math.sin(a), math.cos(a)])
+        d = n @ x
+        d = d - (dx @ d) / dx.sum()
+        widths.append(math.sqrt(12.0 * (dx @ d**2) / dx.sum()))
+    return float(min(widths))
+
+
 def shear_band(res: FemResult, zone: tuple[float, float, float] | None = None, top: float = 0.2) -> dict:
     """The shear band of a biaxial run after its peak of q: the inclination [deg] from the
     horizontal of :func:`band_inclination` on the deviatoric strain increment between the first
     saved state at or after the peak and the last one (``angle_deg``; None where the field has
-    not localized: its :func:`concentration` below :data:`LOCALIZED`), that concentration, the
+    not localized: its :func:`concentration` below :data:`LOCALIZED`), its :func:`band_width`
+    (``width_m``, at half the largest increment), that concentration, the
     steps it spans, and with a material-point reference, its peak angles (:func:`peak_angles`)
     and the classical predictions (:func:`theory_angles`). With an imperfection ``zone``
     (x, y, R), the Gauss points within 2R of it are left out and the branch above it kept (a
@@ -76,7 +100,7 @@ def shear_band(res: FemResult, zone: tuple[float, float, float] | None = None, t
     q = res.column("q")
     peak = int(np.argmax(q))
     after = [s for s in res.snapshots if s.step >= peak]
-    out: dict = {"angle_deg": None, "concentration": None, "peak_step": peak,
+    out: dict = {"angle_deg": None, "width_m": None, "concentration": None, "peak_step": peak,
                  "from_step": after[0].step if after else None, "to_step": res.snapshots[-1].step}
     if len(after) >= 2:
         inc = deviatoric_strain(after[-1].eps - after[0].eps)
@@ -89,6 +113,7 @@ def shear_band(res: FemResult, zone: tuple[float, float, float] | None = None, t
         out["concentration"] = conc
         if conc > LOCALIZED and (mask is None or mask.sum() >= 2):
             out["angle_deg"] = band_inclination(x, inc, dx, top=top, mask=mask)
+            out["width_m"] = band_width(x, inc, dx, out["angle_deg"], mask=mask)
     if res.reference is not None:
         phi, psi = peak_angles(material_point_curve(res.reference))
         out.update(phi_peak=phi, psi_peak=psi, **theory_angles(phi, psi))

@@ -25,6 +25,7 @@ from .bands import shear_band
 from .material import DaskStep, HModelMaterial
 from .mesh import Domain, dofs_where, gauss_points
 from .newton import GlobalNewtonSettings, Problem, StepResult, run_steps
+from .regularization import NonlocalProblem, Regularization, parse_regularization, unresolved
 from .result import FemResult, Snapshot
 
 PLATENS = ("smooth", "rough")
@@ -105,7 +106,7 @@ class _Recorder:
                                            fr["frac_sliding"], fr["frac_open"], d2w))
 
     def __call__(self, step: StepResult, lam: float) -> None:
-        self.u = self.u + step.du
+        self.u = self.u + step.du[: self.u.size]  # a regularized problem has more unknowns
         self.step += 1
         self._add(step, lam)
         self.before()
@@ -127,6 +128,14 @@ def _material(params: Params, imperfection, domain, gx, solver, p0,
     return HModelMaterial(rev, sets, p0, DaskStep(scheduler, rev) if scheduler else None), rev, sets, zone
 
 
+def _problem(basis, material, fixed, g, f_ext, reg: Regularization) -> Problem:
+    """The displacement problem, or with ``reg`` nonlocal the coupled one
+    (:mod:`hmodel.fem.regularization`)."""
+    if reg.kind == "nonlocal":
+        return NonlocalProblem(basis, material, fixed, g, f_ext, ell=reg.ell)
+    return Problem(basis, material, fixed, g, f_ext)
+
+
 def _check_common(p0: float, n_steps: int) -> None:
     if not (np.isfinite(p0) and p0 > 0):
         raise InputError(f"p0 must be a positive pressure, got {p0}")
@@ -143,6 +152,11 @@ def _check_size(domain: Domain, params: Params, solver: CellSolver | None) -> No
     check_memory(n * (float(params.n_theta) * per_cell + FEM_BYTES_PER_GAUSS_POINT),
                  f"a {domain.nx:.4g}x{domain.ny:.4g} {domain.element} mesh ({n:.4g} Gauss points × "
                  f"{params.n_theta:.4g} directions)")
+
+
+def _reg_meta(reg: Regularization, domain: Domain) -> dict:
+    warning = unresolved(reg, domain)
+    return {"regularization": str(reg), "warnings": [warning] if warning else []}
 
 
 def _save_rule(n_steps: int, n_saved: int):
@@ -183,7 +197,8 @@ def biaxial(params: Params | None = None, p0: float = 2e5, axial_strain: float =
             imperfection: "str | tuple[Params, tuple[float, float, float]] | None" = None,
             n_steps: int = 100, solver: CellSolver | None = None,
             settings: GlobalNewtonSettings = GlobalNewtonSettings(), n_saved: int = 10,
-            reference: bool = True, scheduler: str | None = None, progress=None) -> FemResult:
+            reference: bool = True, scheduler: str | None = None, progress=None,
+            regularization: "str | Regularization | None" = None) -> FemResult:
     """Plane-strain biaxial test of a ``size`` = (width, height) [m] specimen.
 
     Consolidated to ``p0`` [Pa], then compressed by the top platen to ``axial_strain``
@@ -198,9 +213,13 @@ def biaxial(params: Params | None = None, p0: float = 2e5, axial_strain: float =
     ``reference``: also run the material-point test of the same parameters (``result.reference``).
     ``scheduler``: a Dask scheduler's address; the Gauss points' material updates run there
     (:class:`~hmodel.fem.material.DaskStep`), with the same results.
+    ``regularization``: ``"local"`` (default) or ``"nonlocal:ell=LENGTH"`` [m]
+    (:mod:`hmodel.fem.regularization`); an ell below the element size is noted in
+    ``meta["warnings"]``.
     """
     params = params or Params()
     _check_common(p0, n_steps)
+    reg = parse_regularization(regularization)
     if not (np.isfinite(axial_strain) and 0 < axial_strain < 1):
         raise InputError(f"axial strain must lie in (0, 1), got {axial_strain}")
     if platens not in PLATENS:
@@ -230,7 +249,7 @@ def biaxial(params: Params | None = None, p0: float = 2e5, axial_strain: float =
             fixed.append(dofs_where(basis, 0, lambda x: (x[0] < tol) & (x[1] < tol)))
         sides = basis.mesh.facets_satisfying(lambda x: (x[0] < tol) | (x[0] > W - tol))
         f_ext = _traction(basis, sides, p0)
-    pb = Problem(basis, material, np.unique(np.concatenate(fixed)), g, f_ext)
+    pb = _problem(basis, material, np.unique(np.concatenate(fixed)), g, f_ext, reg)
     eps0 = material.state.eps.copy()
 
     def row(u, f_int, lam):
@@ -249,7 +268,7 @@ def biaxial(params: Params | None = None, p0: float = 2e5, axial_strain: float =
             "element": element, "platens": platens, "undrained": undrained, "n_steps": n_steps,
             "solver": rev.solver.name, "params": params.to_dict(),
             "imperfection": None if imperfection is None else str(imperfection),
-            "imperfect_points": int(sets.sum())}
+            "imperfect_points": int(sets.sum()), **_reg_meta(reg, domain)}
     res = _run("biaxial", domain, pb, BIAXIAL_COLUMNS, row,
                lambda lam: f"axial strain {lam * axial_strain:.5g}", n_steps, n_saved, settings,
                progress, meta, eps0)
@@ -268,7 +287,8 @@ def footing(params: Params | None = None, p0: float = 1e5, settlement: float = 0
             width: float = 0.2, layer: tuple[float, float] = (1.0, 0.5), mesh: tuple[int, int] = (20, 10),
             element: str = "q4", rough: bool = True, n_steps: int = 50, solver: CellSolver | None = None,
             settings: GlobalNewtonSettings = GlobalNewtonSettings(), n_saved: int = 10,
-            scheduler: str | None = None, progress=None) -> FemResult:
+            scheduler: str | None = None, progress=None,
+            regularization: "str | Regularization | None" = None) -> FemResult:
     """Rigid strip footing of ``width`` [m] at the centre of the top of a ``layer`` = (width,
     depth) [m] layer, pushed down to ``settlement`` times its width in ``n_steps`` load steps.
 
@@ -276,10 +296,11 @@ def footing(params: Params | None = None, p0: float = 1e5, settlement: float = 0
     are smooth rigid walls, its base is fixed. ``rough``: the footing holds its nodes
     horizontally too. The footing's edges must fall on mesh nodes. Rows: the footing's mean
     contact pressure [Pa] (from the nodal forces under it) against its settlement [m].
-    ``scheduler``: as for :func:`biaxial`.
+    ``scheduler``, ``regularization``: as for :func:`biaxial`.
     """
     params = params or Params()
     _check_common(p0, n_steps)
+    reg = parse_regularization(regularization)
     if not (np.isfinite(settlement) and 0 < settlement < 1):
         raise InputError(f"settlement / width must lie in (0, 1), got {settlement}")
     domain = Domain(*layer, *mesh, element)
@@ -306,7 +327,7 @@ def footing(params: Params | None = None, p0: float = 1e5, settlement: float = 0
     surface = basis.mesh.facets_satisfying(
         lambda x: (x[1] > H - tol) & (np.abs(x[0] - L / 2) >= width / 2 - tol))
     f_ext = _traction(basis, surface, p0)
-    pb = Problem(basis, material, np.unique(np.concatenate(fixed)), g, f_ext)
+    pb = _problem(basis, material, np.unique(np.concatenate(fixed)), g, f_ext, reg)
 
     def row(u, f_int, lam):
         pressure = p0 if f_int is None else -f_int[foot_y].sum() / width
@@ -314,7 +335,7 @@ def footing(params: Params | None = None, p0: float = 1e5, settlement: float = 0
 
     meta = {"test": "fem footing", "p0": p0, "settlement": settlement, "width": width,
             "layer": [L, H], "mesh": [domain.nx, domain.ny], "element": element, "rough": rough,
-            "n_steps": n_steps, "solver": rev.solver.name, "params": params.to_dict()}
+            "n_steps": n_steps, "solver": rev.solver.name, "params": params.to_dict(), **_reg_meta(reg, domain)}
     return _run("footing", domain, pb, FOOTING_COLUMNS, row,
                 lambda lam: f"settlement {lam * settlement:.4g} B", n_steps, n_saved, settings,
                 progress, meta, material.state.eps.copy())

@@ -97,19 +97,18 @@ def parse_regularization(spec) -> Regularization:
     return Regularization("nonlocal", ell)
 
 
-def element_size(basis: Basis) -> float:
-    """Largest element edge of the mesh [m] (the resolution that ell is compared with)."""
-    m = basis.mesh
-    p = m.p[:, m.facets]  # (2, 2, n_facets)
-    return float(np.sqrt(((p[:, 0] - p[:, 1]) ** 2).sum(axis=0)).max())
+def element_size(domain) -> float:
+    """Largest element edge of a :class:`~hmodel.fem.mesh.Domain`'s grid [m] (the resolution
+    that ell is compared with)."""
+    return max(domain.width / domain.nx, domain.height / domain.ny)
 
 
-def unresolved(reg: Regularization, basis: Basis) -> str | None:
+def unresolved(reg: Regularization, domain) -> str | None:
     """A warning where ell is below the element size (the band, a few ell wide, is then not
     resolved by the mesh), else None."""
     if reg.kind != "nonlocal":
         return None
-    h = element_size(basis)
+    h = element_size(domain)
     if reg.ell < h:
         return (f"the nonlocal length ell = {reg.ell:g} m is below the element size {h:.3g} m: the band "
                 "is not resolved (refine the mesh or take a larger ell)")
@@ -142,7 +141,7 @@ def scalar_operators(basis: Basis) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr
         rows, cols, vals = [], [], []
         for i, phi in enumerate(basis.basis):
             f = phi[0]
-            v = f.value if part == "value" else f.grad[0 if part == "dx" else 1]
+            v = np.asarray(f) if part == "value" else f.grad[0 if part == "dx" else 1]
             rows.append(b), cols.append(np.repeat(basis.element_dofs[i], nqp))
             vals.append(np.asarray(v).ravel())
         out.append(sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
@@ -210,8 +209,8 @@ class NonlocalProblem(Problem):
             self.D_e = 0.5 * (D + np.swapaxes(D, 1, 2))
         self.K_e = (self.BtW @ _blocks(self.D_e) @ self.B).tocsr()
         A = N.T @ sp.diags(dx) @ N + self.ell ** 2 * (Nx.T @ sp.diags(dx) @ Nx + Ny.T @ sp.diags(dx) @ Ny)
-        h = element_size(b)
-        self.row_scale = 1.0 / h  # Helmholtz rows [Pa m^2] to forces [Pa m]
+        # Helmholtz rows [Pa m^2] to forces [Pa m]: divided by a typical element size
+        self.row_scale = 1.0 / float(np.sqrt(dx.sum() / b.nelems))
         self.A3 = (sp.kron(A, I3, format="csr") * self.row_scale).tocsr()
         self.K_ug = -(self.BtW @ self.N3).tocsr()
         self.NtDx = (self.N3.T @ sp.diags(self.dx3)).tocsr() * self.row_scale

@@ -1,0 +1,161 @@
+"""The regularized H-model (``hmodel.fem.regularization``) under mesh refinement, beside the local
+model, for docs/fem.md (Regularization): ``fem_regularized.json`` and ``docs/figures/fem-regularized.png``.
+
+(b) biaxial: the edge imperfection of ``fem_study`` (φg = 25°, α0 = 55° in a disc of radius
+    10 mm at the middle of the left side), smooth platens, 200 kPa drained, nθ = 90,
+    ``sliding_rhs=equilibrium``, to 10 % in 100 steps, on 8x16, 16x32 and 32x64 Q4, local and
+    ``nonlocal:ell=ELL``: q at 10 %, the band's angle and width (``hmodel.fem.bands``), wall
+    and CPU time of each run (one case per process call: ``--cases``);
+(f) footing: rough, 0.2 m on 1.0 x 0.5 m, 100 kPa, nθ = 90, ``sliding_rhs=equilibrium``,
+    ``nonlocal:ell=FOOT_ELL``, to s/B = 0.1 in 20 steps on 10x5, 20x10 and 40x20 Q4.
+
+Usage: ``python -m benchmarks.fem.fem_regularized --cases nonlocal-8x16,local-8x16 ...``; each
+case's numbers are merged into the JSON; ``--plot`` draws the figure and the summary from it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from benchmarks.timing import FIGURES, provenance  # noqa: E402
+from hmodel import Params  # noqa: E402
+from hmodel.fem import biaxial, footing, material_point_curve  # noqa: E402
+from hmodel.fem.bands import shear_band  # noqa: E402
+from hmodel.fem.outputs import deviatoric_strain  # noqa: E402
+
+ELL = 0.005
+FOOT_ELL = 0.05
+ZONE = (0.0, 0.05, 0.01)
+MESHES = {"8x16": (8, 16), "16x32": (16, 32), "32x64": (32, 64)}
+FOOT_MESHES = {"10x5": (10, 5), "20x10": (20, 10), "40x20": (40, 20)}
+PARAMS = Params(n_theta=90, sliding_rhs="equilibrium")
+FIELDS = Path("/tmp/hmodel-fem-regularized")  # post-peak fields for the figure (large arrays)
+
+
+def biaxial_case(name: str, ell: float) -> dict:
+    kind, mesh = name.split("-")
+    reg = None if kind == "local" else f"nonlocal:ell={ell:g}"
+    t, c = time.perf_counter(), time.process_time()
+    res = biaxial(PARAMS, 2e5, 0.10, mesh=MESHES[mesh], n_steps=100, n_saved=100, reference=True,
+                  imperfection=f"phi_g=25,alpha0=55@{ZONE[0]},{ZONE[1]},{ZONE[2]}", regularization=reg)
+    wall, cpu = time.perf_counter() - t, time.process_time() - c
+    q, e = res.column("q"), res.column("eps11")
+    band = shear_band(res, ZONE)
+    ipk = int(np.argmax(q))
+    snaps = {s.step: s for s in res.snapshots}
+    inc = deviatoric_strain(res.snapshots[-1].eps - snaps[ipk].eps)
+    FIELDS.mkdir(exist_ok=True)
+    np.savez(FIELDS / f"{name}.npz", x=res.gauss_x, dx=res.gauss_dx, inc=inc)
+    rates = [math.log(r[2]) / math.log(r[1]) for r in res.residuals if len(r) >= 3 and r[1] < 1e-2 and r[2] > 1e-14]
+    ref = material_point_curve(res.reference)
+    return {"regularization": res.meta["regularization"], "mesh": mesh, "gauss_points": int(res.gauss_dx.size),
+            "dofs": res.meta["dofs"], "wall_s": wall, "cpu_s": cpu, "stopped": res.stopped, "steps": len(res) - 1,
+            "newton_iterations": int(res.column("newton_iterations").sum()),
+            "median_rate": float(np.median(rates)) if rates else None, "warnings": res.meta["warnings"],
+            "peak_q": float(q[ipk]), "peak_strain": float(e[ipk]),
+            "q_at_10pc": float(q[-1]) if abs(e[-1] - 0.10) < 1e-9 else None,
+            "band": band, "curve": {"eps11": e.tolist(), "q": q.tolist()},
+            "material_point": {"eps11": ref["eps11"].tolist(), "q": ref["q"].tolist()}}
+
+
+def footing_case(name: str, ell: float) -> dict:
+    mesh = name.split("-")[1]
+    t, c = time.perf_counter(), time.process_time()
+    res = footing(PARAMS, 1e5, 0.10, mesh=FOOT_MESHES[mesh], n_steps=20, regularization=f"nonlocal:ell={ell:g}")
+    s, p = res.column("s_B"), res.column("pressure")
+    return {"regularization": res.meta["regularization"], "mesh": mesh, "wall_s": time.perf_counter() - t,
+            "cpu_s": time.process_time() - c, "stopped": res.stopped, "warnings": res.meta["warnings"],
+            "s_B": s.tolist(), "pressure": p.tolist(), "peak_pressure": float(p.max()),
+            "peak_at_s_B": float(s[np.argmax(p)])}
+
+
+def summary(cases: dict) -> dict:
+    out = {}
+    for kind in ("local", "nonlocal"):
+        q = {m: cases.get(f"{kind}-{m}", {}).get("q_at_10pc") for m in MESHES}
+        if q["16x32"] and q["32x64"]:
+            out[f"{kind}_q10_change_finest_pc"] = 100 * abs(q["32x64"] - q["16x32"]) / q["32x64"]
+        out[f"{kind}_q_at_10pc"] = q
+    for m in MESHES:
+        a, b = cases.get(f"local-{m}"), cases.get(f"nonlocal-{m}")
+        if a and b:
+            out[f"time_ratio_{m}"] = b["wall_s"] / a["wall_s"]
+            out[f"cpu_ratio_{m}"] = b["cpu_s"] / a["cpu_s"]
+    return out
+
+
+def plot(cases: dict) -> None:
+    fig, axes = plt.subplots(2, 4, figsize=(15, 8))
+    for i, kind in enumerate(("local", "nonlocal")):
+        for j, m in enumerate(MESHES):
+            ax = axes[i, j]
+            ax.set_xticks([]), ax.set_yticks([]), ax.set_aspect("equal")
+            c, f = cases.get(f"{kind}-{m}"), FIELDS / f"{kind}-{m}.npz"
+            if c is None or not f.exists():
+                ax.set_title(f"{kind} {m}: not run", fontsize=9)
+                continue
+            d = np.load(f)
+            sc = ax.scatter(d["x"][0], d["x"][1], c=d["inc"], s=2500 / d["dx"].size ** 0.85, marker="s", cmap="viridis")
+            fig.colorbar(sc, ax=ax, fraction=0.06)
+            b = c["band"]
+            ax.set_title(f"{kind if kind == 'local' else c['regularization']} {m}\n"
+                         + (f"band {b['angle_deg']:.0f} deg, {1e3 * b['width_m']:.1f} mm" if b["angle_deg"] else
+                            f"no band (max/mean {b['concentration']:.2f})"), fontsize=8)
+            axes[i, 3].plot(c["curve"]["eps11"], np.array(c["curve"]["q"]) / 1e3, label=m)
+        any_case = next((c for c in cases.values() if "material_point" in c), None)
+        if any_case:
+            mp = any_case["material_point"]
+            axes[i, 3].plot(mp["eps11"], np.array(mp["q"]) / 1e3, "k--", label="material point")
+        axes[i, 3].set_title(f"{kind}: q against axial strain", fontsize=9)
+        axes[i, 3].set_xlabel("axial strain"), axes[i, 3].set_ylabel("q [kPa]"), axes[i, 3].legend(fontsize=8)
+    fig.suptitle("deviatoric strain increment after the peak, local (top) and regularized (bottom)")
+    fig.tight_layout()
+    fig.savefig(FIGURES / "fem-regularized.png", dpi=100)
+    plt.close(fig)
+    feet = [c for k, c in cases.items() if k.startswith("footing-")]
+    if feet:
+        fig, ax = plt.subplots(figsize=(6, 4))
+        for c in feet:
+            ax.plot(c["s_B"], np.array(c["pressure"]) / 1e3, "o-", ms=3, label=f"{c['mesh']} {c['regularization']}")
+        ax.set_xlabel("settlement / footing width"), ax.set_ylabel("footing pressure [kPa]"), ax.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig(FIGURES / "fem-regularized-footing.png", dpi=100)
+        plt.close(fig)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", default="", help="comma list: local-8x16, nonlocal-32x64, footing-20x10, ...")
+    ap.add_argument("--ell", type=float, default=ELL)
+    ap.add_argument("--foot-ell", type=float, default=FOOT_ELL)
+    ap.add_argument("--plot", action="store_true")
+    ap.add_argument("--out", type=Path, default=Path(__file__).with_name("fem_regularized.json"))
+    args = ap.parse_args()
+    data = json.loads(args.out.read_text()) if args.out.exists() else {}
+    cases = data.get("cases", {})
+    for name in filter(None, args.cases.split(",")):
+        cases[name] = (footing_case(name, args.foot_ell) if name.startswith("footing-")
+                       else biaxial_case(name, args.ell))
+        c = cases[name]
+        print(f"{name}: {c['wall_s']:.1f} s wall, {c['cpu_s']:.1f} s CPU, stopped: {c['stopped']}, "
+              + (f"q at 10 %: {c['q_at_10pc']}" if "q_at_10pc" in c else f"peak {c['peak_pressure']:.4g} Pa"),
+              flush=True)
+        data = {**data, **provenance(__file__, args), "cases": cases, "summary": summary(cases)}
+        args.out.write_text(json.dumps(data, indent=1, default=float) + "\n")
+    if args.plot:
+        plot(cases)
+    print(json.dumps(summary(cases), indent=1))
+
+
+if __name__ == "__main__":
+    main()
