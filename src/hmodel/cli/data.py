@@ -90,6 +90,11 @@ def generate(
                                                               "or hexagon-unequal, with options after a colon: ratio=R and DEM settings such as tol=1e-7,max_iter=100000.")] = None,
     dim: Annotated[int, typer.Option("--dim", help="2: H-cell rows; 3: bi-hexagon rows of the 3D H-model "
                                                    "(dataset 2, closed form; small defaults).")] = 2,
+    kt_kn: Annotated[str, typer.Option("--kt-kn", help="Datasets 1, 2: a material per path, kt/kn drawn "
+                                                       "uniformly in LO:HI (e.g. 0.2:1; rows record it).")] = "",
+    phi_g: Annotated[str, typer.Option("--phi-g", help="Datasets 1, 2: a material per path, phi_g drawn "
+                                                       "uniformly in LO:HI [deg] (e.g. 10:45).")] = "",
+    material_seed: Annotated[int, typer.Option(help="Seed of the per-path material draws (with the path id).")] = 0,
 ) -> None:
     """Compute a database into --out; re-running the same command resumes an interrupted run."""
     from ..data import DatasetSpec
@@ -121,7 +126,8 @@ def generate(
                        alpha0_step=a_step, max_strain=max_strain, step=step, start_every=start_every, from_unloaded=from_unloaded,
                        prestrain=prestrain, rev_paths=rev_paths,
                        magnitude=magnitude, magnitude_min=magnitude_min, n_increments=increments, substeps=substeps,
-                       shard_rows=shard_rows, solver=_solver(solver, mesostructure), dim=dim)
+                       shard_rows=shard_rows, solver=_solver(solver, mesostructure), dim=dim,
+                       kt_kn_range=kt_kn, phi_g_range=phi_g, material_seed=material_seed)
     params = Params.parse_assignments(param)
     what = f"dataset {dataset}" + (" (3D, bi-hexagons)" if dim == 3 else "")
     with LazyProgress(f"{what}: {spec.n_rows:,} rows") as progress:

@@ -114,6 +114,13 @@ class DatasetSpec:
     rev_paths: str = ""
     #: 2: H-cell rows; 3: bi-hexagon rows of the 3D H-model (Dataset 2, closed form only).
     dim: int = 2
+    #: A material per path (issue 36, networks over a range of materials): ``"LO:HI"`` ranges of
+    #: kt/kn and of φg [deg], each path's value drawn uniformly from them by a generator seeded
+    #: with (``material_seed``, path id), so that a path's material does not depend on the shard
+    #: it falls in; "" keeps the parameters' value. Rows record it (MATERIAL_COLUMNS).
+    kt_kn_range: str = ""
+    phi_g_range: str = ""
+    material_seed: int = 0
 
     def __post_init__(self) -> None:
         # One spelling per value (45 and 45.0 alike), so that manifests and shard bytes match.
@@ -128,6 +135,9 @@ class DatasetSpec:
         if self.dim == 3 and self.kind != 2:
             raise InputError(f"--dim 3 writes dataset 2 (bi-hexagon increments from the states of "
                              f"bi-hexagon paths); dataset {self.kind} is the 2D H-cell's only")
+        if self.draws_material and self.dim == 3:
+            raise InputError("a material per path (--kt-kn, --phi-g ranges) is drawn for 2D datasets only")
+        self.material_ranges  # parses and checks
         if self.dim == 3 and self.solver != "closed-form":
             raise InputError(f"--dim 3 rows are the closed-form bi-hexagon's; --solver {self.solver} "
                              "is a 2D cell solver option only")
@@ -167,6 +177,48 @@ class DatasetSpec:
         if self.kind >= 2:
             _ratio(self.start_every, self.step, "start_every", "step")
             _ratio(self.max_strain, self.start_every, "max_strain", "start_every")
+
+    # -- materials ---------------------------------------------------------------------------
+    @property
+    def draws_material(self) -> bool:
+        """Whether every path draws its own material (:attr:`kt_kn_range`, :attr:`phi_g_range`)."""
+        return bool(self.kt_kn_range.strip() or self.phi_g_range.strip())
+
+    @property
+    def material_ranges(self) -> dict[str, tuple[float, float]]:
+        """The drawn parameters' ranges, ``{"kt_kn": (lo, hi), "phi_g": (lo, hi) [deg]}`` (those
+        given)."""
+        out = {}
+        for name, text, ok in (("kt_kn", self.kt_kn_range, lambda v: v > 0),
+                               ("phi_g", self.phi_g_range, lambda v: 0 < v < 90)):
+            if not text.strip():
+                continue
+            try:
+                lo, hi = (float(v) for v in text.split(":"))
+            except ValueError:
+                lo = hi = float("nan")
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi and ok(lo) and ok(hi)):
+                raise InputError(f"the range of {name} is LO:HI with LO <= HI (kt_kn > 0, 0 < phi_g < "
+                                 f"90 deg), got {text!r}")
+            out[name] = (lo, hi)
+        return out
+
+    def path_materials(self, params: Params, paths: np.ndarray) -> list[Params]:
+        """The material of each path (``params`` with the drawn kt/kn and φg); dataset 3: of
+        each REV loading path (``paths`` its index), whose α0 is drawn too, uniformly over
+        [alpha0_min, alpha0_max] (its REV's cells share one)."""
+        ranges = dict(self.material_ranges)
+        if self.kind == 3:
+            ranges["alpha0"] = (self.alpha0_min, self.alpha0_max)
+        out = []
+        for path in paths:
+            rng = np.random.default_rng((self.material_seed, int(path)))
+            draw = {k: rng.uniform(lo, hi) for k, (lo, hi) in ranges.items()}
+            for k in ("phi_g", "alpha0"):
+                if k in draw:
+                    draw[k] = math.radians(draw[k])
+            out.append(params.with_(**draw))
+        return out
 
     # -- grids -----------------------------------------------------------------------------
     @property
@@ -281,6 +333,9 @@ class DatasetSpec:
         d = asdict(self)
         if d["dim"] == 2:  # 2D manifests (and the fingerprints of models trained on them) unchanged
             del d["dim"]
+        if not self.draws_material:  # likewise for datasets of one material
+            for k in ("kt_kn_range", "phi_g_range", "material_seed"):
+                del d[k]
         return d
 
     @classmethod
@@ -299,10 +354,25 @@ def _ratio(total: float, step: float, a: str, b: str) -> int:
 def compute_shard(spec: DatasetSpec, params: Params, shard: int) -> pa.Table:
     """The rows of one shard, in path order (a pure function of its arguments)."""
     paths = spec.shard_paths(shard)
+    if spec.draws_material:  # one material per path (dataset 3: per REV): one by one
+        parts = []
+        groups = [paths] if spec.kind == 3 else [np.array([p]) for p in paths]
+        keys = [shard] if spec.kind == 3 else paths
+        for group, material in zip(groups, spec.path_materials(params, keys)):
+            t = _paths(spec, material, group)
+            n = t.num_rows
+            parts.append(t.append_column("kt_kn", pa.array(np.full(n, material.kt_kn)))
+                         .append_column("phi_g", pa.array(np.full(n, material.phi_g))))
+        return pa.concat_tables(parts)
+    return _paths(spec, params, paths)
+
+
+def _paths(spec: DatasetSpec, params: Params, paths: np.ndarray) -> pa.Table:
+    """The rows of ``paths`` of one material."""
     if spec.dim == 3:
         return _bihex_increments(spec, params, paths)
     if spec.kind == 3:
-        return _rev_histories(spec, params, shard, paths)
+        return _rev_histories(spec, params, int(paths[0]) // spec.n_directions, paths)
     alpha0 = np.radians(spec.alpha0_deg)[paths // spec.n_directions]
     theta = spec.theta[paths % spec.n_directions]
     solver = get_solver(spec.solver)

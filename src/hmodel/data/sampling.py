@@ -207,7 +207,7 @@ def write_split(ds: Dataset, out: "str | os.PathLike", n_train: int, n_test: int
             "files": {}}
     if ds.n_extra:  # a richer DEM cell's extra state travels with its rows
         meta["extra_fields"] = ds.manifest["extra_fields"]
-    schema = arrow_schema(n_extra=ds.n_extra).append(pa.field("row", pa.int64(), nullable=False))
+    schema = arrow_schema(n_extra=ds.n_extra, material=ds.material).append(pa.field("row", pa.int64(), nullable=False))
 
     def writer(name: str, rows: np.ndarray):
         def write(path: Path) -> None:

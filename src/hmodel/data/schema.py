@@ -51,6 +51,9 @@ FLAG_COLUMNS_3D = FLAG_COLUMNS + tuple(f"{c}_b" for c in FLAG_COLUMNS) + ("cross
 COLUMNS_3D = STRAIN_3D + STATE + STATE_B + STATE_NEXT + STATE_B_NEXT + FLAG_COLUMNS_3D + LABELS
 #: Extra state of richer cells (only when the cell state has more than 8 fields).
 EXTRA_COLUMNS = ("state_extra", "state_extra_next")
+#: The material of each row, in datasets that draw one per path (``kt_kn_range``,
+#: ``phi_g_range`` of :class:`~hmodel.data.generator.DatasetSpec`): kt/kn and φg [rad].
+MATERIAL_COLUMNS = ("kt_kn", "phi_g")
 
 UNITS = {
     "deps1": "-", "deps2": "-", "alpha": "rad", "l1": "m", "l2": "m", "d1": "m", "d2": "m",
@@ -58,7 +61,7 @@ UNITS = {
                                        [("alpha", "rad"), ("l1", "m"), ("l2", "m"), ("d1", "m"),
                                         ("d2", "m"), ("N1", "N"), ("N2", "N"), ("T1", "N")]},
     **{c: "bool" for c in FLAG_COLUMNS}, "alpha0": "rad", "path_id": "-", "theta": "rad",
-    "start_strain": "-",
+    "start_strain": "-", "kt_kn": "-", "phi_g": "rad",
 }
 UNITS_3D = {**UNITS, "deps3": "-",
             **{c: UNITS[base] for c, base in zip(STATE_B + STATE_B_NEXT, STATE + STATE_NEXT)},
@@ -70,12 +73,14 @@ def columns_for(dim: int = 2) -> tuple[str, ...]:
     return COLUMNS_3D if dim == 3 else COLUMNS
 
 
-def arrow_schema(metadata: dict[bytes, bytes] | None = None, n_extra: int = 0, dim: int = 2) -> pa.Schema:
+def arrow_schema(metadata: dict[bytes, bytes] | None = None, n_extra: int = 0, dim: int = 2,
+                 material: bool = False) -> pa.Schema:
     """The Arrow schema of every shard (float64 values, bool flags, int32 path ids), with the
+    :data:`MATERIAL_COLUMNS` where ``material`` (a material drawn per path), the
     :data:`EXTRA_COLUMNS` (lists of ``n_extra`` float64) when ``n_extra`` > 0; ``dim = 3``: the
     bi-hexagon's :data:`COLUMNS_3D`."""
     fields = []
-    for c in columns_for(dim):
+    for c in columns_for(dim) + (MATERIAL_COLUMNS if material else ()):
         if c in FLAG_COLUMNS_3D:
             t = pa.bool_()
         elif c == "path_id":

@@ -33,6 +33,7 @@ from ..params import Params
 from .generator import DatasetSpec, compute_shard
 from .schema import (
     EXTRA_COLUMNS,
+    MATERIAL_COLUMNS,
     SCHEMA_VERSION,
     UNITS,
     UNITS_3D,
@@ -75,7 +76,8 @@ def _header(spec: DatasetSpec, params: Params) -> dict:
     """The part of a manifest that identifies what the dataset is."""
     header = {"format": FORMAT, "schema_version": SCHEMA_VERSION, "kind": spec.kind,
               "options": spec.to_dict(), "params": params.to_dict(), "seed": None,
-              "columns": list(columns_for(spec.dim)), "units": UNITS_3D if spec.dim == 3 else UNITS}
+              "columns": list(columns_for(spec.dim)) + list(MATERIAL_COLUMNS if spec.draws_material else ()),
+              "units": UNITS_3D if spec.dim == 3 else UNITS}
     if spec.solver.startswith("dem"):  # richer DEM cells: names of the extra state fields
         from ..solvers import get_solver
         extra = list(get_solver(spec.solver).field_names()[8:])
@@ -248,7 +250,7 @@ class Dataset:
 
     def iter_tables(self, columns: list[str] | None = None) -> Iterator[pa.Table]:
         """Shard by shard (bounded memory)."""
-        cols = _check_columns(columns, self.n_extra, self.dim)
+        cols = _check_columns(columns, self.n_extra, self.dim, self.material)
         for path in self.shards():
             yield pq.read_table(path, columns=cols)
 
@@ -258,6 +260,11 @@ class Dataset:
         return self.spec.dim
 
     @property
+    def material(self) -> bool:
+        """Whether every path drew its own material (rows hold :data:`MATERIAL_COLUMNS`)."""
+        return self.spec.draws_material
+
+    @property
     def n_extra(self) -> int:
         """Number of extra state fields of a richer DEM cell (0 otherwise)."""
         return len(self.manifest.get("extra_fields", ()))
@@ -265,8 +272,9 @@ class Dataset:
     def read(self, columns: list[str] | None = None, rows: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Columns as NumPy arrays, all rows or the sorted global row indices ``rows``; the
         extra state columns of a richer cell (read by default when present) as (rows, n_extra)."""
-        cols = (_check_columns(columns, self.n_extra, self.dim)
-                or list(columns_for(self.dim)) + list(EXTRA_COLUMNS if self.n_extra else ()))
+        cols = (_check_columns(columns, self.n_extra, self.dim, self.material)
+                or list(columns_for(self.dim)) + list(EXTRA_COLUMNS if self.n_extra else ())
+                + list(MATERIAL_COLUMNS if self.material else ()))
         parts: dict[str, list[np.ndarray]] = {c: [] for c in cols}
         offset = 0
         for e, path in zip(self.manifest["shards"], self.shards()):
@@ -289,13 +297,15 @@ class Dataset:
 def _empty(column: str, n_extra: int, dim: int = 2) -> np.ndarray:
     if column in EXTRA_COLUMNS:
         return np.empty((0, n_extra))
-    return np.array([], dtype=arrow_schema(dim=dim).field(column).type.to_pandas_dtype())
+    return np.array([], dtype=arrow_schema(dim=dim, material=True).field(column).type.to_pandas_dtype())
 
 
-def _check_columns(columns: list[str] | None, n_extra: int = 0, dim: int = 2) -> list[str] | None:
+def _check_columns(columns: list[str] | None, n_extra: int = 0, dim: int = 2,
+                   material: bool = False) -> list[str] | None:
     if columns is None:
         return None
-    known = list(columns_for(dim)) + list(EXTRA_COLUMNS if n_extra else ())
+    known = (list(columns_for(dim)) + list(EXTRA_COLUMNS if n_extra else ())
+             + list(MATERIAL_COLUMNS if material else ()))
     unknown = [c for c in columns if c not in known]
     if unknown:
         raise InputError(f"unknown dataset column(s) {', '.join(unknown)} (known: {', '.join(known)})")

@@ -163,6 +163,10 @@ def _surrogate(meta: dict, tensors: dict[str, np.ndarray]) -> Surrogate:
         raise InputError(f"the trust reference has shape {trust.shape} for {len(x)} inputs"
                          + ("" if "trust" in meta else " and no trust metadata"))
     method = meta["normalization"]
-    return Surrogate(formulation_from_dict(f), Architecture(a["width"], a["depth"], a["activation"]),
+    form = formulation_from_dict(f)
+    if form.material_inputs and not meta.get("domain"):
+        raise InputError(f"a network over a range of materials (inputs {', '.join(form.material_inputs)}) "
+                         f"needs its training domain, and the metadata hold none")
+    return Surrogate(form, Architecture(a["width"], a["depth"], a["activation"]),
                      Affine(method, tensors["x_offset"], tensors["x_scale"]),
                      Affine(method, tensors["y_offset"], tensors["y_scale"]), weights, meta, rng, trust)

@@ -55,7 +55,7 @@ import numpy as np
 from ..cell import CellFlags, CellKernel, CellSolver, CellState
 from ..cell.closed_form import ClosedFormSolver
 from ..errors import InputError, SolverError
-from ..params import Params
+from ..params import ANGLE_PARAMS, Params
 from .formulations.base import Increment
 from .formulations.strain import LEAK_REFUSED
 from .gate import Gate, gate_for
@@ -64,6 +64,9 @@ from .state_cache import StateCache, distinct_rows
 
 #: Parameters a surrogate is specific to (it was trained on cells with these values).
 MATERIAL = ("kn", "kt_kn", "phi_g", "radius", "g2", "sliding_rhs", "volume")
+#: Parameters a family network (one with material inputs, issue 36) scales out: its inputs and
+#: outputs are forces in kn·2r and lengths in 2r, so any kn and r give the same scaled response.
+SCALED = ("kn", "radius")
 
 
 class SurrogateSolver:
@@ -128,6 +131,9 @@ class SurrogateSolver:
         if fallback is None:
             raise InputError("a gate needs a fallback solver (--fallback closed-form)")
         f = self.formulation
+        if f.material_inputs:
+            raise InputError("gating is for networks of one material; this one takes the material as "
+                             "inputs (a family network)")
         if not (f.state_only and f.falls_back):
             raise InputError(f"gating needs a network that sees the H-cell's state only (the "
                              f"compliance formulation, the default model's), so that an exact "
@@ -163,17 +169,36 @@ class SurrogateSolver:
             self.gated_states.append(v[gated].copy())
         return gated
 
+    @property
+    def domain(self) -> dict[str, tuple[float, float]] | None:
+        """A family network's training domain, ``{name: (lo, hi)}`` in the units of the
+        :class:`~hmodel.params.Params` fields (angles in radians, as ``params.phi_g``); None
+        for a network of one material. The model file stores it as the command line writes it
+        (angles in degrees, ``domain`` in its metadata)."""
+        d = self.model.meta.get("domain")
+        if not d:
+            return None
+        return {k: tuple(math.radians(float(v)) if k in ANGLE_PARAMS else float(v) for v in d[k])
+                for k in d}
+
     def check(self, params: Params) -> None:
-        """Refuse a material the surrogate was not trained for."""
-        trained = self.model.meta.get("params")
-        if not trained:
-            return
+        """Refuse a material the surrogate was not trained for: one other than its own, or for
+        a family network, one outside its training domain (:attr:`domain`; kn and r are scaled
+        out, any is accepted)."""
+        trained = self.model.meta.get("params") or {}
         # a REV of many parameter sets calls once per set and trial: compare each material once
-        key = tuple(getattr(params, k) for k in MATERIAL)
+        key = tuple(getattr(params, k) for k in MATERIAL + ("alpha0",))
         if key in self._accepted:
             return
-        mine = params.to_dict()
-        wrong = [k for k in MATERIAL if k in trained and not _same(trained[k], mine[k])]
+        mine, domain = params.to_dict(), self.model.meta.get("domain")  # degrees, as the CLI's
+        if domain:
+            outside = [k for k, (lo, hi) in domain.items() if not _within(mine[k], lo, hi)]
+            if outside:
+                raise InputError("parameters outside the model's training domain: " + ", ".join(
+                    f"{k}={mine[k]:g} (trained {lo:g}–{hi:g})" for k in outside
+                    for lo, hi in [domain[k]]))
+        free = (set(domain) | set(SCALED)) if domain else set()
+        wrong = [k for k in MATERIAL if k in trained and k not in free and not _same(trained[k], mine[k])]
         if wrong:
             raise InputError("the surrogate was trained for other material parameters: " + ", ".join(
                 f"{k}={trained[k]} (run: {mine[k]})" for k in wrong))
@@ -210,15 +235,17 @@ class SurrogateSolver:
         if kernel_params is None:
             return None
         self.check(params)  # its trials never pass through step's check
+        if self.formulation.material_inputs:  # a family's response depends on the set's material
+            return CellKernel(kernel_params, lambda v: self._responses(v, params))
         return CellKernel(kernel_params, self._responses)
 
-    def _responses(self, v: np.ndarray) -> np.ndarray:
-        """The compiled increment's response rows of states ``v``: the network's outputs for
-        them (cached), the cells outside the training domain counted (or the run stopped,
-        ``on_outside="error"``) as :meth:`step` does; a formulation that falls back takes the
-        closed form for them inside the kernel."""
+    def _responses(self, v: np.ndarray, params: Params | None = None) -> np.ndarray:
+        """The compiled increment's response rows of states ``v`` (of a family network: of the
+        material ``params``): the network's outputs for them (cached), the cells outside the
+        training domain counted (or the run stopped, ``on_outside="error"``) as :meth:`step`
+        does; a formulation that falls back takes the closed form for them inside the kernel."""
         f = self.formulation
-        outs, mask = self.outputs(v)
+        outs, mask = self.outputs(v, params=params)
         n_fall = self.count_outside(mask, f.describe(v))
         if f.falls_back:
             self.counts["fallback_cells"] += n_fall
@@ -279,18 +306,21 @@ class SurrogateSolver:
         """Rows of X outside the network's training domain by more than the margin."""
         return self.model.outside(X, self.margin)
 
-    def outputs(self, v: np.ndarray, X: np.ndarray | None = None) -> tuple[list[np.ndarray], np.ndarray]:
+    def outputs(self, v: np.ndarray, X: np.ndarray | None = None,
+                params: Params | None = None) -> tuple[list[np.ndarray], np.ndarray]:
         """Every member's network outputs and the out-of-domain mask for states ``v`` (inputs
-        X, from the state only; None: the formulation's features of ``v``, computed only when
-        the states are new); kept while the states do not change, so that the trial
-        increments of one Newton iteration cost no inference."""
-        hit = self._cache.get(v)
+        X, from the state only; None: the formulation's features of ``v`` and, for a family
+        network, of the material ``params``, computed only when the states are new); kept
+        while the states (and that material) do not change, so that the trial increments of
+        one Newton iteration cost no inference."""
+        material = () if params is None else tuple(getattr(params, k) for k in MATERIAL)
+        hit = self._cache.get(v, material)
         if hit is not None:
             outs, mask, gated = hit
             self._gated = gated
             return outs, mask | gated
         if X is None:
-            X = self.formulation.features(v)
+            X = self.formulation.features(v) if params is None else self.formulation.features(v, params)
         # Equal states are evaluated once: until shear starts, the cells of an isotropic REV
         # hold a handful of distinct states (their directions' cos^2 + sin^2 round to a few
         # values, scattered over the directions), so a consolidation sends a few rows per
@@ -311,7 +341,7 @@ class SurrogateSolver:
             outs, mask, gated = [o[row] for o in outs], mask[row], gated[row]
         if state_gate:
             self._record_gate(v, gated)
-        self._cache.put(v, (outs, mask, gated))
+        self._cache.put(v, (outs, mask, gated), material)
         self._gated = gated
         return outs, mask | gated
 
@@ -352,6 +382,12 @@ def _members(model) -> list[Surrogate]:
             raise InputError("the ensemble's models have different formulations (cell solver, material "
                              "or mechanisms): train every member on the same data and settings")
     return members
+
+
+def _within(value: float, lo: float, hi: float) -> bool:
+    """lo <= value <= hi, up to the round-off of a range written in other units."""
+    tol = 1e-9 * max(abs(lo), abs(hi), 1.0)
+    return lo - tol <= value <= hi + tol
 
 
 def _same(a, b) -> bool:

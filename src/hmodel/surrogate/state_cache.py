@@ -84,26 +84,27 @@ class StateCache:
         return len(self._entries)
 
     @staticmethod
-    def _key(v: np.ndarray) -> tuple:
-        """Shape, type and a hash of at most :data:`KEY_ROWS` rows: batches that share a key
-        but differ are told apart by :meth:`get`'s comparison (a miss), and :meth:`put` keeps
-        the newer."""
+    def _key(v: np.ndarray, extra: tuple = ()) -> tuple:
+        """Shape, type and a hash of at most :data:`KEY_ROWS` rows, and ``extra``: batches
+        that share a key but differ are told apart by :meth:`get`'s comparison (a miss), and
+        :meth:`put` keeps the newer."""
         sample = v[::max(1, len(v) // KEY_ROWS)] if v.ndim else v
-        return v.shape, v.dtype.str, hash(np.ascontiguousarray(sample).tobytes())
+        return v.shape, v.dtype.str, hash(np.ascontiguousarray(sample).tobytes()), extra
 
-    def get(self, v: np.ndarray) -> Any | None:
-        """What was stored for states equal to ``v``, or None."""
-        key = self._key(v)
+    def get(self, v: np.ndarray, extra: tuple = ()) -> Any | None:
+        """What was stored for states equal to ``v`` and ``extra`` (what else the value
+        depends on: a family network's material), or None."""
+        key = self._key(v, extra)
         hit = self._entries.get(key)
         if hit is None or not np.array_equal(hit[0], v):
             return None
         self._entries.move_to_end(key)
         return hit[1]
 
-    def put(self, v: np.ndarray, value: Any) -> None:
-        """Keep ``value`` for (a copy of) the states ``v``, dropping the oldest entries beyond
-        the budget."""
-        key = self._key(v)
+    def put(self, v: np.ndarray, value: Any, extra: tuple = ()) -> None:
+        """Keep ``value`` for (a copy of) the states ``v`` and ``extra``, dropping the oldest
+        entries beyond the budget."""
+        key = self._key(v, extra)
         old = self._entries.pop(key, None)
         if old is not None:
             self._bytes -= old[2]

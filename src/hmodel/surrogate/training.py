@@ -61,8 +61,9 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
 
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
-    if init is None:
-        form = make_formulation(config.formulation, params, cell, config.mechanisms, config.cell_step)
+    if init is None:  # rows that draw a material per path make a family network
+        form = make_formulation(config.formulation, params, cell, config.mechanisms, config.cell_step,
+                                family="kt_kn" in columns)
     else:  # the caller checks that the rows are of the model's material and cells
         form = init.formulation
         config = replace(config, formulation=form.name, width=init.architecture.width,
@@ -152,7 +153,28 @@ def train_on_sample(folder, config: TrainConfig, progress: Callable[[float], Non
     prov = info["provenance"] if len(parts) == 1 else [p[0][1]["provenance"] for p in parts]
     s.meta.update(training_data=prov, params=info["params"],
                   metrics=evaluate(s, test, "sample test rows"), history_tail=history[-3:])
+    if s.formulation.material_inputs:
+        s.meta["domain"] = training_domain([p[0][1]["provenance"]["options"] for p in parts])
     return s, history
+
+
+def training_domain(options: list[dict]) -> dict[str, list[float]]:
+    """A family network's training domain from the options of its datasets
+    (:class:`~hmodel.data.generator.DatasetSpec` as dicts): the ranges of kt/kn, φg and α0
+    [deg] every dataset covers (their intersection)."""
+    from ..data import DatasetSpec
+
+    domain: dict[str, list[float]] = {}
+    for o in options:
+        spec = DatasetSpec.from_dict(o)
+        ranges = {**spec.material_ranges, "alpha0": (spec.alpha0_min, spec.alpha0_max)}
+        for k, (lo, hi) in ranges.items():
+            old = domain.get(k, [lo, hi])
+            domain[k] = [max(old[0], lo), min(old[1], hi)]
+    bad = [k for k, (lo, hi) in domain.items() if lo > hi]
+    if bad:
+        raise InputError(f"the samples' material ranges do not overlap in {', '.join(bad)}")
+    return domain
 
 
 def training_bytes(arch: Architecture, n_in: int, n_out: int, batch_size: int) -> float:

@@ -31,6 +31,26 @@ from ...params import Params
 #: The predicted state columns of an H-cell (report §2.3).
 OUTPUTS = ("alpha_next", "N1_next", "N2_next", "T1_next")
 
+#: Material inputs a network over a range of materials (a *family*, issue 36) may take, each
+#: dimensionless: kn and r are scaled out (forces in kn·2r, lengths in 2r), so the response in
+#: those units depends on these alone. Each maps to (the value of a Params, the column of
+#: database rows that draw a material per path, :data:`hmodel.data.schema.MATERIAL_COLUMNS`).
+MATERIAL_INPUTS = {
+    "kt_kn": (lambda p: p.kt_kn, lambda c: np.asarray(c["kt_kn"], float)),
+    # tan φg, not φg: the Coulomb bound T = tan φg N, hence the sliding compliances, are linear in it
+    "tan_phi_g": (lambda p: p.tan_phi, lambda c: np.tan(np.asarray(c["phi_g"], float))),
+    "alpha0": (lambda p: p.alpha0, lambda c: np.asarray(c["alpha0"], float)),
+}
+
+
+def material_features(names: tuple[str, ...], params: Params | None = None,
+                      columns: dict[str, np.ndarray] | None = None, n: int = 0) -> np.ndarray:
+    """The material inputs ``names`` (:data:`MATERIAL_INPUTS`) as (n, len(names)) columns: of
+    one material ``params`` for n cells, or of database rows ``columns``."""
+    if columns is not None:
+        return np.column_stack([MATERIAL_INPUTS[k][1](columns) for k in names])
+    return np.tile([MATERIAL_INPUTS[k][0](params) for k in names], (n, 1))
+
 
 def is_h_cell(cell: str) -> bool:
     """Whether the cell solver ``cell`` (a spec) makes H-cells: the closed form's or the standard
@@ -51,10 +71,12 @@ class Networks(Protocol):
         """Rows of X outside the training domain (the solver's margin)."""
         ...
 
-    def outputs(self, v: np.ndarray, X: np.ndarray | None = None) -> tuple[list[np.ndarray], np.ndarray]:
+    def outputs(self, v: np.ndarray, X: np.ndarray | None = None,
+                params: Params | None = None) -> tuple[list[np.ndarray], np.ndarray]:
         """Every member's outputs for states v whose inputs X depend on the state only (None:
-        the formulation's features of v, computed when v is new), and the mask of the cells
-        outside the training domain (or gated); cached while the states do not change."""
+        the formulation's features of v, and of a family's material ``params``, computed when
+        v is new), and the mask of the cells outside the training domain (or gated); cached
+        while the states (and the material) do not change."""
         ...
 
 
@@ -119,6 +141,9 @@ class Formulation(ABC):
     needs_answer: bool = False
     #: The predicted state columns (``*_next``) of :meth:`decode`.
     outputs: tuple[str, ...] = OUTPUTS
+    #: A family network's material inputs (:data:`MATERIAL_INPUTS`), after the state's; ()
+    #: for a network of one material.
+    material_inputs: tuple[str, ...] = ()
 
     @abstractmethod
     def to_dict(self) -> dict:
@@ -166,9 +191,9 @@ class Formulation(ABC):
         """The loss along the data's paths that a training's ``config`` adds (None: none)."""
 
     # -- the cell solver's side -----------------------------------------------------------
-    def features(self, values: np.ndarray) -> np.ndarray:
+    def features(self, values: np.ndarray, params: Params | None = None) -> np.ndarray:
         """Network inputs of cell states (n, n_state), where the network sees the state only
-        (:attr:`state_only`)."""
+        (:attr:`state_only`), for the material ``params`` (a family's; None: the trained one)."""
         raise TypeError(f"the {self.name} network's inputs are not those of a state alone")
 
     def max_increment(self, input_range: np.ndarray | None) -> float:

@@ -41,10 +41,18 @@ from numba import njit
 
 from ...cell.base import LAW_COMPLIANCE
 from ...cell.closed_form import kernel_params, sliding_lambda
-from ...cell.compliance_kernel import MINUS, N_OUT, PLUS, STICK, advance_cells, pack_responses
+from ...cell.compliance_kernel import (
+    MINUS,
+    N_OUT,
+    PLUS,
+    STICK,
+    advance_cells,
+    compliance_increment,
+    pack_responses,
+)
 from ...cell.state import FIELDS, initial_lengths
 from ...params import Params
-from .base import Formulation, Increment, MaterialScales, Networks
+from .base import Formulation, Increment, MaterialScales, Networks, material_features
 
 __all__ = ["MINUS", "N_OUT", "PLUS", "STICK", "ComplianceFormulation"]
 
@@ -54,6 +62,10 @@ class ComplianceFormulation(MaterialScales, Formulation):
     """Inputs, targets and the exact decoding of the compliance formulation for one material."""
 
     params: Params  #: the material (only its material parameters matter)
+    #: A family's material inputs (``("kt_kn", "tan_phi_g")``): the network sees them after
+    #: the state, the rows' own material (drawn per path) in training and the run's in a REV,
+    #: whose kn and r scale forces and lengths; () for one material.
+    material_inputs: tuple[str, ...] = ()
     name: str = "compliance"
     logit_column = None
     n_outputs = N_OUT
@@ -67,15 +79,35 @@ class ComplianceFormulation(MaterialScales, Formulation):
     state_only = True
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "params": self.params.to_dict()}
+        d = {"name": self.name, "params": self.params.to_dict()}
+        if self.material_inputs:
+            d["material_inputs"] = list(self.material_inputs)
+        return d
 
-    def features(self, values: np.ndarray) -> np.ndarray:
-        """Network inputs (n, 4) from packed cell states (n, 8) (:data:`hmodel.cell.FIELDS`)."""
-        d, F = 2 * self.radius, self.force_scale
-        return np.column_stack([values[:, 2], values[:, 0] / d, values[:, 3] / F, values[:, 5] / F])
+    def features(self, values: np.ndarray, params: Params | None = None) -> np.ndarray:
+        """Network inputs (n, 4 + material inputs) from packed cell states (n, 8)
+        (:data:`hmodel.cell.FIELDS`) of the material ``params`` (None: the trained one)."""
+        p = self.params if params is None else params
+        d, F = 2 * p.radius, p.kn * 2 * p.radius
+        X = np.column_stack([values[:, 2], values[:, 0] / d, values[:, 3] / F, values[:, 5] / F])
+        if not self.material_inputs:
+            return X
+        return np.hstack([X, material_features(self.material_inputs, p, n=len(X))])
 
     def inputs(self, c: dict[str, np.ndarray]) -> np.ndarray:
-        return self.features(_packed(c))
+        X = self.features(_packed(c))
+        if not self.material_inputs:
+            return X
+        return np.hstack([X[:, :4], material_features(self.material_inputs, columns=c)])
+
+    def _row_params(self, c: dict[str, np.ndarray]) -> np.ndarray:
+        """Packed kernel parameters of every row (n, 7): the rows' own kt/kn and φg where they
+        draw a material per path (kn, r and the closures are the dataset's)."""
+        P = np.tile(kernel_params(self.params), (len(c["alpha"]), 1))
+        if "kt_kn" in c:
+            P[:, 1] = self.params.kn * np.asarray(c["kt_kn"], float)
+            P[:, 2] = np.tan(np.asarray(c["phi_g"], float))
+        return P
 
     def length_increments(self, c: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """δl1, δl2 of database rows: δl = −l0·δε on the cell's initial lengths (schema)."""
@@ -103,8 +135,8 @@ class ComplianceFormulation(MaterialScales, Formulation):
         regime = np.where(opened, 2.0, np.where(np.asarray(c["sliding"], bool),
                                                 np.where(c["T1_next"] >= 0, 1.0, -1.0), 0.0))
         dl1, dl2 = self.length_increments(c)
-        v, p = _packed(c), kernel_params(self.params)
-        lp, lm = _lambda(v, np.ones(len(v)), p) / d, _lambda(v, -np.ones(len(v)), p) / d
+        v, P = _packed(c), self._row_params(c)
+        lp, lm = _lambda(v, np.ones(len(v)), P) / d, _lambda(v, -np.ones(len(v)), P) / d
         u1, u2 = dl1 / d, dl2 / d
         lam = np.where(regime == 1.0, np.abs(lp), np.where(regime == -1.0, np.abs(lm), 0.0))
         lam = np.where(regime == 2.0, np.maximum(np.abs(lp), np.abs(lm)), lam)
@@ -134,13 +166,18 @@ class ComplianceFormulation(MaterialScales, Formulation):
             is_minus = is_minus + unknown * (e_m < e_s) * (e_m < e_p)
         return stick * (1.0 - is_plus - is_minus) + plus * is_plus + minus * is_minus
 
-    def advance(self, values: np.ndarray, dl: np.ndarray, out: np.ndarray):
+    def advance(self, values: np.ndarray, dl: np.ndarray, out: np.ndarray, params: Params | None = None,
+                rows: np.ndarray | None = None):
         """New packed states (n, 8) and flags (n, 5) of cells ``values`` under length increments
-        ``dl`` (n, 2), with the network's compliances ``out`` (n, 24) for those states."""
+        ``dl`` (n, 2), with the network's compliances ``out`` (n, 24) for those states, of the
+        material ``params`` (None: the trained one) or each row's (``rows``, packed (n, 7))."""
         new = np.empty_like(values)
         flags = np.empty((len(values), 5), dtype=np.bool_)
-        advance_cells(np.ascontiguousarray(values), np.ascontiguousarray(dl),
-                      np.ascontiguousarray(out), kernel_params(self.params), new, flags)
+        args = (np.ascontiguousarray(values), np.ascontiguousarray(dl), np.ascontiguousarray(out))
+        if rows is not None:
+            _advance_rows(*args, np.ascontiguousarray(rows), new, flags)
+        else:
+            advance_cells(*args, kernel_params(self.params if params is None else params), new, flags)
         return new, flags
 
     def kernel_params(self, params: Params) -> np.ndarray:
@@ -157,9 +194,10 @@ class ComplianceFormulation(MaterialScales, Formulation):
         return pack_responses(_mean(outs), mask)
 
     def step_cells(self, net: Networks, params: Params, v, e1, e2, dl) -> Increment:
-        """One exact increment of cells ``v`` with the learned compliances of their states."""
-        outs, mask = net.outputs(v)
-        new, flags = self.advance(v, dl, _mean(outs))
+        """One exact increment of cells ``v`` with the learned compliances of their states (a
+        family's: of their states and the run's material)."""
+        outs, mask = net.outputs(v, params=params if self.material_inputs else None)
+        new, flags = self.advance(v, dl, _mean(outs), params)
         return Increment(new, flags, mask, self.describe(v), outs)
 
     def member_afters(self, v, strain, dl, outs):
@@ -169,7 +207,7 @@ class ComplianceFormulation(MaterialScales, Formulation):
     def decode(self, c: dict[str, np.ndarray], out: np.ndarray) -> dict[str, np.ndarray]:
         """Predicted state after the increment of database rows (Surrogate.predict)."""
         dl1, dl2 = self.length_increments(c)
-        new, _ = self.advance(_packed(c), np.column_stack([dl1, dl2]), out)
+        new, _ = self.advance(_packed(c), np.column_stack([dl1, dl2]), out, rows=self._row_params(c))
         return {"alpha_next": new[:, 2], "N1_next": new[:, 3], "N2_next": new[:, 4], "T1_next": new[:, 5]}
 
 
@@ -183,13 +221,22 @@ def _packed(c: dict[str, np.ndarray]) -> np.ndarray:
 
 
 @njit(cache=True)
-def _lambda_kernel(values, regime, p, out):
+def _lambda_kernel(values, regime, P, out):
     for i in range(values.shape[0]):
         out[i] = sliding_lambda(values[i, 2], values[i, 3], values[i, 5],
-                                1.0 if regime[i] >= 0 else -1.0, p)
+                                1.0 if regime[i] >= 0 else -1.0, P[i])
 
 
-def _lambda(values, regime, p):
+def _lambda(values, regime, P):
+    """λ of eq. 1.10 of every row in the sliding direction ``regime`` (±1), with the rows'
+    packed parameters P (n, 7)."""
     out = np.empty(len(values))
-    _lambda_kernel(np.ascontiguousarray(values), np.asarray(regime, float), p, out)
+    _lambda_kernel(np.ascontiguousarray(values), np.asarray(regime, float), np.ascontiguousarray(P), out)
     return out
+
+
+@njit(cache=True)
+def _advance_rows(values, dl, resp, P, out, flags):
+    """:func:`advance_cells` with each row's own packed parameters P (n, 7)."""
+    for i in range(values.shape[0]):
+        compliance_increment(values, i, dl[i, 0], dl[i, 1], resp, P[i], out, flags)

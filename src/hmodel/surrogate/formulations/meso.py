@@ -67,6 +67,9 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
     #: increment, and a learned response no longer depends on it (see the DEM cells page: rate
     #: independence).
     cell_step: float | None = None
+    #: A family's material inputs (``("kt_kn", "tan_phi_g", "alpha0")``), after the summary
+    #: state's; () for one material.
+    material_inputs: tuple[str, ...] = ()
     name: str = "meso"
     #: float32 inference: checked against float64 on every compared DEM-REV path.
     single_precision = True
