@@ -17,6 +17,7 @@ measured from axis 1 (vertical), which matters only for an anisotropic fabric (b
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 from skfem import Basis, BilinearForm, LinearForm, asm
 
 
@@ -64,3 +65,54 @@ def stiffness(basis: Basis, D: np.ndarray):
 def volume_average(dx: np.ndarray, values: np.ndarray) -> np.ndarray:
     """Volume average over the Gauss points (weights ``dx`` (B,)) of values (B, ...)."""
     return np.tensordot(dx, values, axes=(0, 0)) / dx.sum()
+
+
+def strain_operator(basis: Basis) -> sp.csr_matrix:
+    """B (3 B x N): the Gauss points' strains in hmodel's convention, point-major rows
+    (3 b + c; c in (11, 22, 12) = (-yy, -xx, -xy)), of the nodal displacements of ``basis``
+    (a vector basis; points element-major as :func:`hmodel.fem.mesh.gauss_points`)."""
+    nel, nqp = basis.nelems, basis.X.shape[-1]
+    b = np.arange(nel * nqp)
+    rows, cols, vals = [], [], []
+    for i, phi in enumerate(basis.basis):
+        g = phi[0].grad  # (2, 2, nel, nqp): d phi_i,k / dx_j
+        dofs = np.repeat(basis.element_dofs[i], nqp)
+        for c, v in enumerate((-g[1, 1], -g[0, 0], -0.5 * (g[0, 1] + g[1, 0]))):
+            rows.append(3 * b + c)
+            cols.append(dofs)
+            vals.append(np.asarray(v).ravel())
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(3 * nel * nqp, basis.N))
+
+
+def block_diagonal(D: np.ndarray) -> sp.bsr_matrix:
+    """Block-diagonal (3 B x 3 B) of per-point 3 x 3 matrices D (B, 3, 3)."""
+    n = len(D)
+    return sp.bsr_matrix((np.ascontiguousarray(D), np.arange(n), np.arange(n + 1)), shape=(3 * n, 3 * n))
+
+
+class Operators:
+    """:func:`strain_hm`, :func:`internal_force` and :func:`stiffness` of one basis as sparse
+    products with its strain operator B, built once (scikit-fem's assembler re-evaluates the
+    forms' basis functions at every call, which a Newton iteration of many Gauss points then
+    pays twice). The same integrals: f = B^T W dx sig and K = B^T W dx D B, W = diag(1, 1, 2)
+    (the tensor shear component counts twice in e : s); the two sign flips of hmodel's
+    convention cancel in both."""
+
+    def __init__(self, basis: Basis):
+        self.B = strain_operator(basis)
+        dx = basis.dx.ravel()
+        w = np.tile([1.0, 1.0, 2.0], dx.size) * np.repeat(dx, 3)
+        self.BtW = (self.B.T @ sp.diags(w)).tocsr()
+
+    def strain(self, u: np.ndarray) -> np.ndarray:
+        """:func:`strain_hm` (B, 3)."""
+        return (self.B @ u).reshape(-1, 3)
+
+    def internal_force(self, sig: np.ndarray) -> np.ndarray:
+        """:func:`internal_force` (N,)."""
+        return self.BtW @ np.ascontiguousarray(sig).ravel()
+
+    def stiffness(self, D: np.ndarray) -> sp.csr_matrix:
+        """:func:`stiffness` (sparse N x N)."""
+        return (self.BtW @ block_diagonal(D) @ self.B).tocsr()

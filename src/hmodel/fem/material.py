@@ -8,13 +8,14 @@ and tangents use hmodel's convention (:mod:`hmodel.fem.assembly`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import numpy as np
+from numba import njit, prange
 
 from ..cell import CellFlags, CellState
 from ..errors import InputError
 from ..loading import consolidate
+from ..loading.compiled import batch_inputs, cell_responses, trial
 from ..rev import Rev, RevState
 
 #: Finite-difference strain perturbation of the tangent. The stress of one increment is
@@ -27,15 +28,58 @@ from ..rev import Rev, RevState
 FD_STEP = 1e-8
 
 
-@dataclass
+@njit(cache=True, parallel=True, error_model="numpy")
+def _fused_trials(values, flags, eps, deps, geo, p, sets, mode, volume0, resp, out, oflags, sig, ok):
+    """Every Gauss point's REV trial of ``deps`` (B, 3) in one pass over its cells, the points
+    in parallel: the compiled trial (:func:`hmodel.loading.compiled.trial`, the operations of
+    ``Rev.step`` in its order) into ``out``/``oflags``/``sig``; ``ok[b]`` False where a cell
+    increment failed."""
+    for b in prange(values.shape[0]):
+        k = sets[b]
+        ok[b] = trial(values[b], eps[b], deps[b], geo[k], p[k], mode, volume0[k], out[b], oflags[b],
+                      sig[b], resp[b])
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _fused_tangents(values, flags, eps, deps, geo, p, sets, mode, volume0, resp, h, sig, D, ok):
+    """The forward-difference tangent ``D`` (B, 3, 3) of :func:`_fused_trials` at ``deps``
+    whose stresses are ``sig``: three probe trials per point, deps + h e_j."""
+    B, n = values.shape[0], values.shape[1]
+    for b in prange(B):
+        k = sets[b]
+        probe = np.empty((n, values.shape[2]))
+        pflags = np.empty((n, flags.shape[2]), dtype=np.bool_)
+        s = np.empty(3)
+        x = np.empty(3)
+        ok[b] = True
+        for j in range(3):
+            x[:] = deps[b]
+            x[j] += h
+            ok[b] &= trial(values[b], eps[b], x, geo[k], p[k], mode, volume0[k], probe, pflags, s,
+                           resp[b])
+            for i in range(3):
+                D[b, i, j] = (s[i] - sig[b, i]) / h
+
+
 class Trial:
     """Response of every Gauss point to strain increments ``deps`` (B, 3): stress (B, 3),
-    tangent (B, 3, 3) and the REV state (None for laws without one)."""
+    tangent (B, 3, 3) and the REV state (None for laws without one).
 
-    deps: np.ndarray
-    sig: np.ndarray
-    D: np.ndarray
-    state: RevState | None = None
+    The tangent may be given as ``tangent()``, computed on first use of :attr:`D`: Newton
+    needs it only at the trials it corrects from, not at the line search's rejected ones
+    nor at the converged one."""
+
+    def __init__(self, deps: np.ndarray, sig: np.ndarray, D: np.ndarray | None = None,
+                 state: RevState | None = None, tangent=None):
+        self.deps, self.sig, self.state = deps, sig, state
+        self._D, self._tangent = D, tangent
+
+    @property
+    def D(self) -> np.ndarray:
+        if self._D is None:
+            self._D = self._tangent()
+            self._tangent = None
+        return self._D
 
 
 class HModelMaterial:
@@ -63,6 +107,10 @@ class HModelMaterial:
         start = consolidate(rev, [p0], state=rev.initial(rev.n_sets))
         self.state = start.select(sets if rev.n_sets > 1 else np.zeros(len(sets), np.int64))
         self.fd_step = max(FD_STEP, 10 * float(getattr(rev.solver, "stress_rtol", 0.0)))
+        #: the compiled kernel's inputs where the cells have one and the REV runs here (2D
+        #: REV; a Dask step or a cell solver without a compiled increment takes four calls)
+        self._inputs = (batch_inputs(rev) if step is None and rev.kernel is not None
+                        and not rev.kernel.learned and rev.n_components == 3 else None)
 
     @property
     def n_points(self) -> int:
@@ -73,22 +121,59 @@ class HModelMaterial:
         return self.state.sig
 
     def trial(self, deps: np.ndarray) -> Trial:
-        """Stress and finite-difference tangent after ``deps`` (B, 3) from the committed state:
-        four batched REV calls of B points (the increment and its three perturbations).
+        """Stress after ``deps`` (B, 3) from the committed state, and its finite-difference
+        tangent when first asked for (:class:`Trial`).
 
-        Four calls of the same committed state rather than one call of it tiled four times: a
+        With a compiled cell increment, fused kernels: each point's increment
+        (:func:`_fused_trials`), later its three perturbations (:func:`_fused_tangents`), in
+        one pass over its cells per trial, the points in parallel; the stresses and tangents
+        of ``Rev.step`` (the same operations in the same order). A point whose cell increment
+        fails sends the batch through :meth:`trial_calls`, whose REV call raises the solver's
+        error."""
+        if self._inputs is None:
+            return self.trial_calls(deps)
+        st = self.state
+        values = np.ascontiguousarray(st.cells.values, dtype=float)
+        flags = np.ascontiguousarray(st.flags.flags)
+        eps = np.ascontiguousarray(st.eps, dtype=float)
+        deps = np.ascontiguousarray(deps, dtype=float)
+        common = (values, flags, eps, deps, *self._inputs, st.set_index.astype(np.int64),
+                  self.rev.mode, self.rev.volumes0, cell_responses(self.rev, values, st.sets))
+        out, oflags = np.empty_like(values), np.empty_like(flags)
+        sig = np.empty((len(deps), 3))
+        ok = np.empty(len(deps), np.bool_)
+        _fused_trials(*common, out, oflags, sig, ok)
+        if not ok.all() or not np.isfinite(sig).all():
+            return self.trial_calls(deps)
+
+        def tangent():
+            D = np.empty((len(deps), 3, 3))
+            _fused_tangents(*common, self.fd_step, sig, D, ok)
+            return D if ok.all() and np.isfinite(D).all() else self._fd_tangent(st, deps, sig)
+        return Trial(deps, sig, None, RevState(CellState(out), CellFlags(oflags), st.eps + deps, sig, st.sets),
+                     tangent)
+
+    def trial_calls(self, deps: np.ndarray) -> Trial:
+        """:meth:`trial` as batched REV calls of B points (the increment, and for the tangent
+        its three perturbations), for any cell solver and wherever ``step`` runs.
+
+        Calls of the same committed state rather than one call of it tiled four times: a
         surrogate keeps its network's outputs for the last states it saw, so the perturbations
         (and every later Newton iterate of the load step) reuse the first call's inference,
         where a tiled state would send every cell through the network four times."""
+        st = self.state
+        out = self.step(self.rev, st, deps)
+        return Trial(deps, out.sig, None, out, lambda: self._fd_tangent(st, deps, out.sig))
+
+    def _fd_tangent(self, state: RevState, deps: np.ndarray, sig: np.ndarray) -> np.ndarray:
+        """Forward differences (B, 3, 3) of the stress ``sig`` of ``deps`` from ``state``."""
         h = self.fd_step
-        out = self.step(self.rev, self.state, deps)
-        sig = out.sig
         D = np.empty((len(deps), 3, 3))
         for j in range(3):
             d = deps.copy()
             d[:, j] += h
-            D[:, :, j] = (self.step(self.rev, self.state, d).sig - sig) / h
-        return Trial(deps, sig, D, out)
+            D[:, :, j] = (self.step(self.rev, state, d).sig - sig) / h
+        return D
 
     def commit(self, trial: Trial) -> None:
         self.state = trial.state

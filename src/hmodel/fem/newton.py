@@ -32,7 +32,7 @@ import numpy as np
 from skfem import Basis, condense, solve
 
 from ..errors import HModelError
-from .assembly import internal_force, stiffness, strain_hm
+from .assembly import Operators
 from .material import Trial
 
 
@@ -69,6 +69,8 @@ class Problem:
         mask = np.ones(self.n_dofs, bool)
         mask[self.fixed] = False
         self.free = np.flatnonzero(mask)
+        #: the basis's strain operator and the assembly built on it, once per problem
+        self.ops = Operators(self.basis)
 
     # A regularized problem (hmodel.fem.regularization) adds unknowns after the displacements
     # and overrides the methods below; the global Newton only goes through them.
@@ -80,17 +82,17 @@ class Problem:
     def evaluate(self, du: np.ndarray):
         """Trial of the increment ``du`` from the committed state: (trial, internal forces,
         residual), each of the problem's unknowns."""
-        trial = self.material.trial(strain_hm(self.basis, du))
-        f_int = internal_force(self.basis, trial.sig)
+        trial = self.material.trial(self.ops.strain(du))
+        f_int = self.ops.internal_force(trial.sig)
         return trial, f_int, f_int - self.f_ext
 
     def tangent(self, trial):
         """Jacobian of the residual at ``trial`` (sparse n_dofs x n_dofs)."""
-        return stiffness(self.basis, trial.D)
+        return self.ops.stiffness(trial.D)
 
     def reference_force(self) -> float:
         """Norm of the committed state's internal forces (the residual's scale)."""
-        return float(np.linalg.norm(internal_force(self.basis, self.material.sig)))
+        return float(np.linalg.norm(self.ops.internal_force(self.material.sig)))
 
     def commit(self, trial) -> None:
         self.material.commit(trial)
@@ -131,8 +133,19 @@ def _broken(obj) -> int:
 
 def _evaluate(pb: Problem, du: np.ndarray):
     """Material trial and internal forces of the displacement increment ``du``."""
+    return _refusable(pb.evaluate, du)
+
+
+def _tangent(pb: Problem, trial):
+    """The problem's tangent at ``trial``: the material's is computed when first asked for
+    (:class:`hmodel.fem.material.Trial`), where a probe's cell increment may be refused."""
+    return _refusable(pb.tangent, trial)
+
+
+def _refusable(call, arg):
+    """``call(arg)``, a material point's refusal (an HModelError) as :class:`NotConverged`."""
     try:
-        return pb.evaluate(du)
+        return call(arg)
     except HModelError as e:
         why = " ".join(str(e).split())
         raise NotConverged("a material point refused its increment ("
@@ -154,7 +167,7 @@ def newton_step(pb: Problem, d_lambda: float, guess: np.ndarray | None,
         # nodes (moving only the prescribed ones puts large strains into the boundary
         # elements, where cells may open and leave interior nodes without stiffness)
         t0, _, r0 = _evaluate(pb, np.zeros(pb.n_dofs))
-        du = solve(*condense(pb.tangent(t0), -r0, x=du, D=pb.fixed))
+        du = solve(*condense(_tangent(pb, t0), -r0, x=du, D=pb.fixed))
     trial, f_int, r = _evaluate(pb, du)
     # an unstressed start: the forces of the prescribed motion set the scale
     scale = max(scale, float(np.linalg.norm(f_int)))
@@ -177,7 +190,7 @@ def newton_step(pb: Problem, d_lambda: float, guess: np.ndarray | None,
             if most[0] > broken0:
                 return StepResult(most[1], most[2], most[3], residuals[:trials.index(most) + 1],
                                   d_lambda, event=True)
-        ddu = solve(*condense(pb.tangent(trial), -r, D=pb.fixed))
+        ddu = solve(*condense(_tangent(pb, trial), -r, D=pb.fixed))
         best = None
         for k in range(settings.line_search + 1):
             cand = du + ddu / 2 ** k
