@@ -23,7 +23,7 @@ ANGLE_PARAMS = ("phi_g", "alpha0", "beta_omega")
 UNITS = {
     "kn": "N/m", "kt_kn": "-", "phi_g": "deg", "alpha0": "deg", "alpha_omega": "-",
     "beta_omega": "deg", "n_theta": "-", "radius": "m", "volume": "-", "g2": "-",
-    "sliding_rhs": "-",
+    "sliding_rhs": "-", "alpha0_spread": "-",
 }
 
 
@@ -56,6 +56,11 @@ class Params:
         lambda = xi (g2 + sin a)(tan phi N1 - T1)/kn, as in the report's code;
         ``equilibrium`` is lambda = (g2 + sin a)(xi tan phi N1 - T1)/kn, which keeps grain 2
         in equilibrium (eq. 1.5) when the contact slides with T1 < 0. Both agree for xi = +1.
+    alpha0_spread : float
+        Spread of the opening angles across directions, in [0, 1): the cells' initial α0 are
+        the n_theta mid-quantiles of a uniform distribution on α0 ± alpha0_spread ·
+        min(α0 − 30°, 90° − α0), one per direction in an order uncorrelated with θ
+        (:func:`hmodel.rev.directions.opening_angles`); 0 is the H-model of one α0.
     """
 
     kn: float = 2.0e8
@@ -69,6 +74,7 @@ class Params:
     volume: str = "hexagon"
     g2: int = 0
     sliding_rhs: str = "report"
+    alpha0_spread: float = 0.0
 
     def __post_init__(self) -> None:
         self.validate()
@@ -114,6 +120,8 @@ class Params:
             raise InputError(f"parameter alpha0 must lie in (30, 90) deg, got {math.degrees(self.alpha0):g}")
         if not 0 <= self.alpha_omega <= 1:
             raise InputError(f"parameter alpha_omega must lie in [0, 1], got {self.alpha_omega}")
+        if not 0 <= self.alpha0_spread < 1:
+            raise InputError(f"parameter alpha0_spread must lie in [0, 1), got {self.alpha0_spread}")
         if int(self.n_theta) != self.n_theta or self.n_theta < 1:
             raise InputError(f"parameter n_theta must be a positive integer, got {self.n_theta}")
         if self.radius <= 0:

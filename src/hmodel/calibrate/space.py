@@ -14,7 +14,7 @@ from ..params import ANGLE_PARAMS, Params
 #: wide enough for real materials; kn is searched on a log scale.
 DEFAULT_BOUNDS = {
     "kn": (1e6, 1e11), "kt_kn": (0.05, 2.0), "phi_g": (5.0, 60.0), "alpha0": (31.0, 89.0),
-    "alpha_omega": (0.0, 0.9), "beta_omega": (0.0, 180.0),
+    "alpha_omega": (0.0, 0.9), "beta_omega": (0.0, 180.0), "alpha0_spread": (0.0, 0.95),
 }
 FITTABLE = tuple(DEFAULT_BOUNDS)
 #: Searched on a log scale (a stiffness spans orders of magnitude).
@@ -22,7 +22,9 @@ LOG = ("kn",)
 #: Where each parameter is valid (``Params.validate``), in the CLI's units: (low, high, open?).
 _VALID = {"kn": (0.0, math.inf, True), "kt_kn": (0.0, math.inf, True), "phi_g": (0.0, 90.0, True),
           "alpha0": (30.0, 90.0, True), "alpha_omega": (0.0, 1.0, False),
-          "beta_omega": (-math.inf, math.inf, False)}
+          "beta_omega": (-math.inf, math.inf, False),
+          # [0, 1) in Params: a search reaching 1 would ask for a cell at 30° or 90°
+          "alpha0_spread": (0.0, 0.99, False)}
 
 
 @dataclass(frozen=True)

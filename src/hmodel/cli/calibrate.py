@@ -53,7 +53,7 @@ def _search_rule(text: str) -> tuple[int, int] | None:
 
 def calibrate(
     data: Annotated[list[str], typer.Option("--data", help=f"A test, KIND:P0:FILE; KIND: drained or undrained (2D biaxial), {', '.join(k for k in Kind if k.dim == 3)} (3D); a CSV with columns eps11 (or eps_a), q and optionally eps_v, p: strains since the end of consolidation, stresses in Pa, compression positive; repeatable.")],
-    fit_: Annotated[str, typer.Option("--fit", help="Comma list of the parameters to fit (kn, kt_kn, phi_g, alpha0, alpha_omega, beta_omega).")] = "kn,kt_kn,phi_g,alpha0",
+    fit_: Annotated[str, typer.Option("--fit", help="Comma list of the parameters to fit (kn, kt_kn, phi_g, alpha0, alpha_omega, beta_omega, alpha0_spread).")] = "kn,kt_kn,phi_g,alpha0",
     bounds: Annotated[Optional[list[str]], typer.Option("--bounds", help="Search range NAME=LOW:HIGH (angles in degrees); repeatable. Default: a range wide enough for real materials, or the cell model's training domain (a family surrogate), outside which bounds are refused.")] = None,
     param: Annotated[Optional[list[str]], typer.Option("--param", "-p", metavar="NAME=VALUE", help="A fixed parameter (angles in degrees); repeatable.")] = None,
     method: Annotated[str, typer.Option(help=f"Calibration method: {', '.join(METHODS)}.")] = "least-squares",

@@ -34,6 +34,7 @@ PARAMS_2D_ONLY = {
                    "alpha_omega in a program, Sphere(alpha_omega=...) in Python",
     "beta_omega": "the 3D fabric's axis is the sphere's: the axial axis 1 on the command line, "
                   "[sphere] axis in a program, Sphere(axis=...) in Python",
+    "alpha0_spread": "the 3D model's bi-hexagons all start at alpha0",
 }
 
 
@@ -129,7 +130,7 @@ def _run_3d(params, p0, test: str, rows, n_steps: int, *, sphere: Sphere | None,
     """Isotropic consolidation of a :class:`Rev3D` to each ``p0``, then the stage whose rows
     ``rows(p0)`` gives (p0 per point, (B,)) in ``n_steps`` increments, recorded as ``shear``."""
     sets = (params,) if isinstance(params, Params) else tuple(params)
-    for name in ("alpha_omega", "beta_omega"):
+    for name in ("alpha_omega", "beta_omega", "alpha0_spread"):
         if any(isinstance(p, Params) and getattr(p, name) != 0 for p in sets):
             check_3d_params([name], "parameters")
     rev = Rev3D(params, sphere, solver)

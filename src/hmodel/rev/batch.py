@@ -69,14 +69,18 @@ class RevBatch:
         self.check_size(max(n_points, K))
         if K == 1:
             shape = (n_points, C)
-            return RevState(self.solver.initial(self.params, shape), self._no_flags(shape),
+            return RevState(self._initial_cells(self.params, shape), self._no_flags(shape),
                             np.zeros((n_points, n)), np.zeros((n_points, n)))
         if n_points not in (1, K):
             raise InputError(f"{K} parameter sets and {n_points} material points: give one "
                              "value or as many as the sets")
-        cells = np.stack([self.solver.initial(s, (C,)).values for s in self.sets])
+        cells = np.stack([self._initial_cells(s, (C,)).values for s in self.sets])
         return RevState(CellState(cells), self._no_flags((K, C)), np.zeros((K, n)),
                         np.zeros((K, n)), np.arange(K))
+
+    def _initial_cells(self, params, shape: tuple[int, ...]) -> CellState:
+        """Unloaded cells of one parameter set, shape (..., n_cells): all alike here."""
+        return self.solver.initial(params, shape)
 
     def solver_fractions(self, state: RevState) -> dict[str, np.ndarray]:
         """The cell solver's own diagnostics (:meth:`hmodel.cell.CellSolver.fractions`) as the

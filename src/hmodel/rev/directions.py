@@ -3,10 +3,14 @@
 theta_i = i*pi/n_theta, i = 0..n_theta-1, and w_i = omega(theta_i)*dtheta with
 omega(theta) = (1 + alpha_omega cos 2(theta - beta_omega))/pi (eq. 1.17), so that sum w_i = 1
 (eq. 1.14) for every n_theta >= 2 (and for n_theta = 1 when alpha_omega = 0).
+
+The opening angles of the cells (:func:`opening_angles`): one α0 for all (the H-model), or a
+spread of them across directions (``alpha0_spread``, docs/calibration.md).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -40,3 +44,28 @@ class Directions:
     @cached_property
     def sincos(self) -> np.ndarray:
         return np.sin(self.theta) * np.cos(self.theta)
+
+
+#: The golden ratio's fractional part: i·GOLDEN mod 1 (i = 0..n-1) orders the directions so that
+#: neighbouring directions get distant quantiles (a Weyl sequence, equidistributed and with no
+#: low-frequency correlation with θ).
+GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
+
+
+def opening_angles(params: Params) -> np.ndarray:
+    """Initial opening angle of each direction's cell (n_theta,) [rad].
+
+    With ``alpha0_spread`` s > 0, the cells' α0 are the n mid-quantiles
+    α0 + h (2 (k + 1/2)/n − 1), k = 0..n-1, of the uniform distribution on [α0 − h, α0 + h],
+    h = s · min(α0 − 30°, 90° − α0) (so every cell stays in the H-cell's (30°, 90°)); direction i
+    gets the quantile k of the rank of i·GOLDEN mod 1 among the n directions: the set of α0 is
+    the distribution's exactly, and its order across θ carries no fabric. s = 0: α0 everywhere.
+    """
+    n = params.n_theta
+    a0 = params.alpha0
+    if params.alpha0_spread == 0:
+        return np.full(n, a0)
+    h = params.alpha0_spread * min(a0 - math.pi / 6, math.pi / 2 - a0)
+    rank = np.empty(n, np.int64)
+    rank[np.argsort(np.mod(np.arange(n) * GOLDEN, 1.0), kind="stable")] = np.arange(n)
+    return a0 + h * (2.0 * (rank + 0.5) / n - 1.0)

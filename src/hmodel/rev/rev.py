@@ -25,7 +25,7 @@ from ..cell import (
 from ..errors import InputError
 from ..params import Params, check_batch
 from .batch import RevBatch
-from .directions import Directions
+from .directions import Directions, opening_angles
 from .kernels import LOC_BOX, LOC_CELL, LOC_VIRTUAL, average, localize
 from .state import (  # noqa: F401
     RevState,
@@ -86,19 +86,38 @@ class Rev(RevBatch):
         self._kn = np.array([s.kn for s in self.sets])
         #: localization mode of the meso-volume option (eq. 1.1 on l or l*), for the kernels
         self.mode = _LOC_MODE[params.volume]
+        spread = [s for s in self.sets if s.alpha0_spread > 0]
+        if spread and solver.name != "closed-form":
+            # the closed form's state carries each cell's α0; a network or DEM cell may read
+            # α0 from the parameters as well
+            raise InputError(f"alpha0_spread > 0 is implemented for the closed-form H-cell, not "
+                             f"for {solver.name} cells")
         cell0 = [solver.initial(s, ()) for s in self.sets]
         # cells with their own meso-stress (richer DEM cells, meso surrogates), or eq. 1.12
         self._own_meso = solver.meso(params, cell0[0]) is not None
-        # Initial macro volume V0 = sum_i w_i V_meso,i (eq. 1.14) per set; all cells start alike.
+        # Initial macro volume V0 = sum_i w_i V_meso,i (eq. 1.14) per set; all cells start alike
+        # but with a spread of α0
         vol0 = np.array([float(solver.meso(s, c)[1]) if self._own_meso else float(meso_volume(s, c))
                          for s, c in zip(self.sets, cell0)])
         #: initial macro volume of each set's points (K,)
         self.volumes0 = vol0 * self.weights.sum(axis=1)
+        for k, s in enumerate(self.sets):
+            if s.alpha0_spread > 0:
+                self.volumes0[k] = float(self.weights[k] @ meso_volume(s, self._initial_cells(s, ())))
         kernels = [solver.kernel(s) for s in self.sets]
         #: the solver's compiled increment of each set (None: the loading drivers call
         #: ``solver.step``)
         self.kernels: tuple[CellKernel, ...] | None = (None if any(k is None for k in kernels)
                                                           else tuple(kernels))
+
+    def _initial_cells(self, params: Params, shape: tuple[int, ...]) -> CellState:
+        """Unloaded cells of one set, shape (..., n_theta), each direction with its own α0
+        (:func:`~hmodel.rev.directions.opening_angles`) where the set has a spread of them."""
+        if params.alpha0_spread == 0:
+            return self.solver.initial(params, shape)
+        alpha0 = opening_angles(params)
+        return self.solver.initial_cells(params, np.broadcast_to(alpha0, (*shape[:-1], len(alpha0)))
+                                         if shape else alpha0)
 
     @property
     def n_theta(self) -> int:
