@@ -3,8 +3,9 @@ model, for docs/fem.md (Regularization): ``fem_regularized.json`` and ``docs/fig
 
 (b) biaxial: the edge imperfection of ``fem_study`` (φg = 25°, α0 = 55° in a disc of radius
     10 mm at the middle of the left side), smooth platens, 200 kPa drained, nθ = 90,
-    ``sliding_rhs=equilibrium``, to 10 % in 100 steps, on 8x16, 16x32 and 32x64 Q4, local and
-    ``nonlocal:ell=ELL``: q at 10 %, the band's angle and width (``hmodel.fem.bands``), wall
+    ``sliding_rhs=equilibrium``, to 10 % in 100 steps, on 8x16, 16x32 and 32x64 Q4, local
+    (``local-MESH``), ``nonlocal:ell=ELL`` (``nonlocal-MESH``) and ``nonlocal:ell=ELL,m=M``
+    (``partial-MESH``): q at 10 %, the band's angle and width (``hmodel.fem.bands``), wall
     and CPU time of each run (one case per process call: ``--cases``);
 (f) footing: rough, 0.2 m on 1.0 x 0.5 m, 100 kPa, nθ = 90, ``sliding_rhs=equilibrium``,
     ``nonlocal:ell=FOOT_ELL``, to s/B = 0.1 in 20 steps on 10x5, 20x10 and 40x20 Q4.
@@ -16,6 +17,7 @@ case's numbers are merged into the JSON; ``--plot`` draws the figure and the sum
 from __future__ import annotations
 
 import argparse
+import fcntl
 import json
 import math
 import time
@@ -34,6 +36,8 @@ from hmodel.fem.bands import shear_band  # noqa: E402
 from hmodel.fem.outputs import deviatoric_strain  # noqa: E402
 
 ELL = 0.005
+PARTIAL_M = 0.05  # the "partial" cases: nonlocal share m of the inelastic stress
+KINDS = ("local", "nonlocal", "partial")
 FOOT_ELL = 0.05
 ZONE = (0.0, 0.05, 0.01)
 MESHES = {"8x16": (8, 16), "16x32": (16, 32), "32x64": (32, 64)}
@@ -42,9 +46,9 @@ PARAMS = Params(n_theta=90, sliding_rhs="equilibrium")
 FIELDS = Path("/tmp/hmodel-fem-regularized")  # post-peak fields for the figure (large arrays)
 
 
-def biaxial_case(name: str, ell: float) -> dict:
+def biaxial_case(name: str, ell: float, m: float) -> dict:
     kind, mesh = name.split("-")
-    reg = None if kind == "local" else f"nonlocal:ell={ell:g}"
+    reg = {"local": None, "nonlocal": f"nonlocal:ell={ell:g}", "partial": f"nonlocal:ell={ell:g},m={m:g}"}[kind]
     t, c = time.perf_counter(), time.process_time()
     res = biaxial(PARAMS, 2e5, 0.10, mesh=MESHES[mesh], n_steps=100, n_saved=100, reference=True,
                   imperfection=f"phi_g=25,alpha0=55@{ZONE[0]},{ZONE[1]},{ZONE[2]}", regularization=reg)
@@ -81,7 +85,7 @@ def footing_case(name: str, ell: float) -> dict:
 
 def summary(cases: dict) -> dict:
     out = {}
-    for kind in ("local", "nonlocal"):
+    for kind in KINDS:
         q = {m: cases.get(f"{kind}-{m}", {}).get("q_at_10pc") for m in MESHES}
         if q["16x32"] and q["32x64"]:
             out[f"{kind}_q10_change_finest_pc"] = 100 * abs(q["32x64"] - q["16x32"]) / q["32x64"]
@@ -95,8 +99,9 @@ def summary(cases: dict) -> dict:
 
 
 def plot(cases: dict) -> None:
-    fig, axes = plt.subplots(2, 4, figsize=(15, 8))
-    for i, kind in enumerate(("local", "nonlocal")):
+    kinds = [k for k in KINDS if any(c.startswith(k + "-") for c in cases)]
+    fig, axes = plt.subplots(len(kinds), 4, figsize=(15, 4 * len(kinds)), squeeze=False)
+    for i, kind in enumerate(kinds):
         for j, m in enumerate(MESHES):
             ax = axes[i, j]
             ax.set_xticks([]), ax.set_yticks([]), ax.set_aspect("equal")
@@ -118,7 +123,7 @@ def plot(cases: dict) -> None:
             axes[i, 3].plot(mp["eps11"], np.array(mp["q"]) / 1e3, "k--", label="material point")
         axes[i, 3].set_title(f"{kind}: q against axial strain", fontsize=9)
         axes[i, 3].set_xlabel("axial strain"), axes[i, 3].set_ylabel("q [kPa]"), axes[i, 3].legend(fontsize=8)
-    fig.suptitle("deviatoric strain increment after the peak, local (top) and regularized (bottom)")
+    fig.suptitle("deviatoric strain increment after the peak: local, regularized (m = 1), regularized (m < 1)")
     fig.tight_layout()
     fig.savefig(FIGURES / "fem-regularized.png", dpi=100)
     plt.close(fig)
@@ -135,23 +140,29 @@ def plot(cases: dict) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--cases", default="", help="comma list: local-8x16, nonlocal-32x64, footing-20x10, ...")
+    ap.add_argument("--cases", default="", help="comma list: local-8x16, nonlocal-32x64, partial-16x32, "
+                                                "footing-20x10, ...")
     ap.add_argument("--ell", type=float, default=ELL)
+    ap.add_argument("--m", type=float, default=PARTIAL_M, help="nonlocal share of the partial cases")
     ap.add_argument("--foot-ell", type=float, default=FOOT_ELL)
     ap.add_argument("--plot", action="store_true")
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("fem_regularized.json"))
     args = ap.parse_args()
-    data = json.loads(args.out.read_text()) if args.out.exists() else {}
-    cases = data.get("cases", {})
     for name in filter(None, args.cases.split(",")):
-        cases[name] = (footing_case(name, args.foot_ell) if name.startswith("footing-")
-                       else biaxial_case(name, args.ell))
-        c = cases[name]
+        c = (footing_case(name, args.foot_ell) if name.startswith("footing-")
+             else biaxial_case(name, args.ell, args.m))
         print(f"{name}: {c['wall_s']:.1f} s wall, {c['cpu_s']:.1f} s CPU, stopped: {c['stopped']}, "
               + (f"q at 10 %: {c['q_at_10pc']}" if "q_at_10pc" in c else f"peak {c['peak_pressure']:.4g} Pa"),
               flush=True)
-        data = {**data, **provenance(__file__, args), "cases": cases, "summary": summary(cases)}
-        args.out.write_text(json.dumps(data, indent=1, default=float) + "\n")
+        # cases may run in several processes at once: merge under a lock, from the file as it is
+        with open(args.out.with_suffix(".lock"), "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            data = json.loads(args.out.read_text()) if args.out.exists() else {}
+            cases = {**data.get("cases", {}), name: c}
+            data = {**data, **provenance(__file__, args), "cases": cases, "summary": summary(cases)}
+            args.out.write_text(json.dumps(data, indent=1, default=float) + "\n")
+    data = json.loads(args.out.read_text()) if args.out.exists() else {}
+    cases = data.get("cases", {})
     if args.plot:
         plot(cases)
     print(json.dumps(summary(cases), indent=1))

@@ -132,7 +132,7 @@ def _problem(basis, material, fixed, g, f_ext, reg: Regularization) -> Problem:
     """The displacement problem, or with ``reg`` nonlocal the coupled one
     (:mod:`hmodel.fem.regularization`)."""
     if reg.kind == "nonlocal":
-        return NonlocalProblem(basis, material, fixed, g, f_ext, ell=reg.ell)
+        return NonlocalProblem(basis, material, fixed, g, f_ext, ell=reg.ell, m=reg.m)
     return Problem(basis, material, fixed, g, f_ext)
 
 

@@ -28,8 +28,9 @@ differences). Only the lower-left block changes between iterations. The Helmholt
 divided by the element size, so that their residual is a force like the equilibrium's and one
 norm measures both.
 
-Everything here works on Gauss-point operators built once from scikit-fem's basis: B (3B x N)
-maps nodal displacements to the points' strains, N (B x n) a nodal scalar to its point values.
+Everything here works on Gauss-point operators built once from scikit-fem's basis: B (3B x N,
+:func:`hmodel.fem.assembly.strain_operator`) maps nodal displacements to the points' strains,
+N (B x n) a nodal scalar to its point values.
 The material is anything with the law interface of :mod:`hmodel.fem.material` (``trial``,
 ``commit``, ``checkpoint``, ``restore``, ``sig``), which the 1D verification uses with a
 bilinear softening law.
@@ -44,6 +45,7 @@ import scipy.sparse as sp
 from skfem import Basis
 
 from ..errors import InputError
+from .assembly import block_diagonal
 from .material import Trial
 from .newton import Problem
 
@@ -52,10 +54,12 @@ KINDS = ("local", "nonlocal")
 
 @dataclass(frozen=True)
 class Regularization:
-    """``kind``: ``local`` (none) or ``nonlocal`` (inelastic stress averaged over ``ell`` [m])."""
+    """``kind``: ``local`` (none) or ``nonlocal`` (inelastic stress averaged over ``ell`` [m]);
+    ``m``: the nonlocal share of the inelastic stress in the equilibrium (1: fully nonlocal)."""
 
     kind: str = "local"
     ell: float | None = None
+    m: float = 1.0
 
     def __post_init__(self):
         if self.kind not in KINDS:
@@ -63,16 +67,21 @@ class Regularization:
         if self.kind == "nonlocal":
             if self.ell is None or not (np.isfinite(self.ell) and self.ell > 0):
                 raise InputError(f"the nonlocal regularization needs a length ell > 0 [m], got {self.ell!r}")
+            if not (np.isfinite(self.m) and 0 < self.m <= 1):
+                raise InputError(f"the nonlocal share m must lie in (0, 1], got {self.m!r}")
         elif self.ell is not None:
             raise InputError("the local model takes no length (use nonlocal:ell=LENGTH)")
 
     def __str__(self) -> str:
-        return self.kind if self.kind == "local" else f"nonlocal:ell={self.ell:g}"
+        if self.kind == "local":
+            return "local"
+        return f"nonlocal:ell={self.ell:g}" + (f",m={self.m:g}" if self.m != 1 else "")
 
 
 def parse_regularization(spec) -> Regularization:
     """``None``/``"local"`` -> no regularization; ``"nonlocal:ell=0.005"`` (metres; also
-    ``nonlocal:0.005``) -> :class:`Regularization`; a :class:`Regularization` passes through."""
+    ``nonlocal:0.005``), ``"nonlocal:ell=0.005,m=0.2"`` -> :class:`Regularization`; a
+    :class:`Regularization` passes through."""
     if spec is None:
         return Regularization()
     if isinstance(spec, Regularization):
@@ -85,16 +94,21 @@ def parse_regularization(spec) -> Regularization:
         if opts.strip():
             raise InputError(f"the local model takes no options, got {spec!r}")
         return Regularization()
-    name, eq, value = opts.partition("=")
-    if not eq:
-        name, value = "ell", name
-    if name.strip().lower() != "ell":
-        raise InputError(f"the nonlocal regularization takes ell=LENGTH [m], got {spec!r}")
-    try:
-        ell = float(value)
-    except ValueError:
-        raise InputError(f"the nonlocal regularization's ell must be a length in metres, got {value!r}") from None
-    return Regularization("nonlocal", ell)
+    values = {}
+    for i, item in enumerate(opts.split(",")):
+        name, eq, value = item.partition("=")
+        if not eq and i == 0:
+            name, value = "ell", name
+        name = name.strip().lower()
+        if name not in ("ell", "m") or name in values:
+            raise InputError(f"the nonlocal regularization takes ell=LENGTH [m][,m=SHARE], got {spec!r}")
+        try:
+            values[name] = float(value)
+        except ValueError:
+            raise InputError(f"the nonlocal regularization's {name} must be a number, got {value!r}") from None
+    if "ell" not in values:
+        raise InputError(f"the nonlocal regularization needs ell=LENGTH [m], got {spec!r}")
+    return Regularization("nonlocal", values["ell"], values.get("m", 1.0))
 
 
 def element_size(domain) -> float:
@@ -115,23 +129,6 @@ def unresolved(reg: Regularization, domain) -> str | None:
     return None
 
 
-def strain_operator(basis: Basis) -> sp.csr_matrix:
-    """B (3 B x N): the Gauss points' strains in hmodel's convention, point-major rows
-    (3 b + c; c in (11, 22, 12) = (-yy, -xx, -xy)), of the nodal displacements of ``basis``
-    (a vector basis; points element-major as :func:`hmodel.fem.mesh.gauss_points`)."""
-    nel, nqp = basis.nelems, basis.X.shape[-1]
-    npts = nel * nqp
-    rows, cols, vals = [], [], []
-    b = np.arange(npts)
-    for i, phi in enumerate(basis.basis):
-        g = phi[0].grad  # (2, 2, nel, nqp): d phi_k / dx_j
-        dofs = np.repeat(basis.element_dofs[i], nqp)
-        for c, v in enumerate((-g[1, 1], -g[0, 0], -0.5 * (g[0, 1] + g[1, 0]))):
-            rows.append(3 * b + c), cols.append(dofs), vals.append(np.asarray(v).ravel())
-    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                         shape=(3 * npts, basis.N))
-
-
 def scalar_operators(basis: Basis) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_matrix]:
     """N, d/dx, d/dy (each B x n) of a scalar basis: nodal values to Gauss-point values."""
     nel, nqp = basis.nelems, basis.X.shape[-1]
@@ -147,12 +144,6 @@ def scalar_operators(basis: Basis) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr
         out.append(sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                                  shape=(nel * nqp, basis.N)))
     return tuple(out)
-
-
-def _blocks(D: np.ndarray) -> sp.bsr_matrix:
-    """Block-diagonal (3 B x 3 B) of per-point 3 x 3 matrices D (B, 3, 3)."""
-    n = len(D)
-    return sp.bsr_matrix((np.ascontiguousarray(D), np.arange(n), np.arange(n + 1)), shape=(3 * n, 3 * n))
 
 
 @dataclass
@@ -183,6 +174,7 @@ class NonlocalProblem(Problem):
     stiffness with every contact sticking."""
 
     ell: float = 0.0
+    m: float = 1.0
     D_e: np.ndarray | None = None
     scalar: Basis = field(init=False)
 
@@ -196,23 +188,20 @@ class NonlocalProblem(Problem):
         self.f_ext = np.concatenate([self.f_ext, pad])
         dx = b.dx.ravel()
         npts = dx.size
-        self.B = strain_operator(b)
+        self.B, self.BtW = self.ops.B, self.ops.BtW  # the displacement problem's own
         N, Nx, Ny = scalar_operators(self.scalar)
         I3 = sp.identity(3, format="csr")
         self.N3 = sp.kron(N, I3, format="csr")  # gbar (3 n) -> points (3 B), point-major
         self.dx3 = np.repeat(dx, 3)
-        w = np.tile([1.0, 1.0, 2.0], npts)  # tensor shear component counts twice in e : s
-        Wdx = sp.diags(self.dx3 * w)
-        self.BtW = (self.B.T @ Wdx).tocsr()  # internal forces: f = B^T W dx sig
         if self.D_e is None:
             D = self.material.trial(np.zeros((npts, 3))).D
             self.D_e = 0.5 * (D + np.swapaxes(D, 1, 2))
-        self.K_e = (self.BtW @ _blocks(self.D_e) @ self.B).tocsr()
+        self.K_e = (self.BtW @ block_diagonal(self.D_e) @ self.B).tocsr()
         A = N.T @ sp.diags(dx) @ N + self.ell ** 2 * (Nx.T @ sp.diags(dx) @ Nx + Ny.T @ sp.diags(dx) @ Ny)
         # Helmholtz rows [Pa m^2] to forces [Pa m]: divided by a typical element size
         self.row_scale = 1.0 / float(np.sqrt(dx.sum() / b.nelems))
         self.A3 = (sp.kron(A, I3, format="csr") * self.row_scale).tocsr()
-        self.K_ug = -(self.BtW @ self.N3).tocsr()
+        self.K_ug = -self.m * (self.BtW @ self.N3).tocsr()
         self.NtDx = (self.N3.T @ sp.diags(self.dx3)).tocsr() * self.row_scale
         self.eps = np.zeros((npts, 3))  # committed strain since the start
         self.sig0 = self.material.sig.copy()
@@ -235,7 +224,9 @@ class NonlocalProblem(Problem):
         elastic = np.einsum("bij,bj->bi", self.D_e, eps)
         g = elastic - (local.sig - self.sig0)  # the points' inelastic stress
         gbar_pts = (self.N3 @ gbar.ravel()).reshape(-1, 3)
-        sig = self.sig0 + elastic - gbar_pts
+        sig = self.sig0 + elastic - self.m * gbar_pts
+        if self.m != 1:
+            sig -= (1 - self.m) * g
         f_int = self.BtW @ sig.ravel()
         r_g = self.A3 @ gbar.ravel() - self.NtDx @ g.ravel()
         trial = CoupledTrial(local, gbar, sig)
@@ -243,8 +234,9 @@ class NonlocalProblem(Problem):
         return trial, f, np.concatenate([f_int - self.f_ext[: self.n_u], r_g])
 
     def tangent(self, trial: CoupledTrial):
-        K_gu = -(self.NtDx @ _blocks(self.D_e - trial.D) @ self.B)
-        return sp.bmat([[self.K_e, self.K_ug], [K_gu, self.A3]], format="csr")
+        inelastic = block_diagonal(self.D_e - trial.D) @ self.B  # d g / d u
+        K_uu = self.K_e if self.m == 1 else self.K_e - (1 - self.m) * (self.BtW @ inelastic)
+        return sp.bmat([[K_uu, self.K_ug], [-(self.NtDx @ inelastic), self.A3]], format="csr")
 
     def commit(self, trial: CoupledTrial) -> None:
         self.material.commit(trial.local)
