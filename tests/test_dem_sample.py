@@ -181,6 +181,11 @@ def test_target_porosity_lowers_the_compaction_friction(tmp_path, capsys):
     (["--rows", "0"], "--rows must be a positive integer"),
     (["--seed", "-1"], "--seed must be >= 0"),
     (["--disks", "5"], "--disks must be at least 20"),
+    # (6 r_max)^2 (pi / (2 sqrt 3)) / (pi E[r^2]), r in [2/11, 20/11] at ratio 10: uniform,
+    # E[r^2] = 148/121 and 14400 / (296 sqrt 3) = 28.1; equal-area, E[r^2] = r_min r_max =
+    # 40/121 and 14400 / (80 sqrt 3) = 103.9
+    (["--disks", "28", "--radius-ratio", "10"], "use at least 29 disks"),
+    (["--disks", "103", "--radius-ratio", "10", "--distribution", "equal-area"], "use at least 104 disks"),
     (["--inertial-number", "1e-4", "--strain-rate", "1e-3"], "not both"),
     (["--strain-rate", "0"], "--strain-rate must be a positive number"),
 ])

@@ -23,8 +23,11 @@ DISTRIBUTIONS_3D = ("uniform", "equal-volume")
 #: Solid fraction of the densest sphere packing: a sphere sample's cell is never smaller than
 #: its solid volume over this.
 DENSEST_3D = math.pi / math.sqrt(18.0)
-#: A sphere sample's cell edge must hold this many of its largest diameters, so that no
-#: sphere reaches its own periodic image and the cell is more than a few grains.
+#: Solid fraction of the densest disk packing (hexagonal): a disk sample's cell is never
+#: smaller than its solid area over this.
+DENSEST_2D = math.pi / (2.0 * math.sqrt(3.0))
+#: A sample's cell edge must hold this many of its largest diameters, so that no grain reaches
+#: its own periodic image and the cell is more than a few grains.
 MIN_DIAMETERS_3D = 3.0
 
 
@@ -149,8 +152,7 @@ class SampleSettings:
         if self.distribution not in names:
             raise InputError(f"--distribution must be one of {', '.join(names)}"
                              f"{'' if self.dim == 2 else ' with spheres'}, got {self.distribution!r}")
-        if self.dim == 3:
-            self._check_periodic()
+        self._check_periodic()
         if not (finite("phi_g") and 0 < self.phi_g < 90):
             raise InputError(f"--phi-g must lie in (0, 90) degrees, got {self.phi_g}")
         if self.compaction_friction is not None and not (
@@ -175,10 +177,19 @@ class SampleSettings:
             raise InputError(f"invalid numerical settings of the DEM sample: {self}")
 
     def _check_periodic(self) -> None:
-        """A sphere sample's cell at its densest (solid fraction :data:`DENSEST_3D`) must be
-        :data:`MIN_DIAMETERS_3D` largest diameters wide; the expected solid volume is used, so
-        the check does not depend on the seed."""
+        """A sample's cell at its densest (solid fraction :data:`DENSEST_3D`, or
+        :data:`DENSEST_2D` for disks) must be :data:`MIN_DIAMETERS_3D` largest diameters wide;
+        the expected solid volume (area) is used, so the check does not depend on the seed."""
         a, b = self.r_min, self.r_max
+        if self.dim == 2:
+            # mean of r^2: r uniform in [a, b], or density ~ r^-2 (equal-area), whose mean is ab
+            r2 = (a * a + a * b + b * b) / 3.0 if self.distribution == "uniform" or a == b else a * b
+            need = math.ceil((MIN_DIAMETERS_3D * 2.0 * b) ** 2 * DENSEST_2D / (math.pi * r2))
+            if self.disks < need:
+                raise InputError(f"--disks {self.disks} is too small a sample to be periodic: its "
+                                 f"densest cell is narrower than {MIN_DIAMETERS_3D:g} largest "
+                                 f"diameters; use at least {need} disks (or a smaller --radius-ratio)")
+            return
         if self.distribution == "uniform" or a == b:
             r3 = (a ** 3 + a * a * b + a * b * b + b ** 3) / 4.0  # mean of r^3, r uniform in [a, b]
         else:
