@@ -44,7 +44,9 @@ def _finish(res, out: Path) -> None:
     if band.get("angle_deg") is not None:
         theory = ", ".join(f"{k.capitalize()} {band[k]:.1f}°" for k in ("coulomb", "roscoe", "arthur") if k in band)
         typer.echo(f"shear band at {band['angle_deg']:.1f}° from the horizontal"
-                   + (f" ({theory})" if theory else "") + f", after the peak at step {band['peak_step']}")
+                   + (f" ({theory})" if theory else "")
+                   + (f", {1e3 * band['width_m']:.3g} mm wide" if band.get("width_m") else "")
+                   + f", after the peak at step {band['peak_step']}")
     if res.stopped:
         typer.echo(f"hmodel: warning: the run stopped early: {res.stopped}", err=True)
 
