@@ -89,6 +89,9 @@ def train_cmd(
     r2 = {m["output"]: m["r2"] for m in s.meta["metrics"] if m["quantity"] == "state after"}
     typer.echo(f"wrote {out}: {len(history)} epochs in {s.meta['seconds']:.0f} s; test R² "
                + ", ".join(f"{k} {v:.6f}" for k, v in r2.items()))
+    if s.meta.get("domain"):  # a family network (rows with a material per path)
+        typer.echo("over materials " + ", ".join(f"{k} {lo:g}–{hi:g}" for k, (lo, hi) in s.meta["domain"].items())
+                   + f" (inputs {', '.join(s.formulation.material_inputs)})")
 
 
 @app.command("distill")

@@ -196,7 +196,7 @@ class ComplianceFormulation(MaterialScales, Formulation):
     def step_cells(self, net: Networks, params: Params, v, e1, e2, dl) -> Increment:
         """One exact increment of cells ``v`` with the learned compliances of their states (a
         family's: of their states and the run's material)."""
-        outs, mask = net.outputs(v, params=params if self.material_inputs else None)
+        outs, mask = net.outputs(v, params=params) if self.material_inputs else net.outputs(v)
         new, flags = self.advance(v, dl, _mean(outs), params)
         return Increment(new, flags, mask, self.describe(v), outs)
 

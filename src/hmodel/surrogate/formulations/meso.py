@@ -37,16 +37,17 @@ extrapolated, counted either way.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ...cell.meso_kernel import advance_cells, pack_outputs, pack_responses
 from ...cell.meso_kernel import kernel_params as meso_kernel_params
 from ...cell.mesostress import contact_vsigma
+from ...cell.state import CellState
 from ...errors import InputError
 from ...params import Params
-from .base import OUTPUTS, Formulation, Increment, Networks
+from .base import OUTPUTS, Formulation, Increment, Networks, material_features
 from .meso_head import MesoHead, array_ops, like, positive
 from .meso_rollout import MesoRollout, MesoTraining, RolloutLoss, secant_weights
 from .meso_summary import COLUMN, MESO_FIELDS, STATE_FIELDS, MesoSummary
@@ -98,8 +99,61 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
             raise InputError(f"cell_step must be a positive strain, got {self.cell_step}")
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "params": self.params.to_dict(), "cell": self.cell,
-                "mechanisms": self.mechanisms, "cell_step": self.cell_step}
+        d = {"name": self.name, "params": self.params.to_dict(), "cell": self.cell,
+             "mechanisms": self.mechanisms, "cell_step": self.cell_step}
+        if self.material_inputs:
+            d["material_inputs"] = list(self.material_inputs)
+        return d
+
+    # -- a family network (material inputs) -------------------------------------------------
+    def for_material(self, params: Params | None) -> "MesoFormulation":
+        """This formulation for the material ``params`` (a family network's run): the Coulomb
+        bound, the force unit and the cell's geometry (its free grain's radius at α0) are the
+        run's; the same formulation for one material or ``params`` None."""
+        if not self.material_inputs or params is None or params == self.params:
+            return self
+        return replace(self, params=params)
+
+    def _row_materials(self, c: dict[str, np.ndarray]) -> list[tuple[np.ndarray, "MesoFormulation"]]:
+        """The rows of each material of database rows ``c`` (a family's data: kt/kn, φg per
+        path, α0 per path or REV) and the formulation for it; one group without material columns."""
+        if not self.material_inputs or "kt_kn" not in c:
+            return [(np.arange(len(c["deps1"])), self)]
+        keys = np.column_stack([c["kt_kn"], c["phi_g"], c["alpha0"]])
+        uniq, inverse = np.unique(keys, axis=0, return_inverse=True)
+        inverse = inverse.reshape(-1)
+        return [(np.flatnonzero(inverse == j),
+                 self.for_material(self.params.with_(kt_kn=float(k), phi_g=float(f), alpha0=float(a))))
+                for j, (k, f, a) in enumerate(uniq)]
+
+    def augment(self, c: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Database columns plus the meso-stress before and after, each material's rows with
+        its own cell geometry (a family's data)."""
+        groups = self._row_materials(c)
+        if len(groups) == 1 or "Vs_nn" in c:
+            return MesoSummary.augment(groups[0][1], c)
+        parts = [(rows, MesoSummary.augment(f, {k: v[rows] for k, v in c.items()})) for rows, f in groups]
+        out = dict(c)
+        for k in parts[0][1]:
+            if k not in c:
+                col = np.empty(len(c["deps1"]))
+                for rows, part in parts:
+                    col[rows] = part[k]
+                out[k] = col
+        return out
+
+    def features(self, v: np.ndarray, params: Params | None = None) -> np.ndarray:
+        """Network inputs of summary states v (n, 11) of the material ``params`` (None: the
+        trained one): the summary's (:meth:`MesoHead.features`), then a family's material inputs."""
+        f = self.for_material(params)
+        X = MesoHead.features(f, v)
+        if not self.material_inputs:
+            return X
+        return np.hstack([X, material_features(self.material_inputs, f.params, n=len(X))])
+
+    def initial(self, params: Params, shape: tuple[int, ...] = ()) -> CellState:
+        """Summary of unloaded cells: of the trained opening angle, a family's of the run's."""
+        return MesoSummary.initial(self.for_material(params), params, shape)
 
     def fits(self, cell: str) -> bool:
         """Whether rows of cells of the solver ``cell`` are this formulation's: its own cells'."""
@@ -108,7 +162,10 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
     # -- training -------------------------------------------------------------------------
     def inputs(self, c: dict[str, np.ndarray]) -> np.ndarray:
         c = self.augment(c)
-        return self.features(np.column_stack([c[k] for k in STATE_FIELDS]))
+        X = MesoHead.features(self, np.column_stack([c[k] for k in STATE_FIELDS]))
+        if not self.material_inputs:
+            return X
+        return np.hstack([X, material_features(self.material_inputs, columns=c)])
 
     def targets(self, c: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """dz/m0 (n, len(learned)) and weights: 0 for the contact forces N1, N2, T1 on the rows
@@ -135,6 +192,10 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
         """The rollout error along the data's paths of a training with ``rollout`` steps."""
         if not config.rollout:
             return None
+        if self.material_inputs:
+            raise InputError("rollout training applies one material's Coulomb bound and cage to every "
+                             "window; a family network (rows with a material per path) trains on "
+                             "single increments (--rollout 0)")
         return RolloutLoss(self, columns, config, rng, x_scaler, net, config.rollout, config.rollout_substeps,
                            config.rollout_weight)
 
@@ -151,7 +212,10 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
         c = self.augment(c)
         v = np.column_stack([c[k] for k in STATE_FIELDS])
         dl = np.column_stack([c["l1_next"] - c["l1"], c["l2_next"] - c["l2"]])
-        new, _ = self.advance(v, increment(c), dl)
+        Y = increment(c)
+        new = np.empty_like(v)
+        for rows, f in self._row_materials(c):  # each material's bound and cage
+            new[rows] = f.advance(v[rows], Y[rows], dl[rows])[0]
         return {f"{k}_next": new[:, COLUMN[k]] for k in ("alpha", "N1", "N2", "T1") + MESO_FIELDS}
 
     # -- the way back ---------------------------------------------------------------------
@@ -215,13 +279,14 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
         (:meth:`hmodel.surrogate.solver.SurrogateSolver.step`)."""
         if self.cell_step is not None:
             return None
-        return meso_kernel_params(self, params)
+        return meso_kernel_params(self.for_material(params), params)
 
     def step_cells(self, net: Networks, params: Params, v, e1, e2, dl) -> Increment:
         """One learned increment of summary states v (n, 11), in the compiled way back (the
         NumPy one, :meth:`advance`, in one pass; tested against it)."""
-        outs, mask = net.outputs(v)
-        new, flags, _ = advance_cells(v, np.ascontiguousarray(dl, float), meso_kernel_params(self, params),
+        outs, mask = net.outputs(v, params=params) if self.material_inputs else net.outputs(v)
+        new, flags, _ = advance_cells(v, np.ascontiguousarray(dl, float),
+                                      meso_kernel_params(self.for_material(params), params),
                                       self.responses(v, outs, mask))
         return Increment(new, flags, mask, self.describe(v), outs)
 
@@ -238,7 +303,7 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
 
     def describe(self, v: np.ndarray):
         """Names the network inputs of cell i of ``v``, for the out-of-domain error."""
-        return lambda i: ", ".join(f"{k}={x:.4g}" for k, x in zip(self.input_names, self.features(v[i:i + 1])[0]))
+        return lambda i: ", ".join(f"{k}={x:.4g}" for k, x in zip(self.input_names, MesoHead.features(self, v[i:i + 1])[0]))
 
     def member_afters(self, v, strain, dl, outs):
         """Every member's summary states after cell strains ``strain`` and length increments
