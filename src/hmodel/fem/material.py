@@ -8,14 +8,13 @@ and tangents use hmodel's convention (:mod:`hmodel.fem.assembly`).
 
 from __future__ import annotations
 
-
 import numpy as np
 from numba import njit, prange
 
 from ..cell import CellFlags, CellState
 from ..errors import InputError
 from ..loading import consolidate
-from ..loading.compiled import batch_inputs, cell_responses, trial
+from ..loading.compiled import batch_inputs, trial
 from ..rev import Rev, RevState
 
 #: Finite-difference strain perturbation of the tangent. The stress of one increment is
@@ -137,8 +136,9 @@ class HModelMaterial:
         flags = np.ascontiguousarray(st.flags.flags)
         eps = np.ascontiguousarray(st.eps, dtype=float)
         deps = np.ascontiguousarray(deps, dtype=float)
+        # the closed form's cells need no per-cell responses (a learned cell's would)
         common = (values, flags, eps, deps, *self._inputs, st.set_index.astype(np.int64),
-                  self.rev.mode, self.rev.volumes0, cell_responses(self.rev, values, st.sets))
+                  self.rev.mode, self.rev.volumes0, np.empty((*values.shape[:2], 0)))
         out, oflags = np.empty_like(values), np.empty_like(flags)
         sig = np.empty((len(deps), 3))
         ok = np.empty(len(deps), np.bool_)
