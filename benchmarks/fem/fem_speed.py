@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.timing import record, write_table
+from benchmarks.timing import provenance, record, write_table
 from hmodel import Params
 from hmodel.fem import biaxial
 
@@ -91,7 +91,8 @@ def run_case(name: str) -> tuple[dict, np.ndarray]:
            # the machine is shared: the load beside the run says how far wall is from CPU
            "load_average_before": load, "load_average_after": os.getloadavg()[0],
            "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
-           "numba_threads": os.environ.get("NUMBA_NUM_THREADS", "all cores")}
+           "numba_threads": os.environ.get("NUMBA_NUM_THREADS", "all cores"),
+           "commit": provenance(__file__, {})["commit"]}
     for part, fns in PARTS.items():
         out[f"{part}_s"] = sum(_calls(st, *f)[1] for f in fns)
     out["other_s"] = wall - sum(out[f"{p}_s"] for p in PARTS)
