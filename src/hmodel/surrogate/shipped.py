@@ -14,6 +14,10 @@
   its recipe (seeds 1, 2), whose compliances average and whose disagreement is the trust score
   of ``--gate`` (stored with the first, a copy of the default network).
 
+- ``family`` (``h-cell-family.safetensors``): the default network's recipe over a range of
+  materials (kt/kn 0.2–1, φg 10–45°, α0 35–75°; kn and r scaled out): kt/kn and tan φg are
+  inputs, the training domain is stored and checked (issue 36).
+
 Each is produced by the commands in ``models/README.md`` (a fixed dataset, sample and seed) and
 loaded like any other model file (checked, never unpickled).
 """
@@ -31,7 +35,7 @@ SHIPPED = {"default": "h-cell-default.safetensors", "increment": "h-cell-increme
            "hexagon-center-0": "hexagon-center-0.safetensors", "hexagon-center-1": "hexagon-center-1.safetensors",
            "ensemble-0": "h-cell-ensemble-0.safetensors", "ensemble-1": "h-cell-ensemble-1.safetensors",
            "ensemble-2": "h-cell-ensemble-2.safetensors",
-           "equilibrium": "h-cell-equilibrium.safetensors"}
+           "equilibrium": "h-cell-equilibrium.safetensors", "family": "h-cell-family.safetensors"}
 #: Shipped ensembles by name: their members, the one holding the ensemble's trust first.
 ENSEMBLES = {"ensemble": ("ensemble-0", "ensemble-1", "ensemble-2"),
              "hexagon-center": ("hexagon-center-0", "hexagon-center-1")}
