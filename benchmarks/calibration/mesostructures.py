@@ -168,7 +168,11 @@ def figure(name: str, tests: dict, results: dict, path: Path) -> None:
         for k, (model, r) in enumerate(results.items()):
             q, ev = (np.asarray(c) for c in r["curves"][tn])
             axes[0, j].plot(100 * t.eps11, q / 1e3, color=f"C{k}", label=model)
-            axes[1, j].plot(100 * t.eps11, 100 * ev, color=f"C{k}")
+            if not t.kind.undrained:
+                axes[1, j].plot(100 * t.eps11, 100 * ev, color=f"C{k}")
+        if t.kind.undrained:
+            axes[1, j].cla()
+            axes[1, j].text(0.5, 0.5, "undrained: εv = 0", ha="center", transform=axes[1, j].transAxes)
         axes[0, j].set(title=f"{tn} ({'fit' if tn in FIT_ON else 'predicted'})", ylabel="q [kPa]")
         axes[1, j].set(xlabel="axial strain [%]", ylabel="εv [%] (contraction > 0)")
     axes[0, 0].legend(fontsize=7)
@@ -273,7 +277,7 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=HERE / "mesostructures.json")
     ap.add_argument("--markdown", type=Path, default=None, help="write the documentation's tables here")
     args = ap.parse_args()
-    models = args.models.split(",")
+    models = [m for m in args.models.split(",") if m]  # none: redraw and rewrite the record
     items = [item.partition("=")[::2] for item in args.samples.split(",")]
     with ProcessPoolExecutor(len(items)) as pool:  # the samples are independent
         done = dict(zip([n for n, _ in items],
