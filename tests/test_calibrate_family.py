@@ -70,19 +70,47 @@ def test_cli_refuses_bounds_outside_the_domain_in_one_line(tmp_path, capsys, mon
     assert err == ["hmodel: error: --bounds phi_g=5:60 reaches outside the model's training domain (10–45°)"]
 
 
-def test_a_family_fit_recovers_the_parameters_of_its_own_curves():
-    """Two drained tests made by the model at φg = 27°, α0 = 52° (inside the domain); least
-    squares from two starts over the domain's default bounds finds them again."""
-    truth = Params(n_theta=36, phi_g=math.radians(27.0), alpha0=math.radians(52.0))
-    res = run_biaxial([truth], [1e5, 4e5], 0.02, step=1e-3, iso_step=ISO_STEP)
+def test_the_shipped_family_model_bounds_the_search_and_recovers_its_own_curves(tmp_path, capsys):
+    """The standard cell's shipped family network: the CLI refuses bounds outside its stored
+    domain; a fit of φg and α0 finds the material of curves it made itself (φg 27°, α0 52°,
+    another material than Table 1.1's, which a single-material network would refuse)."""
+    from hmodel.solvers import get_solver
+
+    solver = get_solver("surrogate:family")
+    csv = tmp_path / "d.csv"
+    csv.write_text("eps11,q\n0,0\n0.01,1e5\n")
+    out = tmp_path / "out"
+    code = main(["calibrate", "--data", f"drained:100kPa:{csv}", "--solver", "surrogate:family",
+                 "--fit", "phi_g", "--bounds", "phi_g=5:60", "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    lo, hi = (math.degrees(v) for v in solver.domain["phi_g"])
+    assert code == 1 and not out.exists()
+    assert err == [f"hmodel: error: --bounds phi_g=5:60 reaches outside the model's training domain "
+                   f"({lo:.4g}–{hi:.4g}°)"]
+    tests = _own_curves(Params(n_theta=36, phi_g=math.radians(27.0), alpha0=math.radians(52.0)), solver)
+    cal = fit(tests, ["phi_g", "alpha0"], base=Params(n_theta=36), solver=solver, starts=2)
+    assert cal.fitted["phi_g"] == pytest.approx(27.0, abs=0.05)
+    assert cal.fitted["alpha0"] == pytest.approx(52.0, abs=0.05)
+
+
+def _own_curves(truth: Params, solver) -> list[Test]:
+    """Drained tests at 100 and 400 kPa to 2 % made by ``solver`` at ``truth``, every other
+    row, as a measured test has them (strains since the end of consolidation)."""
+    res = run_biaxial([truth], [1e5, 4e5], 0.02, step=1e-3, iso_step=ISO_STEP, solver=solver)
     tests = []
     for b, p0 in enumerate((1e5, 4e5)):
         c, s = res.point(b).stage("consolidation"), res.point(b).stage("shear")
-        # strains since the end of consolidation, its state first (as a measured test has it)
         e = np.concatenate([[0.0], s["eps11"] - c["eps11"][-1]])
         q = np.concatenate([[c["q"][-1]], s["q"]])
         ev = np.concatenate([[0.0], s["eps_v"] - c["eps_v"][-1]])
         tests.append(Test("drained", p0, e[::2], q[::2], ev[::2], name=f"d{b}"))
+    return tests
+
+
+def test_a_family_fit_recovers_the_parameters_of_its_own_curves():
+    """Two drained tests made by the model at φg = 27°, α0 = 52° (inside the domain); least
+    squares from two starts over the domain's default bounds finds them again."""
+    tests = _own_curves(Params(n_theta=36, phi_g=math.radians(27.0), alpha0=math.radians(52.0)), None)
     cal = fit(tests, ["phi_g", "alpha0"], base=Params(n_theta=36), solver=FamilyLike(), starts=2)
     assert dict(zip(cal.space.names, cal.space.bounds))["phi_g"] == pytest.approx((10.0, 45.0))
     assert cal.fitted["phi_g"] == pytest.approx(27.0, abs=0.05)
