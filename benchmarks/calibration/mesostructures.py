@@ -121,7 +121,9 @@ def dem_fractions(name: str, info: dict, extra: dict) -> dict:
 
 def run_model(model: str, tests: dict, solver, args, timed: bool) -> dict:
     names = MODELS[model]
-    base = Params(n_theta=args.n_theta)
+    # the richer cell's network was trained with the equilibrium lambda (--richer-params)
+    extra = args.richer_params.split(",") if model == "richer" and args.richer_params else []
+    base = Params.parse_assignments(extra, Params(n_theta=args.n_theta))
     on = [tests[n] for n in FIT_ON]
     with cpu_lock(timed):
         t0, c0 = time.perf_counter(), time.process_time()
@@ -270,6 +272,8 @@ def main() -> None:
     ap.add_argument("--samples", default=",".join(f"{k}={v.relative_to(HERE.parents[1])}" for k, v in SAMPLES.items()))
     ap.add_argument("--models", default="standard,fabric,spread,richer")
     ap.add_argument("--richer", default="surrogate:hexagon-center-family")
+    ap.add_argument("--richer-params", default="sliding_rhs=equilibrium",
+                    help="fixed parameters of the richer cell's runs, NAME=VALUE,...")
     ap.add_argument("--starts", type=int, default=8)
     ap.add_argument("--walkers", type=int, default=0)
     ap.add_argument("--steps", type=int, default=100)
