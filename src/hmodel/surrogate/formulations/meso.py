@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -112,7 +113,15 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
         run's; the same formulation for one material or ``params`` None."""
         if not self.material_inputs or params is None or params == self.params:
             return self
-        return replace(self, params=params)
+        known = self._materials  # a REV asks at every increment: its cage and scales once
+        if params not in known:
+            known[params] = replace(self, params=params)
+        return known[params]
+
+    @cached_property
+    def _materials(self) -> dict:
+        """The formulations :meth:`for_material` made, by material."""
+        return {}
 
     def _row_materials(self, c: dict[str, np.ndarray]) -> list[tuple[np.ndarray, "MesoFormulation"]]:
         """The rows of each material of database rows ``c`` (a family's data: kt/kn, φg per

@@ -1,0 +1,187 @@
+"""The richer cell over a range of materials: a hexagon-center family network against the DEM-REV (issue 36).
+
+Data (``--generate``, or the folders of an earlier run): Dataset 3 of the hexagon-center cell in
+YADE with a material drawn per REV loading (``hmodel data generate 3 ... --kt-kn 0.2:1 --phi-g
+10:45 --alpha0 35:60:1``): ``START`` (the start of shear, dense in increment size, as the
+shipped network's ``HEX_START``) and ``HISTORY`` (every 0.1 % to 4 %, as ``HEX_REV``), 16
+loadings each, drained and undrained at 50–400 kPa. α0 stops at 60°: the free grain's
+touching radius √(1 + 4 sin²α0) − 1 exceeds 2 cos α0 beyond it, and the centre grain would
+overlap grains 1 and 4 (the cell cannot be built at the touching ratio). The ratio is the
+touching one throughout: α0 fixes it.
+
+Training (``--train``): the meso formulation with the material inputs (kt/kn, tan φg, α0) on
+the rows of every finished shard of those datasets (a dataset still being generated gives its
+finished shards, checksums verified, listed in the JSON), 5 % of them held out as test rows;
+the shipped network's recipe without rollouts (a rollout window applies one material's
+Coulomb bound and cage), ``--epochs`` budget.
+
+Comparison: ``--sets`` parameter sets drawn with ``--seed`` uniformly over the domain (none is a
+training REV's material: those are continuous draws too), drained 100 kPa and undrained 200 kPa
+to ``--axial-strain``, nθ = ``--n-theta``, REV increments ``--step``: the ANN-REV against the
+DEM-REV (max and RMS |Δq| / peak q, max |Δεv|). Speed: the REV at the shipped network's
+material (α0 = 45°) with the family network and with the shipped single-material network
+``hexagon-center-1`` (one network each, same cell step), same increments.
+
+Usage: ``python -m benchmarks.dem.dem_ann_family --work W [--generate] [--train --epochs 60]``;
+writes ``dem_ann_family.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+
+from benchmarks.timing import record
+from hmodel import Params
+from hmodel.compare import deviations, run_path, standard_paths
+from hmodel.data import DatasetSpec
+from hmodel.data.schema import column_array
+from hmodel.data.store import generate, sha256
+from hmodel.errors import SolverError
+from hmodel.surrogate.evaluation import evaluate
+from hmodel.surrogate.modelfile import load, save
+from hmodel.surrogate.shipped import load_shipped
+from hmodel.surrogate.solver import SurrogateSolver
+from hmodel.surrogate.training import TrainConfig, train, training_domain
+
+PARAMS = Params(sliding_rhs="equilibrium")
+SOLVER = "dem:hexagon-center:tol=1e-7,max_iter=100000"
+LOADINGS = ",".join([f"drained:{p}e3" for p in (50, 75, 100, 150, 200, 250, 300, 400)]
+                    + [f"undrained:{p}e3" for p in (50, 75, 100, 150, 200, 250, 300, 400)])
+START = DatasetSpec(kind=3, solver=SOLVER, rev_paths=LOADINGS, n_directions=16, theta_min=0.0, theta_max=90.0,
+                    alpha0_min=35.0, alpha0_max=60.0, alpha0_step=1.0, max_strain=0.006, step=5e-4,
+                    start_every=5e-4, n_increments=64, magnitude=2.5e-3, magnitude_min=1e-4, substeps=1,
+                    from_unloaded=True, shard_rows=4000, kt_kn_range="0.2:1", phi_g_range="10:45",
+                    material_seed=1)
+HISTORY = replace(START, max_strain=0.04, step=1e-3, start_every=1e-3, n_increments=16, magnitude=2e-3,
+                  magnitude_min=0.0, material_seed=2)
+SPECS = {"start": START, "history": HISTORY}
+CONFIG = TrainConfig(formulation="meso", width=96, depth=3, activation="silu", epochs=60, patience=30,
+                     seed=0, device="cpu", mechanisms=4, secant_floor=2.5e-4, cell_step=2.5e-4)
+
+
+def finished_rows(folder: Path) -> tuple[dict[str, np.ndarray], list[dict]]:
+    """The rows of a dataset folder's finished shards (checksums verified) and their entries."""
+    m = json.loads((folder / "manifest.json").read_text())
+    parts, used = [], []
+    for e in m["shards"]:
+        path = folder / e["file"]
+        if not path.is_file() or sha256(path) != e["sha256"]:
+            continue
+        t = pq.read_table(path)
+        parts.append({c: column_array(t, c) for c in t.column_names})
+        used.append({"folder": str(folder), **e})
+    cols = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    return cols, used
+
+
+def draw_sets(domain: dict, n: int, seed: int) -> list[Params]:
+    rng = np.random.default_rng(seed)
+    return [PARAMS.with_(**{k: rng.uniform(*domain[k]) for k in sorted(domain)}) for _ in range(n)]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--work", type=Path, required=True)
+    ap.add_argument("--generate", action="store_true", help="generate (or resume) the datasets")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--datasets", default="start,history", help="which of start, history to train on")
+    ap.add_argument("--train", action="store_true", help="train the network (else: WORK/family.safetensors)")
+    ap.add_argument("--epochs", type=int, default=CONFIG.epochs)
+    ap.add_argument("--sets", type=int, default=3)
+    ap.add_argument("--seed", type=int, default=36)
+    ap.add_argument("--n-theta", type=int, default=12)
+    ap.add_argument("--axial-strain", type=float, default=0.02)
+    ap.add_argument("--step", type=float, default=1e-3)
+    ap.add_argument("--iso-step", type=float, default=2e-4)
+    ap.add_argument("--out", type=Path, default=Path(__file__).with_name("dem_ann_family.json"))
+    args = ap.parse_args()
+    args.work.mkdir(parents=True, exist_ok=True)
+    names = [n for n in args.datasets.split(",") if n]
+    folders = {n: args.work / f"dem-{n}" for n in names}
+    if args.generate:
+        for n in names:
+            generate(SPECS[n], PARAMS, folders[n], workers=args.workers)
+    model_path = args.work / "family.safetensors"
+    info: dict = {}
+    if args.train:
+        parts, used = zip(*(finished_rows(folders[n]) for n in names))
+        cols = {k: np.concatenate([p[k] for p in parts]) for k in parts[0] if all(k in p for p in parts)}
+        n = len(cols["deps1"])
+        test = np.random.default_rng(0).random(n) < 0.05
+        train_cols = {k: v[~test] for k, v in cols.items()}
+        test_cols = {k: v[test] for k, v in cols.items()}
+        t0 = time.perf_counter()
+        model, history = train(train_cols, PARAMS, replace(CONFIG, epochs=args.epochs), cell=SOLVER)
+        seconds = time.perf_counter() - t0
+        model.meta.update(params=PARAMS.to_dict(), domain=training_domain([SPECS[k].to_dict() for k in names]),
+                          training_data=[u for us in used for u in us],
+                          metrics=evaluate(model, test_cols, "held-out rows"), history_tail=history[-3:])
+        materials = np.unique(np.column_stack([cols["kt_kn"], cols["phi_g"], cols["alpha0"]]), axis=0)
+        info = {"rows": n, "train_rows": int((~test).sum()), "test_rows": int(test.sum()),
+                "shards": [u for us in used for u in us], "training_materials": len(materials),
+                "epochs": len(history), "training_seconds": seconds,
+                "test_r2": {m["output"]: m["r2"] for m in model.meta["metrics"] if m["quantity"] == "state after"}}
+        model.meta["training_summary"] = info
+        save(model, model_path)
+        print(f"trained on {n:,} rows of {len(materials)} materials: {len(history)} epochs in {seconds:.0f} s")
+    model = load(model_path)
+    family = SurrogateSolver(model, on_outside="fallback")
+    sets = draw_sets(family.domain, args.sets, args.seed)
+    paths = {s.name: s for s in standard_paths(args.axial_strain)}
+    rows = []
+    for k, p in enumerate(sets):
+        params = p.with_(n_theta=args.n_theta)
+        for spec in (replace(paths["drained"], p0=(1e5,)), paths["undrained"]):
+            ref, t_dem = run_path(params, spec, SOLVER, args.step, args.iso_step)
+            ann = SurrogateSolver(model)
+            status = "ok"
+            try:
+                res, t_ann = run_path(params, spec, ann, args.step, args.iso_step)
+            except SolverError as e:
+                status, res, t_ann = f"failed: {' '.join(str(e).split())[:120]}", e.partial, float("nan")
+            d = deviations(ref, res)[0] if len(res) else {}
+            rows.append({"set": k, "kt_kn": p.kt_kn, "phi_g_deg": math.degrees(p.phi_g), "alpha0_deg": p.alpha0_deg,
+                         "path": spec.name, "p0_kPa": spec.p0[0] / 1e3, "status": status,
+                         "dem_peak_q_kPa": float(np.max(ref.point(0)["q"])) / 1e3,
+                         "q_max_dev_pct_of_peak": 100 * d.get("q_max_dev_rel", float("nan")),
+                         "q_rms_dev_pct_of_peak": 100 * d.get("q_rms_dev_rel", float("nan")),
+                         "eps_v_max_dev": d.get("eps_v_max_dev", float("nan")),
+                         "seconds_dem": t_dem, "seconds_ann": t_ann})
+            r = rows[-1]
+            print(f"set {k} (kt/kn {p.kt_kn:.3f}, phi_g {r['phi_g_deg']:.1f}, alpha0 {r['alpha0_deg']:.1f}) "
+                  f"{spec.name}: peak q {r['dem_peak_q_kPa']:.1f} kPa, max |dq| {r['q_max_dev_pct_of_peak']:.2f} % "
+                  f"of peak, {status}")
+    # speed: the shipped network's material, one network each, same increments and cell step
+    params = PARAMS.with_(n_theta=args.n_theta)
+    drained = replace(paths["drained"], p0=(1e5,))
+    speed = {}
+    for label, m in (("single", load_shipped("hexagon-center-1")), ("family", model)):
+        run_path(params, drained, SurrogateSolver(m), args.step, args.iso_step)  # warm-up
+        c = time.process_time()
+        _, wall = run_path(params, drained, SurrogateSolver(m), args.step, args.iso_step)
+        speed[label] = {"seconds": wall, "cpu_seconds": time.process_time() - c}
+    ratio = speed["family"]["seconds"] / speed["single"]["seconds"]
+    worst = max((r["q_max_dev_pct_of_peak"] for r in rows), default=float("nan"))
+    results = [("worst max |dq| / peak q over the unseen sets [%]", worst, "<= 2"),
+               ("family / single-material network, REV time per run [x]", ratio, "<= 2"),
+               ("the same in CPU time [x]", speed["family"]["cpu_seconds"] / speed["single"]["cpu_seconds"], "<= 2")]
+    for name, v, target in results:
+        print(f"{name}: {v:.3g} (target {target})")
+    rec = record(__file__, args, 1, results, datasets={k: SPECS[k].to_dict() for k in names},
+                 domain=model.meta["domain"], training=info or model.meta.get("training_summary", {}),
+                 sets=[{"kt_kn": s.kt_kn, "phi_g_deg": math.degrees(s.phi_g), "alpha0_deg": s.alpha0_deg}
+                       for s in sets], paths=rows, speed=speed)
+    args.out.write_text(json.dumps(rec, indent=1, default=str) + "\n")
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
