@@ -82,7 +82,7 @@ def main() -> None:
     results, rows = [], []
     for k, p in enumerate(sets):
         for name, p0, undrained in (("drained", list(DRAINED), False), ("undrained", [UNDRAINED], True)):
-            kw = dict(undrained=undrained, step=args.step, drop_failed=True)
+            kw = {"undrained": undrained, "step": args.step, "drop_failed": True}
             ref = run_biaxial(p, p0, args.axial_strain, **kw)
             solver = SurrogateSolver(family.members)
             ann = run_biaxial(p, p0, args.axial_strain, solver=solver, **kw)

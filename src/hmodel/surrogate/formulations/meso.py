@@ -107,7 +107,7 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
         return d
 
     # -- a family network (material inputs) -------------------------------------------------
-    def for_material(self, params: Params | None) -> "MesoFormulation":
+    def for_material(self, params: Params | None) -> MesoFormulation:
         """This formulation for the material ``params`` (a family network's run): the Coulomb
         bound, the force unit and the cell's geometry (its free grain's radius at α0) are the
         run's; the same formulation for one material or ``params`` None."""
@@ -123,7 +123,7 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
         """The formulations :meth:`for_material` made, by material."""
         return {}
 
-    def _row_materials(self, c: dict[str, np.ndarray]) -> list[tuple[np.ndarray, "MesoFormulation"]]:
+    def _row_materials(self, c: dict[str, np.ndarray]) -> list[tuple[np.ndarray, MesoFormulation]]:
         """The rows of each material of database rows ``c`` (a family's data: kt/kn, φg per
         path, α0 per path or REV) and the formulation for it; one group without material columns."""
         if not self.material_inputs or "kt_kn" not in c:
