@@ -20,6 +20,9 @@ of float64, the state fields 9.. before and after the increment, whose names (un
 the manifest lists under ``extra_fields``. Every other column is unchanged; datasets of the
 closed form and of ``dem:standard`` have no extra column.
 
+Datasets that draw a material per path (issue 36) carry :data:`MATERIAL_COLUMNS` ``kt_kn``
+and ``phi_g`` [rad] after the labels: each row's own kt/kn and φg.
+
 **3D rows** (``dim = 3``, :data:`COLUMNS_3D`; issue 34): one row is one increment of a
 bi-hexagon (docs/model3d.md), the cell strains ``deps1, deps2, deps3`` of its three lengths
 (δl1 = −l10·δε1, δl2 = −l20·δε2, δl3 = −l30·δε3, l30 = l20) applied to hexagon A's state
