@@ -225,7 +225,10 @@ def _results(d):  # engine.json, stability.json, ann_load.json
         return f"{v:.3g} s" if isinstance(v, float) and "[s]" in m else num(v, 3)
     out = table(d["results"], [("measure", "measure"), (value, "value"), ("target", "target")])
     conditions = {k: d[k] for k in CONDITIONS if k in d}
-    return out + ("\nConditions:\n\n" + settings(conditions) if conditions else "")
+    out += "\nConditions:\n\n" + settings(conditions) if conditions else ""
+    if isinstance(d.get("sets"), list):  # the parameter sets of a family network's files, and per path
+        out += "\n" + generic_tables(d, skip=("results",))
+    return out
 
 
 def _data(d):
