@@ -36,7 +36,9 @@ def test_the_initial_macro_volume_is_the_mean_cell_volume_over_the_distribution(
     rule, whose error here is below 1e-7)."""
     a0, s, r = math.radians(50.0), 0.8, 1.0
     h = s * min(a0 - math.pi / 6, math.pi / 2 - a0)
-    prim = lambda a: 8 * r * r * (-math.cos(a) - math.cos(2 * a) / 4)  # noqa: E731
+    def prim(a):  # an antiderivative of V(α)
+        return 8 * r * r * (-math.cos(a) - math.cos(2 * a) / 4)
+
     exact = (prim(a0 + h) - prim(a0 - h)) / (2 * h)
     rev = Rev(Params(n_theta=360, alpha0=a0, alpha0_spread=s))
     assert rev.volume0 == pytest.approx(exact, rel=1e-6)

@@ -85,8 +85,8 @@ def test_the_shipped_family_model_bounds_the_search_and_recovers_its_own_curves(
     err = capsys.readouterr().err.strip().splitlines()
     lo, hi = (math.degrees(v) for v in solver.domain["phi_g"])
     assert code == 1 and not out.exists()
-    assert err == [f"hmodel: error: --bounds phi_g=5:60 reaches outside the model's training domain "
-                   f"({lo:.4g}–{hi:.4g}°)"]
+    assert err == [(f"hmodel: error: --bounds phi_g=5:60 reaches outside the model's training domain "
+                    f"({lo:.4g}–{hi:.4g}°)")]
     tests = _own_curves(Params(n_theta=36, phi_g=math.radians(27.0), alpha0=math.radians(52.0)), solver)
     cal = fit(tests, ["phi_g", "alpha0"], base=Params(n_theta=36), solver=solver, starts=2)
     assert cal.fitted["phi_g"] == pytest.approx(27.0, abs=0.05)

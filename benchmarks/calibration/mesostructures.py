@@ -219,33 +219,49 @@ def table_rows(samples: dict, starts: int) -> list:
     return rows
 
 
+def _pct(v: float) -> str:
+    return f"{100 * v:.1f}"
+
+
+def _interval(post: dict, n: str) -> str:
+    """`` (q05–q95)`` of the posterior of n, or nothing."""
+    return f" ({post[n]['q05']:.3g}–{post[n]['q95']:.3g})" if n in post else ""
+
+
+def _error(t: dict, n: str) -> str:
+    """``max (RMS)`` of test n's |Δq|/peak q in %, or why not."""
+    if n in t and "max_dq" in t[n]:
+        return f"{_pct(t[n]['max_dq'])} ({_pct(t[n]['rms_dq'])})"
+    return "failed" if n in t else "–"
+
+
 def markdown(samples: dict) -> str:
     """The documentation's tables (docs/calibration.md), every number from the record."""
-    pct = lambda v: f"{100 * v:.1f}"  # noqa: E731
+    pct = _pct
     lines = []
     for name, rec in samples.items():
         c = rec["contact"]
         por = np.mean(list(rec["porosity"].values()))
-        lines += [f"**{name}** ({rec['disks']} disks, contact φg {c['phi_g']:g}°, kt/kn {c['kt_kn']:g}, "
-                  f"kn {c['kn']:.3g} N/m, consolidated with friction {rec['compaction_friction'] or 0:g}°, "
-                  f"porosity {por:.3f}):", "",
-                  "| model | fitted φg [°] (90 %) | α0 [°] | kt/kn | kn [N/m] | other | fit max (RMS) \\|Δq\\|/q_peak [%] "
-                  "| drained 200 predicted | undrained 200 predicted | max \\|Δεv\\| fit / predicted [%] |",
+        lines += [(f"**{name}** ({rec['disks']} disks, contact φg {c['phi_g']:g}°, kt/kn {c['kt_kn']:g}, "
+                   f"kn {c['kn']:.3g} N/m, consolidated with friction {rec['compaction_friction'] or 0:g}°, "
+                   f"porosity {por:.3f}):"), "",
+                  ("| model | fitted φg [°] (90 %) | α0 [°] | kt/kn | kn [N/m] | other | fit max (RMS) "
+                   "\\|Δq\\|/q_peak [%] | drained 200 predicted | undrained 200 predicted "
+                   "| max \\|Δεv\\| fit / predicted [%] |"),
                   "|---|---|---|---|---|---|---|---|---|---|"]
         for model, r in rec["models"].items():
             f, t = r["fitted"], r["tests"]
             post = r.get("posterior", {}).get("summary", {})
-            ci = lambda n: (f" ({post[n]['q05']:.3g}–{post[n]['q95']:.3g})" if n in post else "")  # noqa: E731
-            other = ", ".join(f"{n} {f[n]:.3g}{ci(n)}" for n in f if n not in BASE4) or "–"
+            other = ", ".join(f"{n} {f[n]:.3g}{_interval(post, n)}" for n in f if n not in BASE4) or "–"
             fit_ = [t[n] for n in FIT_ON]
             fitq = f"{pct(max(e['max_dq'] for e in fit_))} ({pct(max(e['rms_dq'] for e in fit_))})"
-            pr = lambda n: (f"{pct(t[n]['max_dq'])} ({pct(t[n]['rms_dq'])})" if n in t and "max_dq" in t[n]  # noqa: E731
-                            else "failed" if n in t else "–")
+            d200 = t.get("drained_200kPa", {})
             dv = (f"{pct(max(e['max_deps_v'] for e in fit_))} / "
-                  f"{pct(t['drained_200kPa']['max_deps_v']) if 'max_deps_v' in t.get('drained_200kPa', {}) else '–'}")
-            lines.append(f"| {model} | {f['phi_g']:.1f}{ci('phi_g')} | {f['alpha0']:.1f}{ci('alpha0')} | "
-                         f"{f['kt_kn']:.2f}{ci('kt_kn')} | {f['kn']:.2e} | {other} | {fitq} | {pr('drained_200kPa')} | "
-                         f"{pr('undrained_200kPa')} | {dv} |")
+                  f"{pct(d200['max_deps_v']) if 'max_deps_v' in d200 else '–'}")
+            lines.append(f"| {model} | {f['phi_g']:.1f}{_interval(post, 'phi_g')} | "
+                         f"{f['alpha0']:.1f}{_interval(post, 'alpha0')} | "
+                         f"{f['kt_kn']:.2f}{_interval(post, 'kt_kn')} | {f['kn']:.2e} | {other} | {fitq} | "
+                         f"{_error(t, 'drained_200kPa')} | {_error(t, 'undrained_200kPa')} | {dv} |")
         lines += ["", "| end of test | DEM z/z0 | DEM sliding | " +
                   " | ".join(f"{m} sliding / open" for m in rec["models"]) + " |",
                   "|---|---|---|" + "---|" * len(rec["models"])]

@@ -27,7 +27,7 @@ class Directions:
     weights: np.ndarray
 
     @classmethod
-    def from_params(cls, params: Params) -> "Directions":
+    def from_params(cls, params: Params) -> Directions:
         n = params.n_theta
         theta = np.arange(n) * np.pi / n
         omega = (1.0 + params.alpha_omega * np.cos(2.0 * (theta - params.beta_omega))) / np.pi
