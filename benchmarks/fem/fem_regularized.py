@@ -10,8 +10,11 @@ model, for docs/fem.md (Regularization): ``fem_regularized.json`` and ``docs/fig
 (f) footing: rough, 0.2 m on 1.0 x 0.5 m, 100 kPa, nθ = 90, ``sliding_rhs=equilibrium``,
     ``nonlocal:ell=FOOT_ELL``, to s/B = 0.1 in 20 steps on 10x5, 20x10 and 40x20 Q4.
 
-Usage: ``python -m benchmarks.fem.fem_regularized --cases nonlocal-8x16,local-8x16 ...``; each
-case's numbers are merged into the JSON; ``--plot`` draws the figure and the summary from it.
+Usage: ``python -m benchmarks.fem.fem_regularized --cases nonlocal-8x16,local-8x16 ...`` (the
+partial cases with ``--ell 0.003125 --m 0.05``); each case's numbers are merged into the JSON
+(several processes may run cases at once); ``--publish`` writes the published form (one table row
+per case, the curves in ``fem_regularized_curves.csv``), ``--plot`` draws the figures (the fields
+from this machine's last runs, kept in /tmp).
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import argparse
 import fcntl
 import json
 import math
+import tempfile
 import time
 from pathlib import Path
 
@@ -138,6 +142,68 @@ def plot(cases: dict) -> None:
         plt.close(fig)
 
 
+BAND_KEYS = ("angle_deg", "width_m", "concentration", "peak_step")
+THEORY_KEYS = ("phi_peak", "psi_peak", "coulomb", "roscoe", "arthur")
+
+
+def _flat(name: str, c: dict) -> dict:
+    """A case as one table row: scalars only (its curve goes to the CSV)."""
+    row = {"case": name, **{k: v for k, v in c.items() if not isinstance(v, (dict, list))}}
+    row.update({f"band_{k}": c["band"].get(k) for k in BAND_KEYS} if "band" in c else {})
+    row["warnings"] = "; ".join(c.get("warnings") or []) or None
+    return row
+
+
+def _unflat(row: dict, curves: dict) -> dict:
+    c = {k: v for k, v in row.items() if k != "case" and not k.startswith("band_")}
+    c["warnings"] = [row["warnings"]] if row.get("warnings") else []
+    x, y = curves.get(row["case"], ([], []))
+    if row["case"].startswith("footing-"):
+        c.update(s_B=x, pressure=y)
+    else:
+        c["band"] = {k: row.get(f"band_{k}") for k in BAND_KEYS}
+        c["curve"] = {"eps11": x, "q": y}
+        mx, my = curves.get("material-point", ([], []))
+        c["material_point"] = {"eps11": mx, "q": my}
+    return c
+
+
+def load(out: Path) -> tuple[dict, dict]:
+    """The record and its cases (name -> case), from the working form (``cases``) or the
+    published one (``rows``, ``footing`` and the curves' CSV beside the JSON)."""
+    data = json.loads(out.read_text()) if out.exists() else {}
+    if "cases" in data:
+        return data, data["cases"]
+    curves: dict = {}
+    csv = out.with_name(out.stem + "_curves.csv")
+    if csv.exists():
+        for line in csv.read_text().splitlines()[1:]:
+            name, x, y = line.split(",")
+            xs, ys = curves.setdefault(name, ([], []))
+            xs.append(float(x)), ys.append(float(y))
+    rows = data.get("rows", []) + data.get("footing", [])
+    return data, {r["case"]: _unflat(r, curves) for r in rows}
+
+
+def publish(out: Path, data: dict, cases: dict) -> None:
+    """The published form: a table row per case (``rows``, ``footing``), the peak angles and the
+    summary in the JSON, every curve (and the material point's) in ``NAME_curves.csv``."""
+    lines = ["case,x,y"]
+    for name, c in cases.items():
+        x, y = (c["s_B"], c["pressure"]) if name.startswith("footing-") else (c["curve"]["eps11"], c["curve"]["q"])
+        lines += [f"{name},{a!r},{b!r}" for a, b in zip(x, y)]
+    mp = next((c["material_point"] for c in cases.values() if c.get("material_point", {}).get("q")), None)
+    if mp:
+        lines += [f"material-point,{a!r},{b!r}" for a, b in zip(mp["eps11"], mp["q"])]
+    out.with_name(out.stem + "_curves.csv").write_text("\n".join(lines) + "\n")
+    band = next((c["band"] for c in cases.values() if "coulomb" in c.get("band", {})), {})
+    keep = {k: v for k, v in data.items() if k not in ("cases", "rows", "footing", "summary", "theory")}
+    data = {**keep, "summary": summary(cases), "theory": {k: band.get(k) for k in THEORY_KEYS},
+            "rows": [_flat(n, c) for n, c in cases.items() if not n.startswith("footing-")],
+            "footing": [_flat(n, c) for n, c in cases.items() if n.startswith("footing-")]}
+    out.write_text(json.dumps(data, indent=1, default=float) + "\n")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", default="", help="comma list: local-8x16, nonlocal-32x64, partial-16x32, "
@@ -146,6 +212,7 @@ def main() -> None:
     ap.add_argument("--m", type=float, default=PARTIAL_M, help="nonlocal share of the partial cases")
     ap.add_argument("--foot-ell", type=float, default=FOOT_ELL)
     ap.add_argument("--plot", action="store_true")
+    ap.add_argument("--publish", action="store_true", help="write the published form (rows and the curves' CSV)")
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("fem_regularized.json"))
     args = ap.parse_args()
     for name in filter(None, args.cases.split(",")):
@@ -155,14 +222,15 @@ def main() -> None:
               + (f"q at 10 %: {c['q_at_10pc']}" if "q_at_10pc" in c else f"peak {c['peak_pressure']:.4g} Pa"),
               flush=True)
         # cases may run in several processes at once: merge under a lock, from the file as it is
-        with open(args.out.with_suffix(".lock"), "w") as lock:
+        with open(Path(tempfile.gettempdir()) / f"{args.out.stem}.lock", "w") as lock:
             fcntl.flock(lock, fcntl.LOCK_EX)
             data = json.loads(args.out.read_text()) if args.out.exists() else {}
             cases = {**data.get("cases", {}), name: c}
             data = {**data, **provenance(__file__, args), "cases": cases, "summary": summary(cases)}
             args.out.write_text(json.dumps(data, indent=1, default=float) + "\n")
-    data = json.loads(args.out.read_text()) if args.out.exists() else {}
-    cases = data.get("cases", {})
+    data, cases = load(args.out)
+    if args.publish:
+        publish(args.out, data, cases)
     if args.plot:
         plot(cases)
     print(json.dumps(summary(cases), indent=1))
