@@ -220,3 +220,41 @@ def test_cli_regularization_option(tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         assert err.startswith("hmodel: error:") and "\n" not in err
         assert not bad_out.exists()
+
+
+def _wave_extra(n: int, m: float):
+    """The stress added to the local one by the average, and the derived value, for the strain
+    wave cos(k y), k ell = 1, on a strip of n Q4 (a linear law E below D_e = 2E: g = E eps)."""
+    from scipy.sparse.linalg import spsolve
+    E, ell = 1e8, 1.0
+    L = 4 * np.pi * ell  # k L = 4 pi: the natural boundary condition admits the cosine
+    k = 4 * np.pi / L
+    basis = Domain(0.05 * L, L, 1, n, "q4").basis()
+    x, dx = gauss_points(basis)
+    mat = BilinearSoftening(np.full(dx.size, np.inf), E, 0.5 * E)  # never yields: linear E
+    pb = NonlocalProblem(basis, mat, np.array([], int), np.zeros(basis.N), np.zeros(basis.N), ell=ell, m=m,
+                         D_e=np.tile(np.diag([2 * E] * 3), (dx.size, 1, 1)))
+    du = np.zeros(basis.N)
+    ydofs = basis.nodal_dofs[1]
+    du[ydofs] = 1e-4 * np.sin(k * basis.doflocs[1, ydofs]) / k  # eps_11 = -1e-4 cos(k y)
+    trial, _, _ = pb.evaluate(np.concatenate([du, np.zeros(pb.n_g)]))
+    g = E * trial.local.deps
+    gbar = spsolve(pb.A3.tocsc(), pb.NtDx @ g.ravel())  # the Helmholtz rows solved
+    trial, _, r = pb.evaluate(np.concatenate([du, gbar]))
+    assert np.abs(r[pb.n_u:]).max() < 1e-9 * np.abs(pb.NtDx @ g.ravel()).max()
+    exact = m * (-1e-4 * E * np.cos(k * x[1])) * (k * ell) ** 2 / (1 + (k * ell) ** 2)
+    return (trial.sig - trial.local.sig)[:, 0], exact
+
+
+@pytest.mark.parametrize("m", [1.0, 0.05])
+def test_a_smooth_wave_gets_the_derived_gradient_stiffness(m):
+    """docs/fem.md (Regularization, "a gradient term"): for a strain wave cos(k y) the averaged
+    inelastic stress is g / (1 + ell^2 k^2), so the stress in the equilibrium exceeds the local
+    one by m g ell^2 k^2 / (1 + ell^2 k^2) (here half of m g). The Q4 strain is constant along
+    each element, so the computed term converges to the derived one at first order."""
+    errors = []
+    for n in (120, 240):
+        extra, exact = _wave_extra(n, m)
+        errors.append(np.abs(extra - exact).max() / np.abs(exact).max())
+    assert errors[1] < 0.035
+    assert 1.8 < errors[0] / errors[1] < 2.2  # converging to the derived value, not beside it
