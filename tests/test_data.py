@@ -228,6 +228,27 @@ def test_interrupted_run_resumes_and_computes_only_missing_shards(d2, tmp_path, 
     assert not list(out.glob("*.part"))
 
 
+def test_a_dataset_written_before_a_parameter_existed_resumes(d2, tmp_path):
+    """A manifest without a parameter added to Params since (its default is the model the rows
+    were computed with) resumes; the same manifest with another value of it is refused."""
+    import json
+    import shutil
+    out = tmp_path / "old"
+    shutil.copytree(d2.folder, out)
+    path = out / store.MANIFEST
+    manifest = json.loads(path.read_text())
+    del manifest["params"]["alpha0_spread"]
+    manifest["shards"] = manifest["shards"][:1]
+    manifest["complete"] = False
+    path.write_text(json.dumps(manifest))
+    ds = generate(SMALL2, Params(), out)
+    assert ds.manifest["complete"] and checksums(ds) == checksums(d2)
+    manifest["params"]["alpha0_spread"] = 5.0
+    path.write_text(json.dumps(manifest))
+    with pytest.raises(InputError, match="other params"):
+        generate(SMALL2, Params(), out)
+
+
 def test_killed_process_resumes(d2, tmp_path):
     out = tmp_path / "k"
     args = [sys.executable, "-c", "from hmodel.cli.app import main; import sys; sys.exit(main())",

@@ -155,6 +155,11 @@ def _prepare(folder: Path, header: dict, overwrite: bool) -> dict:
         old = _read_manifest(path)
         if isinstance(old.get("options"), dict):  # options added since it was written take their defaults
             old = {**old, "options": DatasetSpec.from_dict(old["options"]).to_dict()}
+        if isinstance(old.get("params"), dict):
+            # parameters added to Params since it was written: their defaults are the physics its
+            # rows were computed with (a new parameter defaults to the model it extends)
+            old = {**old, "params": {**{k: v for k, v in Params().to_dict().items() if k not in old["params"]},
+                                     **old["params"]}}
         for key in ("format", "schema_version", "kind", "options", "params"):
             if old.get(key) != header[key]:
                 raise InputError(
