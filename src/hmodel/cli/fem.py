@@ -27,9 +27,10 @@ SchedulerOpt = Annotated[Optional[str], typer.Option(
     help="Dask scheduler address (tcp://HOST:8786): the Gauss points' material updates run on its "
          "workers, one chunk of points each (worth it for DEM cells); same results as locally.")]
 RegOpt = Annotated[str, typer.Option(
-    help="local (default) or nonlocal:ell=LENGTH: the points' inelastic stress averaged over the "
-         "internal length ell [m] by an implicit-gradient operator (mesh-objective shear bands; "
-         "docs/fem.md#regularization).")]
+    help="local (default) or nonlocal:ell=LENGTH[,m=SHARE]: the points' inelastic stress averaged over "
+         "the internal length ell [m] by an implicit-gradient operator, its share m (0, 1] in the "
+         "equilibrium (mesh-objective softening; a band narrow enough for a laboratory specimen needs "
+         "m < 1; docs/fem.md#regularization).")]
 OutOpt = out_folder("Output folder (result.csv, fields_*.vtu, fields.pvd, fields.png, curve.png, "
                     "meta.json).")
 
