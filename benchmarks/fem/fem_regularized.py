@@ -6,12 +6,16 @@ model, for docs/fem.md (Regularization): ``fem_regularized.json`` and ``docs/fig
     ``sliding_rhs=equilibrium``, to 10 % in 100 steps, on 8x16, 16x32 and 32x64 Q4, local
     (``local-MESH``), ``nonlocal:ell=ELL`` (``nonlocal-MESH``) and ``nonlocal:ell=ELL,m=M``
     (``partial-MESH``): q at 10 %, the band's angle and width (``hmodel.fem.bands``), wall
-    and CPU time of each run (one case per process call: ``--cases``);
-(f) footing: rough, 0.2 m on 1.0 x 0.5 m, 100 kPa, nθ = 90, ``sliding_rhs=equilibrium``,
-    ``nonlocal:ell=FOOT_ELL``, to s/B = 0.1 in 20 steps on 10x5, 20x10 and 40x20 Q4.
+    and CPU time of each run (one case per process call: ``--cases``); the same with the
+    imperfection in a quarter disc of radius 15 mm at the bottom of the left side, local
+    (``cornerlocal-MESH``) and ``nonlocal:ell=ELL,m=M`` (``corner-MESH``);
+(f) footing: rough, B = 0.4 m on a 4.0 x 1.0 m layer (wide enough for the failure mechanism to
+    form inside the walls), 100 kPa, nθ = 30, ``sliding_rhs=equilibrium``, Q8 elements, to
+    s/B = 0.3 in 30 steps on 20x5, 40x10 and 80x20: ``nonlocal:ell=FOOT_ELL,m=FOOT_M``
+    (``footing-MESH``) and local (``footlocal-MESH``).
 
 Usage: ``python -m benchmarks.fem.fem_regularized --cases nonlocal-8x16,local-8x16 ...`` (the
-partial cases with ``--ell 0.003125 --m 0.05``); each case's numbers are merged into the JSON
+partial cases with ``--ell 0.003125 --m 0.05``, the corner ones with ``--ell 0.005 --m 0.05``); each case's numbers are merged into the JSON
 (several processes may run cases at once); ``--publish`` writes the published form (one table row
 per case, the curves in ``fem_regularized_curves.csv``), ``--plot`` draws the figures (the fields
 from this machine's last runs, kept in /tmp).
@@ -30,35 +34,46 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from benchmarks.timing import FIGURES, provenance  # noqa: E402
-from hmodel import Params  # noqa: E402
-from hmodel.fem import biaxial, footing, material_point_curve  # noqa: E402
-from hmodel.fem.bands import shear_band  # noqa: E402
-from hmodel.fem.outputs import deviatoric_strain  # noqa: E402
+from benchmarks.timing import FIGURES, provenance
+from hmodel import Params
+from hmodel.fem import biaxial, footing, material_point_curve
+from hmodel.fem.bands import shear_band
+from hmodel.fem.outputs import deviatoric_strain
 
 ELL = 0.005
 PARTIAL_M = 0.05  # the "partial" cases: nonlocal share m of the inelastic stress
-KINDS = ("local", "nonlocal", "partial")
-FOOT_ELL = 0.05
-ZONE = (0.0, 0.05, 0.01)
+KINDS = ("local", "nonlocal", "partial", "cornerlocal", "corner")
+FOOT_KINDS = ("footing", "footlocal")
+FOOT_ELL = 0.1
+FOOT_M = 0.05
+FOOT = {"width": 0.4, "layer": (4.0, 1.0), "element": "q8", "settlement": 0.3, "n_steps": 30}
+FOOT_PARAMS = Params(n_theta=30, sliding_rhs="equilibrium")
+ZONE = (0.0, 0.05, 0.01)  # the edge imperfection: a disc at the middle of the left side
+CORNER = (0.0, 0.0, 0.015)  # the corner cases': a quarter disc at the bottom of the left side
 MESHES = {"8x16": (8, 16), "16x32": (16, 32), "32x64": (32, 64)}
-FOOT_MESHES = {"10x5": (10, 5), "20x10": (20, 10), "40x20": (40, 20)}
+FOOT_MESHES = {"20x5": (20, 5), "40x10": (40, 10), "80x20": (80, 20)}
 PARAMS = Params(n_theta=90, sliding_rhs="equilibrium")
 FIELDS = Path("/tmp/hmodel-fem-regularized")  # post-peak fields for the figure (large arrays)
 
 
+def is_foot(name: str) -> bool:
+    return name.split("-")[0] in FOOT_KINDS
+
+
 def biaxial_case(name: str, ell: float, m: float) -> dict:
     kind, mesh = name.split("-")
-    reg = {"local": None, "nonlocal": f"nonlocal:ell={ell:g}", "partial": f"nonlocal:ell={ell:g},m={m:g}"}[kind]
+    reg = {"local": None, "nonlocal": f"nonlocal:ell={ell:g}", "partial": f"nonlocal:ell={ell:g},m={m:g}",
+           "cornerlocal": None, "corner": f"nonlocal:ell={ell:g},m={m:g}"}[kind]
+    zone = CORNER if kind.startswith("corner") else ZONE
     t, c = time.perf_counter(), time.process_time()
     res = biaxial(PARAMS, 2e5, 0.10, mesh=MESHES[mesh], n_steps=100, n_saved=100, reference=True,
-                  imperfection=f"phi_g=25,alpha0=55@{ZONE[0]},{ZONE[1]},{ZONE[2]}", regularization=reg)
+                  imperfection=f"phi_g=25,alpha0=55@{zone[0]},{zone[1]},{zone[2]}", regularization=reg)
     wall, cpu = time.perf_counter() - t, time.process_time() - c
     q, e = res.column("q"), res.column("eps11")
-    band = shear_band(res, ZONE)
+    band = shear_band(res, zone)
     ipk = int(np.argmax(q))
     snaps = {s.step: s for s in res.snapshots}
     inc = deviatoric_strain(res.snapshots[-1].eps - snaps[ipk].eps)
@@ -67,7 +82,7 @@ def biaxial_case(name: str, ell: float, m: float) -> dict:
     rates = [math.log(r[2]) / math.log(r[1]) for r in res.residuals if len(r) >= 3 and r[1] < 1e-2 and r[2] > 1e-14]
     ref = material_point_curve(res.reference)
     return {"regularization": res.meta["regularization"], "mesh": mesh, "gauss_points": int(res.gauss_dx.size),
-            "dofs": res.meta["dofs"], "wall_s": wall, "cpu_s": cpu, "stopped": res.stopped, "steps": len(res) - 1,
+            "dofs": res.meta["dofs"], "imperfection_zone": ",".join(f"{v:g}" for v in zone), "wall_s": wall, "cpu_s": cpu, "stopped": res.stopped, "steps": len(res) - 1,
             "newton_iterations": int(res.column("newton_iterations").sum()),
             "median_rate": float(np.median(rates)) if rates else None, "warnings": res.meta["warnings"],
             "peak_q": float(q[ipk]), "peak_strain": float(e[ipk]),
@@ -76,14 +91,16 @@ def biaxial_case(name: str, ell: float, m: float) -> dict:
             "material_point": {"eps11": ref["eps11"].tolist(), "q": ref["q"].tolist()}}
 
 
-def footing_case(name: str, ell: float) -> dict:
-    mesh = name.split("-")[1]
+def footing_case(name: str, ell: float, m: float) -> dict:
+    kind, mesh = name.split("-")
+    reg = None if kind == "footlocal" else f"nonlocal:ell={ell:g},m={m:g}"
     t, c = time.perf_counter(), time.process_time()
-    res = footing(PARAMS, 1e5, 0.10, mesh=FOOT_MESHES[mesh], n_steps=20, regularization=f"nonlocal:ell={ell:g}")
+    res = footing(FOOT_PARAMS, 1e5, FOOT["settlement"], width=FOOT["width"], layer=FOOT["layer"],
+                  mesh=FOOT_MESHES[mesh], element=FOOT["element"], n_steps=FOOT["n_steps"], regularization=reg)
     s, p = res.column("s_B"), res.column("pressure")
     return {"regularization": res.meta["regularization"], "mesh": mesh, "wall_s": time.perf_counter() - t,
             "cpu_s": time.process_time() - c, "stopped": res.stopped, "warnings": res.meta["warnings"],
-            "s_B": s.tolist(), "pressure": p.tolist(), "peak_pressure": float(p.max()),
+            "element": FOOT["element"], "n_theta": FOOT_PARAMS.n_theta, "s_B": s.tolist(), "pressure": p.tolist(), "peak_pressure": float(p.max()),
             "peak_at_s_B": float(s[np.argmax(p)])}
 
 
@@ -94,6 +111,11 @@ def summary(cases: dict) -> dict:
         if q["16x32"] and q["32x64"]:
             out[f"{kind}_q10_change_finest_pc"] = 100 * abs(q["32x64"] - q["16x32"]) / q["32x64"]
         out[f"{kind}_q_at_10pc"] = q
+    for kind in FOOT_KINDS:
+        peak = {m: cases.get(f"{kind}-{m}", {}).get("peak_pressure") for m in FOOT_MESHES}
+        out[f"{kind}_peak_pressure"] = peak
+        if peak["40x10"] and peak["80x20"]:
+            out[f"{kind}_peak_change_finest_pc"] = 100 * abs(peak["80x20"] - peak["40x10"]) / peak["80x20"]
     for m in MESHES:
         a, b = cases.get(f"local-{m}"), cases.get(f"nonlocal-{m}")
         if a and b:
@@ -117,7 +139,8 @@ def plot(cases: dict) -> None:
             sc = ax.scatter(d["x"][0], d["x"][1], c=d["inc"], s=2500 / d["dx"].size ** 0.85, marker="s", cmap="viridis")
             fig.colorbar(sc, ax=ax, fraction=0.06)
             b = c["band"]
-            ax.set_title(f"{kind if kind == 'local' else c['regularization']} {m}\n"
+            ax.set_title(f"{'local' if c['regularization'] == 'local' else c['regularization']}"
+                         f"{' (corner)' if kind.startswith('corner') else ''} {m}\n"
                          + (f"band {b['angle_deg']:.0f} deg, {1e3 * b['width_m']:.1f} mm" if b["angle_deg"] else
                             f"no band (max/mean {b['concentration']:.2f})"), fontsize=8)
             axes[i, 3].plot(c["curve"]["eps11"], np.array(c["curve"]["q"]) / 1e3, label=m)
@@ -127,15 +150,17 @@ def plot(cases: dict) -> None:
             axes[i, 3].plot(mp["eps11"], np.array(mp["q"]) / 1e3, "k--", label="material point")
         axes[i, 3].set_title(f"{kind}: q against axial strain", fontsize=9)
         axes[i, 3].set_xlabel("axial strain"), axes[i, 3].set_ylabel("q [kPa]"), axes[i, 3].legend(fontsize=8)
-    fig.suptitle("deviatoric strain increment after the peak: local, regularized (m = 1), regularized (m < 1)")
+    fig.suptitle("deviatoric strain increment after the peak (rows: local, m = 1, m < 1 with the edge imperfection; "
+                 "local and m < 1 with the corner one)")
     fig.tight_layout()
     fig.savefig(FIGURES / "fem-regularized.png", dpi=100)
     plt.close(fig)
-    feet = [c for k, c in cases.items() if k.startswith("footing-")]
+    feet = [c for k, c in cases.items() if is_foot(k)]
     if feet:
-        fig, ax = plt.subplots(figsize=(6, 4))
+        fig, ax = plt.subplots(figsize=(7, 4.5))
         for c in feet:
-            ax.plot(c["s_B"], np.array(c["pressure"]) / 1e3, "o-", ms=3, label=f"{c['mesh']} {c['regularization']}")
+            ax.plot(c["s_B"], np.array(c["pressure"]) / 1e3, "o-" if c["regularization"] != "local" else "x--", ms=3,
+                label=f"{c['mesh']} {c.get('element', 'q4').upper()} {c['regularization']}")
         ax.set_xlabel("settlement / footing width"), ax.set_ylabel("footing pressure [kPa]"), ax.legend(fontsize=8)
         fig.tight_layout()
         fig.savefig(FIGURES / "fem-regularized-footing.png", dpi=100)
@@ -158,7 +183,7 @@ def _unflat(row: dict, curves: dict) -> dict:
     c = {k: v for k, v in row.items() if k != "case" and not k.startswith("band_")}
     c["warnings"] = [row["warnings"]] if row.get("warnings") else []
     x, y = curves.get(row["case"], ([], []))
-    if row["case"].startswith("footing-"):
+    if is_foot(row["case"]):
         c.update(s_B=x, pressure=y)
     else:
         c["band"] = {k: row.get(f"band_{k}") for k in BAND_KEYS}
@@ -190,7 +215,7 @@ def publish(out: Path, data: dict, cases: dict) -> None:
     summary in the JSON, every curve (and the material point's) in ``NAME_curves.csv``."""
     lines = ["case,x,y"]
     for name, c in cases.items():
-        x, y = (c["s_B"], c["pressure"]) if name.startswith("footing-") else (c["curve"]["eps11"], c["curve"]["q"])
+        x, y = (c["s_B"], c["pressure"]) if is_foot(name) else (c["curve"]["eps11"], c["curve"]["q"])
         lines += [f"{name},{a!r},{b!r}" for a, b in zip(x, y)]
     mp = next((c["material_point"] for c in cases.values() if c.get("material_point", {}).get("q")), None)
     if mp:
@@ -199,24 +224,25 @@ def publish(out: Path, data: dict, cases: dict) -> None:
     band = next((c["band"] for c in cases.values() if "coulomb" in c.get("band", {})), {})
     keep = {k: v for k, v in data.items() if k not in ("cases", "rows", "footing", "summary", "theory")}
     data = {**keep, "summary": summary(cases), "theory": {k: band.get(k) for k in THEORY_KEYS},
-            "rows": [_flat(n, c) for n, c in cases.items() if not n.startswith("footing-")],
-            "footing": [_flat(n, c) for n, c in cases.items() if n.startswith("footing-")]}
+            "rows": [_flat(n, c) for n, c in cases.items() if not is_foot(n)],
+            "footing": [_flat(n, c) for n, c in cases.items() if is_foot(n)]}
     out.write_text(json.dumps(data, indent=1, default=float) + "\n")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", default="", help="comma list: local-8x16, nonlocal-32x64, partial-16x32, "
-                                                "footing-20x10, ...")
+                                                "footing-40x10, footlocal-40x10, ...")
     ap.add_argument("--ell", type=float, default=ELL)
     ap.add_argument("--m", type=float, default=PARTIAL_M, help="nonlocal share of the partial cases")
     ap.add_argument("--foot-ell", type=float, default=FOOT_ELL)
+    ap.add_argument("--foot-m", type=float, default=FOOT_M, help="nonlocal share of the footing cases")
     ap.add_argument("--plot", action="store_true")
     ap.add_argument("--publish", action="store_true", help="write the published form (rows and the curves' CSV)")
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("fem_regularized.json"))
     args = ap.parse_args()
     for name in filter(None, args.cases.split(",")):
-        c = (footing_case(name, args.foot_ell) if name.startswith("footing-")
+        c = (footing_case(name, args.foot_ell, args.foot_m) if is_foot(name)
              else biaxial_case(name, args.ell, args.m))
         print(f"{name}: {c['wall_s']:.1f} s wall, {c['cpu_s']:.1f} s CPU, stopped: {c['stopped']}, "
               + (f"q at 10 %: {c['q_at_10pc']}" if "q_at_10pc" in c else f"peak {c['peak_pressure']:.4g} Pa"),
@@ -224,8 +250,9 @@ def main() -> None:
         # cases may run in several processes at once: merge under a lock, from the file as it is
         with open(Path(tempfile.gettempdir()) / f"{args.out.stem}.lock", "w") as lock:
             fcntl.flock(lock, fcntl.LOCK_EX)
-            data = json.loads(args.out.read_text()) if args.out.exists() else {}
-            cases = {**data.get("cases", {}), name: c}
+            data, cases = load(args.out)  # the working or the published form
+            data = {k: v for k, v in data.items() if k not in ("rows", "footing")}
+            cases = {**cases, name: c}
             data = {**data, **provenance(__file__, args), "cases": cases, "summary": summary(cases)}
             args.out.write_text(json.dumps(data, indent=1, default=float) + "\n")
     data, cases = load(args.out)
