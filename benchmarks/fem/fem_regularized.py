@@ -150,8 +150,7 @@ def plot(cases: dict) -> None:
             axes[i, 3].plot(mp["eps11"], np.array(mp["q"]) / 1e3, "k--", label="material point")
         axes[i, 3].set_title(f"{kind}: q against axial strain", fontsize=9)
         axes[i, 3].set_xlabel("axial strain"), axes[i, 3].set_ylabel("q [kPa]"), axes[i, 3].legend(fontsize=8)
-    fig.suptitle("deviatoric strain increment after the peak (rows: local, m = 1, m < 1 with the edge imperfection; "
-                 "local and m < 1 with the corner one)")
+    fig.suptitle("deviatoric strain increment after the peak, one row per model (and imperfection, where not the edge one)")
     fig.tight_layout()
     fig.savefig(FIGURES / "fem-regularized.png", dpi=100)
     plt.close(fig)
