@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 from scipy.optimize import brentq
+from scipy.sparse.linalg import spsolve
 
 from hmodel import Params
 from hmodel.cli.app import main
@@ -225,7 +226,6 @@ def test_cli_regularization_option(tmp_path, capsys):
 def _wave_extra(n: int, m: float):
     """The stress added to the local one by the average, and the derived value, for the strain
     wave cos(k y), k ell = 1, on a strip of n Q4 (a linear law E below D_e = 2E: g = E eps)."""
-    from scipy.sparse.linalg import spsolve
     E, ell = 1e8, 1.0
     L = 4 * np.pi * ell  # k L = 4 pi: the natural boundary condition admits the cosine
     k = 4 * np.pi / L

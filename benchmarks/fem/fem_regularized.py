@@ -15,8 +15,8 @@ model, for docs/fem.md (Regularization): ``fem_regularized.json`` and ``docs/fig
     (``footing-MESH``) and local (``footlocal-MESH``).
 
 Usage: ``python -m benchmarks.fem.fem_regularized --cases nonlocal-8x16,local-8x16 ...`` (the
-partial cases with ``--ell 0.003125 --m 0.05``, the corner ones with ``--ell 0.005 --m 0.05``); each case's numbers are merged into the JSON
-(several processes may run cases at once); ``--publish`` writes the published form (one table row
+partial cases with ``--ell 0.003125 --m 0.05``, the corner ones with ``--ell 0.005 --m 0.05``);
+each case's numbers are merged into the JSON (several processes may run cases at once); ``--publish`` writes the published form (one table row
 per case, the curves in ``fem_regularized_curves.csv``), ``--plot`` draws the figures (the fields
 from this machine's last runs, kept in /tmp).
 """
@@ -45,14 +45,18 @@ from hmodel.fem.outputs import deviatoric_strain
 
 ELL = 0.005
 PARTIAL_M = 0.05  # the "partial" cases: nonlocal share m of the inelastic stress
-KINDS = ("local", "nonlocal", "partial", "cornerlocal", "corner")
+#: case kind -> (regularization: None, "nonlocal" with --ell, "partial" with --ell and --m;
+#: imperfection zone)
+KINDS = {"local": (None, "edge"), "nonlocal": ("nonlocal", "edge"), "partial": ("partial", "edge"),
+         "cornerlocal": (None, "corner"), "corner": ("partial", "corner")}
 FOOT_KINDS = ("footing", "footlocal")
 FOOT_ELL = 0.1
 FOOT_M = 0.05
 FOOT = {"width": 0.4, "layer": (4.0, 1.0), "element": "q8", "settlement": 0.3, "n_steps": 30}
 FOOT_PARAMS = Params(n_theta=30, sliding_rhs="equilibrium")
-ZONE = (0.0, 0.05, 0.01)  # the edge imperfection: a disc at the middle of the left side
-CORNER = (0.0, 0.0, 0.015)  # the corner cases': a quarter disc at the bottom of the left side
+#: imperfection zones (x, y, radius): a disc at the middle of the left side, and a quarter disc at
+#: its bottom
+ZONES = {"edge": (0.0, 0.05, 0.01), "corner": (0.0, 0.0, 0.015)}
 MESHES = {"8x16": (8, 16), "16x32": (16, 32), "32x64": (32, 64)}
 FOOT_MESHES = {"20x5": (20, 5), "40x10": (40, 10), "80x20": (80, 20)}
 PARAMS = Params(n_theta=90, sliding_rhs="equilibrium")
@@ -65,9 +69,9 @@ def is_foot(name: str) -> bool:
 
 def biaxial_case(name: str, ell: float, m: float) -> dict:
     kind, mesh = name.split("-")
-    reg = {"local": None, "nonlocal": f"nonlocal:ell={ell:g}", "partial": f"nonlocal:ell={ell:g},m={m:g}",
-           "cornerlocal": None, "corner": f"nonlocal:ell={ell:g},m={m:g}"}[kind]
-    zone = CORNER if kind.startswith("corner") else ZONE
+    form, where = KINDS[kind]
+    reg = {None: None, "nonlocal": f"nonlocal:ell={ell:g}", "partial": f"nonlocal:ell={ell:g},m={m:g}"}[form]
+    zone = ZONES[where]
     t, c = time.perf_counter(), time.process_time()
     res = biaxial(PARAMS, 2e5, 0.10, mesh=MESHES[mesh], n_steps=100, n_saved=100, reference=True,
                   imperfection=f"phi_g=25,alpha0=55@{zone[0]},{zone[1]},{zone[2]}", regularization=reg)
@@ -82,7 +86,8 @@ def biaxial_case(name: str, ell: float, m: float) -> dict:
     rates = [math.log(r[2]) / math.log(r[1]) for r in res.residuals if len(r) >= 3 and r[1] < 1e-2 and r[2] > 1e-14]
     ref = material_point_curve(res.reference)
     return {"regularization": res.meta["regularization"], "mesh": mesh, "gauss_points": int(res.gauss_dx.size),
-            "dofs": res.meta["dofs"], "imperfection_zone": ",".join(f"{v:g}" for v in zone), "wall_s": wall, "cpu_s": cpu, "stopped": res.stopped, "steps": len(res) - 1,
+            "dofs": res.meta["dofs"], "imperfection_zone": ",".join(f"{v:g}" for v in zone),
+            "wall_s": wall, "cpu_s": cpu, "stopped": res.stopped, "steps": len(res) - 1,
             "newton_iterations": int(res.column("newton_iterations").sum()),
             "median_rate": float(np.median(rates)) if rates else None, "warnings": res.meta["warnings"],
             "peak_q": float(q[ipk]), "peak_strain": float(e[ipk]),
@@ -100,7 +105,8 @@ def footing_case(name: str, ell: float, m: float) -> dict:
     s, p = res.column("s_B"), res.column("pressure")
     return {"regularization": res.meta["regularization"], "mesh": mesh, "wall_s": time.perf_counter() - t,
             "cpu_s": time.process_time() - c, "stopped": res.stopped, "warnings": res.meta["warnings"],
-            "element": FOOT["element"], "n_theta": FOOT_PARAMS.n_theta, "s_B": s.tolist(), "pressure": p.tolist(), "peak_pressure": float(p.max()),
+            "element": FOOT["element"], "n_theta": FOOT_PARAMS.n_theta,
+            "s_B": s.tolist(), "pressure": p.tolist(), "peak_pressure": float(p.max()),
             "peak_at_s_B": float(s[np.argmax(p)])}
 
 
@@ -140,7 +146,7 @@ def plot(cases: dict) -> None:
             fig.colorbar(sc, ax=ax, fraction=0.06)
             b = c["band"]
             ax.set_title(f"{'local' if c['regularization'] == 'local' else c['regularization']}"
-                         f"{' (corner)' if kind.startswith('corner') else ''} {m}\n"
+                         f"{' (corner)' if KINDS[kind][1] == 'corner' else ''} {m}\n"
                          + (f"band {b['angle_deg']:.0f} deg, {1e3 * b['width_m']:.1f} mm" if b["angle_deg"] else
                             f"no band (max/mean {b['concentration']:.2f})"), fontsize=8)
             axes[i, 3].plot(c["curve"]["eps11"], np.array(c["curve"]["q"]) / 1e3, label=m)

@@ -158,8 +158,7 @@ def _prepare(folder: Path, header: dict, overwrite: bool) -> dict:
         if isinstance(old.get("params"), dict):
             # parameters added to Params since it was written: their defaults are the physics its
             # rows were computed with (a new parameter defaults to the model it extends)
-            old = {**old, "params": {**{k: v for k, v in Params().to_dict().items() if k not in old["params"]},
-                                     **old["params"]}}
+            old = {**old, "params": {**Params().to_dict(), **old["params"]}}
         for key in ("format", "schema_version", "kind", "options", "params"):
             if old.get(key) != header[key]:
                 raise InputError(
