@@ -12,7 +12,7 @@ from hmodel.cell.closed_form import ClosedFormSolver
 from hmodel.errors import PointFailure, SolverError
 from hmodel.loading.compiled import CompiledSegment
 from hmodel.loading.control import Control, Tangent, solve_increment
-from hmodel.loading.newton import NewtonSettings, _bound
+from hmodel.loading.newton import NewtonSettings, _bound, solver_limits
 from hmodel.loading.named_paths import consolidate
 from hmodel.rev import Rev
 from hmodel.surrogate.shipped import load_shipped
@@ -83,6 +83,37 @@ def test_newton_on_a_nearly_singular_sample_stops_with_one_line_and_bounded_tria
     assert f"{cap:.3g}" in str(err.value)
     assert solver.largest <= cap * np.sqrt(1.5)
     assert solver.calls <= 2 * (s.max_iter + 4)  # Newton's trials and tangents: no event loop
+
+
+class Ceiled(Recording):
+    """:class:`Recording` that takes cell strain increments up to ``max_cell_strain`` only, as a
+    learned cell does (:attr:`hmodel.surrogate.solver.SurrogateSolver.max_cell_strain`)."""
+
+    max_cell_strain = 4e-3
+
+
+def test_newton_holds_its_trials_within_what_the_cell_solver_takes():
+    """The nearly singular sample above asks for trials up to the cap (0.1); a cell solver that
+    takes cell strains up to 4e-3 only is never asked for more (the cap lowered to
+    solver_limits' ceiling), and the increment fails as before: diverged, one line."""
+    state = _consolidated()
+    control = Control.components("ESE", np.column_stack([np.full(2, 1e-3), 0.5 * state.sig[:, 1],
+                                                          np.zeros(2)]))
+    free, ceiled = Recording(soft=1e-12), Ceiled(soft=1e-12)
+    for solver in (free, ceiled):
+        with pytest.raises(PointFailure, match="diverged"):
+            solve_increment(Rev(SMALL, solver), state, control, Tangent())
+    assert free.largest > 10 * Ceiled.max_cell_strain  # without the ceiling: far beyond
+    assert Ceiled.max_cell_strain / 4 < ceiled.largest <= Ceiled.max_cell_strain
+    assert solver_limits(ceiled) == (0.0, pytest.approx(4e-3 / (2 * np.sqrt(2))))
+    assert solver_limits(ClosedFormSolver())[1] == np.inf
+    shipped = SurrogateSolver(load_shipped("hexagon-center-1"))
+    assert shipped.max_cell_strain == pytest.approx(shipped.max_substeps * shipped.max_increment)
+    # the ceiling never cuts the strain rows themselves: a strain increment beyond it is asked as is
+    big = Control.components("EEE", np.column_stack([np.full(2, 3e-3), np.zeros(2), np.zeros(2)]))
+    ceiled.largest = 0.0
+    solve_increment(Rev(SMALL, ceiled), state, big, Tangent())
+    assert ceiled.largest >= 3e-3 * 0.99
 
 
 def _sign_flipped_tangent(rev, state, control):

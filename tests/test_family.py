@@ -176,10 +176,66 @@ def test_meso_family_takes_the_runs_geometry_and_material():
         assert v[0, 2] == pytest.approx(p.alpha0)  # the unloaded cell opens at the run's alpha0
         X = form.features(v, p)
         np.testing.assert_allclose(X[:, -3:], [[0.3, math.tan(p.phi_g), p.alpha0]] * 2)
-    with pytest.raises(InputError, match="single increments"):
-        from hmodel.surrogate.training import TrainConfig
 
-        form.rollout_loss({}, TrainConfig(formulation="meso", rollout=2), None, None, None)
+
+def test_family_rollout_steps_each_window_with_its_own_material():
+    """Rollout training of a family: windows of two materials, stepped together (torch, each
+    window's material inputs, Coulomb bound and cage), charge the error that each material's
+    own formulation (the REV's: :meth:`for_material`) gives stepping its windows alone (NumPy)."""
+    import torch
+
+    from hmodel.surrogate.model import Architecture
+    from hmodel.surrogate.training import build_network
+
+    base = Params(sliding_rhs="equilibrium")
+    form = make_formulation("meso", base, "dem:hexagon-center", family=True)
+    mats = [base.with_(kt_kn=0.3, phi_g=math.radians(15.0), alpha0=math.radians(40.0)),
+            base.with_(kt_kn=0.9, phi_g=math.radians(40.0), alpha0=math.radians(57.0))]
+    rng = np.random.default_rng(5)
+    n, T, sub = 12, 3, 2
+    which = np.arange(n) % 2
+    rows = {"kt_kn": np.array([mats[j].kt_kn for j in which]), "phi_g": np.array([mats[j].phi_g for j in which]),
+            "alpha0": np.array([mats[j].alpha0 for j in which])}
+    material = form._window_materials(rows, np.arange(n))
+    assert material["cage"][0, 0] != material["cage"][1, 0]  # the free grain's reach follows alpha0
+    F, d = form.force_scale, 2 * base.radius
+    l0 = np.array([[mats[j].l10, mats[j].l20] for j in which])
+    z0 = np.zeros((n, 11))
+    z0[:, 2] = rows["alpha0"] + rng.normal(0, 0.01, n)
+    z0[:, 6:8] = l0 * (1 - 1e-3)
+    z0[:, 3:6] = F * rng.uniform(0, 2e-4, (n, 3)) * [1, 1, 0.3]
+    z0[:, 8:10] = F * d * rng.uniform(0, 1e-3, (n, 2))
+    e = rng.normal(0, 1, (n, T, 2))
+    dl = -l0[:, None, :] * e * form.m0
+    target = form._learned_values(z0)[:, None, :] + rng.normal(0, 1, (n, T, 6)) * form._scales() * form.m0 * 0.1
+    mask = np.ones((n, T))
+    torch.manual_seed(0)
+    net = build_network(Architecture(16, 2, "silu"), 11, form.n_outputs).double()
+    X0 = np.vstack([form.features(z0[which == j], mats[j]) for j in (0, 1)])
+    off, scale = X0.mean(0), X0.std(0) + 1e-9
+    t = lambda a: torch.as_tensor(a, dtype=torch.float64)  # noqa: E731
+    with torch.no_grad():
+        got = float(form.rollout_error(net.float(), *(t(a) for a in (z0, e, dl, target, mask)),
+                                       lambda X: (X - t(off)) / t(scale), sub, {k: t(v) for k, v in material.items()}))
+    want = 0.0
+    for j, m in enumerate(mats):
+        f, rows_j = form.for_material(m), which == j
+        z = z0[rows_j]
+        for k in range(T):
+            for _ in range(sub):
+                with torch.no_grad():
+                    X = torch.as_tensor((form.features(z, m) - off) / scale, dtype=torch.float32)
+                    out = net(X).double().numpy()
+                z, _ = f.advance(z, f.head(out, e[rows_j, k] / sub), dl[rows_j, k] / sub)
+            err = (f._learned_values(z) - target[rows_j, k]) / (f._scales() * f.m0)
+            want += ((err ** 2).mean(1)).sum()
+    assert got == pytest.approx(want / mask.sum(), rel=1e-6)
+    # the check can fail: one material's bound and cage for every window give another error
+    with torch.no_grad():
+        one = dict(material, tan_phi=np.full(n, mats[0].tan_phi), cage=np.tile(form.for_material(mats[0])._cage, (n, 1)))
+        other = float(form.rollout_error(net.float(), *(t(a) for a in (z0, e, dl, target, mask)),
+                                         lambda X: (X - t(off)) / t(scale), sub, {k: t(v) for k, v in one.items()}))
+    assert other != pytest.approx(got, rel=1e-6)
 
 
 def test_shipped_family_reproduces_the_closed_form_at_an_unseen_material():

@@ -587,7 +587,7 @@ class CompiledSegment:
             self.guess[:] = tangent.previous
         self.trials = np.zeros(B, dtype=np.int64)
         # the solver's own tolerance floor, as the generic driver takes it (``solve_increment``)
-        self.c = settings.packed(float(rev.solver.stress_rtol))
+        self.c = settings.packed_for(rev.solver)
 
     def state(self) -> RevState:
         return RevState(CellState(self.values.copy()), CellFlags(self.flags.copy()),

@@ -137,7 +137,7 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
     """
     B, n = state.n_points, control.n_components
     S, M = control.stress_rows, control.matrix
-    c = settings.packed(float(rev.solver.stress_rtol))
+    c = settings.packed_for(rev.solver)
     if tangent.K is None or tangent.K.shape[0] != B:
         tangent.K = None
     K = np.zeros((B, n, n)) if tangent.K is None else np.array(tangent.K, float)

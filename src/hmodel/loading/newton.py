@@ -13,7 +13,8 @@ carried from one increment to the next:
 - each correction is a Newton step, shortened to ``trust`` times the predictor (trust region)
   and held inside the strain cap (``max_trial_strain``, or ``step_multiple`` times the strain
   rows where those ask for more: a nearly singular tangent would otherwise ask a cell solver
-  for absurd increments);
+  for absurd increments), lowered to what the cell solver takes (:func:`solver_limits`: a
+  learned cell's ``max_cell_strain``);
 - after each trial K is updated by Broyden's rank-one secant, except across a cell event (the
   set of broken cells changed: a jump) and along u where the slope is exact;
 - a stalled Newton takes a fresh finite-difference tangent at its current trial after a third
@@ -77,14 +78,36 @@ class NewtonSettings:
         """The correction before which a stalled Newton takes a fresh tangent."""
         return self.max_iter // 3
 
-    def packed(self, rtol_floor: float = 0.0) -> np.ndarray:
-        """The settings for the kernels (see the ``C_*`` indices), rtol raised to the floor."""
+    def packed(self, rtol_floor: float = 0.0, strain_ceiling: float = math.inf) -> np.ndarray:
+        """The settings for the kernels (see the ``C_*`` indices), rtol raised to the floor;
+        ``strain_ceiling`` lowers the strain cap to what the cell solver takes
+        (:func:`solver_limits`)."""
         return np.array([max(self.rtol, rtol_floor), self.max_iter, self.refresh_at, self.trust,
-                         self.fd_step, self.max_trial_strain, self.step_multiple])
+                         self.fd_step, self.max_trial_strain, self.step_multiple, strain_ceiling])
+
+    def packed_for(self, solver) -> np.ndarray:
+        """:meth:`packed` with the limits of the cell solver ``solver`` (:func:`solver_limits`)."""
+        return self.packed(*solver_limits(solver))
+
+
+def solver_limits(solver) -> tuple[float, float]:
+    """The cell solver's own stress tolerance, and the largest REV strain trial (norm over the
+    components, shear once) whose cell strains it can take.
+
+    A learned cell refuses a cell strain increment dl / l0 beyond its ``max_cell_strain`` (many
+    times its trained increments: a run-away trial it would only guess at). The REV's dl is L
+    n.de.n for a unit direction n (eq. 1.1), L the cell's length or its box's, l + 2r (eq.
+    1.19), at most 2 l0 in compression (l0 = 2r (1 + 2 cos alpha0) >= 2r); n.de.n is at most
+    the largest eigenvalue of de, which is at most de's Frobenius norm, at most sqrt(2) times
+    the norm taken here. So trials within max_cell_strain / (2 sqrt(2)) are increments the
+    cells take, and a nearly singular tangent's trial is held there instead of failing the
+    increment."""
+    ceiling = float(getattr(solver, "max_cell_strain", math.inf)) / (2.0 * math.sqrt(2.0))
+    return float(solver.stress_rtol), ceiling
 
 
 # Indices of the packed settings.
-C_RTOL, C_MAX_ITER, C_REFRESH, C_TRUST, C_FD, C_CAP, C_MULTIPLE = range(7)
+C_RTOL, C_MAX_ITER, C_REFRESH, C_TRUST, C_FD, C_CAP, C_MULTIPLE, C_CEILING = range(8)
 
 # What the machine asks of its driver, or how it ended.
 ASK_TRIAL = 0      # evaluate the trial W[XN:XN+3] (with its slope along u if exact)
@@ -289,7 +312,8 @@ def begin(W, K, has_K, S, M, v, sig, c, guess, exact):
             strain += v[r] ** 2
         else:
             n_stress += 1
-    W[_s(n, CAP)] = max(c[C_CAP], c[C_MULTIPLE] * math.sqrt(strain))
+    # the cap, lowered to the cell solver's ceiling, but never below the strain rows' own norm
+    W[_s(n, CAP)] = max(min(max(c[C_CAP], c[C_MULTIPLE] * math.sqrt(strain)), c[C_CEILING]), math.sqrt(strain))
     smax = 0.0
     for j in range(n):
         smax = max(smax, abs(sig[j]))

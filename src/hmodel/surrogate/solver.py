@@ -284,13 +284,20 @@ class SurrogateSolver:
             self.fall_back(params, v, dl, mask, inc.new, inc.flags)
         return inc.new, inc.flags
 
+    @property
+    def max_cell_strain(self) -> float:
+        """The largest cell strain increment :meth:`step` takes (``max_substeps`` trained
+        increments); the REV's Newton holds its trials within it
+        (:func:`hmodel.loading.newton.solver_limits`)."""
+        return self.max_substeps * self.max_increment
+
     def _substeps(self, largest: float) -> int:
         """Sub-steps for a cell strain increment of size ``largest``: a request beyond
         ``max_substeps`` trained increments is no cell increment the network knows (a run-away
         Newton trial, typically) and fails at once instead of being cut into unbounded work."""
         if not math.isfinite(largest):
             raise SolverError(f"the surrogate was asked for a non-finite cell strain increment ({largest})")
-        if largest > self.max_substeps * self.max_increment:
+        if largest > self.max_cell_strain:
             raise SolverError(
                 f"cell strain increment {largest:.3g} is {largest / self.max_increment:.3g} times the "
                 f"surrogate's largest trained increment {self.max_increment:.3g} (at most "

@@ -201,10 +201,6 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
         """The rollout error along the data's paths of a training with ``rollout`` steps."""
         if not config.rollout:
             return None
-        if self.material_inputs:
-            raise InputError("rollout training applies one material's Coulomb bound and cage to every "
-                             "window; a family network (rows with a material per path) trains on "
-                             "single increments (--rollout 0)")
         return RolloutLoss(self, columns, config, rng, x_scaler, net, config.rollout, config.rollout_substeps,
                            config.rollout_weight)
 
@@ -247,10 +243,15 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
                                  n1 == 0, cols[4] == 0, l1 <= two_r, l2 <= two_r])
         return new, flags
 
-    def _advanced(self, v, Y, dl) -> list:
+    def _advanced(self, v, Y, dl, material: dict | None = None) -> list:
         """The columns of :meth:`advance` (V sigma only for richer cells), for NumPy arrays or
-        torch tensors alike: the same way back in the REV and in rollout training."""
+        torch tensors alike: the same way back in the REV and in rollout training. A family's
+        rollout windows give each row's Coulomb bound and cage in ``material`` (``tan_phi``
+        (n,), ``cage`` (n, 3)); else the formulation's material's."""
         where, minimum, maximum, sin, cos = array_ops(v)
+        tan_phi = self.tan_phi if material is None else material["tan_phi"]
+        cage = material["cage"] if material is not None else None
+        reach, r_n, r_t = self._cage if cage is None else (cage[:, 0], cage[:, 1], cage[:, 2])
         u = self._learned_values(v) + Y * like(self._scales() * self.m0, Y)
         a = u[:, 0]
         l1, l2 = v[:, 6] + dl[:, 0], v[:, 7] + dl[:, 1]
@@ -259,13 +260,14 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
         apart = 2.0 * self.radius * (1.0 + self.gap_tol)
         n1 = where(d1 < apart, positive(u[:, 1]), 0.0 * u[:, 1])
         n2 = where(d2 < apart, positive(u[:, 2]), 0.0 * u[:, 2])
-        t1 = minimum(maximum(u[:, 3], -self.tan_phi * n1), self.tan_phi * n1)  # eq. 1.3
+        t1 = minimum(maximum(u[:, 3], -tan_phi * n1), tan_phi * n1)  # eq. 1.3
         cols = [d1, d2, a, n1, n2, t1, l1, l2]
         if not self.richer:
             return cols
         vs = [positive(u[:, 4]), positive(u[:, 5])]
-        reach, r_n, r_t = self._cage
-        if reach:  # a loose cage: the inner grains carry nothing, V sigma is the hexagon's
+        # a family's cells are of one kind: with free grains all (a reach each) or none
+        if bool((reach > 0).all()) if cage is not None else reach:
+            # a loose cage: the inner grains carry nothing, V sigma is the hexagon's
             clearance = minimum(l1 / 2 - r_n, ((d2 / 2) ** 2 + (l2 / 2) ** 2) ** 0.5 - r_t)
             # weight of the learned inner part: 1 while the cage holds the grain, 0 once it is
             # loose by gap_tol, linear between (V sigma stays continuous in the strain)

@@ -19,9 +19,12 @@ import numpy as np
 from ...cell.state import initial_lengths
 from ...errors import InputError
 from ..torch_support import require_torch
-from .meso_head import like, stack
+from .base import material_features
+from .meso_head import MesoHead, like, stack
 from .meso_summary import STATE_FIELDS
 
+#: A family's per-window material (:meth:`MesoRollout._window_materials`).
+MATERIAL_KEYS = ("tan_phi", "cage", "material")
 #: The options of :class:`MesoTraining` that shape the loss (a fine-tuning keeps them).
 LOSS_OPTIONS = ("secant_floor", "rollout", "rollout_weight", "rollout_substeps")
 
@@ -112,30 +115,51 @@ class MesoRollout:
             out["dl"][ok, k] = dl[ok]
             out["target"][ok, k] = learned[nxt][ok]
             out["mask"][ok, k] = 1.0
+        out.update(self._window_materials(c, first))
         keep = out["mask"][:, 0] > 0
         return {k: a[keep] for k, a in out.items()}
 
-    def rollout(self, net, z0, e, dl, scale_inputs, substeps: int = 1):
+    def _window_materials(self, c: dict[str, np.ndarray], first: np.ndarray) -> dict[str, np.ndarray]:
+        """A family's windows (rows ``first`` of ``c`` start them): each window's material as
+        the way back and the network read it, ``tan_phi`` (W,), ``cage`` (W, 3) and the material
+        inputs ``material`` (W, n); {} for one material (the formulation's own are used)."""
+        if not getattr(self, "material_inputs", ()) or "kt_kn" not in c:
+            return {}
+        rows = {k: c[k][first] for k in ("kt_kn", "phi_g", "alpha0")}
+        out = {"tan_phi": np.empty(len(first)), "cage": np.empty((len(first), 3)),
+               "material": material_features(self.material_inputs, columns=rows)}
+        for idx, f in self._row_materials(rows):
+            out["tan_phi"][idx] = f.tan_phi
+            out["cage"][idx] = f._cage
+        return out
+
+    def rollout(self, net, z0, e, dl, scale_inputs, substeps: int = 1, material: dict | None = None):
         """The learned fields (W, T, len(learned)) after each step of windows rolled out with the
         network ``net`` (torch, float64 states): each step's state is the previous step's
         output, as in a REV; each data step taken in ``substeps`` equal network steps (a REV at
-        a finer increment than the data's, :attr:`MesoTraining.rollout_substeps`)."""
+        a finer increment than the data's, :attr:`MesoTraining.rollout_substeps`). A family's
+        windows bring their ``material`` (:meth:`_window_materials`, as tensors): each window
+        is stepped with its own inputs, Coulomb bound and cage, as the REV steps each material."""
+        torch = require_torch()
         z = z0
         fields = []
         for k in range(e.shape[1]):
             for _ in range(substeps):
-                out = net(scale_inputs(self.features(z)).float()).double()
-                cols = self._advanced(z, self.head(out, e[:, k] / substeps), dl[:, k] / substeps)
+                X = self.features(z) if material is None else torch.cat(
+                    [MesoHead.features(self, z), material["material"]], 1)
+                out = net(scale_inputs(X).float()).double()
+                cols = self._advanced(z, self.head(out, e[:, k] / substeps), dl[:, k] / substeps, material)
                 z = stack(cols + [0.0 * cols[0]] * (len(STATE_FIELDS) - len(cols)))
             fields.append(self._learned_values(z))
-        return require_torch().stack(fields, 1)
+        return torch.stack(fields, 1)
 
-    def rollout_error(self, net, z0, e, dl, target, mask, scale_inputs, substeps: int = 1):
+    def rollout_error(self, net, z0, e, dl, target, mask, scale_inputs, substeps: int = 1,
+                      material: dict | None = None):
         """Mean squared error (in units of dz/m0) of the learned fields along windows rolled out
         with ``net`` (:meth:`rollout`) against ``target`` (W, T, len(learned)), steps weighed
         by ``mask`` (W, T)."""
         scales = like(self._scales() * self.m0, z0)
-        err = (self.rollout(net, z0, e, dl, scale_inputs, substeps) - target) / scales
+        err = (self.rollout(net, z0, e, dl, scale_inputs, substeps, material) - target) / scales
         return ((err * err).mean(2) * mask).sum() / mask.sum().clamp(min=1.0)
 
 
@@ -168,8 +192,9 @@ class RolloutLoss:
 
     def _error(self, part: dict, idx=None):
         a = part if idx is None else {k: t[idx] for k, t in part.items()}
+        material = {k: a[k] for k in MATERIAL_KEYS} if "material" in a else None
         return self.form.rollout_error(self.net, a["z0"], a["e"], a["dl"], a["target"], a["mask"],
-                                       self.scale_inputs, self.substeps)
+                                       self.scale_inputs, self.substeps, material)
 
     def train_batch(self, b: int, n_batches: int):
         """Weighted rollout error of the b-th of ``n_batches`` slices of the training windows."""
