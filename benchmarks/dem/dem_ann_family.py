@@ -118,6 +118,7 @@ def main() -> None:
     ap.add_argument("--init", type=Path, default=None,
                     help="continue the training of this model file (its network, scalers and formulation)")
     ap.add_argument("--lr", type=float, default=CONFIG.lr)
+    ap.add_argument("--width", type=int, default=CONFIG.width, help="hidden layer width (a new training)")
     ap.add_argument("--sets", type=int, default=3)
     ap.add_argument("--seed", type=int, default=36)
     ap.add_argument("--training-materials", default="start:0,start:3,history:1",
@@ -152,7 +153,7 @@ def main() -> None:
                 print(f"training {100 * f:.0f} % ({time.perf_counter() - t0:.0f} s)", flush=True)
 
         start = load(args.init) if args.init else None
-        model, history = train(train_cols, PARAMS, replace(CONFIG, epochs=args.epochs, lr=args.lr), progress,
+        model, history = train(train_cols, PARAMS, replace(CONFIG, epochs=args.epochs, lr=args.lr, width=args.width), progress,
                                cell=SOLVER, init=start)
         if start is not None:  # the whole recipe: the earlier stages' epochs, then these
             model.meta["recipe"] = start.meta.get("recipe", [{"epochs": start.meta["training_summary"]["epochs"],
