@@ -49,7 +49,7 @@ from ...cell.state import CellState
 from ...errors import InputError
 from ...params import Params
 from .base import OUTPUTS, Formulation, Increment, Networks, material_features
-from .meso_head import MesoHead, array_ops, like, positive
+from .meso_head import MesoHead, array_ops, like, positive, stack
 from .meso_rollout import MesoRollout, MesoTraining, RolloutLoss, secant_weights
 from .meso_summary import COLUMN, MESO_FIELDS, STATE_FIELDS, MesoSummary
 
@@ -151,14 +151,18 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
                 out[k] = col
         return out
 
-    def features(self, v: np.ndarray, params: Params | None = None) -> np.ndarray:
+    def features(self, v: np.ndarray, params: Params | None = None, material=None) -> np.ndarray:
         """Network inputs of summary states v (n, 11) of the material ``params`` (None: the
-        trained one): the summary's (:meth:`MesoHead.features`), then a family's material inputs."""
+        trained one): the summary's (:meth:`MesoHead.features`), then a family's material inputs,
+        or each row's own ``material`` inputs (n, k) where given (a family's rollout windows;
+        NumPy or torch alike)."""
         f = self.for_material(params)
         X = MesoHead.features(f, v)
         if not self.material_inputs:
             return X
-        return np.hstack([X, material_features(self.material_inputs, f.params, n=len(X))])
+        if material is None:
+            material = material_features(self.material_inputs, f.params, n=len(X))
+        return stack([*X.T, *material.T])
 
     def initial(self, params: Params, shape: tuple[int, ...] = ()) -> CellState:
         """Summary of unloaded cells: of the trained opening angle, a family's of the run's."""
@@ -265,8 +269,7 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
         if not self.richer:
             return cols
         vs = [positive(u[:, 4]), positive(u[:, 5])]
-        # a family's cells are of one kind: with free grains all (a reach each) or none
-        if bool((reach > 0).all()) if cage is not None else reach:
+        if self._cage[0]:  # a cell with free grains (a family's: every material's, each its reach)
             # a loose cage: the inner grains carry nothing, V sigma is the hexagon's
             clearance = minimum(l1 / 2 - r_n, ((d2 / 2) ** 2 + (l2 / 2) ** 2) ** 0.5 - r_t)
             # weight of the learned inner part: 1 while the cage holds the grain, 0 once it is

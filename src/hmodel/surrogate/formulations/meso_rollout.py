@@ -20,7 +20,7 @@ from ...cell.state import initial_lengths
 from ...errors import InputError
 from ..torch_support import require_torch
 from .base import material_features
-from .meso_head import MesoHead, like, stack
+from .meso_head import like, stack
 from .meso_summary import STATE_FIELDS
 
 #: A family's per-window material (:meth:`MesoRollout._window_materials`).
@@ -76,6 +76,8 @@ class MesoTraining:
 class MesoRollout:
     """The ``meso`` formulation's rollouts along the data's paths (torch for the network)."""
 
+    material_inputs: tuple[str, ...]
+
     def windows(self, c: dict[str, np.ndarray], length: int) -> dict[str, np.ndarray]:
         """Stretches of ``length`` steps along the data's paths, for rollout training.
 
@@ -123,7 +125,7 @@ class MesoRollout:
         """A family's windows (rows ``first`` of ``c`` start them): each window's material as
         the way back and the network read it, ``tan_phi`` (W,), ``cage`` (W, 3) and the material
         inputs ``material`` (W, n); {} for one material (the formulation's own are used)."""
-        if not getattr(self, "material_inputs", ()) or "kt_kn" not in c:
+        if not self.material_inputs or "kt_kn" not in c:
             return {}
         rows = {k: c[k][first] for k in ("kt_kn", "phi_g", "alpha0")}
         out = {"tan_phi": np.empty(len(first)), "cage": np.empty((len(first), 3)),
@@ -145,8 +147,7 @@ class MesoRollout:
         fields = []
         for k in range(e.shape[1]):
             for _ in range(substeps):
-                X = self.features(z) if material is None else torch.cat(
-                    [MesoHead.features(self, z), material["material"]], 1)
+                X = self.features(z, material=None if material is None else material["material"])
                 out = net(scale_inputs(X).float()).double()
                 cols = self._advanced(z, self.head(out, e[:, k] / substeps), dl[:, k] / substeps, material)
                 z = stack(cols + [0.0 * cols[0]] * (len(STATE_FIELDS) - len(cols)))
