@@ -48,22 +48,19 @@ def _solve3(a11, a12, a13, a21, a22, a23, a31, a32, a33, b1, b2, b3):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def cell_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p):
-    """One cell's increment by (dl1, dl2) on scalars: the state's eight fields (d1, d2, α, N1,
-    N2, T1, l1, l2) in, ``(ok, *eight new fields, *five flags)`` out (:func:`finish_update`).
+def _regime(d1, a, n1, t1, dl1, dl2, p):
+    """The system of eq. 1.7 in the regime the increment (dl1, dl2) takes: ``(a11, a13, a21,
+    a23, a31, a33, rhs3, sliding, xi)``, the matrix [[a11, 1, a13], [a21, 0, a23], [a31, -1,
+    a33]] and the third right-hand side (the first two are dl1, dl2).
 
-    The kernel of every closed-form caller (:func:`cell_increment` writes it into arrays):
-    scalars in and out, so that a loop over cells makes no array views, each of which costs an
-    atomic reference count (the bi-hexagon's REV trial makes two such updates per cell).
-    ``ok`` is False when the system of eq. 1.7 is singular or the result is not finite.
-    """
+    Within a regime the solution is affine in (dl1, dl2): its matrix and rhs3 depend on the
+    committed state only, which is what makes :func:`cell_jacobian` exact."""
     kn = p[P_KN]
     kt = p[P_KT]
     tanphi = p[P_TAN]
-    g2 = p[P_G2]
     ca = math.cos(a)
     sa = math.sin(a)
-    gs = g2 + sa
+    gs = p[P_G2] + sa
     # Rows 1-2: geometric compatibility, eq. 1.2 differentiated (eq. 1.21: virtual rectangle).
     if p[P_CONSISTENT] != 0.0:
         a11 = ca
@@ -81,13 +78,79 @@ def cell_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p):
     sliding = abs(t1_new) >= tanphi * n1_new
     xi = 1.0 if t1_new >= 0.0 else -1.0
     if sliding:
-        a31 = ca + xi * tanphi * gs
-        a33 = (n1 * sa - t1 * ca) / kn
-        lam = sliding_lambda(a, n1, t1, xi, p)
-        dd1, dd2, da, det = _solve3(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33, dl1, dl2, lam)
+        return (a11, a13, a21, a23, ca + xi * tanphi * gs, (n1 * sa - t1 * ca) / kn,
+                sliding_lambda(a, n1, t1, xi, p), sliding, xi)
+    return a11, a13, a21, a23, ca, a33, 0.0, sliding, xi
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def cell_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p):
+    """One cell's increment by (dl1, dl2) on scalars: the state's eight fields (d1, d2, α, N1,
+    N2, T1, l1, l2) in, ``(ok, *eight new fields, *five flags)`` out (:func:`finish_update`).
+
+    The kernel of every closed-form caller (:func:`cell_increment` writes it into arrays):
+    scalars in and out, so that a loop over cells makes no array views, each of which costs an
+    atomic reference count (the bi-hexagon's REV trial makes two such updates per cell).
+    ``ok`` is False when the system of eq. 1.7 is singular or the result is not finite.
+    """
+    a11, a13, a21, a23, a31, a33, rhs3, sliding, xi = _regime(d1, a, n1, t1, dl1, dl2, p)
+    dd1, dd2, da, det = _solve3(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33, dl1, dl2, rhs3)
     r = finish_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, dd1, dd2, da, sliding, xi, p)
     return ((det != 0.0 and r[0]), r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], r[10],
             r[11], r[12], r[13])
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def cell_jacobian(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p):
+    """Derivatives of a cell's (V σnn, V σtt) after the increment (dl1, dl2) (eq. 1.12 of the
+    state :func:`cell_update` gives) with respect to dl1 and dl2, in the regime the increment
+    takes: ``(ok, dvnn/ddl1, dvnn/ddl2, dvtt/ddl1, dvtt/ddl2)``.
+
+    Derived by hand (docs/fem.md, "The material tangent"): in a regime, (δd1, δd2, δα) =
+    A⁻¹ (dl1, dl2, rhs3) (:func:`_regime`), so its columns for dl1 and dl2 are A⁻¹ e1 and
+    A⁻¹ e2; the new forces follow eqs. 1.8-1.9 (on the Coulomb cone when sliding), an open cell
+    carries none, and the extra contacts of docs/model.md step 3 depend on l1, l2. ``ok`` is
+    False where :func:`cell_update` would fail."""
+    a11, a13, a21, a23, a31, a33, rhs3, sliding, xi = _regime(d1, a, n1, t1, dl1, dl2, p)
+    dd1, dd2, da, det = _solve3(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33, dl1, dl2, rhs3)
+    r = finish_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, dd1, dd2, da, sliding, xi, p)
+    carries = not (r[10] or r[11])  # an open cell's forces are zero whatever the increment
+    nn1, tt1 = _jacobian_column(a11, a13, a21, a23, a31, a33, 1.0, 0.0, sliding, xi, carries,
+                                d1, r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], p)
+    nn2, tt2 = _jacobian_column(a11, a13, a21, a23, a31, a33, 0.0, 1.0, sliding, xi, carries,
+                                d1, r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], p)
+    return det != 0.0 and r[0], nn1, nn2, tt1, tt2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _jacobian_column(a11, a13, a21, a23, a31, a33, e1, e2, sliding, xi, carries, d1, d1n, d2n,
+                     an, n1n, n2n, t1n, l1n, l2n, p):
+    """d(V σnn, V σtt) along the increment direction (dl1, dl2) = (e1, e2) of
+    :func:`cell_jacobian`, at the new state (d1n, ..., l2n) from d1."""
+    kn = p[P_KN]
+    two_r = 2.0 * p[P_R]
+    x1, x2, xa, _ = _solve3(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33, e1, e2, 0.0)
+    c = math.cos(an)
+    s = math.sin(an)
+    dc = -s * xa
+    ds = c * xa
+    jnn = 0.0
+    jtt = 0.0
+    if carries:
+        dn1 = -kn * x1
+        dt1 = xi * p[P_TAN] * dn1 if sliding else p[P_KT] * d1 * xa
+        # eq. 1.12: 4 N1 d1 c² + 4 T1 d1 c s + 2 N2 d2 and 4 N1 d1 s² - 4 T1 d1 c s
+        shear = 4.0 * (dt1 * d1n * c * s + t1n * x1 * c * s + t1n * d1n * (dc * s + c * ds))
+        jnn = (4.0 * (dn1 * d1n * c * c + n1n * x1 * c * c + 2.0 * n1n * d1n * c * dc) + shear
+               + 2.0 * (-kn * x2 * d2n + n2n * x2))
+        jtt = 4.0 * (dn1 * d1n * s * s + n1n * x1 * s * s + 2.0 * n1n * d1n * s * ds) - shear
+    if l1n <= two_r:  # grains 1-4 touch: kn (2r - l1) l1 on V σnn
+        # l1' = l1 - d1 cos(α) + dl1 + d1' cos(α') (eq. 1.21), else l1 + dl1
+        dl1n = e1 + x1 * c + d1n * dc if p[P_CONSISTENT] != 0.0 else e1
+        jnn += kn * (two_r - 2.0 * l1n) * dl1n
+    if l2n <= two_r:  # grains 2-6 and 3-5: 2 kn (2r - l2) l2 on V σtt
+        jtt += 2.0 * kn * (two_r - 2.0 * l2n) * e2
+    return jnn, jtt
 
 
 @njit(cache=True, inline="always", error_model="numpy")

@@ -14,7 +14,7 @@ from numba import njit, prange
 from ..cell import CellFlags, CellState
 from ..errors import InputError
 from ..loading import consolidate
-from ..loading.compiled import batch_inputs, trial
+from ..loading.compiled import batch_inputs, closed_form_tangent, trial
 from ..rev import Rev, RevState
 
 #: Finite-difference strain perturbation of the tangent. The stress of one increment is
@@ -40,24 +40,14 @@ def _fused_trials(values, flags, eps, deps, geo, p, sets, mode, volume0, resp, o
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def _fused_tangents(values, flags, eps, deps, geo, p, sets, mode, volume0, resp, h, sig, D, ok):
-    """The forward-difference tangent ``D`` (B, 3, 3) of :func:`_fused_trials` at ``deps``
-    whose stresses are ``sig``: three probe trials per point, deps + h e_j."""
-    B, n = values.shape[0], values.shape[1]
-    for b in prange(B):
+def _fused_tangents(values, eps, deps, geo, p, sets, mode, volume0, sig, D, ok):
+    """The exact tangent ``D`` (B, 3, 3) of :func:`_fused_trials` at ``deps`` whose stresses
+    are ``sig`` (:func:`hmodel.loading.compiled.closed_form_tangent`: the closed-form cells'
+    own Jacobians in the regime each takes, one pass over the cells), the points in parallel."""
+    for b in prange(values.shape[0]):
         k = sets[b]
-        probe = np.empty((n, values.shape[2]))
-        pflags = np.empty((n, flags.shape[2]), dtype=np.bool_)
-        s = np.empty(3)
-        x = np.empty(3)
-        ok[b] = True
-        for j in range(3):
-            x[:] = deps[b]
-            x[j] += h
-            ok[b] &= trial(values[b], eps[b], x, geo[k], p[k], mode, volume0[k], probe, pflags, s,
-                           resp[b])
-            for i in range(3):
-                D[b, i, j] = (s[i] - sig[b, i]) / h
+        ok[b] = closed_form_tangent(values[b], eps[b], deps[b], geo[k], p[k], mode, volume0[k],
+                                    sig[b], D[b])
 
 
 class Trial:
@@ -148,7 +138,8 @@ class HModelMaterial:
 
         def tangent():
             D = np.empty((len(deps), 3, 3))
-            _fused_tangents(*common, self.fd_step, sig, D, ok)
+            _fused_tangents(values, eps, deps, *self._inputs, st.set_index.astype(np.int64),
+                            self.rev.mode, self.rev.volumes0, sig, D, ok)
             return D if ok.all() and np.isfinite(D).all() else self._fd_tangent(st, deps, sig)
         return Trial(deps, sig, None, RevState(CellState(out), CellFlags(oflags), st.eps + deps, sig, st.sets),
                      tangent)

@@ -29,6 +29,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.sparse.linalg import splu
 from skfem import Basis, condense, solve
 
 from ..errors import HModelError
@@ -142,6 +143,23 @@ def _tangent(pb: Problem, trial):
     return _refusable(pb.tangent, trial)
 
 
+def _superlu(K, rhs: np.ndarray) -> np.ndarray:
+    """SuperLU with the minimum degree ordering of K^T + K and diagonal pivots where they are
+    at least a tenth of their column's largest entry: the tangents' pattern is structurally
+    symmetric (a nodal stencil), and this ordering keeps its predicted fill only while the
+    pivots stay on the diagonal. On the regularized tangents (16x32 and 32x64) it leaves about
+    half the fill of SciPy's default (COLAMD with partial pivoting) and factors 2-4 times
+    faster; the same ordering with partial pivoting doubles the fill past the peak."""
+    lu = splu(K.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.1,
+              options={"SymmetricMode": True})
+    return lu.solve(rhs)
+
+
+def _solve(K, rhs: np.ndarray, x: np.ndarray | None, fixed: np.ndarray) -> np.ndarray:
+    """Solution of K x = rhs on the free dofs, ``x`` (or zero) on the ``fixed`` ones."""
+    return solve(*condense(K, rhs, x=x, D=fixed), solver=_superlu)
+
+
 def _refusable(call, arg):
     """``call(arg)``, a material point's refusal (an HModelError) as :class:`NotConverged`."""
     try:
@@ -167,7 +185,7 @@ def newton_step(pb: Problem, d_lambda: float, guess: np.ndarray | None,
         # nodes (moving only the prescribed ones puts large strains into the boundary
         # elements, where cells may open and leave interior nodes without stiffness)
         t0, _, r0 = _evaluate(pb, np.zeros(pb.n_dofs))
-        du = solve(*condense(_tangent(pb, t0), -r0, x=du, D=pb.fixed))
+        du = _solve(_tangent(pb, t0), -r0, du, pb.fixed)
     trial, f_int, r = _evaluate(pb, du)
     # an unstressed start: the forces of the prescribed motion set the scale
     scale = max(scale, float(np.linalg.norm(f_int)))
@@ -190,7 +208,7 @@ def newton_step(pb: Problem, d_lambda: float, guess: np.ndarray | None,
             if most[0] > broken0:
                 return StepResult(most[1], most[2], most[3], residuals[:trials.index(most) + 1],
                                   d_lambda, event=True)
-        ddu = solve(*condense(_tangent(pb, trial), -r, D=pb.fixed))
+        ddu = _solve(_tangent(pb, trial), -r, None, pb.fixed)
         best = None
         for k in range(settings.line_search + 1):
             cand = du + ddu / 2 ** k

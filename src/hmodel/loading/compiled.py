@@ -38,7 +38,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..cell.base import LAW_COMPLIANCE, LAW_MESO, P_LAW
-from ..cell.closed_form import P_KN, P_R, cell_increment
+from ..cell.closed_form import P_KN, P_R, cell_increment, cell_jacobian
 from ..cell.compliance_kernel import compliance_increment
 from ..cell.meso_kernel import meso_increment
 from ..cell.mesostress import vsigma_local
@@ -202,6 +202,47 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
         dsig[0] = (d11 - sig[0] * dvol) / v
         dsig[1] = (d22 - sig[1] * dvol) / v
         dsig[2] = (d12 - sig[2] * dvol) / v
+    return ok
+
+
+@njit(cache=True, error_model="numpy")
+def closed_form_tangent(values, eps, deps, geo, p, mode, volume0, sig, D):
+    """The exact tangent ``D`` (3, 3), dsig_i / ddeps_j, of the closed form's :func:`trial` at
+    ``deps`` whose stress is ``sig``, in the regime each cell takes there (one pass over the
+    cells, where forward differences take three trials). Returns False where a cell increment
+    fails.
+
+    Chain rule through the operations of :func:`trial`: the localization (eq. 1.1, linear in
+    the strain, so its derivative along e_j is itself at e_j), the cells' own Jacobians
+    (:func:`hmodel.cell.closed_form.cell_jacobian`), the weighted rotation to the global frame
+    (eqs. 1.15-1.16, linear) and the macro volume V0 det(I - eps): d(S / V) = dS / V - sig dV / V.
+    """
+    cos2, sin2, sincos, wcos2, wsin2, wsincos = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5]
+    e11, e22, e12 = deps[0], deps[1], deps[2]
+    D[:, :] = 0.0
+    ok = True
+    for i in range(values.shape[0]):
+        dl1, dl2 = cell_dl(values, i, e11, e22, e12, cos2[i], sin2[i], sincos[i], mode, p[P_R])
+        good, j11, j12, j21, j22 = cell_jacobian(
+            values[i, 0], values[i, 1], values[i, 2], values[i, 3], values[i, 4], values[i, 5],
+            values[i, 6], values[i, 7], dl1, dl2, p)
+        ok &= good
+        for j in range(3):
+            u1, u2 = cell_dl(values, i, 1.0 if j == 0 else 0.0, 1.0 if j == 1 else 0.0,
+                             1.0 if j == 2 else 0.0, cos2[i], sin2[i], sincos[i], mode, p[P_R])
+            b11, b22, b12 = weighted_global(j11 * u1 + j12 * u2, j21 * u1 + j22 * u2, wcos2[i],
+                                            wsin2[i], wsincos[i])
+            D[0, j] += b11
+            D[1, j] += b22
+            D[2, j] += b12
+    t11 = eps[0] + e11
+    t22 = eps[1] + e22
+    t12 = eps[2] + e12
+    v = volume0 * ((1 - t11) * (1 - t22) - t12 ** 2)
+    dvol = (-volume0 * (1 - t22), -volume0 * (1 - t11), -2.0 * volume0 * t12)
+    for j in range(3):
+        for k in range(3):
+            D[k, j] = (D[k, j] - sig[k] * dvol[j]) / v
     return ok
 
 
