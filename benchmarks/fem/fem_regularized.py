@@ -46,9 +46,11 @@ from hmodel.fem.outputs import deviatoric_strain
 ELL = 0.005
 PARTIAL_M = 0.05  # the "partial" cases: nonlocal share m of the inelastic stress
 #: case kind -> (regularization: None, "nonlocal" with --ell, "partial" with --ell and --m;
-#: imperfection zone)
-KINDS = {"local": (None, "edge"), "nonlocal": ("nonlocal", "edge"), "partial": ("partial", "edge"),
-         "cornerlocal": (None, "corner"), "corner": ("partial", "corner")}
+#: imperfection zone; element)
+KINDS = {"local": (None, "edge", "q4"), "nonlocal": ("nonlocal", "edge", "q4"),
+         "partial": ("partial", "edge", "q4"), "cornerlocal": (None, "corner", "q4"),
+         "corner": ("partial", "corner", "q4"), "localb": (None, "edge", "q4b"),
+         "partialb": ("partial", "edge", "q4b")}
 FOOT_KINDS = ("footing", "footlocal")
 FOOT_ELL = 0.1
 FOOT_M = 0.05
@@ -69,11 +71,11 @@ def is_foot(name: str) -> bool:
 
 def biaxial_case(name: str, ell: float, m: float) -> dict:
     kind, mesh = name.split("-")
-    form, where = KINDS[kind]
+    form, where, element = KINDS[kind]
     reg = {None: None, "nonlocal": f"nonlocal:ell={ell:g}", "partial": f"nonlocal:ell={ell:g},m={m:g}"}[form]
     zone = ZONES[where]
     t, c = time.perf_counter(), time.process_time()
-    res = biaxial(PARAMS, 2e5, 0.10, mesh=MESHES[mesh], n_steps=100, n_saved=100, reference=True,
+    res = biaxial(PARAMS, 2e5, 0.10, mesh=MESHES[mesh], element=element, n_steps=100, n_saved=100, reference=True,
                   imperfection=f"phi_g=25,alpha0=55@{zone[0]},{zone[1]},{zone[2]}", regularization=reg)
     wall, cpu = time.perf_counter() - t, time.process_time() - c
     q, e = res.column("q"), res.column("eps11")
@@ -85,7 +87,8 @@ def biaxial_case(name: str, ell: float, m: float) -> dict:
     np.savez(FIELDS / f"{name}.npz", x=res.gauss_x, dx=res.gauss_dx, inc=inc)
     rates = [math.log(r[2]) / math.log(r[1]) for r in res.residuals if len(r) >= 3 and r[1] < 1e-2 and r[2] > 1e-14]
     ref = material_point_curve(res.reference)
-    return {"regularization": res.meta["regularization"], "mesh": mesh, "gauss_points": int(res.gauss_dx.size),
+    return {"regularization": res.meta["regularization"], "mesh": mesh, "element": element,
+            "gauss_points": int(res.gauss_dx.size),
             "dofs": res.meta["dofs"], "imperfection_zone": ",".join(f"{v:g}" for v in zone),
             "wall_s": wall, "cpu_s": cpu, "stopped": res.stopped, "steps": len(res) - 1,
             "newton_iterations": int(res.column("newton_iterations").sum()),

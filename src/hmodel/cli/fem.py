@@ -20,8 +20,9 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=N
                   help="Finite elements (plane strain) with an H-model material point at every Gauss point.")
 
 MeshOpt = Annotated[str, typer.Option(help="Elements NXxNY, e.g. 8x16.")]
-ElementOpt = Annotated[str, typer.Option(help="q4 (2x2 Gauss points), q8 (serendipity, 3x3) or t6 "
-                                              "(quadratic triangles, 3 points).")]
+ElementOpt = Annotated[str, typer.Option(help="q4 (2x2 Gauss points), q4b (q4 with the B-bar volumetric "
+                                              "strain: each element's mean dilatation), q8 (serendipity, "
+                                              "3x3) or t6 (quadratic triangles, 3 points).")]
 StepsOpt = Annotated[int, typer.Option("--steps", help="Nominal load steps (a failing step is cut in halves).")]
 SchedulerOpt = Annotated[Optional[str], typer.Option(
     help="Dask scheduler address (tcp://HOST:8786): the Gauss points' material updates run on its "

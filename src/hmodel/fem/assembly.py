@@ -85,6 +85,26 @@ def strain_operator(basis: Basis) -> sp.csr_matrix:
                          shape=(3 * nel * nqp, basis.N))
 
 
+def bbar(B: sp.csr_matrix, basis: Basis) -> sp.csr_matrix:
+    """The B-bar strain operator of B (Hughes 1980): each point's volumetric strain
+    eps11 + eps22 replaced by its element's mean (weighted by the points' dx), the deviatoric
+    part kept, so that eps = dev(B u) + mean_e(tr B u) I / 2 (2D trace: the H-model's strain is
+    in-plane). A mean dilatancy per element instead of one per Gauss point relieves the
+    bilinear quadrilateral's volumetric locking under nearly isochoric or dilatant plastic
+    flow, which stiffens a shear band that crosses the elements obliquely."""
+    nel, nqp = basis.nelems, basis.X.shape[-1]
+    dx = basis.dx.reshape(nel, nqp)
+    w = (dx / dx.sum(axis=1, keepdims=True)).ravel()
+    b = np.arange(nel * nqp)
+    same = np.repeat(b.reshape(nel, nqp), nqp, axis=0).ravel()  # each point's element mates
+    mean = sp.csr_matrix((np.repeat(w.reshape(nel, nqp), nqp, axis=0).ravel(),
+                          (np.repeat(b, nqp), same)), shape=(b.size, b.size))
+    vol = (B[0::3] + B[1::3]).tocsr()
+    half = 0.5 * (mean @ vol - vol)
+    pick = [sp.csr_matrix((np.ones(b.size), (3 * b + c, b)), shape=(3 * b.size, b.size)) for c in (0, 1)]
+    return (B + pick[0] @ half + pick[1] @ half).tocsr()
+
+
 def block_diagonal(D: np.ndarray) -> sp.bsr_matrix:
     """Block-diagonal (3 B x 3 B) of per-point 3 x 3 matrices D (B, 3, 3)."""
     n = len(D)
@@ -97,10 +117,10 @@ class Operators:
     forms' basis functions at every call, which a Newton iteration of many Gauss points then
     pays twice). The same integrals: f = B^T W dx sig and K = B^T W dx D B, W = diag(1, 1, 2)
     (the tensor shear component counts twice in e : s); the two sign flips of hmodel's
-    convention cancel in both."""
+    convention cancel in both. ``b_bar``: the strain operator is :func:`bbar`'s."""
 
-    def __init__(self, basis: Basis):
-        self.B = strain_operator(basis)
+    def __init__(self, basis: Basis, b_bar: bool = False):
+        self.B = bbar(strain_operator(basis), basis) if b_bar else strain_operator(basis)
         dx = basis.dx.ravel()
         w = np.tile([1.0, 1.0, 2.0], dx.size) * np.repeat(dx, 3)
         self.BtW = (self.B.T @ sp.diags(w)).tocsr()

@@ -20,11 +20,15 @@ from ..errors import InputError
 #: 3x3 for the 8-node serendipity quadrilateral, 3 points for the 6-node triangle.
 ELEMENTS = {
     "q4": (ElementQuad1, 2, False, "4-node bilinear quadrilateral, 2x2 Gauss points"),
+    "q4b": (ElementQuad1, 2, False, "4-node bilinear quadrilateral, 2x2 Gauss points, B-bar "
+            "volumetric strain (the element's mean, Hughes 1980)"),
     "q8": (ElementQuadS2, 4, False, "8-node serendipity quadrilateral, 3x3 Gauss points"),
     "t6": (ElementTriP2, 2, True, "6-node quadratic triangle, 3 Gauss points"),
 }
 #: Gauss points per rectangle of the grid (t6: two triangles of 3).
-GAUSS_PER_RECTANGLE = {"q4": 4, "q8": 9, "t6": 6}
+GAUSS_PER_RECTANGLE = {"q4": 4, "q4b": 4, "q8": 9, "t6": 6}
+#: elements whose strain operator replaces each point's volumetric strain by its element's mean
+BBAR = ("q4b",)
 
 
 def parse_pair(text: str, name: str, integer: bool) -> tuple:

@@ -42,8 +42,9 @@ class GlobalNewtonSettings:
     """Settings of the global Newton on the nodal displacements (the material points' own
     mixed-control Newton has :class:`hmodel.loading.NewtonSettings`). ``rtol``: residual tolerance relative to the reference force; ``max_iter`` per step;
     ``max_cuts``: halvings of a failing step before the run stops; ``event_after``,
-    ``max_events``: the cell-event fallback; ``line_search``: halvings of a correction that
-    raises the residual."""
+    ``max_events``: the cell-event fallback; ``event_on_stall``: also take the fallback as soon
+    as Newton stalls across cell events (:func:`_stalled`); ``line_search``: halvings of a
+    correction that raises the residual."""
 
     rtol: float = 1e-8
     max_iter: int = 20
@@ -51,19 +52,21 @@ class GlobalNewtonSettings:
     event_after: int = 8
     max_events: int = 6
     line_search: int = 3
+    event_on_stall: bool = True
 
 
 @dataclass
 class Problem:
     """A discretized boundary-value problem: ``basis``; the material law at its Gauss points;
     the prescribed dofs ``fixed`` and their increments per unit load factor ``g`` (N,);
-    the dead loads ``f_ext`` (N,)."""
+    the dead loads ``f_ext`` (N,); ``b_bar``: the B-bar strain operator."""
 
     basis: Basis
     material: object
     fixed: np.ndarray
     g: np.ndarray
     f_ext: np.ndarray
+    b_bar: bool = False  # the element's mean volumetric strain (hmodel.fem.assembly.bbar)
     free: np.ndarray = field(init=False)
 
     def __post_init__(self):
@@ -71,7 +74,7 @@ class Problem:
         mask[self.fixed] = False
         self.free = np.flatnonzero(mask)
         #: the basis's strain operator and the assembly built on it, once per problem
-        self.ops = Operators(self.basis)
+        self.ops = Operators(self.basis, self.b_bar)
 
     # A regularized problem (hmodel.fem.regularization) adds unknowns after the displacements
     # and overrides the methods below; the global Newton only goes through them.
@@ -203,7 +206,8 @@ def newton_step(pb: Problem, d_lambda: float, guess: np.ndarray | None,
         if len(residuals) > 3 and res > 1e3 * residuals[0]:
             raise NotConverged(f"Newton diverged (relative residual {res:.2e})")
         trials.append((_broken(trial), du, trial, f_int, res))
-        if it == settings.event_after and events_left > 0:
+        if events_left > 0 and (it == settings.event_after
+                                or (settings.event_on_stall and _stalled(residuals, trials))):
             most = max(trials, key=lambda t: t[0])
             if most[0] > broken0:
                 return StepResult(most[1], most[2], most[3], residuals[:trials.index(most) + 1],
@@ -223,6 +227,17 @@ def newton_step(pb: Problem, d_lambda: float, guess: np.ndarray | None,
     raise NotConverged(f"Newton did not converge in {settings.max_iter} iterations "
                        f"(relative residual {residuals[-1]:.2e}, last ones "
                        + ", ".join(f"{x:.1e}" for x in residuals[-3:]) + ")")
+
+
+def _stalled(residuals: list, trials: list) -> bool:
+    """Newton cycles across cell events: the last two corrections each reduced the residual
+    less than fourfold (a converging Newton with the exact tangent gains orders of magnitude
+    per iteration) while the iterates' numbers of open cells differ (cells that open and close
+    again between iterates)."""
+    if len(residuals) < 3:
+        return False
+    slow = residuals[-1] > residuals[-2] / 4 and residuals[-2] > residuals[-3] / 4
+    return slow and len({t[0] for t in trials[-3:]}) > 1
 
 
 @dataclass

@@ -23,7 +23,7 @@ from ..stability import second_order_work
 from .assembly import volume_average
 from .bands import shear_band
 from .material import DaskStep, HModelMaterial
-from .mesh import Domain, dofs_where, gauss_points
+from .mesh import BBAR, Domain, dofs_where, gauss_points
 from .newton import GlobalNewtonSettings, Problem, StepResult, run_steps
 from .regularization import NonlocalProblem, Regularization, parse_regularization, unresolved
 from .result import FemResult, Snapshot
@@ -128,12 +128,13 @@ def _material(params: Params, imperfection, domain, gx, solver, p0,
     return HModelMaterial(rev, sets, p0, DaskStep(scheduler, rev) if scheduler else None), rev, sets, zone
 
 
-def _problem(basis, material, fixed, g, f_ext, reg: Regularization) -> Problem:
+def _problem(basis, material, fixed, g, f_ext, reg: Regularization, element: str) -> Problem:
     """The displacement problem, or with ``reg`` nonlocal the coupled one
-    (:mod:`hmodel.fem.regularization`)."""
+    (:mod:`hmodel.fem.regularization`), with the B-bar strain for the elements that take it."""
+    b_bar = element in BBAR
     if reg.kind == "nonlocal":
-        return NonlocalProblem(basis, material, fixed, g, f_ext, ell=reg.ell, m=reg.m)
-    return Problem(basis, material, fixed, g, f_ext)
+        return NonlocalProblem(basis, material, fixed, g, f_ext, b_bar, ell=reg.ell, m=reg.m)
+    return Problem(basis, material, fixed, g, f_ext, b_bar)
 
 
 def _check_common(p0: float, n_steps: int) -> None:
@@ -249,7 +250,7 @@ def biaxial(params: Params | None = None, p0: float = 2e5, axial_strain: float =
             fixed.append(dofs_where(basis, 0, lambda x: (x[0] < tol) & (x[1] < tol)))
         sides = basis.mesh.facets_satisfying(lambda x: (x[0] < tol) | (x[0] > W - tol))
         f_ext = _traction(basis, sides, p0)
-    pb = _problem(basis, material, np.unique(np.concatenate(fixed)), g, f_ext, reg)
+    pb = _problem(basis, material, np.unique(np.concatenate(fixed)), g, f_ext, reg, domain.element)
     eps0 = material.state.eps.copy()
 
     def row(u, f_int, lam):
@@ -327,7 +328,7 @@ def footing(params: Params | None = None, p0: float = 1e5, settlement: float = 0
     surface = basis.mesh.facets_satisfying(
         lambda x: (x[1] > H - tol) & (np.abs(x[0] - L / 2) >= width / 2 - tol))
     f_ext = _traction(basis, surface, p0)
-    pb = _problem(basis, material, np.unique(np.concatenate(fixed)), g, f_ext, reg)
+    pb = _problem(basis, material, np.unique(np.concatenate(fixed)), g, f_ext, reg, domain.element)
 
     def row(u, f_int, lam):
         pressure = p0 if f_int is None else -f_int[foot_y].sum() / width
