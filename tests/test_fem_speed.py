@@ -76,3 +76,18 @@ def test_fused_trial_refuses_what_rev_step_refuses():
     deps[2, 0] = np.nan
     with pytest.raises(HModelError):
         mat.trial(deps)
+
+
+def test_stall_detection_fires_on_cycling_not_on_converging_newton():
+    from hmodel.fem.newton import _stalled
+
+    def trials(counts):
+        return [(c, None, None, None, None) for c in counts]
+    # the band study's cycling: one good correction, then cells open and close between iterates
+    assert _stalled([3e-3, 3e-5, 3e-5, 1e-5], trials([110888, 110876, 110878, 110876]))
+    # converging, even slowly at first (a restoration of equilibrium after an event)
+    assert not _stalled([3e-3, 2e-3, 3e-4], trials([5, 6, 6]))
+    assert not _stalled([3e-3, 7e-6, 1e-8], trials([5, 6, 7]))
+    # slow but no cell changes regime between iterates: not an event to commit
+    assert not _stalled([3e-3, 2e-3, 1.5e-3], trials([5, 5, 5]))
+    assert not _stalled([3e-3, 3e-3], trials([5, 6]))  # too early to tell
