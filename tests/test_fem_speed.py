@@ -91,3 +91,20 @@ def test_stall_detection_fires_on_cycling_not_on_converging_newton():
     # slow but no cell changes regime between iterates: not an event to commit
     assert not _stalled([3e-3, 2e-3, 1.5e-3], trials([5, 5, 5]))
     assert not _stalled([3e-3, 3e-3], trials([5, 6]))  # too early to tell
+
+
+def test_a_singular_tangent_cuts_the_step_and_ends_the_run_cleanly():
+    # a mechanism (no stiffness at all): the factorization fails, the run stops with the reason
+    from hmodel.fem.mesh import dofs_where, gauss_points
+    from hmodel.fem.newton import GlobalNewtonSettings, Problem, run_steps
+    from test_fem import LinearElastic, _distorted_basis
+
+    basis = _distorted_basis("q4")
+    mat = LinearElastic(gauss_points(basis)[1].size, 0.0, 0.0)
+    fixed = dofs_where(basis, 1, lambda x: np.abs(x[1]) < 1e-9)
+    g = np.zeros(basis.N)
+    f_ext = np.zeros(basis.N)
+    f_ext[dofs_where(basis, 1, lambda x: np.abs(x[1] - 1) < 1e-9)] = 1.0
+    out = run_steps(Problem(basis, mat, fixed, g, f_ext), 2, lambda s, lam: None,
+                    GlobalNewtonSettings(max_cuts=1))
+    assert out.n_steps == 0 and "singular tangent" in out.stopped

@@ -153,8 +153,11 @@ def _superlu(K, rhs: np.ndarray) -> np.ndarray:
     pivots stay on the diagonal. On the regularized tangents (16x32 and 32x64) it leaves about
     half the fill of SciPy's default (COLAMD with partial pivoting) and factors 2-4 times
     faster; the same ordering with partial pivoting doubles the fill past the peak."""
-    lu = splu(K.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.1,
-              options={"SymmetricMode": True})
+    try:
+        lu = splu(K.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.1,
+                  options={"SymmetricMode": True})
+    except RuntimeError as e:  # "Factor is exactly singular": a mechanism, the step is cut
+        raise NotConverged(f"singular tangent ({e})") from None
     return lu.solve(rhs)
 
 
