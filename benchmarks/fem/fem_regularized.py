@@ -8,7 +8,9 @@ model, for docs/fem.md (Regularization): ``fem_regularized.json`` and ``docs/fig
     (``partial-MESH``): q at 10 %, the band's angle and width (``hmodel.fem.bands``), wall
     and CPU time of each run (one case per process call: ``--cases``); the same with the
     imperfection in a quarter disc of radius 15 mm at the bottom of the left side, local
-    (``cornerlocal-MESH``) and ``nonlocal:ell=ELL,m=M`` (``corner-MESH``);
+    (``cornerlocal-MESH``) and ``nonlocal:ell=ELL,m=M`` (``corner-MESH``); the edge imperfection
+    on B-bar elements (``--element q4b``), local (``localb-MESH``) and ``nonlocal:ell=ELL,m=M``
+    (``partialb-MESH``);
 (f) footing: rough, B = 0.4 m on a 4.0 x 1.0 m layer (wide enough for the failure mechanism to
     form inside the walls), 100 kPa, nθ = 30, ``sliding_rhs=equilibrium``, Q8 elements, to
     s/B = 0.3 in 30 steps on 20x5, 40x10 and 80x20: ``nonlocal:ell=FOOT_ELL,m=FOOT_M``
@@ -18,7 +20,8 @@ Usage: ``python -m benchmarks.fem.fem_regularized --cases nonlocal-8x16,local-8x
 partial cases with ``--ell 0.003125 --m 0.05``, the corner ones with ``--ell 0.005 --m 0.05``);
 each case's numbers are merged into the JSON (several processes may run cases at once); ``--publish`` writes the published form (one table row
 per case, the curves in ``fem_regularized_curves.csv``), ``--plot`` draws the figures (the fields
-from this machine's last runs, kept in /tmp).
+from this machine's last runs, kept in /tmp; ``--plot-kinds localb,partialb --figure NAME``
+draws those kinds alone into docs/figures/NAME).
 """
 
 from __future__ import annotations
@@ -86,13 +89,18 @@ def biaxial_case(name: str, ell: float, m: float) -> dict:
     FIELDS.mkdir(exist_ok=True)
     np.savez(FIELDS / f"{name}.npz", x=res.gauss_x, dx=res.gauss_dx, inc=inc)
     rates = [math.log(r[2]) / math.log(r[1]) for r in res.residuals if len(r) >= 3 and r[1] < 1e-2 and r[2] > 1e-14]
+    # the last iteration of each step (a step's list also holds an event's restoration, whose
+    # first iterations start over from 1e-3): log r_n / log r_(n-1), 2 for quadratic convergence
+    terminal = [math.log(r[-1]) / math.log(r[-2]) for r in res.residuals
+                if len(r) >= 3 and 1e-14 < r[-2] < 1e-3 and r[-1] > 1e-15]
     ref = material_point_curve(res.reference)
     return {"regularization": res.meta["regularization"], "mesh": mesh, "element": element,
             "gauss_points": int(res.gauss_dx.size),
             "dofs": res.meta["dofs"], "imperfection_zone": ",".join(f"{v:g}" for v in zone),
             "wall_s": wall, "cpu_s": cpu, "stopped": res.stopped, "steps": len(res) - 1,
             "newton_iterations": int(res.column("newton_iterations").sum()),
-            "median_rate": float(np.median(rates)) if rates else None, "warnings": res.meta["warnings"],
+            "median_rate": float(np.median(rates)) if rates else None,
+            "terminal_rate": float(np.median(terminal)) if terminal else None, "warnings": res.meta["warnings"],
             "peak_q": float(q[ipk]), "peak_strain": float(e[ipk]),
             "q_at_10pc": float(q[-1]) if abs(e[-1] - 0.10) < 1e-9 else None,
             "band": band, "curve": {"eps11": e.tolist(), "q": q.tolist()},
@@ -133,8 +141,10 @@ def summary(cases: dict) -> dict:
     return out
 
 
-def plot(cases: dict) -> None:
-    kinds = [k for k in KINDS if any(c.startswith(k + "-") for c in cases)]
+def plot(cases: dict, only: list | None = None, figure: str = "fem-regularized.png") -> None:
+    """The fields and curves of the biaxial kinds (``only``: these) into ``figure``, and the
+    footing's curves."""
+    kinds = [k for k in KINDS if any(c.startswith(k + "-") for c in cases) and (not only or k in only)]
     fig, axes = plt.subplots(len(kinds), 4, figsize=(15, 4 * len(kinds)), squeeze=False)
     for i, kind in enumerate(kinds):
         for j, m in enumerate(MESHES):
@@ -161,7 +171,7 @@ def plot(cases: dict) -> None:
         axes[i, 3].set_xlabel("axial strain"), axes[i, 3].set_ylabel("q [kPa]"), axes[i, 3].legend(fontsize=8)
     fig.suptitle("deviatoric strain increment after the peak, one row per model (and imperfection, where not the edge one)")
     fig.tight_layout()
-    fig.savefig(FIGURES / "fem-regularized.png", dpi=100)
+    fig.savefig(FIGURES / figure, dpi=100)
     plt.close(fig)
     feet = [c for k, c in cases.items() if is_foot(k)]
     if feet:
@@ -246,6 +256,8 @@ def main() -> None:
     ap.add_argument("--foot-ell", type=float, default=FOOT_ELL)
     ap.add_argument("--foot-m", type=float, default=FOOT_M, help="nonlocal share of the footing cases")
     ap.add_argument("--plot", action="store_true")
+    ap.add_argument("--plot-kinds", default="", help="comma list of the biaxial kinds to draw (default: all run)")
+    ap.add_argument("--figure", default="fem-regularized.png", help="file name of the biaxial figure in docs/figures")
     ap.add_argument("--publish", action="store_true", help="write the published form (rows and the curves' CSV)")
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("fem_regularized.json"))
     args = ap.parse_args()
@@ -267,7 +279,7 @@ def main() -> None:
     if args.publish:
         publish(args.out, data, cases)
     if args.plot:
-        plot(cases)
+        plot(cases, [k for k in args.plot_kinds.split(",") if k], args.figure)
     print(json.dumps(summary(cases), indent=1))
 
 

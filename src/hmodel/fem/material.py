@@ -110,15 +110,14 @@ class HModelMaterial:
         return self.state.sig
 
     def trial(self, deps: np.ndarray) -> Trial:
-        """Stress after ``deps`` (B, 3) from the committed state, and its finite-difference
-        tangent when first asked for (:class:`Trial`).
+        """Stress after ``deps`` (B, 3) from the committed state, and its tangent when first
+        asked for (:class:`Trial`).
 
-        With a compiled cell increment, fused kernels: each point's increment
-        (:func:`_fused_trials`), later its three perturbations (:func:`_fused_tangents`), in
-        one pass over its cells per trial, the points in parallel; the stresses and tangents
-        of ``Rev.step`` (the same operations in the same order). A point whose cell increment
-        fails sends the batch through :meth:`trial_calls`, whose REV call raises the solver's
-        error."""
+        With the closed form's compiled increment, fused kernels: each point's increment
+        (:func:`_fused_trials`: the stresses and states of ``Rev.step``, the same operations in
+        the same order), later its exact tangent (:func:`_fused_tangents`), each one pass over
+        its cells, the points in parallel. A point whose cell increment fails sends the batch
+        through :meth:`trial_calls`, whose REV call raises the solver's error."""
         if self._inputs is None:
             return self.trial_calls(deps)
         st = self.state
