@@ -100,9 +100,10 @@ def bbar(B: sp.csr_matrix, basis: Basis) -> sp.csr_matrix:
     mean = sp.csr_matrix((np.repeat(w.reshape(nel, nqp), nqp, axis=0).ravel(),
                           (np.repeat(b, nqp), same)), shape=(b.size, b.size))
     vol = (B[0::3] + B[1::3]).tocsr()
-    half = 0.5 * (mean @ vol - vol)
-    pick = [sp.csr_matrix((np.ones(b.size), (3 * b + c, b)), shape=(3 * b.size, b.size)) for c in (0, 1)]
-    return (B + pick[0] @ half + pick[1] @ half).tocsr()
+    # rows 3b and 3b + 1 (eps11, eps22) of each point b get half its dilatation's correction
+    normal = sp.csr_matrix((np.ones(2 * b.size), (np.concatenate([3 * b, 3 * b + 1]), np.tile(b, 2))),
+                           shape=(3 * b.size, b.size))
+    return (B + normal @ (0.5 * (mean @ vol - vol))).tocsr()
 
 
 def block_diagonal(D: np.ndarray) -> sp.bsr_matrix:

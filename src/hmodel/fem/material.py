@@ -126,8 +126,9 @@ class HModelMaterial:
         eps = np.ascontiguousarray(st.eps, dtype=float)
         deps = np.ascontiguousarray(deps, dtype=float)
         # the closed form's cells need no per-cell responses (a learned cell's would)
-        common = (values, flags, eps, deps, *self._inputs, st.set_index.astype(np.int64),
-                  self.rev.mode, self.rev.volumes0, np.empty((*values.shape[:2], 0)))
+        sets = st.set_index.astype(np.int64)
+        common = (values, flags, eps, deps, *self._inputs, sets, self.rev.mode, self.rev.volumes0,
+                  np.empty((*values.shape[:2], 0)))
         out, oflags = np.empty_like(values), np.empty_like(flags)
         sig = np.empty((len(deps), 3))
         ok = np.empty(len(deps), np.bool_)
@@ -137,8 +138,8 @@ class HModelMaterial:
 
         def tangent():
             D = np.empty((len(deps), 3, 3))
-            _fused_tangents(values, eps, deps, *self._inputs, st.set_index.astype(np.int64),
-                            self.rev.mode, self.rev.volumes0, sig, D, ok)
+            _fused_tangents(values, eps, deps, *self._inputs, sets, self.rev.mode, self.rev.volumes0,
+                            sig, D, ok)
             return D if ok.all() and np.isfinite(D).all() else self._fd_tangent(st, deps, sig)
         return Trial(deps, sig, None, RevState(CellState(out), CellFlags(oflags), st.eps + deps, sig, st.sets),
                      tangent)

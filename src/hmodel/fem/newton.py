@@ -13,9 +13,10 @@ Cell events. With ``sliding_rhs="report"`` a cell that starts sliding with T1 < 
 contact at once (docs/model.md), a jump of the stress. When equilibrium lies inside such a jump
 no displacement meets it and Newton cycles across it. As the material-point driver does
 (docs/loading.md, "Cell events"), a step whose Newton has not converged after ``event_after``
-iterations commits its trial in which the most cells broke (the event happens: the
-prescribed displacements are met, the free nodes are out of balance) and restores equilibrium
-from there with no further load, at most ``max_events`` times per step.
+iterations, or stalls before that (:func:`_stalled`), commits its trial in which the most cells
+broke (the event happens: the prescribed displacements are met, the free nodes are out of
+balance) and restores equilibrium from there with no further load, at most ``max_events``
+times per step.
 
 A step that does not converge (too many iterations, a diverging residual, or a material point
 that refuses its increment) is cut in half, up to ``max_cuts`` times; after a converged cut
