@@ -262,6 +262,39 @@ def test_windows_follow_the_paths_start_states(tiny_model):
     assert w2["mask"].sum() < w["mask"].sum() - 3
 
 
+def test_a_jump_of_the_cell_is_left_out_of_the_loss(tiny_model):
+    """With ``max_secant``, the rows whose secant |dz|/|de| jumps past it weigh nothing and the
+    rollout windows end before the step that jumps; without it, every row counts (as before)."""
+    from hmodel.data import Dataset
+    from hmodel.surrogate.formulations.meso_rollout import jumps
+
+    _, tmp = tiny_model
+    form = MesoFormulation(PARAMS, "closed-form")
+    c = form.augment(Dataset.open(tmp / "data").read())
+    w = form.windows(c, 3, max_secant=10.0, floor=0.25)
+    # the closed form never jumps: the cut leaves every window as it was
+    assert w["mask"].sum() == form.windows(c, 3)["mask"].sum()
+    # alpha snapped by 0.1 rad at one start state of path 0 (a secant of 50 over its 0.002 steps)
+    snapped = dict(c)
+    at = (c["path_id"] == 0) & np.isclose(c["start_strain"], 0.010)
+    snapped["alpha"] = np.where(at, c["alpha"] + 0.1, c["alpha"])
+    w3 = form.windows(snapped, 3, max_secant=10.0, floor=0.25)
+    # cut: the windows from 0.004 (its 3rd step), 0.006 (2nd, 3rd), 0.008 and 0.010 (all of each)
+    assert w3["mask"].sum() == w["mask"].sum() - 9 and len(w3["z0"]) == len(w["z0"]) - 2
+    # rows: the secant of each field, the increment taken as at least the floor
+    Y = np.array([[0.5, 1.0], [30.0, 0.0], [0.0, -3.0], [0.0, 2.0]])  # secants 1, 6, 12, 4
+    e = np.array([[1.0, 0.0], [3.0, 4.0], [0.0, 0.1], [0.0, 0.5]])
+    np.testing.assert_array_equal(jumps(Y, e, 5.0, 0.25), [False, True, True, False])
+    cfg = TrainConfig(formulation="meso", max_secant=5.0, secant_floor=2.5e-4)
+    W = form.row_weights(Y, np.ones_like(Y), e, cfg)
+    assert (W[[1, 2]] == 0).all() and (W[[0, 3]] > 0).all()
+    np.testing.assert_array_equal(form.row_weights(Y, np.ones_like(Y), e, replace(cfg, max_secant=0.0)) > 0, True)
+    with pytest.raises(InputError, match="max_secant"):
+        TrainConfig(formulation="meso", max_secant=-1.0)
+    with pytest.raises(InputError, match="meso"):
+        TrainConfig(formulation="increment", max_secant=10.0)
+
+
 @pytest.mark.parametrize("substeps", [1, 3])
 def test_rollout_error_rolls_out_what_the_rev_does(substeps):
     """The rollout error that training charges (torch) equals the one of the NumPy way back the

@@ -43,6 +43,9 @@ RolloutSubsteps = Annotated[int, typer.Option(help="meso: network steps per data
                                                    "hexagon-center networks: 4, with --cell-step).")]
 SecantFloor = Annotated[float, typer.Option(help="meso: weigh errors as errors of the secant dz/|de|, "
                                                  "increments below this strain as this (0: of dz/m0).")]
+MaxSecant = Annotated[float, typer.Option(help="meso: leave out rows (and cut rollout windows at steps) "
+                                               "whose secant |dz|/|de| in the fields' units exceeds "
+                                               "this: jumps of the cell (0: keep all).")]
 CellStep = Annotated[Optional[float], typer.Option(help="meso: largest cell strain of one network step in a "
                                                         "REV (larger increments in equal sub-steps; default: "
                                                         "any), e.g. the rollout sub-steps' size.")]
@@ -63,7 +66,8 @@ def train_cmd(
     epochs: Epochs = 300, batch_size: BatchSize = 1024, lr: Lr = 3e-3, patience: Patience = 30,
     seed: Seed = 0, device: Device = "auto", max_minutes: MaxMinutes = None,
     mechanisms: Mechanisms = 4, rollout: Rollout = 0, rollout_weight: RolloutWeight = 1.0,
-    rollout_substeps: RolloutSubsteps = 1, secant_floor: SecantFloor = 0.0, cell_step: CellStep = None,
+    rollout_substeps: RolloutSubsteps = 1, secant_floor: SecantFloor = 0.0, max_secant: MaxSecant = 0.0,
+    cell_step: CellStep = None,
     init: Annotated[Optional[Path], typer.Option(help="Fine-tune this model file instead (its formulation, "
                                                       "architecture, scalers and weights; the options "
                                                       "of those are ignored).")] = None,
@@ -81,7 +85,8 @@ def train_cmd(
                   activation=activation, loss=loss, epochs=epochs, batch_size=batch_size, lr=lr,
                   patience=patience, seed=seed, device=device, max_minutes=max_minutes,
                   mechanisms=mechanisms, rollout=rollout, rollout_weight=rollout_weight,
-                  rollout_substeps=rollout_substeps, secant_floor=secant_floor, cell_step=cell_step)
+                  rollout_substeps=rollout_substeps, secant_floor=secant_floor, max_secant=max_secant,
+                  cell_step=cell_step)
     with LazyProgress("training") as progress:
         s, history = train_on_sample(data if len(data) > 1 else data[0], cfg, progress,
                                      init=None if init is None else modelfile.load(init))

@@ -108,7 +108,12 @@ class RevBatch:
             lengths = [dl[rows, :, k] for k in range(self.solver.n_lengths)]
             new, flags = self.solver.step(s, CellState(state.cells.values[rows]), *lengths)
             return new.values, flags.flags
-        values, flags = self._by_set(state.set_index, cell_step)
+        if self.n_sets > 1 and getattr(self.solver, "batches_sets", False):
+            # a family network takes every set's cells in one call (its material is an input)
+            values, flags = self.solver.step_sets(self.sets, state.set_index, state.cells,
+                                                  *(dl[..., k] for k in range(self.solver.n_lengths)))
+        else:
+            values, flags = self._by_set(state.set_index, cell_step)
         cells = CellState(values)
         eps = state.eps + deps
         return RevState(cells, CellFlags(flags), eps, self.stress(cells, eps, state.sets), state.sets)

@@ -269,6 +269,48 @@ class SurrogateSolver:
             raise SolverError("the surrogate returned a non-finite cell state")
         return CellState(values.reshape(*shape, n_state)), CellFlags(flags.reshape(*shape, 5))
 
+    @property
+    def batches_sets(self) -> bool:
+        """Whether :meth:`step_sets` steps the cells of several parameter sets in one network
+        call: a family network (its material is an input of every cell) without a gate."""
+        return bool(getattr(self.formulation, "material_inputs", ())) and self.gate is None
+
+    def step_sets(self, sets: Sequence[Params], index: np.ndarray, state: CellState,
+                  *lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`step` of the points of several parameter sets together (point b of the set
+        ``sets[index[b]]``; ``state`` and ``lengths`` of shape (B, ...)): the values and flags
+        (B, ..., n) after the increment. Each set's cells take the sub-steps :meth:`step` gives
+        them alone, and every sub-step is one network call for the cells of all the sets still
+        stepping (a calibration's parameter sets, a family network's materials), then each set's
+        own way back; a many-set REV (:class:`hmodel.rev.batch.RevBatch`) calls it."""
+        present = np.unique(index)
+        for k in present:
+            self.check(sets[k])
+        shape, n_state = state.shape, self.n_state
+        v = np.ascontiguousarray(state.values.reshape(-1, n_state))
+        row_set = np.repeat(np.asarray(index), len(v) // len(index))
+        dl = np.column_stack([np.broadcast_to(x, shape).reshape(-1) for x in lengths])
+        l0 = np.array([[s.l10, s.l20] for s in sets])[row_set]
+        e = -dl / l0
+        self.counts["cell_updates"] += len(v)
+        per_set = np.zeros(len(sets), int)
+        for k in present:
+            per_set[k] = self._substeps(np.abs(e[row_set == k]).max(initial=0.0))
+        n_sub = per_set[row_set]
+        values, flags = v.copy(), np.zeros((len(v), 5), bool)
+        for r in range(per_set.max()):
+            go = np.flatnonzero(n_sub > r)  # the cells of the sets with sub-steps left
+            n = n_sub[go].astype(float)
+            inc = self.formulation.step_cells_sets(self, sets, row_set[go], values[go], e[go, 0] / n, e[go, 1] / n,
+                                                   dl[go] / n[:, None])
+            self.counts["network_cells"] += inc.network_cells
+            self.count_outside(inc.outside, inc.describe)
+            values[go], flags[go] = inc.new, inc.flags
+        self.counts["substeps"] += int(per_set.sum())
+        if not np.all(np.isfinite(values)):
+            raise SolverError("the surrogate returned a non-finite cell state")
+        return values.reshape(*shape, n_state), flags.reshape(*shape, 5)
+
     def _network_step(self, params: Params, v: np.ndarray, e1: np.ndarray, e2: np.ndarray,
                       dl: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The formulation's increment of cells ``v``, then the solver's part: the cells outside
@@ -313,14 +355,15 @@ class SurrogateSolver:
         """Rows of X outside the network's training domain by more than the margin."""
         return self.model.outside(X, self.margin)
 
-    def outputs(self, v: np.ndarray, X: np.ndarray | None = None,
-                params: Params | None = None) -> tuple[list[np.ndarray], np.ndarray]:
+    def outputs(self, v: np.ndarray, X: np.ndarray | None = None, params: Params | None = None,
+                key: tuple | None = None) -> tuple[list[np.ndarray], np.ndarray]:
         """Every member's network outputs and the out-of-domain mask for states ``v`` (inputs
         X, from the state only; None: the formulation's features of ``v`` and, for a family
         network, of the material ``params``, computed only when the states are new); kept
         while the states (and that material) do not change, so that the trial increments of
-        one Newton iteration cost no inference."""
-        material = () if params is None else tuple(getattr(params, k) for k in MATERIAL)
+        one Newton iteration cost no inference. ``key``: what else X depends on, for the cache
+        (several sets' materials, :meth:`step_sets`), in place of ``params``'s material."""
+        material = key if key is not None else () if params is None else tuple(getattr(params, k) for k in MATERIAL)
         hit = self._cache.get(v, material)
         if hit is not None:
             outs, mask, gated = hit

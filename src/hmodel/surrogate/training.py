@@ -70,7 +70,7 @@ def train(columns: dict[str, np.ndarray], params: Params, config: TrainConfig = 
                          depth=init.architecture.depth, activation=init.architecture.activation,
                          normalization=init.x_scaler.method)
     X, (Y, W), A = form.inputs(columns), form.targets(columns), form.aux(columns)
-    W = form.row_weights(W, A, config)
+    W = form.row_weights(Y, W, A, config)
     n = len(X)
     if n < 10:
         raise InputError(f"need at least 10 training rows, got {n}")

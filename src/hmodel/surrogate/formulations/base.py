@@ -71,12 +71,12 @@ class Networks(Protocol):
         """Rows of X outside the training domain (the solver's margin)."""
         ...
 
-    def outputs(self, v: np.ndarray, X: np.ndarray | None = None,
-                params: Params | None = None) -> tuple[list[np.ndarray], np.ndarray]:
+    def outputs(self, v: np.ndarray, X: np.ndarray | None = None, params: Params | None = None,
+                key: tuple | None = None) -> tuple[list[np.ndarray], np.ndarray]:
         """Every member's outputs for states v whose inputs X depend on the state only (None:
         the formulation's features of v, and of a family's material ``params``, computed when
         v is new), and the mask of the cells outside the training domain (or gated); cached
-        while the states (and the material) do not change."""
+        while the states (and the material, or what ``key`` names) do not change."""
         ...
 
 
@@ -183,7 +183,7 @@ class Formulation(ABC):
         """Whether rows of cells of the solver ``cell`` are this formulation's: H-cells."""
         return is_h_cell(cell)
 
-    def row_weights(self, W: np.ndarray, aux: np.ndarray | None, config) -> np.ndarray:
+    def row_weights(self, Y: np.ndarray, W: np.ndarray, aux: np.ndarray | None, config) -> np.ndarray:
         """The weights ``W`` of :meth:`targets` under a training's ``config`` (as they are)."""
         return W
 

@@ -50,7 +50,7 @@ from ...errors import InputError
 from ...params import Params
 from .base import OUTPUTS, Formulation, Increment, Networks, material_features
 from .meso_head import MesoHead, array_ops, like, positive, stack
-from .meso_rollout import MesoRollout, MesoTraining, RolloutLoss, secant_weights
+from .meso_rollout import MesoRollout, MesoTraining, RolloutLoss, jumps, secant_weights
 from .meso_summary import COLUMN, MESO_FIELDS, STATE_FIELDS, MesoSummary
 
 __all__ = ["MESO_FIELDS", "STATE_FIELDS", "MesoFormulation", "MesoTraining"]
@@ -195,11 +195,15 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
         W[opens, 1:4] = 0.0
         return Y, W
 
-    def row_weights(self, W: np.ndarray, aux: np.ndarray | None, config: MesoTraining) -> np.ndarray:
-        """``W``, each row's error weighed as one of the secant dz/|de| with ``secant_floor``."""
+    def row_weights(self, Y: np.ndarray, W: np.ndarray, aux: np.ndarray | None, config: MesoTraining) -> np.ndarray:
+        """``W``, each row's error weighed as one of the secant dz/|de| with ``secant_floor``,
+        and 0 on the rows that :func:`~.meso_rollout.jumps` past ``max_secant``."""
+        floor = (config.secant_floor or self.m0) / self.m0
+        if config.max_secant:
+            W = W * ~jumps(Y, aux, config.max_secant, floor)[:, None]
         if not config.secant_floor:
             return W
-        return W * secant_weights(aux, config.secant_floor / self.m0)[:, None]
+        return W * secant_weights(aux, floor)[:, None]
 
     def rollout_loss(self, columns, config: MesoTraining, rng, x_scaler, net) -> RolloutLoss | None:
         """The rollout error along the data's paths of a training with ``rollout`` steps."""
@@ -302,6 +306,24 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
         new, flags, _ = advance_cells(v, np.ascontiguousarray(dl, float),
                                       meso_kernel_params(self.for_material(params), params),
                                       self.responses(v, outs, mask))
+        return Increment(new, flags, mask, self.describe(v), outs)
+
+    def step_cells_sets(self, net: Networks, sets, row_set: np.ndarray, v, e1, e2, dl) -> Increment:
+        """:meth:`step_cells` of cells of several materials (cell i of ``sets[row_set[i]]``, a
+        family network's): one network call for them all (each cell with its set's material
+        inputs), then each set's compiled way back with its own Coulomb bound and cage."""
+        present = np.unique(row_set)
+        groups = [(sets[k], np.flatnonzero(row_set == k)) for k in present]
+        X = np.empty((len(v), len(self.input_names) + len(self.material_inputs)))
+        for p, rows in groups:
+            X[rows] = self.features(v[rows], p)
+        key = (*(sets[k] for k in present), row_set.tobytes())
+        outs, mask = net.outputs(v, X=X, key=key)
+        new, flags = np.empty_like(v), np.empty((len(v), 5), bool)
+        for p, rows in groups:
+            new[rows], flags[rows], _ = advance_cells(
+                v[rows], np.ascontiguousarray(dl[rows], float), meso_kernel_params(self.for_material(p), p),
+                self.responses(v[rows], [o[rows] for o in outs], mask[rows]))
         return Increment(new, flags, mask, self.describe(v), outs)
 
     def responses(self, v: np.ndarray, outs: list[np.ndarray], mask: np.ndarray) -> np.ndarray:
