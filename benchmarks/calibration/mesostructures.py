@@ -134,6 +134,7 @@ def run_model(model: str, tests: dict, solver, args, timed: bool) -> dict:
     out = {"fit": list(names), "fitted": cal.fitted, "stderr": cal.stderr, "objective": cal.cost,
            "unidentified": cal.unidentified, "evaluations": cal.evaluations,
            "failures": len(cal.failures), "lsq_wall_s": wall, "lsq_cpu_s": cpu, "timed": timed,
+           "n_theta": args.n_theta, "solver": getattr(solver, "name", "closed-form"),
            "bounds": {n: list(b) for n, b in zip(cal.space.names, cal.space.bounds)}, "tests": {},
            "curves": {}}
     for k, t in enumerate(cal.tests):

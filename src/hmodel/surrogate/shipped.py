@@ -17,6 +17,10 @@
 - ``family`` (``h-cell-family.safetensors``): the default network's recipe over a range of
   materials (kt/kn 0.2–1, φg 10–45°, α0 35–75°; kn and r scaled out): kt/kn and tan φg are
   inputs, the training domain is stored and checked (issue 36).
+- ``hexagon-center-family`` (``hexagon-center-family.safetensors``): the richer cell's ``meso``
+  network over a range of materials (kt/kn 0.2–1, φg 10–45°, α0 35–60°: kt/kn, tan φg and α0
+  are inputs), from 508,800 DEM rows of 168 materials; runs without YADE, with
+  ``sliding_rhs=equilibrium``, and calibrates (issue 36).
 
 Each is produced by the commands in ``models/README.md`` (a fixed dataset, sample and seed) and
 loaded like any other model file (checked, never unpickled).
@@ -35,7 +39,8 @@ SHIPPED = {"default": "h-cell-default.safetensors", "increment": "h-cell-increme
            "hexagon-center-0": "hexagon-center-0.safetensors", "hexagon-center-1": "hexagon-center-1.safetensors",
            "ensemble-0": "h-cell-ensemble-0.safetensors", "ensemble-1": "h-cell-ensemble-1.safetensors",
            "ensemble-2": "h-cell-ensemble-2.safetensors",
-           "equilibrium": "h-cell-equilibrium.safetensors", "family": "h-cell-family.safetensors"}
+           "equilibrium": "h-cell-equilibrium.safetensors", "family": "h-cell-family.safetensors",
+           "hexagon-center-family": "hexagon-center-family.safetensors"}
 #: Shipped ensembles by name: their members, the one holding the ensemble's trust first.
 ENSEMBLES = {"ensemble": ("ensemble-0", "ensemble-1", "ensemble-2"),
              "hexagon-center": ("hexagon-center-0", "hexagon-center-1")}
