@@ -61,6 +61,20 @@ def test_one_percent_noise_on_q_still_gives_phi_and_alpha0_within_two_percent():
         assert 0 < cal.stderr[name] and abs(cal.fitted[name] - true) < 4 * cal.stderr[name] + 1e-9
 
 
+def test_starts_in_worker_processes_give_the_same_calibration(tests):
+    """The least-squares starts are independent: run in two processes, every start ends where
+    it ends in this one, with the same counts; and a bad number of workers is refused."""
+    kw = dict(base=BASE.with_(kt_kn=0.4), starts=3, **KW)
+    one = fit(tests, ("phi_g", "alpha0"), **kw)
+    two = fit(tests, ("phi_g", "alpha0"), workers=2, **kw)
+    assert [s["end"] for s in two.starts] == [s["end"] for s in one.starts]
+    assert [s["evaluations"] for s in two.starts] == [s["evaluations"] for s in one.starts]
+    assert two.evaluations == one.evaluations and two.cost == one.cost
+    np.testing.assert_array_equal(two.z, one.z)
+    with pytest.raises(InputError, match="workers"):
+        fit(tests, ("phi_g",), workers=0, **kw)
+
+
 def test_a_parameter_without_effect_is_flagged_unidentified(tests):
     # with an isotropic fabric (alpha_omega = 0) its major direction beta_omega changes nothing
     cal = fit(tests, ("phi_g", "beta_omega"), base=TRUE.with_(phi_g=math.radians(30)), starts=1, **KW)

@@ -459,6 +459,6 @@ def _threads_here() -> tuple[int, int]:
 def test_worker_processes_run_one_thread_each():
     """Worker processes share the cores: BLAS and Numba run one thread in each (threads within
     processes would oversubscribe the machine)."""
-    from hmodel.data.workers import run_tasks
+    from hmodel.workers import run_tasks
     out = dict(run_tasks(_threads_here, [()] * 2, [0, 1], workers=2))
     assert out == {0: (1, 1), 1: (1, 1)}

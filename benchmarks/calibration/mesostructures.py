@@ -127,7 +127,8 @@ def run_model(model: str, tests: dict, solver, args, timed: bool) -> dict:
     on = [tests[n] for n in FIT_ON]
     with cpu_lock(timed):
         t0, c0 = time.perf_counter(), time.process_time()
-        cal = fit(on, names, BOUNDS.get(model), base, solver=solver, starts=args.starts, seed=0)
+        cal = fit(on, names, BOUNDS.get(model), base, solver=solver, starts=args.starts, seed=0,
+                  workers=args.workers if model == "richer" else 1)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     others = [tests[n] for n in PREDICT if n in tests]
     pred = Model(tuple(others), solver).predict([cal.params])
@@ -135,6 +136,7 @@ def run_model(model: str, tests: dict, solver, args, timed: bool) -> dict:
            "unidentified": cal.unidentified, "evaluations": cal.evaluations,
            "failures": len(cal.failures), "lsq_wall_s": wall, "lsq_cpu_s": cpu, "timed": timed,
            "n_theta": args.n_theta, "solver": getattr(solver, "name", "closed-form"),
+           "workers": args.workers if model == "richer" else 1,
            "bounds": {n: list(b) for n, b in zip(cal.space.names, cal.space.bounds)}, "tests": {},
            "curves": {}}
     for k, t in enumerate(cal.tests):
@@ -292,6 +294,8 @@ def main() -> None:
     ap.add_argument("--richer-params", default="sliding_rhs=equilibrium",
                     help="fixed parameters of the richer cell's runs, NAME=VALUE,...")
     ap.add_argument("--starts", type=int, default=8)
+    ap.add_argument("--workers", type=int, default=1,
+                    help="processes the richer cell's least-squares starts run in (its timed figure)")
     ap.add_argument("--walkers", type=int, default=0)
     ap.add_argument("--steps", type=int, default=100)
     ap.add_argument("--n-theta", type=int, default=360)

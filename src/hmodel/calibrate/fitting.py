@@ -17,6 +17,7 @@ from ..errors import InputError, SolverError
 from ..loading.lab_tests import check_3d_params
 from ..params import Params
 from ..rev import Sphere
+from ..workers import run_tasks
 from .bayes import Noise, Posterior, estimate_noise, sample
 from .data import Test
 from .kinds import dimension
@@ -159,7 +160,7 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
         solver: CellSolver | None = None, starts: int = 8, seed: int = 0, step: float = 1e-3,
         iso_step: float = ISO_STEP, max_nfev: int = 60, walkers: int = 32, steps: int = 2000,
         noise: dict | None = None, sphere: Sphere | None = None,
-        search_rule: tuple[int, int] | None = SEARCH_RULE,
+        search_rule: tuple[int, int] | None = SEARCH_RULE, workers: int = 1,
         progress: Callable[[float], None] | None = None) -> Calibration:
     """Fit the parameters ``fit`` to ``tests``; the others are those of ``base``.
 
@@ -192,6 +193,10 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
     its best point is then refined at ``sphere`` by one more least-squares run (the next best if
     that one fails there); everything after (uncertainty, posterior, curves) is ``sphere``'s.
     ``search_rule=None``: the search runs at ``sphere``. Ignored by the 2D model.
+
+    ``workers``: the least-squares starts run in that many processes (each start is
+    independent, so the result is the same as in one; the calibration's own batched calls
+    then run on one thread each).
     """
     if method not in METHODS:
         raise InputError(f"unknown calibration method {method!r} (available: {', '.join(METHODS)})")
@@ -218,11 +223,17 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
     runs = []
     share = 1.0 if method == "least-squares" else 0.2  # of the progress bar
     share_search = share if searcher is None else 0.8 * share
-    for i, z0 in enumerate(design):
-        runs.append(least_squares(obj.fun, z0, jac=obj.jac, bounds=(0.0, 1.0), method="trf",
-                                  x_scale=1.0, max_nfev=max_nfev))
+    if not (isinstance(workers, int) and workers >= 1):
+        raise InputError(f"the number of workers must be a positive integer, got {workers!r}")
+    done = {}
+    for i, (run, evaluations, failures) in run_tasks(
+            _start, [(obj.model, space, z0, max_nfev) for z0 in design], range(starts), workers=workers):
+        done[i] = run
+        obj.evaluations += evaluations
+        obj.failures += failures
         if progress is not None:
-            progress(share_search * (i + 1) / starts)
+            progress(share_search * len(done) / starts)
+    runs = [done[i] for i in range(starts)]
     best = min(runs, key=lambda r: r.cost)
     search = None
     if searcher is not None:
@@ -250,6 +261,15 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
                 for z0, r in zip(design, runs)],
         evaluations=obj.evaluations, failures=obj.failures, wall_s=time.perf_counter() - t0,
         prediction=pred, posterior=posterior, band=band, sphere=sphere, search=search)
+
+
+def _start(model: Model, space: Space, z0: np.ndarray, max_nfev: int):
+    """One least-squares start from the unit-box point ``z0``: the result, the parameter sets
+    it evaluated and its failures (a task of :func:`hmodel.workers.run_tasks`)."""
+    obj = _Objective(model, space)
+    run = least_squares(obj.fun, z0, jac=obj.jac, bounds=(0.0, 1.0), method="trf", x_scale=1.0,
+                        max_nfev=max_nfev)
+    return run, obj.evaluations, obj.failures
 
 
 class CalibrationFailed(SolverError):

@@ -62,6 +62,7 @@ def calibrate(
     steps: Annotated[int, typer.Option(help="bayes: steps of every walker.")] = 2000,
     noise: Annotated[Optional[str], typer.Option(help="bayes: noise levels q=FRACTION_OF_PEAK_Q,eps_v=STRAIN; default: the RMS the best fit leaves.")] = None,
     seed: Annotated[int, typer.Option(help="Seed of the design of starting points.")] = 0,
+    workers: Annotated[int, typer.Option(help="Processes the least-squares starts run in (the result is the same; the starts are independent).")] = 1,
     step: Annotated[float, typer.Option(help="Axial strain increment of the model's tests.")] = 1e-3,
     iso_step: Annotated[float, typer.Option(help="Strain increment of the model's consolidation.")] = ISO_STEP,
     solver: Annotated[str, typer.Option(help="Cell solver: closed-form, surrogate[:NAME|:FILE] (a family model fits any material of its training domain), dem:... (3D: of the hexagons of every bi-hexagon).")] = "closed-form",
@@ -100,7 +101,8 @@ def calibrate(
     with LazyProgress("calibration (parameter sets run)") as progress:
         cal = fit(tests, names, _bounds(bounds), base, method, cells, starts, seed, step,
                   iso_step, walkers=walkers, steps=steps, noise=Noise.parse(noise) if noise else None,
-                  sphere=sphere, search_rule=_search_rule(search_rule), progress=progress)
+                  sphere=sphere, search_rule=_search_rule(search_rule), workers=workers,
+                  progress=progress)
     written = write(cal, out)
     fitted = ", ".join(f"{n} = {v:.5g} ± {cal.stderr[n]:.2g}" for n, v in cal.fitted.items())
     typer.echo(f"{fitted}; objective {cal.cost:.3g} after {cal.evaluations} parameter sets "

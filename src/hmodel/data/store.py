@@ -41,7 +41,7 @@ from .schema import (
     column_array,
     columns_for,
 )
-from .workers import run_tasks
+from ..workers import run_tasks
 
 #: Disk a dataset row takes, at most [bytes] (Parquet shards; measured about 61 B a row on a
 #: small Dataset 2), for the disk check before a run.

@@ -1,4 +1,5 @@
-"""Where shards are computed: this process, local worker processes, or a Dask cluster.
+"""Where independent tasks run: this process, local worker processes, or a Dask cluster (a
+database's shards, a calibration's least-squares starts).
 
 Results are yielded as they complete, with a bounded number of tasks in flight, so that memory
 stays bounded whatever the number of shards. Every task is a pure function of its arguments:
@@ -11,7 +12,7 @@ import multiprocessing
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
-from ..errors import InputError
+from .errors import InputError
 
 
 def run_tasks(fn: Callable, args: Sequence[tuple], keys: Sequence, *, workers: int = 1,
