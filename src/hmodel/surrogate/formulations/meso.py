@@ -210,7 +210,7 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
         if not config.rollout:
             return None
         return RolloutLoss(self, columns, config, rng, x_scaler, net, config.rollout, config.rollout_substeps,
-                           config.rollout_weight)
+                           config.rollout_weight, config.max_secant, (config.secant_floor or self.m0) / self.m0)
 
     def decode(self, c: dict[str, np.ndarray], out: np.ndarray) -> dict[str, np.ndarray]:
         """Predicted summary after the increment (``*_next`` columns) from network outputs."""

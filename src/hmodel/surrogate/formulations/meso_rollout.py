@@ -181,17 +181,18 @@ class MesoRollout:
 
 
 class RolloutLoss:
-    """Windows along the data's paths (:meth:`MesoRollout.windows`), split like the rows, and
-    their rollout errors times ``weight`` for a fit loop (:mod:`hmodel.surrogate.fit_loop`):
-    ``train_batch(b, n_batches)`` and ``validation()`` are added to the loss."""
+    """Windows along the data's paths (:meth:`MesoRollout.windows`, cut before steps that jump
+    past ``max_secant``), split like the rows, and their rollout errors times ``weight`` for a fit
+    loop (:mod:`hmodel.surrogate.fit_loop`): ``train_batch(b, n_batches)`` and ``validation()``
+    are added to the loss."""
 
     def __init__(self, form, columns, config, rng, xs, net, window: int, substeps: int = 1,
-                 weight: float = 1.0):
+                 weight: float = 1.0, max_secant: float = 0.0, floor: float = 1.0):
         torch = require_torch()
         if not form.richer:
             raise InputError("rollout training needs the meso formulation of a richer cell (DEM data "
                              "whose V sigma is learned)")
-        w = form.windows(columns, window, config.max_secant, (config.secant_floor or form.m0) / form.m0)
+        w = form.windows(columns, window, max_secant, floor)
         if len(w["z0"]) < 2:
             raise InputError("rollout training needs data along paths (a Dataset 2 sample with its "
                              "start states)")
