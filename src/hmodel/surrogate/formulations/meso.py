@@ -123,6 +123,19 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
         """The formulations :meth:`for_material` made, by material."""
         return {}
 
+    @cached_property
+    def _kernels(self) -> dict:
+        """The compiled way back's parameters of :meth:`_kernel_params`, by material."""
+        return {}
+
+    def _kernel_params(self, params: Params) -> np.ndarray:
+        """The compiled way back's parameters for the material ``params``, made once per material
+        (a many-set REV asks for every set at every sub-step)."""
+        known = self._kernels
+        if params not in known:
+            known[params] = meso_kernel_params(self.for_material(params), params)
+        return known[params]
+
     def _row_materials(self, c: dict[str, np.ndarray]) -> list[tuple[np.ndarray, MesoFormulation]]:
         """The rows of each material of database rows ``c`` (a family's data: kt/kn, φg per
         path, α0 per path or REV) and the formulation for it; one group without material columns."""
@@ -314,15 +327,19 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
         inputs), then each set's compiled way back with its own Coulomb bound and cage."""
         present = np.unique(row_set)
         groups = [(sets[k], np.flatnonzero(row_set == k)) for k in present]
-        X = np.empty((len(v), len(self.input_names) + len(self.material_inputs)))
-        for p, rows in groups:
-            X[rows] = self.features(v[rows], p)
+        # each set's force and length units and material inputs, spread over its rows
+        per_set = np.zeros((len(sets), 2 + len(self.material_inputs)))
+        for k in present:
+            f = self.for_material(sets[k])
+            per_set[k] = [f.force_scale, 2 * f.radius, *material_features(self.material_inputs, sets[k], n=1)[0]]
+        table = per_set[row_set]
+        X = np.hstack([MesoHead.features(self, v, table[:, 0], table[:, 1]), table[:, 2:]])
         key = (*(sets[k] for k in present), row_set.tobytes())
         outs, mask = net.outputs(v, X=X, key=key)
         new, flags = np.empty_like(v), np.empty((len(v), 5), bool)
         for p, rows in groups:
             new[rows], flags[rows], _ = advance_cells(
-                v[rows], np.ascontiguousarray(dl[rows], float), meso_kernel_params(self.for_material(p), p),
+                v[rows], np.ascontiguousarray(dl[rows], float), self._kernel_params(p),
                 self.responses(v[rows], [o[rows] for o in outs], mask[rows]))
         return Increment(new, flags, mask, self.describe(v), outs)
 

@@ -55,9 +55,11 @@ class MesoHead:
         L = len(self.learned)
         return 2 * L + self.mechanisms * (L + 3)
 
-    def features(self, v: np.ndarray) -> np.ndarray:
-        """X (n, 8 or 9) from summary states v (n, 11)."""
-        d, F = 2 * self.radius, self.force_scale
+    def features(self, v: np.ndarray, F=None, d=None) -> np.ndarray:
+        """X (n, 8) from summary states v (n, 11), forces over F = kn 2r and lengths over d = 2r:
+        this cell's, or each row's (arrays (n,): the cells of several materials)."""
+        d = 2 * self.radius if d is None else d
+        F = self.force_scale if F is None else F
         return stack([v[:, 2], v[:, 6] / d, v[:, 7] / d, v[:, 3] / F, v[:, 4] / F, v[:, 5] / F,
                       v[:, 8] / (F * d), v[:, 9] / (F * d)])
 
