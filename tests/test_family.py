@@ -337,3 +337,19 @@ def test_shipped_richer_family_follows_the_dem_rev_at_an_unseen_material():
         assert dev < bound, (spec.name, dev)
     with pytest.raises(InputError, match="training domain"):
         run_path(p.with_(kt_kn=1.5), paths["undrained"], solver, 1e-3, 2e-4)
+
+
+def test_a_compliance_family_of_many_sets_steps_each_set_as_before():
+    """The standard cell's family (a compliance network, which has no many-material step) runs
+    a REV of several sets one set at a time, as before the meso family's batched step."""
+    from hmodel.rev import Rev
+    from hmodel.surrogate.solver import load_solver
+
+    sets = [Params(n_theta=6, kt_kn=0.3), Params(n_theta=6, kt_kn=0.6)]
+    solver = load_solver("surrogate:family")
+    assert not solver.batches_sets
+    deps = np.array([[-1e-4, 0.5e-4, 0.0]] * 2)
+    both = Rev(sets, solver).step(Rev(sets, solver).initial(2), deps)
+    for k, p in enumerate(sets):
+        one = Rev(p, load_solver("surrogate:family"))
+        np.testing.assert_allclose(both.sig[k], one.step(one.initial(1), deps[:1]).sig[0], rtol=1e-12)

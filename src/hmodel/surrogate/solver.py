@@ -272,8 +272,10 @@ class SurrogateSolver:
     @property
     def batches_sets(self) -> bool:
         """Whether :meth:`step_sets` steps the cells of several parameter sets in one network
-        call: a family network (its material is an input of every cell) without a gate."""
-        return bool(getattr(self.formulation, "material_inputs", ())) and self.gate is None
+        call: a family network (its material is an input of every cell) whose formulation steps
+        several materials at once (``step_cells_sets``: the meso formulation's), without a gate."""
+        f = self.formulation
+        return bool(getattr(f, "material_inputs", ())) and hasattr(f, "step_cells_sets") and self.gate is None
 
     def step_sets(self, sets: Sequence[Params], index: np.ndarray, state: CellState,
                   *lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -211,7 +211,7 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
     def row_weights(self, Y: np.ndarray, W: np.ndarray, aux: np.ndarray | None, config: MesoTraining) -> np.ndarray:
         """``W``, each row's error weighed as one of the secant dz/|de| with ``secant_floor``,
         and 0 on the rows that :func:`~.meso_rollout.jumps` past ``max_secant``."""
-        floor = (config.secant_floor or self.m0) / self.m0
+        floor = config.strain_floor(self.m0)
         if config.max_secant:
             W = W * ~jumps(Y, aux, config.max_secant, floor)[:, None]
         if not config.secant_floor:
@@ -223,7 +223,7 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
         if not config.rollout:
             return None
         return RolloutLoss(self, columns, config, rng, x_scaler, net, config.rollout, config.rollout_substeps,
-                           config.rollout_weight, config.max_secant, (config.secant_floor or self.m0) / self.m0)
+                           config.rollout_weight, config.max_secant, config.strain_floor(self.m0))
 
     def decode(self, c: dict[str, np.ndarray], out: np.ndarray) -> dict[str, np.ndarray]:
         """Predicted summary after the increment (``*_next`` columns) from network outputs."""

@@ -64,6 +64,11 @@ class MesoTraining:
     def __post_init__(self) -> None:
         self.check()
 
+    def strain_floor(self, m0: float) -> float:
+        """The smallest increment |de|/m0 a secant is taken over: ``secant_floor``, or m0 without
+        one (the secant weights' floor and the jumps' alike)."""
+        return (self.secant_floor or m0) / m0
+
     def check(self, formulation: str = "meso") -> None:
         """Refuse options out of range, or set for a ``formulation`` other than ``meso``."""
         if self.rollout_substeps < 1:
