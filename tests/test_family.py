@@ -308,7 +308,7 @@ def test_shipped_richer_family_follows_the_dem_rev_at_an_unseen_material():
     """The shipped hexagon-center family network, without YADE, at a material none of its
     training loadings had (set 1 of benchmarks/dem/dem_ann_family.py, drawn after training),
     against the DEM-REV's curves of that material (tests/data): max |Δq| / peak q over the shear
-    stage to 2 % within the documented bound at unseen sets (docs: DEM cells, the family);
+    stage to 2 % within a bound above the benchmark's figure there (docs: DEM cells, the family);
     outside its domain the run is refused."""
     import csv
     from dataclasses import replace
@@ -327,7 +327,8 @@ def test_shipped_richer_family_follows_the_dem_rev_at_an_unseen_material():
         start = np.flatnonzero(np.abs(q) < 1e-6 * np.abs(q).max())[-1]
         return eps11[start:] - eps11[start], q[start:]
 
-    for spec, bound in ((replace(paths["drained"], p0=(1e5,)), 0.07), (paths["undrained"], 0.03)):
+    # the stage-2 network (before the long rollouts) missed by 6.4 and 2.3 %: these bounds fail it
+    for spec, bound in ((replace(paths["drained"], p0=(1e5,)), 0.04), (paths["undrained"], 0.02)):
         dem = np.array([[float(r["eps11"]), float(r["q_kPa"]) * 1e3] for r in rows if r["path"] == spec.name])
         e_dem, q_dem = shear(dem[:, 0], dem[:, 1])
         res, _ = run_path(p, spec, solver, 1e-3, 2e-4)

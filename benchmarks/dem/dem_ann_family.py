@@ -14,13 +14,16 @@ Training (``--train``): the meso formulation with the material inputs (kt/kn, ta
 the rows of every finished shard of those datasets (a dataset still being generated gives its
 finished shards, checksums verified, listed in the JSON), 5 % of them held out as test rows;
 the shipped network's recipe, its rollout windows each stepped with their own material,
-``--epochs`` budget.
+``--epochs`` budget; ``--init`` continues an earlier network, ``--rollout`` / ``--rollout-weight``
+set its rollout windows (data steps, weight in the loss).
 
 Comparison: ``--sets`` parameter sets drawn with ``--seed`` uniformly over the domain (none is a
 training REV's material: those are continuous draws too), drained 100 kPa and undrained 200 kPa
 to ``--axial-strain``, nθ = ``--n-theta``, REV increments ``--step``: the ANN-REV against the
 DEM-REV (max and RMS |Δq| / peak q, max |Δεv|); the same at the materials of
-``--training-materials`` (loadings it was trained on: whether it fits its own data). Speed: the REV at the shipped network's
+``--training-materials`` (loadings it was trained on: whether it fits its own data); and the
+ANN-REV at half its cell step against itself (whether the answer depends on how finely the
+REV's increments are cut for the network). Speed: the REV at the shipped network's
 material (α0 = 45°) with the family network and with the shipped single-material network
 ``hexagon-center-1`` (one network each, same cell step), same increments.
 
@@ -124,6 +127,8 @@ def main() -> None:
     ap.add_argument("--width", type=int, default=CONFIG.width, help="hidden layer width (a new training)")
     ap.add_argument("--max-secant", type=float, default=CONFIG.max_secant,
                     help="leave out rows and window steps that jump past this secant (0: none)")
+    ap.add_argument("--rollout", type=int, default=CONFIG.rollout, help="data steps of the rollout windows")
+    ap.add_argument("--rollout-weight", type=float, default=CONFIG.rollout_weight)
     ap.add_argument("--sets", type=int, default=3)
     ap.add_argument("--seed", type=int, default=36)
     ap.add_argument("--training-materials", default="start:0,start:3,history:1",
@@ -159,11 +164,13 @@ def main() -> None:
 
         start = load(args.init) if args.init else None
         model, history = train(train_cols, PARAMS, replace(CONFIG, epochs=args.epochs, lr=args.lr, width=args.width,
-                                                                max_secant=args.max_secant), progress,
+                                                                max_secant=args.max_secant, rollout=args.rollout,
+                                                                rollout_weight=args.rollout_weight), progress,
                                cell=SOLVER, init=start)
         if start is not None:  # the whole recipe: the earlier stages' epochs, then these
             model.meta["recipe"] = start.meta.get("recipe", [{"epochs": start.meta["training_summary"]["epochs"],
-                                                              "lr": CONFIG.lr}]) + [{"epochs": len(history), "lr": args.lr}]
+                                                              "lr": CONFIG.lr}]) + [{"epochs": len(history), "lr": args.lr,
+                                                                 "rollout": args.rollout, "rollout_weight": args.rollout_weight}]
         seconds = time.perf_counter() - t0
         model.meta.update(params=PARAMS.to_dict(), domain=training_domain([SPECS[k].to_dict() for k in names]),
                           training_data=[u for us in used for u in us],
@@ -211,6 +218,13 @@ def main() -> None:
             except SolverError as e:
                 status, res, t_ann = f"failed: {' '.join(str(e).split())[:120]}", e.partial, float("nan")
             d = deviations(ref, res)[0] if len(res) else {}
+            half = SurrogateSolver(model)  # the same network at half the cell step: its own consistency
+            half.max_increment = ann.max_increment / 2
+            try:
+                res_half = run_path(params, spec, half, args.step, args.iso_step)[0]
+            except SolverError as e:
+                res_half = e.partial
+            d_half = deviations(res, res_half)[0] if status == "ok" and len(res_half) else {}
             for label, r in (("dem", ref), ("ann", res)):
                 if len(r):
                     pt = r.point(0)
@@ -223,11 +237,12 @@ def main() -> None:
                          "q_max_dev_pct_of_peak": 100 * d.get("q_max_dev_rel", float("nan")),
                          "q_rms_dev_pct_of_peak": 100 * d.get("q_rms_dev_rel", float("nan")),
                          "eps_v_max_dev": d.get("eps_v_max_dev", float("nan")),
+                         "q_max_dev_half_cell_step_pct": 100 * d_half.get("q_max_dev_rel", float("nan")),
                          "seconds_dem": t_dem, "seconds_ann": t_ann})
             r = rows[-1]
             print(f"set {k} (kt/kn {p.kt_kn:.3f}, phi_g {r['phi_g_deg']:.1f}, alpha0 {r['alpha0_deg']:.1f}) "
                   f"{spec.name}: peak q {r['dem_peak_q_kPa']:.1f} kPa, max |dq| {r['q_max_dev_pct_of_peak']:.2f} % "
-                  f"of peak, {status}")
+                  f"of peak ({r['q_max_dev_half_cell_step_pct']:.2f} % at half the cell step), {status}")
     # speed: the shipped network's material, one network each, same increments and cell step
     params = PARAMS.with_(n_theta=args.n_theta)
     drained = replace(paths["drained"], p0=(1e5,))
@@ -243,6 +258,8 @@ def main() -> None:
     worst = max(done, default=float("nan"))
     results = [("paths at unseen sets that stopped before the end [-]", len(unseen) - len(done), "0"),
                ("worst max |dq| / peak q over the paths that ran through [%]", worst, "<= 2"),
+               ("worst max |dq| / peak q between the cell step and half of it, same paths [%]",
+                max((r["q_max_dev_half_cell_step_pct"] for r in unseen), default=float("nan")), "-"),
                ("family / single-material network, REV time per run [x]", ratio, "<= 2"),
                ("the same in CPU time [x]", speed["family"]["cpu_seconds"] / speed["single"]["cpu_seconds"], "<= 2")]
     for name, v, target in results:
@@ -253,10 +270,11 @@ def main() -> None:
                  sets=[{"kt_kn": s.kt_kn, "phi_g_deg": math.degrees(s.phi_g), "alpha0_deg": s.alpha0_deg}
                        for s in sets], paths=rows, speed=speed)
     args.out.write_text(json.dumps(rec, indent=1, default=str) + "\n")
-    with open(args.out.with_name(args.out.stem + "_curves.csv"), "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(curves[0]))
-        w.writeheader()
-        w.writerows(curves)
+    if curves:  # none with --sets 0 and no training materials (a training run alone)
+        with open(args.out.with_name(args.out.stem + "_curves.csv"), "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(curves[0]))
+            w.writeheader()
+            w.writerows(curves)
     print(f"wrote {args.out}")
 
 
