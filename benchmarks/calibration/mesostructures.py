@@ -19,7 +19,11 @@ Per model and test: RMS and max of |Δq| / peak q, and of |Δεv| (drained); the
 parameters beside the contacts' own; the posterior's 5-95 % quantiles, chain length,
 autocorrelation times and acceptance; the cells' sliding and open fractions at the end of each
 test against the DEM's coordination number (relative to its start) and sliding fraction.
-Writes ``mesostructures.json`` and one figure per sample, ``docs/figures/mesostructures-NAME.png``.
+With ``--dem-check SOLVER`` (YADE): the richer cell's DEM-REV at its calibrated parameters on
+every test, against the network and against the sample (whether the network's answer there is
+the cell's, and what the cell itself gives); with ``--models "" --merge`` it checks the recorded
+calibrations without fitting again. Writes ``mesostructures.json`` and one figure per sample,
+``docs/figures/mesostructures-NAME.png``.
 
 Usage: ``python -m benchmarks.calibration.mesostructures [--samples NAME=DIR,...]
 [--models standard,fabric,spread,richer] [--starts 8] [--walkers 0 (2 n + 2)] [--steps 100]
@@ -164,6 +168,40 @@ def run_model(model: str, tests: dict, solver, args, timed: bool) -> dict:
     return out
 
 
+def fitted_params(r: dict, args) -> Params:
+    """The calibrated parameter set of a model's record (angles stored in degrees)."""
+    extra = args.richer_params.split(",") if args.richer_params else []
+    base = Params.parse_assignments(extra, Params(n_theta=r["n_theta"]))
+    f = r["fitted"]
+    return base.with_(kn=f["kn"], kt_kn=f["kt_kn"], phi_g=np.radians(f["phi_g"]), alpha0=np.radians(f["alpha0"]))
+
+
+def dem_check(r: dict, tests: dict, args) -> dict:
+    """The learned richer cell at its calibrated parameters against the cell it learned: the
+    DEM-REV (``--dem-check``, YADE) on every test, the same nθ and increments. Per test: the
+    ANN-REV's max and RMS |Δq| from the DEM-REV over the DEM-REV's peak q, and the DEM-REV's own
+    errors against the sample (what the richer cell itself gives there)."""
+    params = fitted_params(r, args)
+    names = [n for n in (*FIT_ON, *PREDICT) if n in tests]
+    ts = tuple(tests[n] for n in names)
+    t0 = time.perf_counter()
+    dem = Model(ts, get_solver(args.dem_check)).predict([params])
+    seconds = time.perf_counter() - t0
+    ann = Model(ts, get_solver(args.richer)).predict([params])
+    out = {"solver": args.dem_check, "seconds": seconds, "tests": {}, "curves": {}}
+    for k, (n, t) in enumerate(zip(names, ts)):
+        if not (dem.ok[0] and ann.ok[0]):
+            out["tests"][n] = {"failed": dem.failed[0] or ann.failed[0]}
+            continue
+        qd, qa = dem.q[k][0], ann.q[k][0]
+        peak = np.abs(qd).max()
+        out["tests"][n] = {"ann_max_dq": float(np.abs(qa - qd).max() / peak),
+                           "ann_rms_dq": float(np.sqrt(np.mean((qa - qd) ** 2)) / peak),
+                           "dem_rev": errors(t, qd, dem.eps_v[k][0])}
+        out["curves"][n] = [qd.tolist(), dem.eps_v[k][0].tolist()]
+    return out
+
+
 def figure(name: str, tests: dict, results: dict, path: Path) -> None:
     shown = [n for n in (*FIT_ON, *PREDICT) if n in tests]
     fig = Figure(figsize=(3.2 * len(shown), 6.0))
@@ -178,6 +216,11 @@ def figure(name: str, tests: dict, results: dict, path: Path) -> None:
             axes[0, j].plot(100 * t.eps11, q / 1e3, color=f"C{k}", label=model)
             if not t.kind.undrained:
                 axes[1, j].plot(100 * t.eps11, 100 * ev, color=f"C{k}")
+            if tn in r.get("dem_check", {}).get("curves", {}):  # the cell the network learned
+                q, ev = (np.asarray(c) for c in r["dem_check"]["curves"][tn])
+                axes[0, j].plot(100 * t.eps11, q / 1e3, color=f"C{k}", ls="--", label=f"{model}, DEM-REV")
+                if not t.kind.undrained:
+                    axes[1, j].plot(100 * t.eps11, 100 * ev, color=f"C{k}", ls="--")
         if t.kind.undrained:
             axes[1, j].cla()
             axes[1, j].text(0.5, 0.5, "undrained: εv = 0", ha="center", transform=axes[1, j].transAxes)
@@ -209,6 +252,12 @@ def run_sample(name: str, folder: str, models: list[str], args) -> dict:
     return rec
 
 
+def check_sample(name: str, rec: dict, args) -> dict:
+    """The DEM check of a sample's recorded richer calibration (one process per sample)."""
+    print(f"{name}: richer at its calibrated parameters against the DEM-REV ...", flush=True)
+    return dem_check(rec["models"]["richer"], load(Path(rec["folder"]))[0], args)
+
+
 def table_rows(samples: dict, starts: int) -> list:
     rows = []
     for name, rec in samples.items():
@@ -218,6 +267,12 @@ def table_rows(samples: dict, starts: int) -> list:
                     rows.append((f"{name} {model} {tn} ({e['role']}): max |dq| / peak q", e["max_dq"], "-"))
             rows.append((f"{name} {model}: fitted phi_g [deg] (contact {rec['contact']['phi_g']:g})",
                          r["fitted"]["phi_g"], "-"))
+            for tn, c in r.get("dem_check", {}).get("tests", {}).items():
+                if "ann_max_dq" in c:
+                    what = f"{name} {model} {tn}: network against its DEM-REV at the calibrated parameters"
+                    rows.append((f"{what}, max |dq| / DEM peak q", c["ann_max_dq"], "-"))
+                    rows.append((f"{name} {model} {tn}: that DEM-REV against the sample, max |dq| / peak q",
+                                 c["dem_rev"]["max_dq"], "-"))
             if model == "richer" and r.get("timed"):
                 rows.append((f"{name} richer: least squares, 4 parameters, {starts} starts [s]",
                              r["lsq_wall_s"], f"<= {TARGET_S:g}"))
@@ -285,6 +340,17 @@ def markdown(samples: dict) -> str:
                              f"{r['evaluations']} sets; emcee {p['walkers']} walkers × {p['steps']} steps, "
                              f"autocorrelation times {', '.join(f'{v:.0f}' for v in p['autocorrelation_time'])} "
                              f"steps, acceptance {p['acceptance_fraction']:.2f}")
+            chk = r.get("dem_check", {}).get("tests", {})
+            if chk and all("ann_max_dq" in c for c in chk.values()):
+                lines.append(f"- {model} at its calibrated parameters, the network against its DEM-REV "
+                             f"(max \\|Δq\\| / DEM peak q): "
+                             + ", ".join(f"{tn} {pct(c['ann_max_dq'])} %" for tn, c in chk.items())
+                             + "; the DEM-REV against the sample, max (RMS): "
+                             + ", ".join(f"{tn} {pct(c['dem_rev']['max_dq'])} ({pct(c['dem_rev']['rms_dq'])}) %"
+                                         for tn, c in chk.items()))
+            elif chk:
+                lines.append(f"- {model} at its calibrated parameters: the DEM-REV check failed "
+                             f"({next(c['failed'] for c in chk.values() if 'failed' in c)[:120]})")
         lines.append("")
     return "\n".join(lines)
 
@@ -308,6 +374,9 @@ def main() -> None:
                     help="keep the other models' records of --out and replace those run now")
     ap.add_argument("--out", type=Path, default=HERE / "mesostructures.json")
     ap.add_argument("--markdown", type=Path, default=None, help="write the documentation's tables here")
+    ap.add_argument("--dem-check", default="", metavar="SOLVER",
+                    help="also run the richer cell's DEM solver at the calibrated parameters on every test, "
+                         "e.g. dem:hexagon-center:tol=1e-7,max_iter=100000 (YADE)")
     args = ap.parse_args()
     models = [m for m in args.models.split(",") if m]  # none: redraw and rewrite the record
     items = [item.partition("=")[::2] for item in args.samples.split(",")]
@@ -319,6 +388,12 @@ def main() -> None:
         if name in samples:
             rec["models"] = {**samples[name]["models"], **rec["models"]}
         samples[name] = rec
+    if args.dem_check:  # the samples asked for, with a richer calibration (run now or recorded)
+        names = [n for n, _ in items if "richer" in samples.get(n, {}).get("models", {})]
+        with ProcessPoolExecutor(max(1, len(names))) as pool:
+            for n, chk in zip(names, pool.map(check_sample, names, [samples[n] for n in names],
+                                              [args] * len(names))):
+                samples[n]["models"]["richer"]["dem_check"] = chk
     for name, rec in samples.items():
         figure(name, load(Path(rec["folder"]))[0], rec["models"], FIGURES / f"mesostructures-{name}.png")
     rows = table_rows(samples, args.starts)
