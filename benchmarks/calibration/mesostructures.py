@@ -124,11 +124,16 @@ def dem_fractions(name: str, info: dict, extra: dict) -> dict:
     return out
 
 
+def base_params(model: str, args, n_theta: int) -> Params:
+    """The fixed parameters of a model's runs: nθ, and the richer cell's ``--richer-params``
+    (its network was trained with the equilibrium lambda)."""
+    extra = args.richer_params.split(",") if model == "richer" and args.richer_params else []
+    return Params.parse_assignments(extra, Params(n_theta=n_theta))
+
+
 def run_model(model: str, tests: dict, solver, args, timed: bool) -> dict:
     names = MODELS[model]
-    # the richer cell's network was trained with the equilibrium lambda (--richer-params)
-    extra = args.richer_params.split(",") if model == "richer" and args.richer_params else []
-    base = Params.parse_assignments(extra, Params(n_theta=args.n_theta))
+    base = base_params(model, args, args.n_theta)
     on = [tests[n] for n in FIT_ON]
     with cpu_lock(timed):
         t0, c0, k0 = time.perf_counter(), time.process_time(), resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -169,9 +174,8 @@ def run_model(model: str, tests: dict, solver, args, timed: bool) -> dict:
 
 
 def fitted_params(r: dict, args) -> Params:
-    """The calibrated parameter set of a model's record (angles stored in degrees)."""
-    extra = args.richer_params.split(",") if args.richer_params else []
-    base = Params.parse_assignments(extra, Params(n_theta=r["n_theta"]))
+    """The calibrated parameter set of the richer cell's record (angles stored in degrees)."""
+    base = base_params("richer", args, r["n_theta"])
     f = r["fitted"]
     return base.with_(kn=f["kn"], kt_kn=f["kt_kn"], phi_g=np.radians(f["phi_g"]), alpha0=np.radians(f["alpha0"]))
 
