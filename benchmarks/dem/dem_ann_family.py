@@ -58,7 +58,7 @@ from hmodel.surrogate.evaluation import evaluate
 from hmodel.surrogate.formulations.meso_rollout import jumps
 from hmodel.surrogate.modelfile import load, save
 from hmodel.surrogate.shipped import load_shipped
-from hmodel.surrogate.solver import SurrogateSolver
+from hmodel.surrogate.solver import SurrogateSolver, domain_in_params_units
 from hmodel.surrogate.training import TrainConfig, train, training_domain, union
 
 PARAMS = Params(sliding_rhs="equilibrium")
@@ -92,6 +92,9 @@ CORNER = replace(HISTORY, alpha0_min=48.0, phi_g_range="10:22", material_seed=4,
                  rev_paths=",".join(f"{kind}:{round(float(p))}e3" for p in np.geomspace(50, 400, 16)
                                     for kind in ("drained", "undrained")))
 SPECS = {"start": START, "history": HISTORY, "cells": CELLS, "corner": CORNER}
+#: Datasets inside the others' material ranges: they densify the stored domain, not bound it
+#: (``training_domain`` intersects, and would shrink the domain to the corner).
+DENSIFYING = {"corner"}
 #: The shipped single-material network's recipe (benchmarks/dem/refine_dem.py: rollouts of 2 data
 #: steps in 4 network steps of at most 2.5e-4 of cell strain, secant weighting), each rollout
 #: window stepped with its own material's inputs, Coulomb bound and cage; the rows and windows
@@ -183,9 +186,7 @@ def main() -> None:
                                                               "lr": CONFIG.lr}]) + [{"epochs": len(history), "lr": args.lr,
                                                                  "rollout": args.rollout, "rollout_weight": args.rollout_weight}]
         seconds = time.perf_counter() - t0
-        # the corner lies inside the other datasets' ranges: it densifies the domain, not bounds it
-        # (training_domain intersects, and would shrink the domain to the corner)
-        bounding = [SPECS[k].to_dict() for k in names if k != "corner"] or [SPECS[k].to_dict() for k in names]
+        bounding = [SPECS[k].to_dict() for k in names if k not in DENSIFYING] or [SPECS[k].to_dict() for k in names]
         model.meta.update(params=PARAMS.to_dict(), domain=training_domain(bounding),
                           training_data=[u for us in used for u in us],
                           metrics=evaluate(model, test_cols, "held-out rows"), history_tail=history[-3:])
@@ -216,9 +217,8 @@ def main() -> None:
           ", ".join(f"{k} {v:.5f}" for k, v in held_out["r2_without_jumps"].items()))
     family = SurrogateSolver(model, on_outside="fallback")
     # --draw-in DATASET: the sets over that dataset's material ranges (inside the model's domain)
-    draw_domain = family.domain if args.draw_in is None else {
-        k: tuple(math.radians(v) if k in ("phi_g", "alpha0") else v for v in lohi)
-        for k, lohi in training_domain([SPECS[args.draw_in].to_dict()]).items()}
+    draw_domain = family.domain if args.draw_in is None else domain_in_params_units(
+        training_domain([SPECS[args.draw_in].to_dict()]))
     sets = draw_sets(draw_domain, args.sets, args.seed)
     paths = {s.name: s for s in standard_paths(args.axial_strain)}
     # and materials it was trained on (DATASET:LOADING): does the network fit its own data?

@@ -69,6 +69,13 @@ MATERIAL = ("kn", "kt_kn", "phi_g", "radius", "g2", "sliding_rhs", "volume")
 SCALED = ("kn", "radius")
 
 
+def domain_in_params_units(domain: dict) -> dict[str, tuple[float, float]]:
+    """A training domain as model files store it (angles in degrees) in the units of the
+    :class:`~hmodel.params.Params` fields (angles in radians)."""
+    return {k: tuple(math.radians(float(v)) if k in ANGLE_PARAMS else float(v) for v in lohi)
+            for k, lohi in domain.items()}
+
+
 class SurrogateSolver:
     """Implements :class:`hmodel.cell.CellSolver` with a trained :class:`Surrogate` (or an
     ensemble), delegating to its formulation what depends on it; the solver's networks are the
@@ -176,10 +183,7 @@ class SurrogateSolver:
         for a network of one material. The model file stores it as the command line writes it
         (angles in degrees, ``domain`` in its metadata)."""
         d = self.model.meta.get("domain")
-        if not d:
-            return None
-        return {k: tuple(math.radians(float(v)) if k in ANGLE_PARAMS else float(v) for v in d[k])
-                for k in d}
+        return domain_in_params_units(d) if d else None
 
     def check(self, params: Params) -> None:
         """Refuse a material the surrogate was not trained for: one other than its own, or for
