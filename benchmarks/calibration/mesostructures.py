@@ -21,8 +21,9 @@ autocorrelation times and acceptance; the cells' sliding and open fractions at t
 test against the DEM's coordination number (relative to its start) and sliding fraction.
 With ``--dem-check SOLVER`` (YADE): the richer cell's DEM-REV at its calibrated parameters on
 every test, against the network and against the sample (whether the network's answer there is
-the cell's, and what the cell itself gives); with ``--models "" --merge`` it checks the recorded
-calibrations without fitting again. Writes ``mesostructures.json`` and one figure per sample,
+the cell's, and what the cell itself gives); with ``--n-theta-check N``: the richer cell at its
+calibrated parameters with N directions against the nθ it was calibrated with; with
+``--models "" --merge`` both check the recorded calibrations without fitting again. Writes ``mesostructures.json`` and one figure per sample,
 ``docs/figures/mesostructures-NAME.png``.
 
 Usage: ``python -m benchmarks.calibration.mesostructures [--samples NAME=DIR,...]
@@ -206,6 +207,26 @@ def dem_check(r: dict, tests: dict, args) -> dict:
     return out
 
 
+def n_theta_check(r: dict, tests: dict, args) -> dict:
+    """The richer cell at its calibrated parameters run again with ``--n-theta-check`` directions
+    (the calibrations run at fewer for their time): per test, max |Δq| between the two over the
+    finer run's peak q. Network against network: what the coarser nθ changes, nothing else."""
+    names = [n for n in (*FIT_ON, *PREDICT) if n in tests]
+    ts = tuple(tests[n] for n in names)
+    params = fitted_params(r, args)
+    solver = get_solver(args.richer)
+    coarse = Model(ts, solver).predict([params])
+    fine = Model(ts, solver).predict([params.with_(n_theta=args.n_theta_check)])
+    out = {"n_theta": args.n_theta_check, "tests": {}}
+    for k, n in enumerate(names):
+        if not (coarse.ok[0] and fine.ok[0]):
+            out["tests"][n] = {"failed": coarse.failed[0] or fine.failed[0]}
+            continue
+        qc, qf = coarse.q[k][0], fine.q[k][0]
+        out["tests"][n] = {"max_dq": float(np.abs(qc - qf).max() / np.abs(qf).max())}
+    return out
+
+
 def figure(name: str, tests: dict, results: dict, path: Path) -> None:
     shown = [n for n in (*FIT_ON, *PREDICT) if n in tests]
     fig = Figure(figsize=(3.2 * len(shown), 6.0))
@@ -355,6 +376,11 @@ def markdown(samples: dict) -> str:
             elif chk:
                 lines.append(f"- {model} at its calibrated parameters: the DEM-REV check failed "
                              f"({next(c['failed'] for c in chk.values() if 'failed' in c)[:120]})")
+            nt = r.get("n_theta_check", {})
+            if nt and all("max_dq" in c for c in nt["tests"].values()):
+                lines.append(f"- {model} at its calibrated parameters, nθ = {r['n_theta']} against "
+                             f"nθ = {nt['n_theta']} (max \\|Δq\\| / peak q): "
+                             + ", ".join(f"{tn} {pct(c['max_dq'])} %" for tn, c in nt["tests"].items()))
         lines.append("")
     return "\n".join(lines)
 
@@ -381,6 +407,9 @@ def main() -> None:
     ap.add_argument("--dem-check", default="", metavar="SOLVER",
                     help="also run the richer cell's DEM solver at the calibrated parameters on every test, "
                          "e.g. dem:hexagon-center:tol=1e-7,max_iter=100000 (YADE)")
+    ap.add_argument("--n-theta-check", type=int, default=0, metavar="N",
+                    help="also run the richer cell at its calibrated parameters with N directions "
+                         "against the nθ it was calibrated with (network against network)")
     args = ap.parse_args()
     models = [m for m in args.models.split(",") if m]  # none: redraw and rewrite the record
     items = [item.partition("=")[::2] for item in args.samples.split(",")]
@@ -398,6 +427,12 @@ def main() -> None:
             for n, chk in zip(names, pool.map(check_sample, names, [samples[n] for n in names],
                                               [args] * len(names))):
                 samples[n]["models"]["richer"]["dem_check"] = chk
+    if args.n_theta_check:
+        for n, _ in items:
+            if "richer" in samples.get(n, {}).get("models", {}):
+                rec = samples[n]
+                rec["models"]["richer"]["n_theta_check"] = n_theta_check(rec["models"]["richer"],
+                                                                         load(Path(rec["folder"]))[0], args)
     for name, rec in samples.items():
         figure(name, load(Path(rec["folder"]))[0], rec["models"], FIGURES / f"mesostructures-{name}.png")
     rows = table_rows(samples, args.starts)
