@@ -164,8 +164,11 @@ def test_cli_writes_a_3d_calibration_and_refuses_the_other_model_in_one_line(tmp
     args = ["calibrate", *specs, "--fit", "phi_g,alpha0", "--bounds", "phi_g=20:40", "--bounds",
             "alpha0=40:60", "--order", "9", "--azimuths", "2", "--search-rule", "9:1", "--starts", "1"]
     # the Bayesian method too (a short chain: that it runs in 3D, not its statistics)
-    assert main([*args, "--method", "bayes", "--walkers", "4", "--steps", "12", "--out", str(out)]) == 0
+    assert main([*args, "--method", "bayes", "--walkers", "4", "--steps", "12", "--check", "closed-form",
+                 "--out", str(out)]) == 0
     record = json.loads((out / "calibration.json").read_text())
+    # the check runs the calibration's own directions: the same solver gives the same curves
+    assert [t["max_dq"] for t in record["check"]["tests"].values()] == [0.0, 0.0, 0.0]
     assert record["fitted"]["phi_g"] == pytest.approx(28.0, rel=1e-4)
     assert set(record["posterior"]) == {"phi_g", "alpha0"} and (out / "posterior.csv").exists()
     assert record["params"]["sliding_rhs"] == "equilibrium"  # the 3D commands' default

@@ -49,6 +49,7 @@ from benchmarks.timing import FIGURES, _sha256, record, write_table
 from hmodel import Params
 from hmodel.calibrate import Test, fit
 from hmodel.calibrate.bayes import estimate_noise, sample
+from hmodel.calibrate.check import check_at, deviation
 from hmodel.calibrate.model import Model
 from hmodel.loading import run_biaxial
 from hmodel.solvers import get_solver
@@ -189,21 +190,17 @@ def dem_check(r: dict, tests: dict, args) -> dict:
     params = fitted_params(r, args)
     names = [n for n in (*FIT_ON, *PREDICT) if n in tests]
     ts = tuple(tests[n] for n in names)
-    t0 = time.perf_counter()
-    dem = Model(ts, get_solver(args.dem_check)).predict([params])
-    seconds = time.perf_counter() - t0
     ann = Model(ts, get_solver(args.richer)).predict([params])
-    out = {"solver": args.dem_check, "seconds": seconds, "tests": {}, "curves": {}}
+    chk = check_at(ts, params, ann, get_solver(args.dem_check))
+    out = {"solver": args.dem_check, "seconds": chk.seconds, "tests": {}, "curves": {}}
     for k, (n, t) in enumerate(zip(names, ts)):
-        if not (dem.ok[0] and ann.ok[0]):
-            out["tests"][n] = {"failed": dem.failed[0] or ann.failed[0]}
+        if chk.failed or not ann.ok[0]:
+            out["tests"][n] = {"failed": chk.failed or ann.failed[0]}
             continue
-        qd, qa = dem.q[k][0], ann.q[k][0]
-        peak = np.abs(qd).max()
-        out["tests"][n] = {"ann_max_dq": float(np.abs(qa - qd).max() / peak),
-                           "ann_rms_dq": float(np.sqrt(np.mean((qa - qd) ** 2)) / peak),
-                           "dem_rev": errors(t, qd, dem.eps_v[k][0])}
-        out["curves"][n] = [qd.tolist(), dem.eps_v[k][0].tolist()]
+        d = chk.deviations[k]
+        out["tests"][n] = {"ann_max_dq": d["max_dq"], "ann_rms_dq": d["rms_dq"],
+                           "dem_rev": errors(t, chk.q[k], chk.eps_v[k])}
+        out["curves"][n] = [chk.q[k].tolist(), chk.eps_v[k].tolist()]
     return out
 
 
@@ -222,8 +219,8 @@ def n_theta_check(r: dict, tests: dict, args) -> dict:
         if not (coarse.ok[0] and fine.ok[0]):
             out["tests"][n] = {"failed": coarse.failed[0] or fine.failed[0]}
             continue
-        qc, qf = coarse.q[k][0], fine.q[k][0]
-        out["tests"][n] = {"max_dq": float(np.abs(qc - qf).max() / np.abs(qf).max())}
+        d = deviation(coarse.q[k][0], coarse.eps_v[k][0], fine.q[k][0], fine.eps_v[k][0])
+        out["tests"][n] = {"max_dq": d["max_dq"]}
     return out
 
 

@@ -1,4 +1,5 @@
-"""What a calibration writes: ``calibration.json``, ``fit.csv`` and ``fit.png``."""
+"""What a calibration writes: ``calibration.json``, ``fit.csv`` and ``fit.png`` (and, with a
+check at the optimum, ``check.csv``)."""
 
 from __future__ import annotations
 
@@ -10,15 +11,19 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..io import write_outputs
+from .check import Check
 from .fitting import Calibration
 
 
-def write(cal: Calibration, out_dir) -> list[Path]:
+def write(cal: Calibration, out_dir, check: Check | None = None) -> list[Path]:
     """Write the calibration's files into ``out_dir`` (all or nothing): ``calibration.json``,
-    ``fit.csv``, ``fit.png`` and, for ``bayes``, ``posterior.csv``, ``corner.png`` and
-    ``trace.png``."""
-    writers = {"calibration.json": lambda p: _json(cal, p), "fit.csv": lambda p: _csv(cal, p),
-               "fit.png": lambda p: _figure(cal, p)}
+    ``fit.csv``, ``fit.png``; for ``bayes``, ``posterior.csv``, ``corner.png`` and
+    ``trace.png``; with a ``check`` (:func:`~hmodel.calibrate.check.check_at`), its record in
+    ``calibration.json``, its curves in ``fit.png`` (dashed) and ``check.csv``."""
+    writers = {"calibration.json": lambda p: _json(cal, p, check), "fit.csv": lambda p: _csv(cal, p),
+               "fit.png": lambda p: _figure(cal, p, check)}
+    if check is not None and not check.failed:
+        writers["check.csv"] = lambda p: _check_csv(cal, check, p)
     if cal.posterior is not None:
         writers |= {"posterior.csv": lambda p: _posterior(cal, p), "corner.png": lambda p: _corner(cal, p),
                     "trace.png": lambda p: _trace(cal, p)}
@@ -58,8 +63,19 @@ def _trace(cal: Calibration, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def _json(cal: Calibration, path: Path) -> None:
-    path.write_text(json.dumps(cal.to_dict(), indent=2) + "\n")
+def _json(cal: Calibration, path: Path, check: Check | None) -> None:
+    rec = cal.to_dict() | ({"check": check.to_dict()} if check is not None else {})
+    path.write_text(json.dumps(rec, indent=2) + "\n")
+
+
+def _check_csv(cal: Calibration, check: Check, path: Path) -> None:
+    """The calibrated model's curves beside the check solver's at the test's axial strains."""
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["test", "kind", "p0", "eps11", "q_model", "q_check", "eps_v_model", "eps_v_check"])
+        for t, q, ev, qc, evc in zip(cal.tests, cal.prediction.q, cal.prediction.eps_v, check.q, check.eps_v):
+            for row in zip(t.eps11, q[0], qc, ev[0], evc):
+                w.writerow([t.name, t.kind, repr(t.p0), *(repr(float(x)) for x in row)])
 
 
 def _csv(cal: Calibration, path: Path) -> None:
@@ -73,8 +89,9 @@ def _csv(cal: Calibration, path: Path) -> None:
                 w.writerow([t.name, t.kind, repr(t.p0), *(repr(float(x)) for x in row)])
 
 
-def _figure(cal: Calibration, path: Path) -> None:
-    """q and εv against ε11: each test (markers) and the calibrated model (lines)."""
+def _figure(cal: Calibration, path: Path, check: Check | None = None) -> None:
+    """q and εv against ε11: each test (markers), the calibrated model (lines) and, with a
+    check, the check solver at the same parameters (dashed)."""
     fig = Figure(figsize=(10, 4.2))
     ax_q, ax_v = fig.subplots(1, 2)
     for k, (t, q, ev) in enumerate(zip(cal.tests, cal.prediction.q, cal.prediction.eps_v)):
@@ -88,6 +105,10 @@ def _figure(cal: Calibration, path: Path) -> None:
         if t.eps_v is not None:
             ax_v.plot(100 * t.eps11, 100 * t.eps_v, "o", ms=3, color=color)
         ax_v.plot(100 * t.eps11, 100 * ev[0], "-", color=color)
+        if check is not None and not check.failed:
+            ax_q.plot(100 * t.eps11, check.q[k] / 1e3, "--", color=color, lw=1,
+                      label=f"{check.solver} (check)" if k == 0 else None)
+            ax_v.plot(100 * t.eps11, 100 * check.eps_v[k], "--", color=color, lw=1)
     finish_figure(fig, ax_q, ax_v, f"{cal.method}: {fitted_text(cal)}", path)
 
 

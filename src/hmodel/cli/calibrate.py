@@ -11,6 +11,7 @@ import typer
 
 from ..calibrate import fit, parse_data_spec
 from ..calibrate.bayes import Noise
+from ..calibrate.check import Check, check_at
 from ..calibrate.fitting import METHODS, SEARCH_RULE
 from ..calibrate.kinds import Kind, dimension
 from ..calibrate.model import ISO_STEP
@@ -68,6 +69,8 @@ def calibrate(
     solver: Annotated[str, typer.Option(help="Cell solver: closed-form, surrogate[:NAME|:FILE] (a family model fits any material of its training domain), dem:... (3D: of the hexagons of every bi-hexagon).")] = "closed-form",
     order: OrderOpt = None, azimuths: AzimuthsOpt = None, fabric: FabricOpt = 0.0,
     search_rule: Annotated[str, typer.Option(help="3D: Lebedev order and azimuths ORDER:AZIMUTHS of the multi-start search, whose best point is then refined at the model's rule (--order, --azimuths); none: search at the model's rule.")] = _DEFAULT_SEARCH,
+    check: Annotated[Optional[str], typer.Option("--check", metavar="SOLVER", help="Run the tests again at the optimum with this cell solver (the cell a surrogate learned: closed-form, dem:...) and report how far the calibrated model lies from it (check.csv, calibration.json, dashed in fit.png).")] = None,
+    check_tol: Annotated[float, typer.Option(help="--check: warn where the calibrated model misses the check solver by more than this fraction of peak q.")] = 0.02,
     out: out_folder("Output folder.") = Path("results/calibration"),
 ) -> None:
     """Fit the H-model to measured biaxial (2D) or triaxial (3D) tests (least squares from several
@@ -90,6 +93,13 @@ def calibrate(
         if not isinstance(base, Params):
             raise InputError("--param gives one value per parameter in a calibration (no comma lists)")
         sphere = _sphere(order, azimuths, fabric)
+    checker = None
+    if check is not None:  # refused before the fit, not after it
+        checker = get_solver(check) if dim == 2 else _solver_3d(check)
+        if not (math.isfinite(check_tol) and check_tol >= 0):
+            raise InputError(f"--check-tol must be a fraction of peak q >= 0, got {check_tol}")
+    elif check_tol != 0.02:
+        raise InputError("--check-tol applies to --check SOLVER, which is not given")
     names = [n.strip() for n in fit_.split(",") if n.strip()]
     fixed = {item.partition("=")[0].strip() for item in param or []}
     both = [n for n in names if n in fixed]
@@ -103,7 +113,10 @@ def calibrate(
                   iso_step, walkers=walkers, steps=steps, noise=Noise.parse(noise) if noise else None,
                   sphere=sphere, search_rule=_search_rule(search_rule), workers=workers,
                   progress=progress)
-    written = write(cal, out)
+    checked = None
+    if checker is not None:
+        checked = check_at(cal.tests, cal.params, cal.prediction, checker, step, iso_step, cal.sphere)
+    written = write(cal, out, checked)
     fitted = ", ".join(f"{n} = {v:.5g} ± {cal.stderr[n]:.2g}" for n, v in cal.fitted.items())
     typer.echo(f"{fitted}; objective {cal.cost:.3g} after {cal.evaluations} parameter sets "
                f"({len(cal.failures)} failed)")
@@ -115,4 +128,17 @@ def calibrate(
             typer.echo("warning: " + cal.posterior.warning)
     if cal.unidentified:
         typer.echo(f"not identified by these tests: {', '.join(cal.unidentified)}")
+    if checked is not None:
+        _echo_check(checked, check, check_tol)
     typer.echo("wrote " + ", ".join(str(p) for p in written))
+
+
+def _echo_check(checked: Check, spec: str, tol: float) -> None:
+    if checked.failed:
+        typer.echo(f"warning: the check solver {spec} failed at the optimum: {checked.failed}")
+        return
+    name, worst = checked.worst
+    typer.echo(f"check at the optimum against {spec}: max |dq| / peak q {100 * worst:.2f} % ({name})")
+    if worst > tol:
+        typer.echo(f"warning: that is more than --check-tol {100 * tol:.3g} %: the fitted parameters are "
+                   "the calibrated model's, not the check solver's")
