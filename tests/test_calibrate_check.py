@@ -115,7 +115,7 @@ def test_the_cli_checks_a_surrogate_fit_against_the_cell_it_learned(tmp_path, ca
 def test_the_cli_refuses_a_bad_check_before_fitting(tmp_path, capsys):
     specs = _write_tests(tmp_path)
     for extra, word in ((["--check", "no-such-solver"], "no-such-solver"),
-                        (["--check-tol", "0.05"], "--check-tol applies to --check"),
+                        (["--check-tol", "0.02"], "--check-tol applies to --check"),
                         (["--check", "closed-form", "--check-tol", "-1"], "--check-tol must be")):
         out = tmp_path / "o"
         code = main(["calibrate", *specs, "--fit", "phi_g", "--out", str(out), *extra])

@@ -70,7 +70,7 @@ def calibrate(
     order: OrderOpt = None, azimuths: AzimuthsOpt = None, fabric: FabricOpt = 0.0,
     search_rule: Annotated[str, typer.Option(help="3D: Lebedev order and azimuths ORDER:AZIMUTHS of the multi-start search, whose best point is then refined at the model's rule (--order, --azimuths); none: search at the model's rule.")] = _DEFAULT_SEARCH,
     check: Annotated[Optional[str], typer.Option("--check", metavar="SOLVER", help="Run the tests again at the optimum with this cell solver (the cell a surrogate learned: closed-form, dem:...) and report how far the calibrated model lies from it (check.csv, calibration.json, dashed in fit.png).")] = None,
-    check_tol: Annotated[float, typer.Option(help="--check: warn where the calibrated model misses the check solver by more than this fraction of peak q.")] = 0.02,
+    check_tol: Annotated[Optional[float], typer.Option(help="--check: warn where the calibrated model misses the check solver by more than this fraction of peak q (default 0.02).")] = None,
     out: out_folder("Output folder.") = Path("results/calibration"),
 ) -> None:
     """Fit the H-model to measured biaxial (2D) or triaxial (3D) tests (least squares from several
@@ -96,9 +96,10 @@ def calibrate(
     checker = None
     if check is not None:  # refused before the fit, not after it
         checker = get_solver(check) if dim == 2 else _solver_3d(check)
+        check_tol = 0.02 if check_tol is None else check_tol
         if not (math.isfinite(check_tol) and check_tol >= 0):
             raise InputError(f"--check-tol must be a fraction of peak q >= 0, got {check_tol}")
-    elif check_tol != 0.02:
+    elif check_tol is not None:
         raise InputError("--check-tol applies to --check SOLVER, which is not given")
     names = [n.strip() for n in fit_.split(",") if n.strip()]
     fixed = {item.partition("=")[0].strip() for item in param or []}
