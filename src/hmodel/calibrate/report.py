@@ -70,22 +70,25 @@ def _json(cal: Calibration, path: Path, check: Check | None) -> None:
 
 def _check_csv(cal: Calibration, check: Check, path: Path) -> None:
     """The calibrated model's curves beside the check solver's at the test's axial strains."""
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["test", "kind", "p0", "eps11", "q_model", "q_check", "eps_v_model", "eps_v_check"])
-        for t, q, ev, qc, evc in zip(cal.tests, cal.prediction.q, cal.prediction.eps_v, check.q, check.eps_v):
-            for row in zip(t.eps11, q[0], qc, ev[0], evc):
-                w.writerow([t.name, t.kind, repr(t.p0), *(repr(float(x)) for x in row)])
+    _curves_csv(path, ["q_model", "q_check", "eps_v_model", "eps_v_check"], cal.tests,
+                [(q[0], qc, ev[0], evc) for q, ev, qc, evc
+                 in zip(cal.prediction.q, cal.prediction.eps_v, check.q, check.eps_v)])
 
 
 def _csv(cal: Calibration, path: Path) -> None:
     """Every test row beside the calibrated model's values at the same axial strain."""
+    _curves_csv(path, ["q", "q_model", "eps_v", "eps_v_model"], cal.tests,
+                [(t.q, q[0], t.eps_v if t.eps_v is not None else np.full(len(t.eps11), np.nan), ev[0])
+                 for t, q, ev in zip(cal.tests, cal.prediction.q, cal.prediction.eps_v)])
+
+
+def _curves_csv(path: Path, names: list[str], tests, columns: list[tuple]) -> None:
+    """One row per test row: the test's name, kind, p0 and ε11, then that test's ``columns``."""
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["test", "kind", "p0", "eps11", "q", "q_model", "eps_v", "eps_v_model"])
-        for t, q, ev in zip(cal.tests, cal.prediction.q, cal.prediction.eps_v):
-            data_ev = t.eps_v if t.eps_v is not None else np.full(len(t.eps11), np.nan)
-            for row in zip(t.eps11, t.q, q[0], data_ev, ev[0]):
+        w.writerow(["test", "kind", "p0", "eps11", *names])
+        for t, cols in zip(tests, columns):
+            for row in zip(t.eps11, *cols):
                 w.writerow([t.name, t.kind, repr(t.p0), *(repr(float(x)) for x in row)])
 
 
