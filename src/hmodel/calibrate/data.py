@@ -3,19 +3,22 @@ consolidation to p0, in hmodel's sign convention (compression positive)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
 from ..io import read_csv_rows
-from ..units import parse_pressure
+from ..units import convert_columns, parse_pressure, unit_factor
 from .kinds import Kind
+from .lab import LabTest, check_void_ratio, is_database_file, parse_lab_reference, read_database
 
 #: The names of the axial strain column a test file may use: hmodel's ``result.csv`` writes
 #: eps11, a triaxial laboratory or DEM record eps_a.
 AXIAL_COLUMNS = ("eps11", "eps_a")
+#: The columns a test file's rows are read from; any other column may hold text.
+USED_COLUMNS = (*AXIAL_COLUMNS, "q", "eps_v", "sigma_r", "sigma_v")
 
 
 @dataclass(frozen=True)
@@ -41,6 +44,8 @@ class Test:
         Volumetric strain since the end of consolidation, contraction positive (drained tests).
     name : str
         A label for tables and figures.
+    e0 : float or None
+        The specimen's void ratio after consolidation, when known (laboratory tests).
     """
 
     __test__ = False  # a calibration test, not a pytest class
@@ -51,6 +56,7 @@ class Test:
     q: np.ndarray
     eps_v: np.ndarray | None = None
     name: str = ""
+    e0: float | None = None
 
     def __post_init__(self) -> None:
         kind = Kind.parse(self.kind)
@@ -91,6 +97,11 @@ class Test:
         return float(max(np.ptp(self.eps_v), 1e-12)) if self.eps_v is not None else 1.0
 
     @classmethod
+    def from_lab(cls, t: LabTest) -> Test:
+        """The test of a laboratory file (:mod:`hmodel.calibrate.lab`)."""
+        return cls(t.kind, t.p0, t.eps_a, t.q, t.eps_v, name=t.name, e0=t.e0)
+
+    @classmethod
     def from_csv(cls, path, kind: str, p0: float, name: str = "") -> Test:
         """A test from a CSV with header ``eps11,q[,eps_v][,p]`` or ``eps_a,q[,eps_v][,p]``
         (other numeric columns are ignored): strains since the end of consolidation, stresses
@@ -102,22 +113,57 @@ class Test:
         rows = read_csv_rows(path, "test file")
         if not rows:
             raise InputError(f"{path}: empty file")
-        header = [h.strip() for h in rows[0]]
+        raw = [h.strip() for h in rows[0]]
+        header = [unit_factor(h)[0] for h in raw]
+        if "q" not in header and {"sigma_v", "sigma_r"} <= set(header):
+            header.append("q")  # derived below as sigma_v - sigma_r
         axial = [c for c in AXIAL_COLUMNS if c in header]
         if not axial or "q" not in header:
             missing = ", ".join(([] if axial else ["eps11 (or eps_a)"]) + ([] if "q" in header else ["q"]))
             raise InputError(f"{path}: missing column(s) {missing} (header: eps11,q[,eps_v][,p])")
         _check_dimension(path, kind, header)
-        try:
-            data = np.array([[float(x) for x in r] for r in rows[1:] if r], float)
-        except ValueError:
-            raise InputError(f"{path}: every value must be a number") from None
-        if data.ndim != 2 or data.shape[0] == 0 or data.shape[1] != len(header):
-            raise InputError(f"{path}: every row needs {len(header)} values")
-        col = {h: data[:, i] for i, h in enumerate(header)}
+        data = _numeric_columns(path, raw, rows[1:])
+        col = convert_columns(raw, data, str(path))
+        if "stage" in header:
+            col = _after_consolidation(path, col, [r[header.index("stage")].strip() for r in rows[1:]])
         if len(axial) == 2 and not np.allclose(col["eps11"], col["eps_a"], rtol=1e-9, atol=1e-12):
             raise InputError(f"{path}: columns eps11 and eps_a both given and they differ: keep one")
         return cls(kind, p0, col[axial[0]], col["q"], col.get("eps_v"), name or path.stem)
+
+
+def _numeric_columns(path: Path, header: list[str], rows: list[list[str]]) -> np.ndarray:
+    """The rows as numbers, columns a test does not use (``stage``, ``point``) left as NaN when
+    they hold text; a value that is not a number in a used column is named with its line."""
+    used = {i for i, h in enumerate(header) if unit_factor(h)[0] in USED_COLUMNS}
+    data = np.full((len(rows), len(header)), np.nan)
+    for line, r in enumerate(rows, start=2):
+        if len(r) != len(header):
+            raise InputError(f"{path}, line {line}: expected {len(header)} values, got {len(r)}")
+        for i, cell in enumerate(r):
+            try:
+                data[line - 2, i] = float(cell)
+            except ValueError:
+                if i in used:
+                    raise InputError(f"{path}, line {line}: column {header[i]} must be a number, "
+                                     f"got {cell.strip()[:40]!r}") from None
+    if not len(rows):
+        raise InputError(f"{path}: a header and no rows")
+    return data
+
+
+def _after_consolidation(path: Path, col: dict[str, np.ndarray], stages: list[str]) -> dict[str, np.ndarray]:
+    """The rows of an hmodel ``result.csv`` (a ``stage`` column) from the end of consolidation
+    on, strains measured from there: what a test file holds."""
+    if "point" in col and len(np.unique(col["point"])) > 1:
+        raise InputError(f"{path}: rows of {len(np.unique(col['point']))} material points (column point): "
+                         f"keep one point's rows")
+    iso = [i for i, s in enumerate(stages) if s == "consolidation"]
+    start = iso[-1] if iso else 0
+    out = {k: v[start:] for k, v in col.items()}
+    for k in ("eps11", "eps_a", "eps_v"):
+        if k in out and iso:
+            out[k] = out[k] - out[k][0]
+    return out
 
 
 def _check_axial(label: str, kind: Kind, e: np.ndarray) -> None:
@@ -151,14 +197,58 @@ def _check_dimension(path: Path, kind: Kind, header: list[str]) -> None:
 
 
 def parse_data_spec(spec: str) -> Test:
-    """``KIND:P0:FILE`` (the ``--data`` option): ``drained:100kPa:tests/d100.csv``,
-    ``triaxial-drained:100kPa:tests/t100.csv``."""
+    """A test named on the command line (``--data``): ``KIND:P0:FILE[:e0=VALUE]`` for a test
+    file (``triaxial-drained:100kPa:t100.csv:e0=0.81``), or ``FILE#TEST_ID`` for a test of a
+    Sand Triaxial Test Database file, whose programme gives its kind, p0 and e0
+    (``example:kfs#TMD12``)."""
+    from ..examples import resolve
+
+    ref = parse_lab_reference(spec) if not _is_kind_spec(spec) else None
+    if ref is not None:
+        file, test_id = ref
+        return Test.from_lab(read_database(resolve(file)).test(test_id))
     parts = spec.split(":", 2)
     if len(parts) != 3 or not all(p.strip() for p in parts):
-        raise InputError(f"--data expects KIND:P0:FILE (e.g. drained:100kPa:d100.csv), got {spec!r}")
+        raise InputError(f"--data expects KIND:P0:FILE[:e0=VALUE] or FILE#TEST_ID (e.g. drained:100kPa:d100.csv, "
+                         f"example:kfs#TMD12), got {spec!r}")
     kind, p0, file = (p.strip() for p in parts)
+    e0 = None
+    if ":e0=" in file:
+        file, _, text = file.rpartition(":e0=")
+        try:
+            e0 = float(text)
+        except ValueError:
+            raise InputError(f"--data {spec!r}: e0 must be a number, got {text!r}") from None
+        check_void_ratio(e0, None, f"--data {spec!r}")
     try:
         kind = Kind.parse(kind)
     except InputError as e:
         raise InputError(f"--data {spec!r}: {e}") from None
-    return Test.from_csv(file, kind, parse_pressure(p0))
+    test = Test.from_csv(resolve(file), kind, parse_pressure(p0))
+    return test if e0 is None else replace(test, e0=e0)
+
+
+def _is_kind_spec(spec: str) -> bool:
+    """Whether ``spec`` starts with a test kind (``KIND:P0:FILE``), where a # is the file's own."""
+    return spec.split(":", 1)[0].strip() in {k.value for k in Kind}
+
+
+def read_lab_tests(path: str, test_ids: list[str] | None = None, kind: str | None = None,
+                   p0: float | None = None) -> tuple[list[LabTest], str]:
+    """The tests of a laboratory file and its attribution (empty for a plain CSV): every test
+    of a database file (or those of ``test_ids``), or the one test of a plain CSV whose
+    headers may carry units, which needs its ``kind`` and ``p0`` [Pa] given."""
+    from ..examples import resolve
+
+    file = resolve(path)
+    if is_database_file(file):
+        if kind is not None or p0 is not None:
+            raise InputError(f"{path}: a database file gives each test's kind and p0 in its test programme")
+        db = read_database(file)
+        return [db.test(t) for t in (test_ids or list(db.programme))], db.attribution
+    if test_ids:
+        raise InputError(f"{path}: --test needs a Sand Triaxial Test Database file (sections FILE_INFO, ...)")
+    if kind is None or p0 is None:
+        raise InputError(f"{path}: a plain CSV test needs its kind and p0 (--kind, --p0)")
+    t = Test.from_csv(file, kind, p0)
+    return [LabTest(t.name, t.kind, t.p0, t.e0, t.eps11, t.q, t.eps_v)], ""

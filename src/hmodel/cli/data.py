@@ -204,3 +204,54 @@ def info(
                            "fig-2-2-removed.png": lambda p: plot_removed(ds, names, counts, p)})
     typer.echo(f"wrote {folder / 'cleaning.csv'}, {folder / 'fig-2-1-strains.png'}, "
                f"{folder / 'fig-2-2-removed.png'}")
+
+
+@app.command("lab")
+def lab(
+    file: Annotated[str, typer.Argument(help="A laboratory file: one material's file of the Sand Triaxial Test "
+                                             "Database (example:kfs is shipped), or a plain CSV whose headers "
+                                             "carry units (eps_a[%], q[kPa], eps_v[%], sigma_r[kPa], ...).")],
+    test: Annotated[Optional[list[str]], typer.Option("--test", "-t", help="A test id of the database file "
+                                                                         "(repeatable; default: all).")] = None,
+    kind: Annotated[Optional[str], typer.Option(help="The kind of a plain CSV's test (e.g. triaxial-drained).")] = None,
+    p0: Annotated[Optional[str], typer.Option(help="The consolidation pressure of a plain CSV's test, with its "
+                                                   "unit (e.g. 100kPa).")] = None,
+    out: out_folder("Folder for tests.csv, one hmodel test file per test (eps_a,q,eps_v in fractions "
+                    "and Pa) and ATTRIBUTION.txt.", optional=True) = None,
+) -> None:
+    """Read laboratory tests into hmodel's units (Pa, strains as fractions, compression positive)."""
+    from rich.console import Console
+    from rich.table import Table
+
+    from ..calibrate.data import read_lab_tests
+    from ..calibrate.lab import summary_rows, write_test_csv
+    from ..units import parse_pressure
+
+    tests, attribution = read_lab_tests(file, test, kind, parse_pressure(p0) if p0 is not None else None)
+    rows = summary_rows(tests)
+    table = Table(title=f"{file}: {len(tests)} test(s), in hmodel's units")
+    for c in ("test", "kind", "p0 [kPa]", "e0", "rows", "eps_a end", "peak q [kPa]", "eps_v end"):
+        table.add_column(c)
+    for r in rows:
+        table.add_row(r["test"].split("#")[-1], r["kind"], f"{r['p0_kPa']:.1f}", f"{r['e0']}", f"{r['rows']}",
+                      f"{r['eps_a_end']:.4g}", f"{r['q_peak_kPa']:.1f}",
+                      "" if r["eps_v_end"] == "" else f"{r['eps_v_end']:.4g}")
+    Console().print(table)
+    if attribution:
+        typer.echo(attribution)
+    if out is None:
+        return
+
+    def write_table(path: Path) -> None:
+        with open(path, "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
+
+    writers = {"tests.csv": write_table}
+    for t in tests:
+        writers[t.name.split("#")[-1] + ".csv"] = lambda p, t=t: write_test_csv(t, p)
+    if attribution:
+        writers["ATTRIBUTION.txt"] = lambda p: p.write_text(attribution + "\n")
+    write_outputs(out, writers)
+    typer.echo(f"wrote {len(tests)} test file(s) and tests.csv in {out}")
