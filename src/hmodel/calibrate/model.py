@@ -12,6 +12,7 @@ from ..cell import CellSolver
 from ..errors import InputError, SolverError
 from ..params import Params
 from ..rev import Sphere
+from ..variants import ModelVariant, get_variant
 from .data import Test
 from .kinds import Kind, dimension
 
@@ -59,8 +60,17 @@ class Model:
     step: float = 1e-3
     iso_step: float = ISO_STEP
     sphere: Sphere | None = None
+    variant: ModelVariant = get_variant(None)
+    e_ref: float | None = None
 
     def __post_init__(self) -> None:
+        if self.variant.uses_e0:
+            missing = [t.name for t in self.tests if t.e0 is None]
+            if missing:
+                raise InputError(f"model {self.variant.name} sets each test's initial state from its void ratio: "
+                                 f"test {missing[0]} has no e0 (give KIND:P0:FILE:e0=VALUE)")
+            if self.e_ref is None:
+                object.__setattr__(self, "e_ref", reference_void_ratio(self.tests))
         if self.dim == 2 and self.sphere is not None:
             raise InputError("a sphere of directions (--order, --azimuths, --fabric) is the 3D "
                              "model's: the tests are 2D biaxial ones")
@@ -88,7 +98,16 @@ class Model:
         """The tests ``idx`` of one kind for the parameter sets ``which``; on a failure, each
         half of the sets again, down to single sets."""
         tests = [self.tests[i] for i in idx]
-        batch = [sets[k] for k in which for _ in tests]
+        batch, kept = [], []
+        for k in which:  # a set with no initial state for a test (beyond the loosest cell) fails alone
+            try:
+                batch += [self.variant.initial_params(sets[k], self.dim, t.e0, self.e_ref) for t in tests]
+                kept.append(k)
+            except InputError as e:
+                failed[k] = str(e)[:300]
+        which = kept
+        if not which:
+            return
         p0 = [t.p0 for _ in which for t in tests]
         strain = max(float(t.strain[-1]) for t in tests)
         try:
@@ -120,6 +139,11 @@ class Model:
             q[idx[j]][k] = np.interp(t.strain, e, np.concatenate([[res["q"][cons]], res["q"][shear]]))
             ev[idx[j]][k] = np.interp(t.strain, e, np.concatenate([[0.0], res["eps_v"][shear]
                                                                    - res["eps_v"][cons]]))
+
+
+def reference_void_ratio(tests: Sequence[Test]) -> float:
+    """The void ratio at which a calibration's α0 is given: the mean e0 of its tests."""
+    return float(np.mean([t.e0 for t in tests]))
 
 
 def residuals(tests: Sequence[Test], pred: Prediction, weighted: bool = True) -> np.ndarray:

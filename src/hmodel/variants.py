@@ -1,0 +1,72 @@
+"""Named variants of the H-model (``--model NAME``, ``hmodel models``): the published model
+(the default, unchanged) and the options that extend it, each a :class:`ModelVariant`.
+
+A variant says how a test's initial state follows from what was measured of the specimen
+(today: its void ratio e0) and is recorded by a calibration, so that a calibrated model runs
+again, as it was fitted, at another density and pressure.
+
+>>> get_variant("sand").name
+'density'
+>>> get_variant("published").uses_e0
+False
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from types import MappingProxyType
+
+from .errors import InputError
+from .params import Params
+from .rev.density import alpha0_for_void_ratio
+
+DEFAULT = "published"
+
+
+@dataclass(frozen=True)
+class ModelVariant:
+    """A named variant of the H-model.
+
+    Attributes
+    ----------
+    name, description : str
+    uses_e0 : bool
+        Whether a test's void ratio sets its initial state: α0 follows e0 through the REV's
+        initial volume (:func:`hmodel.rev.density.alpha0_for_void_ratio`), from the α0 the
+        parameters give at the reference void ratio e_ref.
+    """
+
+    name: str
+    description: str
+    uses_e0: bool = False
+
+    def initial_params(self, params: Params, dim: int, e0: float | None = None,
+                       e_ref: float | None = None) -> Params:
+        """The parameters of a specimen at void ratio ``e0``; ``params`` unchanged when the
+        variant does not use e0 or no e0 is given."""
+        if not self.uses_e0 or e0 is None:
+            return params
+        if e_ref is None:
+            raise InputError(f"model {self.name} needs the reference void ratio e_ref at which alpha0 is given "
+                             f"(a calibration records it)")
+        return replace(params, alpha0=alpha0_for_void_ratio(params, dim, e0, e_ref))
+
+
+VARIANTS = MappingProxyType({
+    "published": ModelVariant("published", "The H-model as published (Nicot & Darve 2011) and its 3D bi-hexagon "
+                                           "lift: alpha0 as given, whatever the specimen's density."),
+    "density": ModelVariant("density", "The published model with alpha0 set by each specimen's void ratio e0 "
+                                       "(the REV's initial volume follows the specimen's, 1 + e0), from the "
+                                       "alpha0 calibrated at a reference void ratio e_ref.", uses_e0=True),
+})
+#: Other names of variants: the one the docs recommend for sands.
+ALIASES = MappingProxyType({"sand": "density"})
+
+
+def get_variant(name: str | None) -> ModelVariant:
+    """The variant called ``name`` (or an alias; None: the published model)."""
+    key = ALIASES.get(name, name) if name is not None else DEFAULT
+    if key not in VARIANTS:
+        names = ", ".join([*VARIANTS, *(f"{a} (= {v})" for a, v in ALIASES.items())])
+        raise InputError(f"no model {name!r} (models: {names})")
+    return VARIANTS[key]
