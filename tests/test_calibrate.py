@@ -210,3 +210,100 @@ def test_the_standard_error_of_kn_survives_its_scale():
     cal = fit(noisy, ("kn", "phi_g"), base=TRUE, starts=2, **KW)
     assert 1e-4 * TRUE.kn < cal.stderr["kn"] < 0.5 * TRUE.kn
     assert abs(cal.fitted["kn"] - TRUE.kn) < 4 * cal.stderr["kn"]
+
+
+def test_the_uncertainty_of_a_parameter_the_objective_ignores_is_undefined():
+    """Standard errors from a Jacobian of known answer: residuals r = (1, -1) and J = (1, 1)ᵀ in
+    the unit box give s² = 2, a unit-box variance of 1 and, over φg's range 5–60°, an error of
+    55°. A column of zeros (a parameter the objective does not depend on) is unidentified and
+    its error undefined (NaN), alone too, where every singular value is 0."""
+    from hmodel.calibrate.fitting import _uncertainty
+
+    one = Space.make(["phi_g"])
+    se, _, cond, weak = _uncertainty(one, np.array([0.5]), np.array([1.0, -1.0]), np.ones((2, 1)), 2)
+    assert se["phi_g"] == pytest.approx(55.0) and cond == 1.0 and weak == []
+    se, _, cond, weak = _uncertainty(one, np.array([0.5]), np.array([1.0, -1.0]), np.zeros((2, 1)), 2)
+    assert weak == ["phi_g"] and math.isnan(se["phi_g"]) and cond == math.inf
+    two = Space.make(["phi_g", "beta_omega"])
+    J = np.array([[1.0, 0.0], [1.0, 0.0], [0.0, 0.0]])
+    se, _, _, weak = _uncertainty(two, np.array([0.5, 0.5]), np.array([1.0, -1.0, 0.0]), J, 3)
+    assert weak == ["beta_omega"] and math.isnan(se["beta_omega"]) and se["phi_g"] == pytest.approx(55.0)
+
+
+def test_a_lone_parameter_without_effect_is_unidentified_not_exact(tests):
+    # an isotropic fabric: its major direction changes nothing, and it is the only one fitted
+    cal = fit(tests, ("beta_omega",), base=TRUE, starts=1, **KW)
+    assert cal.unidentified == ["beta_omega"] and math.isnan(cal.stderr["beta_omega"])
+    record = cal.to_dict()
+    assert record["stderr"] == {"beta_omega": None} and record["unidentified"] == ["beta_omega"]
+
+
+def test_a_value_on_its_bound_is_flagged():
+    s = Space.make(["kt_kn", "phi_g", "kn"])
+    z = s.unit(np.array([1.977, 30.0, 1.1e6]))  # 1.2 % of kt_kn's range below 2, 0.8 % of kn's decades
+    assert s.at_bound(z) == {"kt_kn": "upper", "kn": "lower"}
+    assert s.at_bound(s.unit(np.array([1.9, 58.0, 1e10]))) == {}  # 5 %, 3.6 %, 20 % away
+    assert s.bound("kt_kn", "upper") == 2.0 and s.bound("kn", "lower") == 1e6
+
+
+def test_a_fit_that_ends_on_a_bound_says_so(tmp_path, tests, capsys):
+    """φg is 28° in the tests and searched within 30–40°: it ends at 30, which the summary,
+    a warning and calibration.json say; the fit inside the bounds says nothing of the kind."""
+    files = []
+    for t in tests:
+        f = tmp_path / f"d{int(t.p0 / 1e3)}.csv"
+        f.write_text("eps11,q,eps_v\n" + "".join(f"{float(a)!r},{float(b)!r},{float(c)!r}\n"
+                                                  for a, b, c in zip(t.eps11, t.q, t.eps_v)))
+        files += ["--data", f"drained:{t.p0 / 1e3:g}kPa:{f}"]
+    args = ["calibrate", *files, "--fit", "phi_g", "-p", "n_theta=36", "-p", "sliding_rhs=equilibrium",
+            "-p", "alpha0=50", "-p", "kt_kn=0.5", "--starts", "1"]
+    assert main([*args, "--bounds", "phi_g=30:40", "--out", str(tmp_path / "a")]) == 0
+    out, err = capsys.readouterr()
+    assert "phi_g = 30 ± " in out and "(at its lower bound 30)" in out
+    assert err.startswith("hmodel: warning: phi_g ended at its lower bound 30: the best fit may lie beyond it")
+    record = json.loads((tmp_path / "a" / "calibration.json").read_text())
+    assert record["at_bound"] == {"phi_g": {"side": "lower", "bound": 30.0}}
+    assert main([*args, "--bounds", "phi_g=20:40", "--out", str(tmp_path / "b")]) == 0
+    out, err = capsys.readouterr()
+    assert "bound" not in out and err == ""
+    assert json.loads((tmp_path / "b" / "calibration.json").read_text())["at_bound"] == {}
+
+
+def test_the_most_common_failure_reasons_are_printed(tmp_path, tests, capsys, monkeypatch):
+    import dataclasses
+
+    import hmodel.cli.calibrate as cli_cal
+
+    monkeypatch.setattr(cli_cal, "get_solver", lambda spec: FailsAboveThirtyFive())
+    t = tests[0]
+    f = tmp_path / "d.csv"
+    f.write_text("eps11,q\n" + "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(t.eps11, t.q)))
+    assert main(["calibrate", "--data", f"drained:100kPa:{f}", "--fit", "phi_g", "--bounds", "phi_g=20:45",
+                 "-p", "n_theta=36", "-p", "sliding_rhs=equilibrium", "-p", "alpha0=50", "-p", "kt_kn=0.5",
+                 "--starts", "3", "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    failed = json.loads((tmp_path / "o" / "calibration.json").read_text())["failures"]
+    assert failed and f"failed, most often: {len(failed)} × outside the stand-in's domain" in out
+    # messages that differ only in the values they name are one reason
+    cal = fit(tests, ("phi_g",), base=TRUE, starts=1, **KW)
+    cal = dataclasses.replace(cal, failures=[{"error": "kt_kn=1.47 outside the domain"},
+                                             {"error": "Newton failed"},
+                                             {"error": "kt_kn=1.9 outside the domain"}])
+    assert cal.failure_reasons() == [(2, "kt_kn=1.47 outside the domain"), (1, "Newton failed")]
+
+
+def test_strains_in_percent_stresses_in_kpa_and_a_p0_without_unit_are_refused(tmp_path):
+    e = np.linspace(0.01, 0.96, 96)  # a test to 0.96 % written in percent
+    with pytest.raises(InputError, match=r"eps11 reaches 0.96, .* looks like a percentage .* divide the strain"):
+        Test("drained", 1e5, e, 1e5 * e)
+    Test("drained", 1e5, 0.49 * e / e[-1], 1e5 * e)  # 49 %: large, but a strain
+    with pytest.raises(InputError, match=r"q peaks at 96 Pa, 0.00096 of p0 = 100 kPa: that looks like kPa"):
+        Test("drained", 1e5, e / 100, 100 * e)
+    Test("drained", 1e5, e / 100, 1.1e3 * e)  # q a hundredth of p0
+    f = tmp_path / "t.csv"
+    f.write_text("eps11,q\n" + "".join(f"{float(a)!r},{2e5 * float(a)!r}\n" for a in e / 100))
+    for bare in ("100", "1e3", "9999"):
+        with pytest.raises(InputError, match=f"p0 {bare} has no unit and would be .* Pa: give its unit"):
+            parse_data_spec(f"drained:{bare}:{f}")
+    assert parse_data_spec(f"drained:10000:{f}").p0 == 1e4  # Pa, as documented
+    assert parse_data_spec(f"drained:100Pa:{f}").p0 == 100.0  # the unit said: as asked

@@ -97,11 +97,11 @@ def test_the_cli_checks_a_surrogate_fit_against_the_cell_it_learned(tmp_path, ca
     base = [*specs, "--solver", "surrogate:family", "--fit", "phi_g,alpha0", "-p", "n_theta=36",
             "--starts", "2", "--check", "closed-form"]
     assert main(["calibrate", *base, "--out", str(tmp_path / "a")]) == 0
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
     rec = json.loads((tmp_path / "a" / "calibration.json").read_text())["check"]
     worst = max(t["max_dq"] for t in rec["tests"].values())
     assert rec["solver"] == "closed-form" and 0 < worst < 0.02
-    assert "check at the optimum against closed-form" in out and "warning" not in out
+    assert "check at the optimum against closed-form" in out and "warning" not in out + err
     with open(tmp_path / "a" / "check.csv") as fh:
         rows = list(csv.DictReader(fh))
     for name, t in rec["tests"].items():
@@ -109,7 +109,7 @@ def test_the_cli_checks_a_surrogate_fit_against_the_cell_it_learned(tmp_path, ca
         qc = np.array([float(r["q_check"]) for r in rows if r["test"] == name])
         assert np.abs(qm - qc).max() / np.abs(qc).max() == pytest.approx(t["max_dq"], rel=1e-9)
     assert main(["calibrate", *base, "--check-tol", "0", "--out", str(tmp_path / "b")]) == 0
-    assert "warning: that is more than --check-tol 0 %" in capsys.readouterr().out
+    assert "hmodel: warning: that is more than --check-tol 0 %" in capsys.readouterr().err
 
 
 def test_the_cli_refuses_a_bad_check_before_fitting(tmp_path, capsys):

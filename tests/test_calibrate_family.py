@@ -12,7 +12,7 @@ from hmodel import Params
 from hmodel.calibrate import fit
 from hmodel.calibrate.data import Test
 from hmodel.calibrate.model import ISO_STEP
-from hmodel.calibrate.space import Space
+from hmodel.calibrate.space import Space, training_domain
 from hmodel.cell import ClosedFormSolver
 from hmodel.cli.app import main
 from hmodel.errors import InputError
@@ -115,3 +115,31 @@ def test_a_family_fit_recovers_the_parameters_of_its_own_curves():
     assert dict(zip(cal.space.names, cal.space.bounds))["phi_g"] == pytest.approx((10.0, 45.0))
     assert cal.fitted["phi_g"] == pytest.approx(27.0, abs=0.05)
     assert cal.fitted["alpha0"] == pytest.approx(52.0, abs=0.05)
+
+
+def test_the_3d_model_is_bounded_by_the_family_stepping_its_hexagons():
+    """The 3D model's learned cell is a bi-hexagon whose hexagons the family network steps: its
+    domain bounds the search as in 2D. Bounds reaching outside it are refused before any run,
+    and the default bounds are the domain, so that a fit of kt_kn with them runs (the general
+    range 0.05–2 used to take it outside the domain and stop the fit)."""
+    from hmodel.cell.bihex import BiHexSolver
+    from hmodel.cli.run import _solver_3d
+    from hmodel.loading import run_triaxial
+    from hmodel.rev import Sphere
+
+    assert training_domain(BiHexSolver(hexagon=FamilyLike())) == DOMAIN
+    assert training_domain(BiHexSolver()) is None and training_domain(FamilyLike()) == DOMAIN
+    sphere = Sphere(order=9, n_azimuth=2, axis=(1.0, 0.0, 0.0))
+    base = Params(sliding_rhs="report")  # the family network's
+    res = run_triaxial(base.with_(kt_kn=0.6), [1e5], 0.004, sphere=sphere, step=1e-3, iso_step=ISO_STEP)
+    c, s = res.stage("consolidation"), res.stage("shear")
+    test = Test("triaxial-drained", 1e5, np.asarray(s["eps11"]) - c["eps11"][-1], np.asarray(s["q"]),
+                np.asarray(s["eps_v"]) - c["eps_v"][-1])
+    solver = _solver_3d("surrogate:family")
+    lo, hi = solver.hexagon.domain["kt_kn"]
+    kw = dict(base=base, solver=solver, sphere=sphere, search_rule=(9, 1), starts=1, max_nfev=3)
+    with pytest.raises(InputError, match=r"--bounds kt_kn=0.05:2 reaches outside the model's training domain"):
+        fit([test], ["kt_kn"], bounds={"kt_kn": (0.05, 2.0)}, **kw)
+    cal = fit([test], ["kt_kn"], **kw)
+    assert cal.space.bounds == ((lo, hi),) and not cal.failures
+    assert lo < cal.fitted["kt_kn"] < hi

@@ -17,6 +17,14 @@ from .lab import LabTest, check_void_ratio, is_database_file, parse_lab_referenc
 #: The names of the axial strain column a test file may use: hmodel's ``result.csv`` writes
 #: eps11, a triaxial laboratory or DEM record eps_a.
 AXIAL_COLUMNS = ("eps11", "eps_a")
+#: An axial strain at least this large (half the specimen's height) is taken for a percentage:
+#: a test to under 1 % written in percent, not one to 50 % written as a fraction.
+PERCENT_LIKE = 0.5
+#: The least peak |q| of a test, as a fraction of its p0: below it, q is taken to be in kPa.
+Q_MIN = 0.01
+#: A p0 given without unit below this [Pa] is refused: a geomechanics user writing 100 means
+#: kPa, and 100 Pa is no consolidation pressure of a laboratory test.
+BARE_P0_MIN = 1e4
 #: The columns a test file's rows are read from; any other column may hold text.
 USED_COLUMNS = (*AXIAL_COLUMNS, "q", "eps_v", "sigma_r", "sigma_v")
 
@@ -75,6 +83,7 @@ class Test:
         if len(e) < 2:
             raise InputError(f"{label}: a test needs at least 2 rows, got {len(e)}")
         _check_axial(label, kind, e)
+        _check_stress(label, float(self.p0), columns["q"])
         object.__setattr__(self, "kind", kind)
         object.__setattr__(self, "eps11", e)
         object.__setattr__(self, "q", columns["q"])
@@ -168,8 +177,9 @@ def _after_consolidation(path: Path, col: dict[str, np.ndarray], stages: list[st
 
 def _check_axial(label: str, kind: Kind, e: np.ndarray) -> None:
     """The axial strain runs away from 0 in the test's direction (compression positive), below
-    1 in magnitude; a file that does so with the other sign is in the tension-positive
-    convention, and the message says so."""
+    1 in magnitude and below :data:`PERCENT_LIKE` (a larger one is a percentage, the message
+    says); a file that does so with the other sign is in the tension-positive convention, and
+    the message says so."""
     s = kind.sign * e
     if np.any(np.diff(s) <= 0) or s[0] < 0:
         way = "non-positive and decreasing (extension)" if kind.extension else "non-negative and increasing"
@@ -182,6 +192,21 @@ def _check_axial(label: str, kind: Kind, e: np.ndarray) -> None:
     if s[-1] >= 1:  # a strain of 1 leaves the specimen no height
         raise InputError(f"{label}: eps11 must stay below 1 in magnitude (a strain, not a "
                          f"percentage), reaches {e[-1]:g}")
+    if s[-1] >= PERCENT_LIKE:
+        raise InputError(f"{label}: eps11 reaches {e[-1]:g}, half the specimen's height or more: that looks "
+                         f"like a percentage ({e[-1]:g} %), and hmodel's strains are fractions: divide the "
+                         f"strain columns by 100, or give their unit in the header (eps11[%])")
+
+
+def _check_stress(label: str, p0: float, q: np.ndarray) -> None:
+    """Refuse a test whose q stays below :data:`Q_MIN` of its p0: a shear test's q reaches a
+    good fraction of p0 (of the order of p0 in drained compression, a few tenths where an
+    undrained test liquefies), and one a thousandth of it is a q in kPa against a p0 in Pa."""
+    peak = float(np.abs(q).max())
+    if peak < Q_MIN * p0:
+        raise InputError(f"{label}: q peaks at {peak:.3g} Pa, {peak / p0:.2g} of p0 = {p0 / 1e3:g} kPa: "
+                         f"that looks like kPa, and the file's stresses are in Pa: multiply q by 1000, or "
+                         f"give its unit in the header (q[kPa])")
 
 
 def _check_dimension(path: Path, kind: Kind, header: list[str]) -> None:
@@ -224,8 +249,22 @@ def parse_data_spec(spec: str) -> Test:
         kind = Kind.parse(kind)
     except InputError as e:
         raise InputError(f"--data {spec!r}: {e}") from None
-    test = Test.from_csv(resolve(file), kind, parse_pressure(p0))
+    test = Test.from_csv(resolve(file), kind, _data_p0(spec, p0))
     return test if e0 is None else replace(test, e0=e0)
+
+
+def _data_p0(spec: str, text: str) -> float:
+    """The P0 of ``--data`` [Pa]: with its unit (``100kPa``), or a bare number in Pa, which below
+    :data:`BARE_P0_MIN` is refused (a kPa value without its unit, most likely)."""
+    p0 = parse_pressure(text)
+    try:
+        float(text)
+    except ValueError:
+        return p0  # it has a unit
+    if p0 < BARE_P0_MIN:
+        raise InputError(f"--data {spec!r}: p0 {text} has no unit and would be {p0:g} Pa: give its unit "
+                         f"({text}kPa, or {text}Pa if Pa is meant)")
+    return p0
 
 
 def _is_kind_spec(spec: str) -> bool:

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import time
+from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -22,7 +24,7 @@ from .bayes import Noise, Posterior, estimate_noise, sample
 from .data import Test
 from .kinds import dimension
 from .model import ISO_STEP, Model, Prediction, residuals
-from .space import Space
+from .space import Space, training_domain
 
 #: Scaled residual given to a parameter set whose run failed (least_squares needs finite ones):
 #: far above any fit, so the optimizer steps back.
@@ -55,6 +57,7 @@ class Calibration:
     tests: tuple[Test, ...]
     z: np.ndarray
     cost: float
+    #: standard errors (CLI units); NaN, undefined, for a parameter the tests do not identify
     stderr: dict[str, float]
     correlation: np.ndarray
     condition: float
@@ -81,6 +84,22 @@ class Calibration:
     def params(self) -> Params:
         return self.space.params(self.z[None])[0]
 
+    @property
+    def at_bound(self) -> dict[str, str]:
+        """The fitted parameters that ended on a bound of their search range: ``"lower"`` or
+        ``"upper"`` by name (:meth:`Space.at_bound`)."""
+        return self.space.at_bound(self.z)
+
+    def failure_reasons(self, top: int = 2) -> list[tuple[int, str]]:
+        """The ``top`` most common reasons the failed parameter sets failed, as (count, the
+        first such message); messages that differ only in their numbers (the parameter values
+        they name) count as one reason."""
+        groups = Counter(_reason_key(f["error"]) for f in self.failures)
+        first = {}
+        for f in self.failures:
+            first.setdefault(_reason_key(f["error"]), f["error"])
+        return [(n, first[key]) for key, n in groups.most_common(top)]
+
     def to_dict(self) -> dict:
         """The ``calibration.json`` record."""
         fitted = self.fitted
@@ -90,15 +109,18 @@ class Calibration:
             "fit": list(self.space.names),
             "fitted": fitted,
             "bounds": {n: list(b) for n, b in zip(self.space.names, self.space.bounds)},
-            "stderr": self.stderr,
+            # null where undefined (a parameter the tests do not identify)
+            "stderr": {n: (v if math.isfinite(v) else None) for n, v in self.stderr.items()},
             "correlation": {a: {b: float(self.correlation[i, j]) for j, b in enumerate(self.space.names)}
                             for i, a in enumerate(self.space.names)},
             "condition_number": self.condition,
             "unidentified": self.unidentified,
+            "at_bound": {n: {"side": side, "bound": self.space.bound(n, side)} for n, side in self.at_bound.items()},
             "objective": self.cost,
             "starts": self.starts,
             "evaluations": self.evaluations,
             "failures": self.failures,
+            "failure_reasons": [{"count": n, "reason": why} for n, why in self.failure_reasons(top=5)],
             "wall_s": self.wall_s,
             "tests": [{"name": t.name, "kind": t.kind, "p0": t.p0, "rows": len(t.eps11)}
                       for t in self.tests],
@@ -179,9 +201,14 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
     autocorrelation time and acceptance fraction, a warning when the chain is shorter than 50
     autocorrelation times, and the 90 % posterior predictive band of every test.
 
-    A cell solver with a training domain (a family surrogate's ``domain``) bounds the search:
-    the default bounds of a fitted parameter are its domain, given ``bounds`` reaching outside it
-    and fixed parameters outside it are refused (:meth:`Space.make`).
+    A cell solver with a training domain (a family surrogate's ``domain``, or the 3D model's
+    learned bi-hexagon's, whose hexagons a family surrogate steps) bounds the search: the default
+    bounds of a fitted parameter are its domain (within the general ones), given ``bounds``
+    reaching outside it and fixed parameters outside it are refused (:meth:`Space.make`).
+
+    A parameter the tests do not identify (:data:`IDENTIFIABLE`; one on which the objective
+    does not depend at all included) is listed in ``unidentified`` and its standard error is
+    NaN: undefined, not zero. ``at_bound`` names the parameters that ended on a bound.
 
     The tests' kinds choose the model: the 2D one for biaxial kinds, the 3D one for triaxial
     kinds, whose directions are ``sphere`` (None: ``Sphere()``), the 2D model's own parameters
@@ -216,7 +243,7 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
         searcher = _search_sphere(sphere, search_rule)
     model = Model(tests, solver, step, iso_step, sphere)
     # a family model's training domain bounds the search (None: any material)
-    space = Space.make(fit, bounds, base, getattr(solver, "domain", None))
+    space = Space.make(fit, bounds, base, training_domain(solver))
     obj = _Objective(model if searcher is None else Model(tests, solver, step, iso_step, searcher), space)
     t0 = time.perf_counter()
     design = qmc.LatinHypercube(space.n, seed=seed).random(starts)
@@ -359,7 +386,15 @@ def _uncertainty(space: Space, z: np.ndarray, r: np.ndarray, J: np.ndarray, m: i
     cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
     weak = set()
     for k, s in enumerate(sv):
-        if s < IDENTIFIABLE * sv[0]:
+        # "<=": where the objective depends on no parameter at all, sv[0] is 0 too
+        if s <= IDENTIFIABLE * sv[0]:
             weak |= {space.names[j] for j in np.flatnonzero(np.abs(V[k]) > 0.3)}
-    return ({nm: float(v) for nm, v in zip(space.names, se)}, corr, cond,
+    # the pseudo-inverse gives a direction the data do not constrain zero variance: its
+    # parameters' uncertainty is unbounded by the data, not zero
+    return ({nm: (math.nan if nm in weak else float(v)) for nm, v in zip(space.names, se)}, corr, cond,
             [nm for nm in space.names if nm in weak])
+
+
+def _reason_key(message: str) -> str:
+    """A failure message without its numbers: the reason, whatever parameter values it names."""
+    return re.sub(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?", "#", message)

@@ -19,6 +19,9 @@ DEFAULT_BOUNDS = {
 FITTABLE = tuple(DEFAULT_BOUNDS)
 #: Searched on a log scale (a stiffness spans orders of magnitude).
 LOG = ("kn",)
+#: A fitted value within this fraction of its search range (in the unit box: of the decades of
+#: kn) of a bound has ended on it: the data pull it there, and the best fit may lie beyond.
+AT_BOUND = 0.02
 #: Where each parameter is valid (``Params.validate``), in the CLI's units: (low, high, open?).
 _VALID = {"kn": (0.0, math.inf, True), "kt_kn": (0.0, math.inf, True), "phi_g": (0.0, 90.0, True),
           "alpha0": (30.0, 90.0, True), "alpha_omega": (0.0, 1.0, False),
@@ -43,10 +46,10 @@ class Space:
     def make(cls, names, bounds: dict | None = None, base: Params | None = None,
              domain: dict | None = None) -> Space:
         """The space of ``names`` within ``bounds`` (CLI units; default :data:`DEFAULT_BOUNDS`),
-        the others fixed in ``base``. ``domain``: a cell solver's training domain (its
-        ``domain``, Params units: angles in radians; None: any material), which the default
-        bounds of a fitted parameter become, which given bounds must stay within, and in which
-        ``base``'s fixed parameters must lie."""
+        the others fixed in ``base``. ``domain``: a cell solver's training domain
+        (:func:`training_domain`, Params units: angles in radians; None: any material), which
+        the default bounds of a fitted parameter become (where it is narrower than them), which
+        given bounds must stay within, and in which ``base``'s fixed parameters must lie."""
         names = tuple(names)
         if not names:
             raise InputError("give at least one parameter to fit (--fit)")
@@ -69,7 +72,7 @@ class Space:
                                  f"({_span(n, dlo, dhi)}): fit it (--fit) or give a value inside")
         out = []
         for n in names:
-            lo, hi = (float(b) for b in bounds.get(n, trained.get(n, DEFAULT_BOUNDS[n])))
+            lo, hi = (float(b) for b in bounds.get(n, _default(n, trained)))
             vlo, vhi, open_ = _VALID[n]
             if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
                 raise InputError(f"bounds of {n} must be finite with low < high, got {lo:g}:{hi:g}")
@@ -126,6 +129,40 @@ class Space:
     def as_dict(self, values: np.ndarray) -> dict[str, float]:
         """The fitted values by name, CLI units."""
         return {n: float(v) for n, v in zip(self.names, values)}
+
+    def bound(self, name: str, side: str) -> float:
+        """The ``"lower"`` or ``"upper"`` bound of fitted parameter ``name`` (CLI units)."""
+        lo, hi = self.bounds[self.names.index(name)]
+        return lo if side == "lower" else hi
+
+    def at_bound(self, z: np.ndarray) -> dict[str, str]:
+        """The parameters of unit-box point z (n,) that lie on a bound (within :data:`AT_BOUND`
+        of the range), by name: ``"lower"`` or ``"upper"``."""
+        out = {}
+        for name, zj in zip(self.names, np.asarray(z, float)):
+            if zj <= AT_BOUND:
+                out[name] = "lower"
+            elif zj >= 1.0 - AT_BOUND:
+                out[name] = "upper"
+        return out
+
+
+def training_domain(solver) -> dict | None:
+    """The training domain (Params units) of a cell solver: its own (a family surrogate's
+    ``domain``) or, for the 3D model's bi-hexagon, that of the 2D cell solver stepping its
+    hexagons, which sees the material's parameters as they are; None: any material."""
+    own = getattr(solver, "domain", None)
+    return own if own is not None else getattr(getattr(solver, "hexagon", None), "domain", None)
+
+
+def _default(name: str, trained: dict[str, tuple[float, float]]) -> tuple[float, float]:
+    """The default search range of ``name``: :data:`DEFAULT_BOUNDS`, within the training
+    domain where one is given (a network is not asked outside the materials it learned)."""
+    lo, hi = DEFAULT_BOUNDS[name]
+    if name not in trained:
+        return lo, hi
+    dlo, dhi = trained[name]
+    return max(lo, dlo), min(hi, dhi)
 
 
 def _domain_cli(domain: dict | None) -> dict[str, tuple[float, float]]:

@@ -19,7 +19,7 @@ from ..calibrate.report import write
 from ..errors import InputError
 from ..params import Params
 from ..solvers import get_solver
-from .options import out_folder
+from .options import out_folder, workers_opt
 from .progress import LazyProgress
 from .run import AzimuthsOpt, FabricOpt, OrderOpt, _points_3d, _solver_3d, _sphere
 
@@ -53,9 +53,9 @@ def _search_rule(text: str) -> tuple[int, int] | None:
 
 
 def calibrate(
-    data: Annotated[list[str], typer.Option("--data", help=f"A test, KIND:P0:FILE; KIND: drained or undrained (2D biaxial), {', '.join(k for k in Kind if k.dim == 3)} (3D); a CSV with columns eps11 (or eps_a), q and optionally eps_v, p: strains since the end of consolidation, stresses in Pa, compression positive; repeatable.")],
+    data: Annotated[list[str], typer.Option("--data", help=f"A test, KIND:P0:FILE; KIND: drained or undrained (2D biaxial), {', '.join(k for k in Kind if k.dim == 3)} (3D); P0 with its unit (100kPa; a bare number is Pa, refused below 10 kPa); a CSV with columns eps11 (or eps_a), q and optionally eps_v, p: strains as fractions (0.01 is 1 %) since the end of consolidation, stresses in Pa, compression positive; repeatable.")],
     fit_: Annotated[str, typer.Option("--fit", help="Comma list of the parameters to fit (kn, kt_kn, phi_g, alpha0, alpha_omega, beta_omega, alpha0_spread).")] = "kn,kt_kn,phi_g,alpha0",
-    bounds: Annotated[Optional[list[str]], typer.Option("--bounds", help="Search range NAME=LOW:HIGH (angles in degrees); repeatable. Default: a range wide enough for real materials, or the cell model's training domain (a family surrogate), outside which bounds are refused.")] = None,
+    bounds: Annotated[Optional[list[str]], typer.Option("--bounds", help="Search range NAME=LOW:HIGH (angles in degrees); repeatable. Default: a range wide enough for real materials, narrowed to the cell model's training domain (a family surrogate, in 3D the one stepping the hexagons), outside which bounds are refused.")] = None,
     param: Annotated[Optional[list[str]], typer.Option("--param", "-p", metavar="NAME=VALUE", help="A fixed parameter (angles in degrees); repeatable.")] = None,
     method: Annotated[str, typer.Option(help=f"Calibration method: {', '.join(METHODS)}.")] = "least-squares",
     starts: Annotated[int, typer.Option(help="Starting points of the least-squares fits (a Latin hypercube over the bounds).")] = 8,
@@ -63,7 +63,7 @@ def calibrate(
     steps: Annotated[int, typer.Option(help="bayes: steps of every walker.")] = 2000,
     noise: Annotated[Optional[str], typer.Option(help="bayes: noise levels q=FRACTION_OF_PEAK_Q,eps_v=STRAIN; default: the RMS the best fit leaves.")] = None,
     seed: Annotated[int, typer.Option(help="Seed of the design of starting points.")] = 0,
-    workers: Annotated[int, typer.Option(help="Processes the least-squares starts run in (the result is the same; the starts are independent).")] = 1,
+    workers: workers_opt("Processes the least-squares starts run in, at most one per CPU (the result is the same; the starts are independent).") = 1,
     step: Annotated[float, typer.Option(help="Axial strain increment of the model's tests.")] = 1e-3,
     iso_step: Annotated[float, typer.Option(help="Strain increment of the model's consolidation.")] = ISO_STEP,
     solver: Annotated[str, typer.Option(help="Cell solver: closed-form, surrogate[:NAME|:FILE] (a family model fits any material of its training domain), dem:... (3D: of the hexagons of every bi-hexagon).")] = "closed-form",
@@ -118,28 +118,51 @@ def calibrate(
     if checker is not None:
         checked = check_at(cal.tests, cal.params, cal.prediction, checker, step, iso_step, cal.sphere)
     written = write(cal, out, checked)
-    fitted = ", ".join(f"{n} = {v:.5g} ± {cal.stderr[n]:.2g}" for n, v in cal.fitted.items())
-    typer.echo(f"{fitted}; objective {cal.cost:.3g} after {cal.evaluations} parameter sets "
+    typer.echo(f"{_fitted_text(cal)}; objective {cal.cost:.3g} after {cal.evaluations} parameter sets "
                f"({len(cal.failures)} failed)")
+    if cal.failures:
+        typer.echo("failed, most often: " + "; ".join(f"{n} × {why}" for n, why in cal.failure_reasons()))
     if cal.posterior is not None:
         typer.echo("posterior: " + ", ".join(f"{n} = {v['mean']:.5g} (90 %: {v['q05']:.5g} to {v['q95']:.5g})"
                                              for n, v in cal.posterior.summary.items())
                    + f"; acceptance {cal.posterior.acceptance:.2f}")
         if cal.posterior.warning:
-            typer.echo("warning: " + cal.posterior.warning)
+            _warn(cal.posterior.warning)
     if cal.unidentified:
-        typer.echo(f"not identified by these tests: {', '.join(cal.unidentified)}")
+        typer.echo(f"not identified by these tests: {', '.join(cal.unidentified)} (uncertainty undefined)")
+    for name, side in cal.at_bound.items():
+        _warn(f"{name} ended at its {side} bound {cal.space.bound(name, side):g}: the best fit may lie "
+              "beyond it (widen --bounds where the model allows, or check the tests' units)")
     if checked is not None:
         _echo_check(checked, check, check_tol)
     typer.echo("wrote " + ", ".join(str(p) for p in written))
 
 
+def _fitted_text(cal) -> str:
+    """``phi_g = 28.1 ± 0.3, kt_kn = 1.977 ± 3.6 (at its upper bound 2)``: a standard error the
+    tests do not define is ``undefined``, a value on a bound says so."""
+    at = cal.at_bound
+    parts = []
+    for n, v in cal.fitted.items():
+        se = cal.stderr[n]
+        text = f"{n} = {v:.5g} ± {se:.2g}" if math.isfinite(se) else f"{n} = {v:.5g} ± undefined"
+        if n in at:
+            text += f" (at its {at[n]} bound {cal.space.bound(n, at[n]):g})"
+        parts.append(text)
+    return ", ".join(parts)
+
+
+def _warn(text: str) -> None:
+    """A warning, as the other commands print theirs: the result stands, the user should look."""
+    typer.echo(f"hmodel: warning: {text}", err=True)
+
+
 def _echo_check(checked: Check, spec: str, tol: float) -> None:
     if checked.failed:
-        typer.echo(f"warning: the check solver {spec} failed at the optimum: {checked.failed}")
+        _warn(f"the check solver {spec} failed at the optimum: {checked.failed}")
         return
     name, worst = checked.worst
     typer.echo(f"check at the optimum against {spec}: max |dq| / peak q {100 * worst:.2f} % ({name})")
     if worst > tol:
-        typer.echo(f"warning: that is more than --check-tol {100 * tol:.3g} %: the fitted parameters are "
-                   "the calibrated model's, not the check solver's")
+        _warn(f"that is more than --check-tol {100 * tol:.3g} %: the fitted parameters are "
+              "the calibrated model's, not the check solver's")
