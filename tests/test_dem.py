@@ -197,3 +197,26 @@ def test_draw_refuses_an_unknown_mesostructure_before_starting_yade(tmp_path, mo
     assert code == 1 and err.count("\n") == 1 and err.startswith("hmodel: error: "), err
     assert "unknown mesostructure 'pentagon'" in err and "standard" in err
     assert not (tmp_path / "d").exists()
+
+
+def test_validation_counts_its_cells_and_increments_before_building_the_scene(monkeypatch):
+    """The scene's estimate is cells x (the longest cell's increments + 1) x RECORD_BYTES, the
+    cells a path each and a probe cell per probe and start state: at the budget the scene is
+    built and YADE asked (and found missing); one probe or one increment more is refused."""
+    from hmodel.dem.scene import RECORD_BYTES, scene_bytes
+    from hmodel.dem.validate import validate
+    from hmodel.limits import WorkTooLarge
+
+    monkeypatch.setenv("HMODEL_YADE", "/no/such/yade")
+    # one path of 4 increments, 3 probes from its steps 2 and 4: 7 cells over 5 increments
+    assert scene_bytes(7, 5) == 7 * 6 * RECORD_BYTES
+    monkeypatch.setenv("HMODEL_MEMORY_LIMIT", str(7 * 6 * RECORD_BYTES))
+    kw = {"strain": 0.01, "directions_deg": (0.0,), "probe_at": (0.5, 1.0)}
+    with pytest.raises(YadeNotFound):
+        validate(PARAMS, steps=4, n_probe=3, **kw)
+    with pytest.raises(WorkTooLarge, match=r"4 probes from 2 states of each \(9 cells"):
+        validate(PARAMS, steps=4, n_probe=4, **kw)
+    with pytest.raises(WorkTooLarge, match="paths of 5 increments"):
+        validate(PARAMS, steps=5, n_probe=3, **kw)
+    with pytest.raises(WorkTooLarge, match="HMODEL_MAX_INCREMENTS"):
+        validate(PARAMS, steps=10**8, n_probe=3, **kw)

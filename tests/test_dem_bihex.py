@@ -135,3 +135,26 @@ def test_validate_dim3_writes_its_table_paths_and_figure(tmp_path, capsys):
     assert all(float(r["dev_force"]) <= 1e-3 for r in rows)
     assert len(list(csv.DictReader(open(tmp_path / "v" / "paths.csv")))) == 2 * 3
     assert "max |ΔF| / max |F|" in capsys.readouterr().out
+
+
+def test_validation_counts_paths_runs_and_increments_before_building(monkeypatch):
+    """The bi-hexagon validation's estimate is one cell per path and run (twice with cross
+    contacts) over its increments (:func:`hmodel.dem.scene.scene_bytes`): at the budget YADE is
+    asked (and found missing); a path, a run or an increment more is refused."""
+    from hmodel.dem.scene import scene_bytes
+    from hmodel.dem.validate3d import validate_bihex
+    from hmodel.dem.yade import YadeNotFound
+    from hmodel.limits import WorkTooLarge
+
+    monkeypatch.setenv("HMODEL_YADE", "/no/such/yade")
+    monkeypatch.setenv("HMODEL_MEMORY_LIMIT", str(int(scene_bytes(4, 3))))
+    two, four = ("axial", "plane"), ("axial", "plane", "mixed", "opening")
+    for paths, cross in ((two, True), (four, False)):
+        with pytest.raises(YadeNotFound):
+            validate_bihex(PARAMS, steps=3, paths=paths, cross=cross)
+    with pytest.raises(WorkTooLarge, match="3 DEM bi-hexagon paths of 3 increments"):
+        validate_bihex(PARAMS, steps=3, paths=(*two, "mixed"))
+    with pytest.raises(WorkTooLarge, match="with and without cross contacts"):
+        validate_bihex(PARAMS, steps=3, paths=four)
+    with pytest.raises(WorkTooLarge, match="paths of 4 increments"):
+        validate_bihex(PARAMS, steps=4, paths=two)

@@ -197,3 +197,29 @@ def test_initial_packing_of_spheres_is_a_seeded_gas_without_overlap():
     # r in [0.5, 1.5] with pdf ~ r^-3: every radius interval holds the same solid volume, so
     # the spheres below r = 1 hold half of it
     assert np.sum(vol[vol < 1.0] ** 3) / np.sum(vol ** 3) == pytest.approx(0.5, abs=0.03)
+
+
+@pytest.mark.parametrize("dim, grains", [(2, 2000), (3, 1500)])
+def test_a_test_is_sized_before_any_grain_is_drawn(tmp_path, monkeypatch, dim, grains):
+    """A test's estimate is its grains x GRAIN_BYTES and its recorded rows x ROW_BYTES: at the
+    budget the grains are drawn and YADE asked (and found missing); one grain or one row more
+    is refused, and nothing is written."""
+    from dataclasses import replace
+
+    from hmodel.dem.sample import kinds, run_sample
+    from hmodel.dem.sample.settings import GRAIN_BYTES, ROW_BYTES
+    from hmodel.dem.yade import YadeNotFound
+    from hmodel.limits import WorkTooLarge
+
+    monkeypatch.setenv("HMODEL_YADE", str(tmp_path / "no-such-yade"))
+    s = SampleSettings(dim=dim, disks=grains, rows=10)
+    monkeypatch.setenv("HMODEL_MEMORY_LIMIT", str(grains * GRAIN_BYTES + 11 * ROW_BYTES))
+    kind = kinds(dim)[0]
+    with pytest.raises(YadeNotFound):
+        run_sample(s, [P0], kind, tmp_path / "o")
+    for more, phrase in ((replace(s, disks=grains + 1), f"{grains + 1:,} "), (replace(s, rows=11), "12 rows")):
+        with pytest.raises(WorkTooLarge, match=phrase):
+            run_sample(more, [P0], kind, tmp_path / "o")
+        with pytest.raises(WorkTooLarge):
+            run_test(more, kind, P0)
+    assert list(tmp_path.iterdir()) == []

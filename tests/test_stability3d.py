@@ -162,6 +162,25 @@ def test_a_3d_program_is_probed_in_six_components():
                         directions=np.ones((4, 3)))
 
 
+def test_triaxial_probes_are_counted_before_their_directions_are_drawn(monkeypatch):
+    """The probes of a state are material points of one batched call, counted by the REV's guard
+    (probes x bi-hexagons x the solver's bytes per cell): at the budget the test runs, one probe
+    more is refused before any direction is drawn."""
+    import hmodel.stability as stability
+    from hmodel.cell.bihex import BiHexSolver
+    from hmodel.limits import WorkTooLarge
+
+    drawn = []
+    monkeypatch.setattr(stability, "triaxial_directions",
+                        lambda n, shear=False: drawn.append(n) or triaxial_directions(n, shear))
+    monkeypatch.setenv("HMODEL_MEMORY_LIMIT", str(6 * 38 * BiHexSolver().bytes_per_cell))
+    with pytest.raises(WorkTooLarge, match="7 probes of 38 bi-hexagons"):
+        along_triaxial(P, 2e5, 0.002, sphere=COARSE, step=1e-3, n_probes=7)
+    assert drawn == []
+    ps = along_triaxial(P, 2e5, 0.002, sphere=COARSE, step=1e-3, n_probes=6)
+    assert drawn == [6] and len(ps.check_step) >= 1
+
+
 def test_stability_command_triaxial(tmp_path, capsys):
     out = tmp_path / "t"
     assert main(["stability", "--test", "triaxial", "--order", "9", "--azimuths", "2",

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import csv
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -312,7 +313,7 @@ def along_triaxial(params, p0: float, axial_strain: float, undrained: bool = Fal
         lateral, at, step, sign=-1.0 if extension else 1.0,
         sphere=sphere if sphere is not None else Sphere())
     _check(n_probes, 1.0)
-    directions = triaxial_directions(n_probes, shear) if rendulic else None
+    directions = (lambda n: triaxial_directions(n, shear)) if rendulic else None
     return along_program(program, params, every, n_probes, magnitude, shear=shear,
                          progress=progress, loading_probe=loading_probe, near=near,
                          at_steps=at_steps, stress_magnitude=stress_magnitude, solver=solver,
@@ -351,7 +352,7 @@ def along_program(program, params, every: int = 10, n_probes: int = 72,
                   magnitude: float | None = None, shear: bool = False, progress=None,
                   loading_probe: bool = True, near: float = NEAR, at_steps: dict | None = None,
                   stress_magnitude: float = 1e-3, solver=None,
-                  directions: np.ndarray | None = None,
+                  directions: np.ndarray | Callable[[int], np.ndarray] | None = None,
                   controllability: str | None = None) -> PathStability:
     """Second-order work along a loading program (:class:`hmodel.loading.Program`), 2D or 3D
     (``dim = 3``: probes of six components, on the program's REV, :meth:`Program.make_rev`).
@@ -366,7 +367,8 @@ def along_program(program, params, every: int = 10, n_probes: int = 72,
     so the domain is never found after the loss of controllability. ``at_steps`` maps
     increments of the stage named ``shear`` to labels (axial strains) where full envelopes are
     drawn (in 3D in the Rendulic plane, :func:`section_directions`). ``directions``: the
-    probes' unit directions (n_probes, components) (default :func:`probe_directions`).
+    probes' unit directions (n_probes, components) (default :func:`probe_directions`), or a
+    function of n_probes that draws them once the probes are known to fit in memory.
     ``controllability``: how its loss is located (:data:`RULES`): ``"increments"``, where the
     loading increments' d²W turns ≤ 0 for 5 increments (the 2D default), or ``"secant"``, the
     first state from which the path's secant work to every later state of its stage is ≤ 0
@@ -385,6 +387,8 @@ def along_program(program, params, every: int = 10, n_probes: int = 72,
              else f"{rev.n_cells:,} bi-hexagons")
     # every probe of a state is a material point of one batched call
     rev.check_size(n_probes, f"{n_probes:,} probes of {cells}")
+    if callable(directions):
+        directions = directions(n_probes)
     # 3D envelopes: a section, the Rendulic plane
     drawn = section_directions(n_probes, 6) if rev.n_components == 6 else None
     seen = {"min": 1.0, "k": None, "eps": None, "sig": None, "mag": None, "entered": False}

@@ -11,6 +11,7 @@ import typer
 
 from ..errors import InputError
 from ..io import write_outputs, write_rows
+from ..limits import check_count
 from ..params import Params
 from .progress import LazyProgress
 from .options import out_folder
@@ -149,12 +150,14 @@ def draw_cmd(
     import numpy as np
 
     from ..cell.mesostructure import build
-    from ..dem.scene import simulate
+    from ..dem.scene import check_scene, simulate
     from ..dem.validate import draw_cell
 
     params = _params(param, alpha0)
     if steps < 1 or not (math.isfinite(strain) and math.isfinite(theta)):
         raise InputError("--steps must be positive, --strain and --theta finite")
+    check_count(steps, "increments (--steps)")
+    check_scene(1, steps, f"a DEM cell over {steps:,} increments")
     options = {} if ratio is None or mesostructure == "standard" else {"ratio": ratio}
     cell = build(mesostructure, params.radius, params.alpha0, **options)
     th = math.radians(theta)

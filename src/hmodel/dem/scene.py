@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..limits import check_memory
 from ..params import Params
 from ..cell.mesostructure import TYPE1, TYPE1_SIGN, TYPE2, Mesostructure
 from .yade import run
@@ -25,6 +26,23 @@ from .yade import run
 #: Columns of a contact row: local grain indices, normal force (compression positive),
 #: tangential component f.(e_y, -e_x), force on j by i (x, y), branch vector x_j - x_i.
 CONTACT_COLUMNS = ("i", "j", "fn", "ft", "fx", "fy", "bx", "by")
+#: Memory of one cell's record after one increment [bytes], an upper estimate: YADE records every
+#: cell of a scene after every increment (centres, contact rows, forces) and answers them as JSON
+#: text, read back here into lists, arrays and the derived states. Measured about 11 KiB, for a
+#: standard cell (4 cells over 2,000 increments) and a bi-hexagon (over 3,000); three times that.
+RECORD_BYTES = 32 * 2**10
+
+
+def scene_bytes(n_cells: float, n_increments: float) -> float:
+    """Estimated memory [bytes] of a YADE scene of ``n_cells`` cells driven over ``n_increments``
+    increments (the longest cell's: every cell is recorded after each, and at the start)."""
+    return float(n_cells) * (float(n_increments) + 1.0) * RECORD_BYTES
+
+
+def check_scene(n_cells: float, n_increments: float, what: str) -> None:
+    """Refuse (:class:`~hmodel.limits.WorkTooLarge`) a scene of :func:`scene_bytes` over the
+    memory budget, before its cells or increments are built; ``what`` names the request."""
+    check_memory(scene_bytes(n_cells, n_increments), what)
 
 
 @dataclass(frozen=True)

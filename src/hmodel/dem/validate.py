@@ -26,8 +26,9 @@ from ..cell.mesostructure import standard
 from ..cell.state import IDX, CellState
 from ..cell.state import initial_cells
 from ..errors import InputError
+from ..limits import check_count
 from ..params import Params
-from .scene import CellRun, DEMOptions, hcell_state, simulate
+from .scene import CellRun, DEMOptions, check_scene, hcell_state, simulate
 
 QUANTITIES = ("N1", "N2", "T1", "alpha")
 #: Default path directions [deg]. Extension-dominated paths (e.g. 120 deg) carry forces ~1e-4 of
@@ -110,10 +111,17 @@ def validate(params: Params, strain: float = 0.03, steps: int = 30,
     if theta.size == 0 or not np.all(np.isfinite(theta)):
         raise InputError("at least one finite path direction is needed")
     report = progress or (lambda f: None)
+    check_count(steps, "increments per path (--steps)")
+    starts = sorted({min(steps, max(1, round(f * steps))) for f in probe_at}) if n_probe else []
+    # one scene: the paths, and a cell per probe and start state, recorded to the longest's end
+    n_cells = len(theta) * (1 + len(starts) * n_probe)
+    check_scene(n_cells, max([steps] + [k + 1 for k in starts]),
+                f"{len(theta)} DEM cell paths of {steps:,} increments"
+                + (f" and {n_probe:,} probes from {len(starts)} states of each" if starts else "")
+                + f" ({n_cells:,} cells in one YADE scene)")
     step = strain / steps
     cell = standard(params.radius, params.alpha0)
     dl = np.stack([-cell.l1 * step * np.cos(theta), -cell.l2 * step * np.sin(theta)], axis=-1)
-    starts = sorted({min(steps, max(1, round(f * steps))) for f in probe_at}) if n_probe else []
     phi = 2 * np.pi * np.arange(n_probe) / max(n_probe, 1)
     dprobe = np.stack([-cell.l1 * step * np.cos(phi), -cell.l2 * step * np.sin(phi)], axis=-1)
     cells = [(cell, np.tile(d, (steps, 1))) for d in dl]

@@ -28,9 +28,10 @@ import numpy as np
 from ..cell.bihex import BIHEX_FIELDS, BIHEX_FLAGS, BiHexSolver, initial_bihex
 from ..cell.state import CellState
 from ..errors import InputError
+from ..limits import check_count
 from ..params import Params
 from .bihex import BiHexRuns, simulate
-from .scene import DEMOptions
+from .scene import DEMOptions, check_scene
 from .solver import SOLVER_OPTIONS
 
 #: Default paths: name -> direction of (ε_n, ε_t1, ε_t2), compression positive.
@@ -141,6 +142,7 @@ def validate_bihex(params: Params, strain: float = 0.03, steps: int = 30, paths=
         raise InputError(f"strain must lie in (0, 0.5], got {strain}")
     if steps < 1 or refine < 1:
         raise InputError("steps and refine must be >= 1")
+    check_count(steps, "increments per path (--steps)")
     names, dirs = [], []
     for p in paths:
         if isinstance(p, str):
@@ -154,6 +156,10 @@ def validate_bihex(params: Params, strain: float = 0.03, steps: int = 30, paths=
         dirs.append(d / np.linalg.norm(d))
     if not names:
         raise InputError("at least one bi-hexagon path is needed")
+    # a scene of one bi-hexagon per path, run once more with cross contacts (the first kept)
+    check_scene(len(names) * (2 if cross else 1), steps,
+                f"{len(names)} DEM bi-hexagon paths of {steps:,} increments"
+                + (" (each run with and without cross contacts)" if cross else ""))
     report = progress or (lambda f: None)
     options = options or VALIDATION_OPTIONS
     dirs = np.array(dirs)

@@ -53,6 +53,7 @@ def run_test(settings: SampleSettings, kind: str, p0: float) -> SampleTest:
     _check_kind(settings, kind)
     if not (isinstance(p0, (int, float)) and math.isfinite(p0) and p0 > 0):
         raise InputError(f"p0 must be a positive pressure, got {p0}")
+    settings.check_size()
     r, pos, cell = initial_packing(settings)
     d_mean = mean_diameter(r)
     rate = strain_rate(settings, p0, d_mean)
@@ -166,6 +167,7 @@ def run_sample(settings: SampleSettings, pressures: list[float], kind: str,
     names = [file_stem(kind, p0) for p0 in pressures]
     if len(set(names)) != len(names):
         raise InputError("the pressures must differ (to 1 Pa): " + ", ".join(names))
+    settings.check_size()
     out = Path(out)
     meta = _open_folder(out, settings, names)
     for p0, name in zip(pressures, names):

@@ -11,6 +11,7 @@ import math
 from dataclasses import asdict, dataclass
 
 from ...errors import InputError
+from ...limits import check_memory
 
 #: Test kinds of a disk sample (biaxial).
 KINDS = ("drained", "undrained")
@@ -29,6 +30,14 @@ DENSEST_2D = math.pi / (2.0 * math.sqrt(3.0))
 #: A sample's cell edge must hold this many of its largest diameters, so that no grain reaches
 #: its own periodic image and the cell is more than a few grains.
 MIN_DIAMETERS_3D = 3.0
+#: Memory of one grain of a test [bytes], an upper estimate: YADE holds about 7 KiB per sphere
+#: with its contacts (measured: 40,000 spheres touching 6 others each, 282 MB over YADE's own
+#: 245 MB); the request and the two states answered (radii, centres, contact rows), as lists and
+#: JSON text in YADE and here, then arrays and the figure, about as much again; a margin over that.
+GRAIN_BYTES = 24 * 2**10
+#: Memory of one recorded row of a test [bytes]: a dozen numbers as lists and JSON text in YADE
+#: and here, an array and CSV text, with a margin.
+ROW_BYTES = 4 * 2**10
 
 
 def kinds(dim: int) -> tuple[str, ...]:
@@ -200,6 +209,18 @@ class SampleSettings:
             raise InputError(f"--spheres {self.disks} is too small a sample to be periodic: its "
                              f"densest cell is narrower than {MIN_DIAMETERS_3D:g} largest "
                              f"diameters; use at least {need} spheres (or a smaller --radius-ratio)")
+
+    def estimated_bytes(self) -> float:
+        """Estimated memory [bytes] of one test: its grains (:data:`GRAIN_BYTES`) and its
+        ``rows`` + 1 recorded rows (:data:`ROW_BYTES`)."""
+        return float(self.disks) * GRAIN_BYTES + (float(self.rows) + 1.0) * ROW_BYTES
+
+    def check_size(self) -> None:
+        """Refuse (:class:`~hmodel.limits.WorkTooLarge`) a test whose :meth:`estimated_bytes` exceeds
+        the memory budget, before any grain is drawn or YADE started."""
+        grains = "disks (--disks)" if self.dim == 2 else "spheres (--spheres)"
+        check_memory(self.estimated_bytes(), f"a test of {self.disks:,} {grains} and {self.rows + 1:,} "
+                                        f"rows (--rows)")
 
     @property
     def r_min(self) -> float:
