@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import csv
+import errno
 import os
 import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -14,12 +15,20 @@ import numpy as np
 from .errors import InputError
 
 
+#: The longest line a CSV file may have, in characters: a file with no line end (``/dev/zero``,
+#: a binary file) is refused after reading this much, not read into memory whole.
+MAX_CSV_LINE = 2**20
+
+
 def read_csv_rows(path: "str | os.PathLike", what: str) -> list[list[str]]:
     """The non-blank rows of a text CSV file; a one-line InputError naming ``what`` (e.g.
-    "strain path") and the file when it cannot be read."""
+    "strain path") and the file when it cannot be read. A byte-order mark (a spreadsheet's
+    "CSV UTF-8") is not part of the first column's name."""
+    if os.path.isdir(path):
+        raise InputError(f"{what} {str(path)!r} is a folder, not a CSV file")
     try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            reader = csv.reader(fh)
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            reader = csv.reader(_bounded_lines(fh, what, path))
             rows = list(reader)
     except OSError as e:
         raise InputError(f"cannot read {what} {str(path)!r}: {e.strerror}") from None
@@ -28,6 +37,14 @@ def read_csv_rows(path: "str | os.PathLike", what: str) -> list[list[str]]:
     except csv.Error as e:  # a field over csv.field_size_limit(), a NUL byte, an open quote
         raise InputError(f"{what} {str(path)!r}, line {reader.line_num}: {e}") from None
     return [r for r in rows if any(c.strip() for c in r)]
+
+
+def _bounded_lines(fh, what: str, path) -> Iterator[str]:
+    for number, line in enumerate(iter(lambda: fh.readline(MAX_CSV_LINE + 1), ""), 1):
+        if len(line) > MAX_CSV_LINE and not line.endswith(("\n", "\r")):
+            raise InputError(f"{what} {str(path)!r}, line {number}: longer than {MAX_CSV_LINE:,} "
+                             "characters (not a text CSV file?)")
+        yield line
 
 
 def read_strain_path(path: "str | os.PathLike") -> np.ndarray:
@@ -75,6 +92,7 @@ def check_output_folder(out_dir: "str | os.PathLike") -> Path:
     out_dir = Path(out_dir)
     if str(out_dir).strip() == "":
         raise InputError("the output path is empty: give a folder")
+    _refuse_broken_link(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"output path {str(out_dir)!r} exists and is not a folder")
     _check_writable(existing_ancestor(out_dir), out_dir)
@@ -87,10 +105,32 @@ def check_output_file(path: "str | os.PathLike") -> Path:
     path = Path(path)
     if str(path).strip() == "":
         raise InputError("the output path is empty: give a file name")
+    _refuse_broken_link(path)
     if path.is_dir():
         raise InputError(f"output file {str(path)!r} is a folder")
     _check_writable(existing_ancestor(path.parent), path)
     return path
+
+
+def _refuse_broken_link(path: Path) -> None:
+    """Refuse a symbolic link in ``path`` that leads nowhere (dangling, or looping): the path
+    looks absent, so it would pass as a new output, and the outputs could not be moved there
+    after the whole run (``File exists``)."""
+    while path != path.parent and not path.exists():
+        if path.is_symlink():
+            if _stat_errno(path) == errno.ELOOP:
+                raise InputError(f"output path {str(path)!r} is a looping symbolic link")
+            raise InputError(f"output path {str(path)!r} is a dangling symbolic link "
+                             f"(to {os.readlink(path)!r}, which cannot be reached)")
+        path = path.parent
+
+
+def _stat_errno(path: Path) -> int | None:
+    try:
+        os.stat(path)
+    except OSError as e:
+        return e.errno
+    return None
 
 
 def _check_writable(folder: Path, target: Path) -> None:

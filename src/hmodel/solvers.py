@@ -38,6 +38,9 @@ def get_solver(spec: "str | CellSolver") -> CellSolver:
         if not isinstance(spec, CellSolver):
             raise InputError(f"not a cell solver: {spec!r}")
         return spec
+    if any(not field.strip() for field in spec.split(":")[1:]):  # else its default would run unasked
+        raise InputError(f"cell solver {spec!r} names nothing after a colon: give "
+                         f"{spec.split(':', 1)[0]!r} alone for its default, or a value after the colon")
     for prefix, target in PREFIXED.items():
         if spec == prefix or spec.startswith(prefix + ":"):
             module, _, factory = target.partition(":")

@@ -9,6 +9,7 @@ the rows do not depend on where or in which order they were computed.
 from __future__ import annotations
 
 import multiprocessing
+import os
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
@@ -17,9 +18,11 @@ from .errors import InputError
 
 def run_tasks(fn: Callable, args: Sequence[tuple], keys: Sequence, *, workers: int = 1,
               scheduler: str | None = None, in_flight: int | None = None) -> Iterator[tuple]:
-    """Yield ``(key, fn(*args))`` for every task, in completion order."""
+    """Yield ``(key, fn(*args))`` for every task, in completion order; ``workers`` local
+    processes at most, and no more than :func:`local_workers` allows."""
     if workers < 1:
         raise InputError(f"workers must be at least 1, got {workers}")
+    workers = local_workers(workers)
     if scheduler:
         yield from _dask(fn, args, keys, scheduler, in_flight)
     elif workers == 1 or len(args) <= 1:
@@ -27,6 +30,13 @@ def run_tasks(fn: Callable, args: Sequence[tuple], keys: Sequence, *, workers: i
             yield k, fn(*a)
     else:
         yield from _processes(fn, args, keys, workers, in_flight or 2 * workers)
+
+
+def local_workers(requested: int) -> int:
+    """``requested`` local processes, capped at one per CPU (``os.cpu_count()``): more only
+    share the same cores, each holding its own copy of the model and its tasks in flight, and
+    the results do not depend on the number."""
+    return max(1, min(requested, os.cpu_count() or 1))
 
 
 def one_thread_each() -> None:

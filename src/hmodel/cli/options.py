@@ -1,4 +1,5 @@
-"""Output options shared by the commands: refused before any work when they cannot be written.
+"""Output options shared by the commands: refused before any work when they cannot be written;
+and the ``--workers`` option, capped at the CPUs.
 
 ``--out ""`` is a malformed command line (exit 2); an output that exists as the wrong kind
 (a file for a folder, a folder for a file) or lies where nothing can be written is refused
@@ -13,6 +14,7 @@ from typing import Annotated, Optional
 import typer
 
 from ..io import check_output_file, check_output_folder
+from ..workers import local_workers
 
 
 def _path(value) -> Path:
@@ -44,3 +46,20 @@ def out_file(help: str):
     """The ``--out``/``-o`` option of a command that writes one file."""
     return Annotated[Path, typer.Option("--out", "-o", help=help, parser=_path, callback=_file,
                                         metavar="<path>")]
+
+
+def _workers(ctx: typer.Context, value: int | None) -> int | None:
+    if value is None or ctx.resilient_parsing:
+        return value
+    usable = local_workers(value)
+    if usable < value:  # more processes would share the same cores (the results are the same)
+        typer.echo(f"hmodel: warning: --workers {value} is more than the CPUs ({usable}): using {usable}",
+                   err=True)
+    return usable
+
+
+def workers_opt(help: str, optional: bool = False):
+    """The ``--workers`` option: local processes, at least 1 (exit 2 below), capped at one per
+    CPU with a warning (``optional``: None when not given)."""
+    return Annotated[Optional[int] if optional else int, typer.Option("--workers", min=1, help=help,
+                                                                      callback=_workers)]

@@ -96,8 +96,10 @@ def load(path: "str | os.PathLike") -> Surrogate:
     from safetensors import safe_open
 
     path = Path(path)
-    if not path.is_file():
-        raise ModelFileError(f"model file {str(path)!r} does not exist")
+    if not path.is_file():  # a device such as /dev/zero is never read: it has no end
+        what = ("is a folder" if path.is_dir() else "is not a regular file" if path.exists()
+                else "does not exist")
+        raise ModelFileError(f"model file {str(path)!r} {what}")
     try:
         with safe_open(str(path), framework="np") as fh:
             header = fh.metadata() or {}

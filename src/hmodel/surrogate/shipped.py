@@ -73,7 +73,10 @@ def shipped_path(name: str = "default") -> Path:
 def model_path(ref: str) -> Path:
     """A model reference: a shipped model's name (``default``, ``increment``; ``shipped`` is the
     default) or a model file's path (a shipped ensemble's name: :func:`model_paths`)."""
-    if ref in ("", "shipped"):
+    if not ref.strip():
+        raise InputError("a model reference is empty: give shipped, a shipped model's name or a "
+                         "model file (A+B+... for an ensemble)")
+    if ref == "shipped":
         return shipped_path()
     return shipped_path(ref) if ref in SHIPPED else Path(ref)
 

@@ -458,7 +458,7 @@ def load_solver(spec: str, on_outside: str = "fallback") -> SurrogateSolver:
     from .modelfile import load
     from .shipped import model_paths
 
-    return SurrogateSolver([load(p) for p in model_paths(spec.partition(":")[2])], on_outside)
+    return SurrogateSolver([load(p) for p in model_paths(spec.partition(":")[2] or "shipped")], on_outside)
 
 
 def gated_solver(spec: "str | CellSolver", gate: float | None = None,
