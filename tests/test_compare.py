@@ -170,6 +170,14 @@ def test_compare_and_reproduce_commands(tmp_path, capsys, monkeypatch):
     html = (tmp_path / "r" / "report.html").read_text()
     for part in ("Fig. 1.7", "Training database", "Surrogate accuracy", "against the closed form", "Timings"):
         assert part in html
+    # it reads as a report: the learned cell named once, options as a table, figures captioned
+    # with what they show, the comparison's columns explained beside them
+    import re
+    assert "surrogate surrogate" not in html and "{'" not in html and "{&#x27;" not in html
+    assert "the shipped surrogate, compliance formulation" in html and "<td>--directions</td>" in html
+    captions = re.findall(r"<figcaption>(.*?)</figcaption>", html)
+    assert captions and all(not c.endswith(".png") and len(c) > 60 for c in captions)
+    assert "in the report (§3.1)" in html and "never tried" in html and "without a closed form" in html
     # the speed column says what ran, on how many threads, and how busy the machine was
     assert "load average" in html and "surrogate: compiled kernel on 1 Numba thread, network on 1 BLAS thread" in html
     assert "closed form: compiled kernel on" in (tmp_path / "r" / "deviations.csv").read_text()

@@ -98,11 +98,7 @@ def deviations(ref: PathResult, other: PathResult) -> list[dict]:
     for b in range(ref.n_points):
         a, c = _by_stage(ref.point(b), other.point(b))
         qa, qc = a["q"], c["q"]
-        # Isotropic paths have no peak q: there the scale is the peak mean stress.
-        peak = np.abs(qa).max(initial=0.0)
-        if peak < 0.05 * np.abs(a["p"]).max(initial=0.0):
-            peak = np.abs(a["p"]).max()
-        peak = max(peak, 1e-12)
+        peak = _q_scale(a)
         ev = c["eps_v"] - a["eps_v"]
         out.append({"point": b, "rows": len(qa), "peak_q": float(peak),
                     "q_max_dev_rel": float(np.abs(qc - qa).max(initial=0.0) / peak),
@@ -110,6 +106,21 @@ def deviations(ref: PathResult, other: PathResult) -> list[dict]:
                     "eps_v_max_dev": float(np.abs(ev).max(initial=0.0)),
                     "eps_v_rms_dev": float(np.sqrt(np.mean(ev ** 2))) if len(ev) else 0.0})
     return out
+
+
+def _q_scale(a: dict) -> float:
+    """What a deviation of q is relative to: the peak |q| of the reference, or on a path with no
+    peak q (isotropic: q is round-off) the peak mean stress."""
+    peak = np.abs(a["q"]).max(initial=0.0)
+    if peak < 0.05 * np.abs(a["p"]).max(initial=0.0):
+        peak = np.abs(a["p"]).max()
+    return max(peak, 1e-12)
+
+
+#: Least half-height of the q panels [kPa] and of the error panels [%]: round-off (the
+#: isotropic path's q and errors) plots as a flat line on a readable scale rather than
+#: magnified to fill the panel; the errors' maxima are written on it.
+AXIS_Q_KPA, ERROR_AXIS_Q, ERROR_AXIS_EV = 1.0, 0.01, 1e-3
 
 
 def _by_stage(a: PathResult, c: PathResult) -> tuple[dict, dict]:
@@ -135,12 +146,19 @@ def _p0(r: PathResult) -> float:
 
 
 def plot_overlay(name: str, ref: PathResult, other: PathResult, labels: tuple[str, str], path: Path) -> None:
+    """The figure of :func:`overlay_figure`, written to ``path``."""
+    overlay_figure(name, ref, other, labels).savefig(path, dpi=130)
+
+
+def overlay_figure(name: str, ref: PathResult, other: PathResult, labels: tuple[str, str]) -> Figure:
     """q and volumetric strain against axial strain (or the path parameter), the stress path, and
-    the errors: the second solver's Δq relative to the first's peak q and its Δεv, row by row
-    within each stage."""
+    the errors: the second solver's Δq relative to the first's peak q (peak p where q has no
+    peak, as in :func:`deviations`) and its Δεv, row by row within each stage, with their maxima."""
     fig = Figure(figsize=(19, 4.3), layout="constrained")
     axes = fig.subplots(1, 4)
     err_v = axes[3].twinx()
+    worst_q = worst_v = 0.0
+    scale_name = "peak q"
     for b in range(ref.n_points):
         for res, ls, lab in ((ref, "-", labels[0]), (other, "--", labels[1])):
             r = res.point(b)
@@ -152,15 +170,27 @@ def plot_overlay(name: str, ref: PathResult, other: PathResult, labels: tuple[st
         a, o = _by_stage(ref.point(b), other.point(b))  # rows matched as in deviations()
         n = len(a["q"])
         x = 100 * (a["eps11"] - ref.point(b)["eps11"][0]) if name != "rotation" else np.arange(n)
-        peak = max(np.abs(a["q"]).max(initial=0.0), 1e-300)
-        axes[3].plot(x, 100 * (o["q"] - a["q"]) / peak, label=f"Δq, p0 = {_p0(ref.point(b)) / 1e3:.0f} kPa")
-        err_v.plot(x, 100 * (o["eps_v"] - a["eps_v"]), ":", color="0.4")
+        peak = _q_scale(a)  # as in deviations(): the table's numbers and the panel's agree
+        if peak != np.abs(a["q"]).max(initial=0.0):
+            scale_name = "peak p"
+        dq, dv = 100 * (o["q"] - a["q"]) / peak, 100 * (o["eps_v"] - a["eps_v"])
+        worst_q = max(worst_q, float(np.abs(dq).max(initial=0.0)))
+        worst_v = max(worst_v, float(np.abs(dv).max(initial=0.0)))
+        axes[3].plot(x, dq, label=f"Δq, p0 = {_p0(ref.point(b)) / 1e3:.0f} kPa")
+        err_v.plot(x, dv, ":", color="0.4")
     xl = "ε11 [%]" if name != "rotation" else "state along the path"
     axes[0].set(xlabel=xl, ylabel="q = σ11 − σ22 [kPa]", title=name)
     axes[1].set(xlabel=xl, ylabel="εv [%] (compression > 0)")
     axes[2].set(xlabel="p [kPa]", ylabel="q [kPa]", title="stress path")
-    axes[3].set(xlabel=xl, ylabel=f"Δq / peak q [%] ({labels[1]} − {labels[0]})", title="errors")
+    axes[3].set(xlabel=xl, ylabel=f"Δq / {scale_name} [%] ({labels[1]} − {labels[0]})", title="errors")
     err_v.set_ylabel("Δεv [% strain] (dotted)")
+    for ax, floor in ((axes[0], AXIS_Q_KPA), (axes[2], AXIS_Q_KPA), (axes[3], ERROR_AXIS_Q),
+                      (err_v, ERROR_AXIS_EV)):
+        lo, hi = ax.get_ylim()
+        ax.set_ylim(min(lo, -floor), max(hi, floor))
+        ax.ticklabel_format(axis="y", useOffset=False)
+    axes[3].text(0.98, 0.02, f"max |Δq| / {scale_name} = {worst_q:.2g} %\nmax |Δεv| = {worst_v:.2g} % strain",
+                 transform=axes[3].transAxes, fontsize=7, va="bottom", ha="right")
     axes[0].legend(fontsize=7)
     axes[3].legend(fontsize=7)
-    fig.savefig(path, dpi=130)
+    return fig

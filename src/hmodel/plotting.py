@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -110,49 +111,115 @@ def plot_strain_path(result: PathResult, path: "str | os.PathLike") -> None:
     fig.savefig(path, dpi=150)
 
 
-def plot_program(result: PathResult, path: "str | os.PathLike") -> None:
-    """A loading program: the stress path (p, q), q against eps11 (the loops of cycles), the
-    excess pore pressure p0 − p of undrained stages by increment, and per cycle the least
-    p/p0 and the double-amplitude strain (or, without cycles, eps_v against eps11)."""
+def _stage_runs(stage: np.ndarray) -> list[tuple[str, int, int]]:
+    """The contiguous runs of one stage name along a result: (name, first row, end row)."""
+    if not len(stage):
+        return []
+    change = np.flatnonzero(stage[1:] != stage[:-1]) + 1
+    starts, ends = np.concatenate([[0], change]), np.concatenate([change, [len(stage)]])
+    return [(str(stage[a]), int(a), int(b)) for a, b in zip(starts, ends)]
+
+
+def _stage_styles(runs: list[tuple[str, int, int]], rows: np.ndarray) -> dict[str, dict]:
+    """Per stage name: its colour, line width and legend label. Consolidation is grey; stages
+    named earlier are drawn wider, so that a later stage retracing an earlier one's line (a
+    drained unloading and reloading on the loading's stress path) shows on top of it; the label
+    gives the rows of result.csv the stage holds, or how many times a cycle ran it."""
+    from matplotlib import colormaps
+
+    names = list(dict.fromkeys(n for n, _, _ in runs))
+    palette = colormaps["tab10"].colors
+    others = [n for n in names if n != "consolidation"]
+    styles = {}
+    for n in names:
+        mine = [(a, b) for m, a, b in runs if m == n]
+        label = (f"{n} (rows {rows[mine[0][0]]}–{rows[mine[0][1] - 1]})" if len(mine) == 1
+                 else f"{n} ({len(mine)} times)")
+        if n == "consolidation":
+            styles[n] = {"color": "0.55", "lw": 1.5, "label": label}
+            continue
+        k = others.index(n)
+        width = 1.0 + 2.0 * (len(others) - 1 - k) / max(len(others) - 1, 1) if len(others) <= 6 else 0.9
+        styles[n] = {"color": palette[k % len(palette)], "lw": width, "label": label}
+    return styles
+
+
+def _plot_by_stage(ax, x: np.ndarray, y: np.ndarray, runs, styles, marker: str = "") -> None:
+    """``y`` against ``x`` in the colour of each row's stage, every run joined to the last row
+    before it (the curve stays one line), each stage labelled once for the legend."""
+    seen = set()
+    for name, a, b in runs:
+        seg = slice(max(a - 1, 0), b)
+        st = styles[name]
+        ax.plot(x[seg], y[seg], marker or "-", color=st["color"], lw=st["lw"], ms=1.5,
+                label=st["label"] if name not in seen else None)
+        seen.add(name)
+
+
+def program_figure(result: PathResult) -> Figure:
+    """A loading program's figure: the stress path (p, q), q against eps11 (the loops of cycles),
+    the mean stress by row of result.csv (or the excess pore pressure p0 − p of undrained stages)
+    and per cycle the least p/p0 and the double-amplitude strain (or, without cycles, eps_v
+    against eps11); every curve coloured by stage, consolidation included, with one legend of
+    the stages; titled with the program's file name."""
     from .loading.program import cycle_summary
 
     fig = Figure(figsize=(12, 8.4), layout="constrained")
     (a, b), (c, d) = fig.subplots(2, 2)
     r = result.point(0)
-    r = PathResult({k: v[r["stage"] != "consolidation"] for k, v in r.columns.items()}, r.meta)
-    a.plot(r["p"] / 1e3, r["q"] / 1e3, lw=0.8)
+    rows = np.asarray(r["step"])
+    runs = _stage_runs(np.asarray(r["stage"]))
+    styles = _stage_styles(runs, rows)
+    _plot_by_stage(a, r["p"] / 1e3, r["q"] / 1e3, runs, styles)
     if result.meta.get("dim") == 3:
         a.set(xlabel=r"$p=\mathrm{tr}\,\sigma/3$ [kPa]", ylabel=r"$q=\sigma_{11}-(\sigma_{22}+\sigma_{33})/2$ [kPa]",
               title="stress path")
     else:
         a.set(xlabel=r"$p=(\sigma_{11}+\sigma_{22})/2$ [kPa]", ylabel=r"$q=\sigma_{11}-\sigma_{22}$ [kPa]",
               title="stress path")
-    b.plot(100 * r["eps11"], r["q"] / 1e3, lw=0.8)
+    _plot_by_stage(b, 100 * r["eps11"], r["q"] / 1e3, runs, styles)
     b.set(xlabel=r"$\varepsilon_{11}$ [%]", ylabel="q [kPa]", title="q against axial strain")
     p0 = (result.meta.get("p0") or [None])[0]
     und = np.isin(r["stage"], result.meta.get("undrained_stages", []))
     if p0 is not None and und.any():
-        c.plot(r["step"][und], (p0 - r["p"][und]) / 1e3, ".", ms=1.5)
-        c.set(xlabel="increment (row of result.csv)", ylabel=r"excess pore pressure $p_0-p$ [kPa]",
-              title="undrained stages")
+        excess = np.where(und, (p0 - r["p"]) / 1e3, np.nan)  # drained rows left blank
+        _plot_by_stage(c, rows, excess, runs, styles, marker=".")
+        c.set(xlabel="row of result.csv", ylabel=r"excess pore pressure $p_0-p$ [kPa]",
+              title="undrained stages", xlim=(0, rows[-1] + 1))
     else:
-        c.plot(r["step"], r["p"] / 1e3, lw=0.8)
-        c.set(xlabel="increment (row of result.csv)", ylabel="p [kPa]", title="mean stress")
+        _plot_by_stage(c, rows, r["p"] / 1e3, runs, styles)
+        c.set(xlabel="row of result.csv", ylabel="p [kPa]", title="mean stress")
     cycles = cycle_summary(result)
     if cycles:
         n = [row["cycle"] for row in cycles]
         d.plot(n, [row["p_min_over_p0"] for row in cycles], "o-", ms=3, label=r"least $p/p_0$")
         d.plot(n, [100 * row["double_amplitude_eps11"] for row in cycles], "s-", ms=3,
                label=r"double amplitude $\varepsilon_{11}$ [%]")
-        d.set(xlabel="cycle", title=f"{len(cycles)} cycles")
+        d.set(xlabel="cycle", title=f"{len(cycles)} cycle{'s' if len(cycles) != 1 else ''}")
         d.legend(frameon=False)
     else:
-        d.plot(100 * r["eps11"], 100 * r["eps_v"], lw=0.8)
+        _plot_by_stage(d, 100 * r["eps11"], 100 * r["eps_v"], runs, styles)
         d.set(xlabel=r"$\varepsilon_{11}$ [%]", ylabel=r"$\varepsilon_v$ [%]", title="volumetric strain")
+    if len(runs) <= 8:  # few stages: each one's start marked and named on the by-row panel
+        for name, first, _ in runs[1:]:
+            c.axvline(rows[first] - 0.5, color="0.6", lw=0.8, ls="--")
+            c.annotate(name, (rows[first], 1), xycoords=("data", "axes fraction"), xytext=(2, -2),
+                       textcoords="offset points", va="top", rotation=90, fontsize=7, color="0.3")
     for ax in (a, b, c, d):
         ax.grid(alpha=0.3)
-    fig.suptitle(f"H-model, program {result.meta.get('program', '')}\n{_subtitle(result)}", fontsize=10)
-    fig.savefig(path, dpi=130)
+    handles, labels = a.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 5), frameon=False,
+               title="stages (earlier ones drawn wider, so that a line retraced later stays visible)")
+    name = result.meta.get("program", "")
+    source = result.meta.get("file") or name
+    extra = f" ({name})" if name and Path(source).stem != name else ""
+    fig.suptitle(f"H-model, program {source}{extra}\n{_subtitle(result)}", fontsize=10)
+    return fig
+
+
+def plot_program(result: PathResult, path: "str | os.PathLike") -> None:
+    """The figure of :func:`program_figure`, written to ``path``."""
+    program_figure(result).savefig(path, dpi=130)
 
 
 def plot_triaxial(result: PathResult, path: "str | os.PathLike") -> None:
