@@ -9,9 +9,10 @@ accepted, and the tree is evaluated by walking it: nothing of the text is ever e
 An expression is at most :data:`MAX_LENGTH` characters and :data:`MAX_DEPTH` levels deep, so
 that neither the parser nor the walk can run out of stack. Every part of it that uses no name
 (``1/0``, ``2 * 150kPa``) is evaluated when it is read and must be a finite number; the rest is
-evaluated in floating point, where a division by zero gives ±inf or NaN rather than an exception
-(a stress target that is not finite is refused where it is used; a criterion that is NaN is not
-met).
+evaluated in NumPy floating point, names' values included, where a division by zero or an
+overflow gives ±inf or NaN rather than an exception: the evaluation of a read expression is total
+(a stress target that is not finite is refused where it is used, naming what went wrong
+(:meth:`Expression.fault`); a criterion that is NaN is not met).
 """
 
 from __future__ import annotations
@@ -69,10 +70,9 @@ def _depth(tree: ast.AST) -> int:
 def _check_constants(node: ast.AST, used: set[str], what: str, text: str) -> None:
     """Every largest part of ``node`` that uses no name must evaluate to a finite number."""
     if not (used & _free_names(node)):
-        v = _value(node, {})
-        if not np.isfinite(v):
-            raise InputError(f"{what} {text!r}: {ast.unparse(node)} is not a finite number"
-                             + (" (division by zero)" if v != v or abs(v) == np.inf else ""))
+        if not np.isfinite(_value(node, {})):
+            raise InputError(f"{what} {text!r}: {ast.unparse(node)} is not a finite number "
+                             f"({_fault(node, {})})")
         return
     for child in ast.iter_child_nodes(node):
         if isinstance(child, ast.expr) and not (isinstance(child, ast.Name) and child.id == "abs"):
@@ -86,13 +86,16 @@ def _free_names(node: ast.AST) -> set[str]:
 def _names(node: ast.AST, known: set[str], what: str, text: str) -> set[str]:
     """The names ``node`` uses; every node must be of the accepted kinds."""
     used = set()
+    called = {id(n.func) for n in ast.walk(node) if isinstance(n, ast.Call)}
     for n in ast.walk(node):
         if isinstance(n, ast.Call):
             if not (isinstance(n.func, ast.Name) and n.func.id == "abs" and len(n.args) == 1
                     and not n.keywords):
                 raise InputError(f"{what} {text!r}: only abs(x) may be called")
         elif isinstance(n, ast.Name):
-            if n.id == "abs":  # the function of a checked call
+            if n.id == "abs":  # a function, not a value: only where it is called
+                if id(n) not in called:
+                    raise InputError(f"{what} {text!r}: abs is a function: abs(x)")
                 continue
             if n.id not in known and n.id not in _UNITS:
                 raise InputError(f"{what} {text!r}: unknown name {n.id!r} (known: "
@@ -112,14 +115,21 @@ def _names(node: ast.AST, known: set[str], what: str, text: str) -> set[str]:
     return used - set(_UNITS)
 
 
+def _number(x):
+    """``x`` (a number or an array of them) in NumPy floating point, where x / 0 is ±inf or NaN
+    and not an exception as it is for Python's floats."""
+    try:
+        v = np.asarray(x, np.float64)
+    except OverflowError:  # an integer of hundreds of digits
+        return np.float64(np.inf if x > 0 else -np.inf)
+    return v[()]  # a NumPy scalar for a number, the array itself otherwise
+
+
 def _value(node: ast.AST, env: Mapping[str, object]):
-    if isinstance(node, ast.Constant):  # a NumPy float: x / 0 is inf or NaN, not an exception
-        try:
-            return np.float64(node.value)
-        except OverflowError:  # an integer of hundreds of digits
-            return np.float64(np.inf)
+    if isinstance(node, ast.Constant):
+        return _number(node.value)
     if isinstance(node, ast.Name):
-        return _UNITS[node.id] if node.id in _UNITS else env[node.id]
+        return _number(_UNITS[node.id] if node.id in _UNITS else env[node.id])
     if isinstance(node, ast.UnaryOp):
         v = _value(node.operand, env)
         return -v if isinstance(node.op, ast.USub) else v
@@ -128,6 +138,34 @@ def _value(node: ast.AST, env: Mapping[str, object]):
     if isinstance(node, ast.Call):  # abs, checked by _names
         return np.abs(_value(node.args[0], env))
     raise AssertionError(type(node).__name__)  # excluded by _names
+
+
+def _operands(node: ast.AST) -> list[ast.AST]:
+    if isinstance(node, ast.BinOp):
+        return [node.left, node.right]
+    if isinstance(node, ast.UnaryOp):
+        return [node.operand]
+    if isinstance(node, ast.Call):
+        return [node.args[0]]
+    return []
+
+
+def _fault(node: ast.AST, env: Mapping[str, object]) -> str:
+    """What makes ``node`` not finite at ``env``, in words: its innermost part whose operands
+    are finite and whose value is not (a division by zero, an overflow, a number too large for
+    floating point, or a name's value)."""
+    part = node
+    while bad := [c for c in _operands(part) if not np.all(np.isfinite(_value(c, env)))]:
+        part = bad[0]
+    if isinstance(part, ast.Name):
+        return f"{part.id} is not finite"
+    if isinstance(part, ast.Constant):
+        why = "too large for floating point"
+    elif isinstance(part, ast.BinOp) and isinstance(part.op, ast.Div) and np.any(_value(part.right, env) == 0):
+        why = "division by zero"
+    else:
+        why = "overflow"
+    return why if part is node else f"{why} in {ast.unparse(part)}"
 
 
 @dataclass(frozen=True)
@@ -156,8 +194,15 @@ class Expression:
         return cls(text, tree, frozenset(names))
 
     def __call__(self, env: Mapping[str, object]):
+        """The value at ``env`` (name -> a number or an array): a NumPy float or array, ±inf or
+        NaN where the arithmetic fails; never an exception."""
         with np.errstate(all="ignore"):
             return _value(self.tree, env)
+
+    def fault(self, env: Mapping[str, object]) -> str:
+        """Why the value at ``env`` is not finite, in words (``overflow in p0 * 1e+305``)."""
+        with np.errstate(all="ignore"):
+            return _fault(self.tree, env)
 
 
 @dataclass(frozen=True)

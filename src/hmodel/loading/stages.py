@@ -191,7 +191,8 @@ class Stage:
         v = np.asarray(expression({"p0": p0}), float)
         if not np.all(np.isfinite(v)):
             raise InputError(f"stage {self.name!r}: {row} = {expression.text!r} is not a finite "
-                             f"stress at p0 = {np.asarray(p0, float).tolist()} Pa")
+                             f"stress at p0 = {np.asarray(p0, float).tolist()} Pa "
+                             f"({expression.fault({'p0': p0})})")
         return float(v) if v.ndim == 0 else v
 
     def n_steps(self) -> int:
