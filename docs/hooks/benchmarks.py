@@ -7,7 +7,10 @@ is replaced by the tables of ``benchmarks/GROUP/NAME.json`` and ``<!-- benchmark
 those of every JSON file not placed yet, so a new benchmark shows up without editing the page.
 Each file gets a provenance line (date, machine, command) and tables: a dedicated layout for the
 main benchmarks, and a generic one (scalars as a settings table, lists of records as tables) for
-anything else. Nothing is computed: the figures are the JSON's.
+anything else. Nothing is computed but one verdict: where a measure's target is a number
+(``<= 2``, ``0``, ``>= 1e7``), its table says whether the value meets it (:func:`verdict`), and
+``<!-- benchmark-targets -->`` is replaced by the count of met and missed targets and a table of
+the missed ones, so that a missed target cannot read as a met one.
 
 Everything about where a result comes from is the JSON's own (``benchmarks/timing.py``:
 ``provenance``): its ``date`` (otherwise the date of the last commit that changed the file), its
@@ -30,6 +33,8 @@ log = logging.getLogger("mkdocs.hooks.benchmarks")
 
 PAGE = "benchmarks.md"
 MARKER = re.compile(r"<!--\s*benchmark:\s*([\w.*/-]+)\s*-->")
+#: Replaced by the count of met and missed targets over every file, and the missed ones.
+TARGETS = "<!-- benchmark-targets -->"
 
 #: Fields of :func:`provenance` (``benchmarks/timing.py``), shown in the provenance line and its
 #: note rather than as settings.
@@ -219,11 +224,49 @@ CONDITIONS = ("load_condition", "load_average_before", "numba_threads", "numba_t
               "blas", "threads_in_forward")
 
 
+#: A target that a value can be checked against: a comparison (none: equal) and a number, in
+#: the measure's own unit (``<= 2``, ``<= 10 %``, ``>= 1e7``, ``< 594,000``, ``0``). Any other
+#: target (``-``, ``small``, ``the noise floor``, ``report 0.998``, ``<= target``) is prose,
+#: read by the reader, and gets no verdict.
+_TARGET = re.compile(r"^\s*(<=|>=|<|>|=|≤|≥)?\s*([-+]?\d[\d,]*(?:\.\d+)?(?:e[-+]?\d+)?)\s*%?\s*$",
+                     re.IGNORECASE)
+
+_COMPARE = {"<=": float.__le__, "≤": float.__le__, ">=": float.__ge__, "≥": float.__ge__,
+            "<": float.__lt__, ">": float.__gt__, "=": float.__eq__}
+
+
+def verdict(value, target) -> str | None:
+    """``"met"`` or ``"missed"`` for a measured ``value`` against a numeric ``target``; None
+    where the target is not a number to compare with. A missing value (None, NaN: the
+    measure was not reached or failed) misses its target.
+
+    >>> verdict(2.4, "<= 2"), verdict(6, "0"), verdict(0.09, "<= 10 %"), verdict(2.7e7, ">= 1e7")
+    ('missed', 'missed', 'met', 'met')
+    >>> verdict(float("nan"), "< 594,000"), verdict(1.2, "-"), verdict(0.5, "<= target")
+    ('missed', None, None)
+    """
+    m = _TARGET.match(target) if isinstance(target, str) else None
+    if m is None:
+        return None
+    if _missing(value) or isinstance(value, bool) or not isinstance(value, (int, float)):
+        return "missed"
+    bound = float(m.group(2).replace(",", ""))
+    return "met" if _COMPARE[m.group(1) or "="](float(value), bound) else "missed"
+
+
+def _verdict_cell(v: str | None) -> str | None:
+    return {"met": "✓ met", "missed": "✗ **missed**"}.get(v)
+
+
+def _value(r: dict) -> str:
+    v, m = r.get("value"), str(r.get("measure", ""))
+    return f"{v:.3g} s" if isinstance(v, float) and not math.isnan(v) and "[s]" in m else num(v, 3)
+
+
 def _results(d):  # engine.json, stability.json, ann_load.json
-    def value(r):
-        v, m = r.get("value"), str(r.get("measure", ""))
-        return f"{v:.3g} s" if isinstance(v, float) and "[s]" in m else num(v, 3)
-    out = table(d["results"], [("measure", "measure"), (value, "value"), ("target", "target")])
+    out = table(d["results"], [("measure", "measure"), (_value, "value"), ("target", "target"),
+                               (lambda r: _verdict_cell(verdict(r.get("value"), r.get("target"))),
+                                "target met?")])
     conditions = {k: d[k] for k in CONDITIONS if k in d}
     out += "\nConditions:\n\n" + settings(conditions) if conditions else ""
     if isinstance(d.get("sets"), list):  # the parameter sets of a family network's files, and per path
@@ -411,7 +454,7 @@ def render(name: str, path: Path, scripts: set[str]) -> str:
     if not isinstance(d, dict):
         log.warning("benchmarks page: benchmarks/%s.json is not a JSON object", name)
         return f"*benchmarks/{name}.json is not a record.*\n"
-    head = provenance(name, path, d, scripts) + "\n"
+    head = f'<a id="{anchor(name)}"></a>' + provenance(name, path, d, scripts) + "\n"
     layout = _layout(d)
     if layout is not None:
         try:
@@ -419,6 +462,39 @@ def render(name: str, path: Path, scripts: set[str]) -> str:
         except (KeyError, TypeError, ValueError, AttributeError) as e:  # a changed structure
             log.info("benchmarks: generic layout for %s (%s)", path.name, e)
     return head + settings({k: v for k, v in d.items() if k not in PROVENANCE}) + "\n" + generic_tables(d)
+
+
+def anchor(name: str) -> str:
+    """The page anchor of ``benchmarks/NAME.json``'s tables (``engine/engine3d``:
+    ``bench-engine-engine3d``)."""
+    return "bench-" + re.sub(r"[^\w-]", "-", name)
+
+
+def targets(found: dict[str, Path]) -> str:
+    """The count of met and missed numeric targets over every file with a measure/value/target
+    table, and a table of the missed ones linking to their file's tables."""
+    met, missed = 0, []
+    for name, path in found.items():
+        try:
+            d = json.loads(path.read_text())
+        except (OSError, ValueError):
+            continue  # said where the file's tables are placed
+        if not isinstance(d, dict) or _layout(d) is not _results:
+            continue
+        for r in (r for r in d["results"] if isinstance(r, dict)):
+            v = verdict(r.get("value"), r.get("target"))
+            met += v == "met"
+            if v == "missed":
+                missed.append({"file": f"[`{name}`](#{anchor(name)})", "measure": r.get("measure"),
+                               "value": _value(r), "target": r.get("target")})
+    head = (f"Of the {met + len(missed)} measures whose target is a number, **{met} meet it and "
+            f"{len(missed)} miss it**; each file's table says which in its *target met?* column. "
+            "Targets in words (*small*, *the noise floor*, a figure of the report) are left to "
+            "the reader.\n")
+    if not missed:
+        return head
+    return head + f"\n???+ warning \"The {len(missed)} missed targets\"\n\n" + _indent(table(missed, [
+        ("file", "file"), ("measure", "measure"), ("value", "value"), ("target", "target")]))
 
 
 # --------------------------------------------------------------------------- MkDocs events
@@ -450,6 +526,7 @@ def on_page_markdown(markdown, page, config, files, **kwargs):
             log.warning("benchmarks page: cannot read benchmarks/%s.json: %s", name, e)
             return f"*benchmarks/{name}.json could not be read.*\n"
 
+    markdown = markdown.replace(TARGETS, targets(found))
     return MARKER.sub(replace, markdown)
 
 
