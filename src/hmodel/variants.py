@@ -13,12 +13,15 @@ False
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from types import MappingProxyType
 
 from .errors import InputError
 from .params import Params
-from .rev.density import alpha0_for_void_ratio
+import math
+
+from .rev.density import alpha0_for_void_ratio, largest_alpha0
 
 DEFAULT = "published"
 
@@ -50,6 +53,14 @@ class ModelVariant:
             raise InputError(f"model {self.name} needs the reference void ratio e_ref at which alpha0 is given "
                              f"(a calibration records it)")
         return replace(params, alpha0=alpha0_for_void_ratio(params, dim, e0, e_ref))
+
+    def default_bounds(self, params: Params, dim: int, e0s: Sequence[float], e_ref: float | None) -> dict:
+        """Search ranges (CLI units) this variant needs of a calibration on tests at void ratios
+        ``e0s``: α0 (at ``e_ref``) low enough that the loosest test is within the loosest cell."""
+        if not self.uses_e0 or e_ref is None:
+            return {}
+        top = math.degrees(largest_alpha0(params, dim, max(e0s), e_ref))
+        return {"alpha0": (31.0, math.floor(10 * top) / 10)}
 
 
 VARIANTS = MappingProxyType({

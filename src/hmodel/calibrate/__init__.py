@@ -8,13 +8,15 @@ axial strain. Every evaluation runs all the parameter sets it needs (the starts 
 columns of a finite-difference Jacobian) through the engine in one batched call, one material
 point per parameter set and test (:func:`hmodel.params.check_batch`). ``check_at`` runs the
 tests again at the calibrated parameters with another cell solver (the cell a surrogate learned)
-and measures how far the calibrated model lies from it.
+and measures how far the calibrated model lies from it. ``CalibratedModel.load(folder)`` reads
+the fitted model back from ``calibration.json`` to run it for another specimen.
 """
 
+from .calibrated import CalibratedModel
 from .check import Check, check_at
 from .data import Test, parse_data_spec
 from .fitting import Calibration, fit
 from .kinds import Kind
 from .space import DEFAULT_BOUNDS, FITTABLE, Space
 
-__all__ = ["DEFAULT_BOUNDS", "FITTABLE", "Calibration", "Check", "Kind", "Space", "Test", "check_at", "fit", "parse_data_spec"]
+__all__ = ["DEFAULT_BOUNDS", "FITTABLE", "CalibratedModel", "Calibration", "Check", "Kind", "Space", "Test", "check_at", "fit", "parse_data_spec"]

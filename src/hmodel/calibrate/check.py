@@ -20,6 +20,7 @@ import numpy as np
 from ..cell import CellSolver
 from ..params import Params
 from ..rev import Sphere
+from ..variants import ModelVariant, get_variant
 from .data import Test
 from .model import ISO_STEP, Model, Prediction
 
@@ -63,13 +64,14 @@ class Check:
 
 
 def check_at(tests: Sequence[Test], params: Params, calibrated: Prediction, solver: CellSolver,
-             step: float = 1e-3, iso_step: float = ISO_STEP, sphere: Sphere | None = None) -> Check:
-    """Run ``tests`` at ``params`` with ``solver`` (the same increments and directions as the
-    calibration's model) and compare the curves with ``calibrated``, the calibrated model's
-    prediction at ``params`` (one parameter set)."""
+             step: float = 1e-3, iso_step: float = ISO_STEP, sphere: Sphere | None = None,
+             variant: ModelVariant | None = None, e_ref: float | None = None) -> Check:
+    """Run ``tests`` at ``params`` with ``solver`` (the same increments, directions and model
+    variant as the calibration's model) and compare the curves with ``calibrated``, the
+    calibrated model's prediction at ``params`` (one parameter set)."""
     tests = tuple(tests)
     t0 = time.perf_counter()
-    ref = Model(tests, solver, step, iso_step, sphere).predict([params])
+    ref = Model(tests, solver, step, iso_step, sphere, variant or get_variant(None), e_ref).predict([params])
     seconds = time.perf_counter() - t0
     if not ref.ok[0]:
         return Check(solver.name, tests, [], [], [], seconds, failed=ref.failed[0])

@@ -8,7 +8,7 @@ import re
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -19,6 +19,7 @@ from ..errors import InputError, SolverError
 from ..loading.lab_tests import check_3d_params
 from ..params import Params
 from ..rev import Sphere
+from ..variants import ModelVariant, get_variant
 from ..workers import run_tasks
 from .bayes import Noise, Posterior, estimate_noise, sample
 from .data import Test
@@ -75,6 +76,14 @@ class Calibration:
     #: the coarser directions of the 3D multi-start search and the refinement of its best point
     #: at ``sphere`` (:func:`fit`); None when the search ran on ``sphere`` itself
     search: dict | None = None
+    #: the variant of the H-model fitted, and the void ratio at which its α0 is given (None
+    #: where the variant does not use e0)
+    variant: ModelVariant = field(default_factory=lambda: get_variant(None))
+    e_ref: float | None = None
+    #: the model's increments and cell solver (None: the closed form), to run it again as fitted
+    step: float = 1e-3
+    iso_step: float = ISO_STEP
+    solver: str | None = None
 
     @property
     def fitted(self) -> dict[str, float]:
@@ -122,8 +131,12 @@ class Calibration:
             "failures": self.failures,
             "failure_reasons": [{"count": n, "reason": why} for n, why in self.failure_reasons(top=5)],
             "wall_s": self.wall_s,
-            "tests": [{"name": t.name, "kind": t.kind, "p0": t.p0, "rows": len(t.eps11)}
+            "tests": [{"name": t.name, "kind": t.kind, "p0": t.p0, "rows": len(t.eps11), "e0": t.e0}
                       for t in self.tests],
+            # what hmodel.calibrate.CalibratedModel needs to run the fitted model again (angles in radians)
+            "model": {"variant": self.variant.name, "e_ref": self.e_ref, "dim": self.tests[0].kind.dim,
+                      "step": self.step, "iso_step": self.iso_step, "solver": self.solver or "closed-form",
+                      "params_rad": self.params.to_dict(degrees=False)},
             **({"sphere": _sphere_record(self.sphere)} if self.sphere is not None else {}),
             **({"search": self.search} if self.search is not None else {}),
             **({"posterior": self.posterior.summary, "sampling": self.posterior.to_dict()}
@@ -183,7 +196,8 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
         iso_step: float = ISO_STEP, max_nfev: int = 60, walkers: int = 32, steps: int = 2000,
         noise: dict | None = None, sphere: Sphere | None = None,
         search_rule: tuple[int, int] | None = SEARCH_RULE, workers: int = 1,
-        progress: Callable[[float], None] | None = None) -> Calibration:
+        progress: Callable[[float], None] | None = None, model: str | ModelVariant | None = None,
+        scheduler: str | None = None) -> Calibration:
     """Fit the parameters ``fit`` to ``tests``; the others are those of ``base``.
 
     ``least-squares``: :func:`scipy.optimize.least_squares` (trust-region reflective, within the
@@ -209,6 +223,12 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
     A parameter the tests do not identify (:data:`IDENTIFIABLE`; one on which the objective
     does not depend at all included) is listed in ``unidentified`` and its standard error is
     NaN: undefined, not zero. ``at_bound`` names the parameters that ended on a bound.
+
+    ``model``: the variant of the H-model (:func:`hmodel.variants.get_variant`; None: the
+    published one). One that uses e0 runs each test from its own void ratio, α0 being fitted at
+    the reference void ratio ``e_ref``, the mean e0 of the tests (recorded in the result).
+    ``scheduler``: a Dask scheduler's address, where the least-squares starts run instead of
+    ``workers`` local processes (the same result).
 
     The tests' kinds choose the model: the 2D one for biaxial kinds, the 3D one for triaxial
     kinds, whose directions are ``sphere`` (None: ``Sphere()``), the 2D model's own parameters
@@ -241,10 +261,13 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
         base = Params(sliding_rhs="equilibrium") if base is None else base
         sphere = Sphere() if sphere is None else sphere
         searcher = _search_sphere(sphere, search_rule)
-    model = Model(tests, solver, step, iso_step, sphere)
+    variant = model if isinstance(model, ModelVariant) else get_variant(model)
+    model = Model(tests, solver, step, iso_step, sphere, variant)
+    needed = variant.default_bounds(base or Params(), model.dim, [t.e0 for t in tests], model.e_ref)
+    bounds = {**{n: b for n, b in needed.items() if n in fit}, **(bounds or {})}
     # a family model's training domain bounds the search (None: any material)
     space = Space.make(fit, bounds, base, training_domain(solver))
-    obj = _Objective(model if searcher is None else Model(tests, solver, step, iso_step, searcher), space)
+    obj = _Objective(model if searcher is None else replace(model, sphere=searcher), space)
     t0 = time.perf_counter()
     design = qmc.LatinHypercube(space.n, seed=seed).random(starts)
     runs = []
@@ -254,7 +277,8 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
         raise InputError(f"the number of workers must be a positive integer, got {workers!r}")
     done = {}
     for i, (run, evaluations, failures) in run_tasks(
-            _start, [(obj.model, space, z0, max_nfev) for z0 in design], range(starts), workers=workers):
+            _start, [(obj.model, space, z0, max_nfev) for z0 in design], range(starts), workers=workers,
+            scheduler=scheduler):
         done[i] = run
         obj.evaluations += evaluations
         obj.failures += failures
@@ -287,7 +311,8 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
                  "objective": float(r.cost), "evaluations": int(r.nfev), "status": int(r.status)}
                 for z0, r in zip(design, runs)],
         evaluations=obj.evaluations, failures=obj.failures, wall_s=time.perf_counter() - t0,
-        prediction=pred, posterior=posterior, band=band, sphere=sphere, search=search)
+        prediction=pred, posterior=posterior, band=band, sphere=sphere, search=search, variant=variant,
+        e_ref=model.e_ref, step=step, iso_step=iso_step, solver=None if solver is None else solver.name)
 
 
 def _start(model: Model, space: Space, z0: np.ndarray, max_nfev: int):

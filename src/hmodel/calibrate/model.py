@@ -125,20 +125,32 @@ class Model:
         dropped = res.meta["failed"]
         for b, why in dropped.items():
             failed[which[b // len(tests)]] = why[:300]
-        point, stage = res["point"], res["stage"]
         for b in range(len(batch)):
             k, j = which[b // len(tests)], b % len(tests)
             if failed[k]:
                 continue
-            mine = point == b
-            cons = np.flatnonzero(mine & (stage == "consolidation"))[-1]
-            shear = mine & (stage == "shear")
-            # the axial strain's magnitude since consolidation (increasing in extension too)
-            e = kind.sign * np.concatenate([[0.0], res["eps11"][shear] - res["eps11"][cons]])
-            t = tests[j]
-            q[idx[j]][k] = np.interp(t.strain, e, np.concatenate([[res["q"][cons]], res["q"][shear]]))
-            ev[idx[j]][k] = np.interp(t.strain, e, np.concatenate([[0.0], res["eps_v"][shear]
-                                                                   - res["eps_v"][cons]]))
+            q[idx[j]][k], ev[idx[j]][k] = curves_at(res, b, tests[j])
+
+
+def curves_at(res, b: int, test: Test, dropped: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """q and εv since consolidation of material point ``b`` of an engine result ``res`` (a
+    test's run), at ``test``'s axial strains. A point ``dropped`` where its Newton failed keeps
+    its rows up to there: NaN beyond the last strain it reached."""
+    point, stage = res["point"], res["stage"]
+    mine = point == b
+    cons = np.flatnonzero(mine & (stage == "consolidation"))
+    if not len(cons):
+        return np.full(len(test.eps11), np.nan), np.full(len(test.eps11), np.nan)
+    cons = cons[-1]
+    shear = mine & (stage == "shear")
+    # the axial strain's magnitude since consolidation (increasing in extension too)
+    e = test.kind.sign * np.concatenate([[0.0], res["eps11"][shear] - res["eps11"][cons]])
+    q = np.interp(test.strain, e, np.concatenate([[res["q"][cons]], res["q"][shear]]))
+    ev = np.interp(test.strain, e, np.concatenate([[0.0], res["eps_v"][shear] - res["eps_v"][cons]]))
+    if dropped:
+        beyond = test.strain > e[-1]
+        q[beyond] = ev[beyond] = np.nan
+    return q, ev
 
 
 def reference_void_ratio(tests: Sequence[Test]) -> float:

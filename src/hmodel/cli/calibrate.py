@@ -19,6 +19,7 @@ from ..calibrate.report import write
 from ..errors import InputError
 from ..params import Params
 from ..solvers import get_solver
+from ..variants import get_variant
 from .options import out_folder, workers_opt
 from .progress import LazyProgress
 from .run import AzimuthsOpt, FabricOpt, OrderOpt, _points_3d, _solver_3d, _sphere
@@ -71,10 +72,13 @@ def calibrate(
     search_rule: Annotated[str, typer.Option(help="3D: Lebedev order and azimuths ORDER:AZIMUTHS of the multi-start search, whose best point is then refined at the model's rule (--order, --azimuths); none: search at the model's rule.")] = _DEFAULT_SEARCH,
     check: Annotated[Optional[str], typer.Option("--check", metavar="SOLVER", help="Run the tests again at the optimum with this cell solver (the cell a surrogate learned: closed-form, dem:...) and report how far the calibrated model lies from it (check.csv, calibration.json, dashed in fit.png).")] = None,
     check_tol: Annotated[Optional[float], typer.Option(help="--check: warn where the calibrated model misses the check solver by more than this fraction of peak q (default 0.02).")] = None,
+    model: Annotated[Optional[str], typer.Option("--model", help="The variant of the H-model (hmodel models): published (default), density (alias sand: each test from its own void ratio e0, which its --data must give).")] = None,
+    scheduler: Annotated[Optional[str], typer.Option(help="A Dask scheduler's address (tcp://host:8786): the least-squares starts run on its workers instead of --workers local processes (the same result).")] = None,
     out: out_folder("Output folder.") = Path("results/calibration"),
 ) -> None:
     """Fit the H-model to measured biaxial (2D) or triaxial (3D) tests (least squares from several
     starts, or Bayesian)."""
+    variant = get_variant(model)
     tests = [parse_data_spec(d) for d in data]
     dim = dimension([t.kind for t in tests])
     sphere = cells = None
@@ -113,10 +117,11 @@ def calibrate(
         cal = fit(tests, names, _bounds(bounds), base, method, cells, starts, seed, step,
                   iso_step, walkers=walkers, steps=steps, noise=Noise.parse(noise) if noise else None,
                   sphere=sphere, search_rule=_search_rule(search_rule), workers=workers,
-                  progress=progress)
+                  progress=progress, model=variant, scheduler=scheduler)
     checked = None
     if checker is not None:
-        checked = check_at(cal.tests, cal.params, cal.prediction, checker, step, iso_step, cal.sphere)
+        checked = check_at(cal.tests, cal.params, cal.prediction, checker, step, iso_step, cal.sphere,
+                           cal.variant, cal.e_ref)
     written = write(cal, out, checked)
     typer.echo(f"{_fitted_text(cal)}; objective {cal.cost:.3g} after {cal.evaluations} parameter sets "
                f"({len(cal.failures)} failed)")

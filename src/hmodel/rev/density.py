@@ -85,3 +85,14 @@ def alpha0_for_void_ratio(params: Params, dim: int, e0: float, e_ref: float) -> 
     if abs(e0 - e_ref) == 0:
         return params.alpha0
     return float(brentq(f, lo, loosest, xtol=1e-13, rtol=1e-13))
+
+
+def largest_alpha0(params: Params, dim: int, e_max: float, e_ref: float) -> float:
+    """The largest α0 [rad] at ``e_ref`` from which a specimen at ``e_max`` (>= ``e_ref``) is
+    still within the loosest cell: V0(α) = V0(loosest) (1 + e_ref) / (1 + e_max)."""
+    loosest = loosest_alpha0(params, dim)
+    target = initial_volume(params, dim, loosest) * (1 + e_ref) / (1 + max(e_max, e_ref))
+    lo = ALPHA_RANGE[0] + 1e-9
+    if initial_volume(params, dim, lo) >= target:
+        return lo
+    return float(brentq(lambda a: initial_volume(params, dim, a) - target, lo, loosest, xtol=1e-13))
