@@ -56,8 +56,37 @@ FILES = {
     "theta_in_3d.toml": "dim = 3\n[params]\nn_theta = 72\n" + ISO,
     "order_13.toml": "[sphere]\norder = 13\n" + ISO,
     "iso_3d.toml": "dim = 3\n" + ISO,
+    # files of the size cases below
+    "azimuths_1e9.toml": "[sphere]\nazimuths = 1000000000\n" + ISO,
+    "rows_2e6.toml": DRAINED + "eps11 = 0.01\nsteps = 2000000\n",
+    "long_stage_name.toml": ISO + '[[stage]]\nname = "' + "n" * 10_000 + '"\npreset = "drained"\neps11 = 0.01\n',
+    "long_block_name.toml": ISO + '[[stage]]\nrepeat = 2\nstages = [{name = "' + "n" * 201
+                            + '", preset = "drained", eps11 = 0.01}]\n',
+    "long_key.toml": ISO + "[[stage]]\n" + "k" * 10_000 + ' = 1\npreset = "drained"\neps11 = 0.01\n',
+    "long_param.toml": '[params]\nvolume = "' + "v" * 10_000 + '"\n' + ISO,
+    # files of the expression cases below
+    "expr_q_div0.toml": DRAINED + 'q = "p0 / (p0 - p0)"\n',
+    "expr_sig22_div0.toml": ISO + '[[stage]]\ncontrol = {eps11 = 0.01, sig22 = "p0 / (p0 - p0)", eps12 = 0}\n',
+    "expr_until_overflow.toml": DRAINED + 'q = "p0"\nuntil = "q >= 1e308 * 1e308"\n',
+    "expr_q_div0_3d.toml": "dim = 3\n[sphere]\norder = 9\nazimuths = 2\n" + DRAINED
+                           + 'q = "p0 / (p0 - p0)"\n',
+    "expr_sig22_div0_3d.toml": "dim = 3\n[sphere]\norder = 9\nazimuths = 2\n" + ISO
+                               + '[[stage]]\ncontrol = {eps11 = 0.01, sig22 = "p0 / (p0 - p0)", sig33 = "hold", '
+                                 'eps23 = 0, eps13 = 0, eps12 = 0}\n',
+    "expr_until_overflow_3d.toml": "dim = 3\n[sphere]\norder = 9\nazimuths = 2\n" + DRAINED
+                                   + 'q = "p0"\nuntil = "lode >= 1e308 * 1e308"\n',
+    "expr_abs.toml": DRAINED + 'eps11 = 0.01\nuntil = "q >= abs"\n',
+    # files of the output, file and option cases below
+    "bom_strain.csv": "\ufeffeps11,eps22\n0.001,abc\n",  # a spreadsheet's "CSV UTF-8": the header reads
+    "bom_test.csv": "\ufeffeps11,q\n0.001,abc\n0.002,3\n",
+    # files of the calibration cases below
+    "percent_small.csv": "eps11,q\n" + "".join(f"{0.01 * i:.2f},{1000 * i}\n" for i in range(1, 97)),
+    "q_kpa.csv": "eps11,q,eps_v\n" + "".join(f"{0.001 * i},{20 * i},{1e-4 * i}\n" for i in range(1, 20)),
+    "t3.csv": "eps_a,q,eps_v\n" + "".join(f"{0.001 * i},{2e4 * i},{1e-4 * i}\n" for i in range(1, 20)),
+    # files of the fem and failure-surface cases below
 }
 FAST = ["-p", "n_theta=12"]
+T3 = ["run", "triaxial", "--order", "9", "--azimuths", "2", "--axial-strain", "0.01"]
 CAL = ["calibrate", "--data", "drained:200kPa:test.csv", "--fit", "phi_g", "--starts", "1", *FAST]
 
 # (id, command line, exit status, a phrase of the message)
@@ -147,6 +176,140 @@ CASES = [
                                               "--out", "o"], 1, "--order N"),
     ("3D hexagon-consistent volume", ["run", "triaxial", "-p", "volume=hexagon-consistent", "--out", "o"], 1,
      "hexagon, rectangle, box for the 3D H-model"),
+    # sizes counted before anything is built
+    ("size: triaxial azimuths 1e23", ["run", "triaxial", "--order", "9", "--azimuths", "99999999999999999999999",
+                                      "--axial-strain", "0.01", "--out", "o"], 1,
+     "1.9e+24 bi-hexagons (Lebedev order 9) needs about"),
+    ("size: triaxial azimuths 1e9", ["run", "triaxial", "--order", "9", "--azimuths", "1000000000",
+                                     "--axial-strain", "0.01", "--out", "o"], 1,
+     "19,000,000,000 bi-hexagons (Lebedev order 9) needs about"),
+    ("size: program azimuths 1e9", ["run", "program", "azimuths_1e9.toml", "--out", "o"], 1,
+     "97,000,000,000 bi-hexagons (Lebedev order 23) needs about"),
+    ("size: triaxial 30,000 pressures", [*T3, "--p0", ",".join(f"{100 + i / 100:.2f}kPa" for i in range(30_000)),
+                                         "--out", "o"], 1,
+     "30,000 material points × 101 rows: a result table of 3.03e+06 rows exceeds the limit of 1e+06 rows"),
+    ("size: triaxial 40,000 friction angles", [*T3, "-p", "phi_g=" + ",".join(f"{20 + i / 2000:.4f}"
+                                                                              for i in range(40_000)),
+                                               "--out", "o"], 1, "a result table of 4.04e+06 rows exceeds"),
+    ("size: biaxial 40,000 friction angles", ["run", "biaxial", "-p", "phi_g=" + ",".join(
+        f"{20 + i / 2000:.4f}" for i in range(40_000)), "--out", "o"], 1, "a result table of 4e+07 rows exceeds"),
+    ("size: program of 2e6 increments", ["run", "program", "rows_2e6.toml", "--out", "o", *FAST], 1,
+     "the program's increments: a result table of 2e+06 rows exceeds the limit"),
+    ("size: program read from /dev/zero", ["run", "program", "/dev/zero", "--out", "o"], 1,
+     "is longer than 10,000,000 characters"),
+    ("size: stage name of 10,000 characters", ["run", "program", "long_stage_name.toml", "--out", "o", *FAST], 1,
+     "stage 2: name is 10,000 characters long; a name or text of a program has at most 200"),
+    ("size: cycle's stage name of 201 characters", ["run", "program", "long_block_name.toml", "--out", "o",
+                                                    *FAST], 1, "stage 2: stages 1: name is 201 characters"),
+    ("size: key of 10,000 characters", ["run", "program", "long_key.toml", "--out", "o", *FAST], 1,
+     "a key of stage 2 is 10,000 characters long"),
+    ("size: parameter text of 10,000 characters", ["run", "program", "long_param.toml", "--out", "o"], 1,
+     "params: volume is 10,000 characters long"),
+    ("size: triaxial probes 1e9", ["stability", "--test", "triaxial", "--order", "9", "--azimuths", "2",
+                                   "--axial-strain", "0.01", "--probes", "1000000000", "--out", "o"], 1,
+     "1,000,000,000 probes of 38 bi-hexagons needs about"),
+    ("size: biaxial probes 1e9", ["stability", "--axial-strain", "0.01", "--probes", "1000000000", "--out",
+                                  "o"], 1, "1,000,000,000 probes of"),
+    ("size: dem validate 3D steps 1e8", ["dem", "validate", "--dim", "3", "--steps", "100000000", "--out", "o"],
+     1, "increments per path (--steps): 1e+08 exceeds the limit"),
+    ("size: dem validate 3D steps 9e6", ["dem", "validate", "--dim", "3", "--steps", "9000000", "--out", "o"],
+     1, "7 DEM bi-hexagon paths of 9,000,000 increments (each run with and without cross contacts) needs"),
+    ("size: dem validate 2D steps 1e8", ["dem", "validate", "--steps", "100000000", "--out", "o"], 1,
+     "increments per path (--steps): 1e+08 exceeds the limit"),
+    ("size: dem validate 2D steps 9e6", ["dem", "validate", "--steps", "9000000", "--out", "o"], 1,
+     "4 DEM cell paths of 9,000,000 increments and 8 probes"),
+    ("size: dem validate 2D probes 1e9", ["dem", "validate", "--probes", "1000000000", "--out", "o"], 1,
+     "(8,000,000,004 cells in one YADE scene) needs"),
+    ("size: dem draw steps 1e9", ["dem", "draw", "--steps", "1000000000", "--out", "o"], 1,
+     "increments (--steps): 1e+09 exceeds the limit"),
+    ("size: dem sample spheres 1e9", ["dem", "sample", "--dim", "3", "--spheres", "1000000000", "--out", "o"], 1,
+     "a test of 1,000,000,000 spheres (--spheres) and 101 rows (--rows) needs"),
+    ("size: dem sample disks 1e9", ["dem", "sample", "--disks", "1000000000", "--out", "o"], 1,
+     "a test of 1,000,000,000 disks (--disks)"),
+    ("size: dem sample rows 1e9", ["dem", "sample", "--dim", "3", "--rows", "1000000000", "--out", "o"], 1,
+     "1,000,000,001 rows (--rows) needs"),
+    # program expressions that fail at run time
+    ("expression q = p0/(p0-p0)", ["run", "program", "expr_q_div0.toml", "--out", "o", *FAST], 1,
+     "q = 'p0 / (p0 - p0)' is not a finite stress at p0 = 200000.0 Pa (division by zero)"),
+    ("expression sig22 = p0/(p0-p0)", ["run", "program", "expr_sig22_div0.toml", "--out", "o", *FAST], 1,
+     "sig22 = 'p0 / (p0 - p0)' is not a finite stress at p0 = 200000.0 Pa (division by zero)"),
+    ("expression 1e308 * 1e308", ["run", "program", "expr_until_overflow.toml", "--out", "o", *FAST], 1,
+     "1e+308 * 1e+308 is not a finite number (overflow)"),
+    ("expression q = p0/(p0-p0), 3D", ["run", "program", "expr_q_div0_3d.toml", "--out", "o"], 1,
+     "q = 'p0 / (p0 - p0)' is not a finite stress at p0 = 200000.0 Pa (division by zero)"),
+    ("expression sig22 = p0/(p0-p0), 3D", ["run", "program", "expr_sig22_div0_3d.toml", "--out", "o"], 1,
+     "sig22 = 'p0 / (p0 - p0)' is not a finite stress"),
+    ("expression 1e308 * 1e308, 3D", ["run", "program", "expr_until_overflow_3d.toml", "--out", "o"], 1,
+     "(overflow)"),
+    ("expression q = p0/(p0-p0), stability", ["stability", "--program", "expr_q_div0.toml", "--out", "o", *FAST],
+     1, "(division by zero)"),
+    ("expression sig22 = p0/(p0-p0), stability", ["stability", "--program", "expr_sig22_div0.toml", "--out", "o",
+                                                  *FAST], 1, "(division by zero)"),
+    ("expression q = p0/(p0-p0), stability 3D", ["stability", "--program", "expr_q_div0_3d.toml", "--out", "o"],
+     1, "(division by zero)"),
+    ("expression sig22 = p0/(p0-p0), stability 3D", ["stability", "--program", "expr_sig22_div0_3d.toml",
+                                                     "--out", "o"], 1, "(division by zero)"),
+    ("expression abs uncalled", ["run", "program", "expr_abs.toml", "--out", "o", *FAST], 1,
+     "abs is a function: abs(x)"),
+    # outputs, files and options
+    ("out a dangling link, triaxial", ["run", "triaxial", "--order", "9", "--azimuths", "2", "--axial-strain",
+                                       "0.01", "--out", "dangling"], 1, "'dangling' is a dangling symbolic link"),
+    ("out a looping link, triaxial", ["run", "triaxial", "--out", "loop"], 1, "'loop' is a looping symbolic link"),
+    ("out under a dangling link", ["run", "iso", *FAST, "--out", "dangling/x"], 1, "'dangling' is a dangling"),
+    ("out a dangling link, fem", ["fem", "biaxial", "--out", "dangling"], 1, "is a dangling symbolic link"),
+    ("out a looping link, fem", ["fem", "biaxial", "--out", "loop"], 1, "is a looping symbolic link"),
+    ("out a dangling link, calibrate", [*CAL, "--out", "dangling"], 1, "is a dangling symbolic link"),
+    ("out a looping link, calibrate", [*CAL, "--out", "loop"], 1, "is a looping symbolic link"),
+    ("out a dangling link, model file", ["surrogate", "trust", MODEL, "nowhere", "--out", "dangling"], 1,
+     "is a dangling symbolic link"),
+    ("BOM strain path", ["run", "strain-path", "bom_strain.csv", "--out", "o"], 1, "line 2: 'abc' is not a number"),
+    ("BOM calibration data", ["calibrate", "--data", "drained:200kPa:bom_test.csv", "--out", "o"], 1,
+     "line 2: column q must be a number"),
+    ("strain path a folder", ["run", "strain-path", "folder.safetensors", "--out", "o"], 1, "is a folder"),
+    ("strain path /dev/zero", ["run", "strain-path", "/dev/zero", "--out", "o"], 1, "longer than 1,048,576"),
+    ("solver surrogate:", ["run", "iso", *FAST, "--solver", "surrogate:", "--out", "o"], 1,
+     "'surrogate:' names nothing after a colon"),
+    ("solver surrogate:+", ["run", "iso", *FAST, "--solver", "surrogate:+", "--out", "o"], 1,
+     "a model reference is empty"),
+    ("solver dem:", ["run", "iso", *FAST, "--solver", "dem:", "--out", "o"], 1, "names nothing after a colon"),
+    ("solver surrogate:, calibrate", [*CAL, "--solver", "surrogate:", "--out", "o"], 1,
+     "names nothing after a colon"),
+    ("evaluate an empty model", ["surrogate", "evaluate", "", "--data", "nowhere", "--out", "o"], 1,
+     "a model reference is empty"),
+    ("model file a folder", ["run", "iso", *FAST, "--solver", "surrogate:folder.safetensors", "--out", "o"], 1,
+     "model file 'folder.safetensors' is a folder"),
+    ("model file /dev/zero", ["run", "iso", *FAST, "--solver", "surrogate:/dev/zero", "--out", "o"], 1,
+     "model file '/dev/zero' is not a regular file"),
+    ("evaluate model /dev/zero", ["surrogate", "evaluate", "/dev/zero", "--data", "nowhere", "--out", "o"], 1,
+     "is not a regular file"),
+    ("workers 0, calibrate", [*CAL, "--workers", "0", "--out", "o"], 2, "'--workers'"),
+    ("workers -1, data generate", ["data", "generate", "2", "--workers", "-1", "--out", "o"], 2, "'--workers'"),
+    ("undrained extension, dem sample", ["dem", "sample", "--dim", "3", "--undrained", "--extension", "--out", "o"],
+     1, "drained and undrained compression and drained extension"),
+    # calibration
+    ("calibrate 3D family bounds outside its domain", ["calibrate", "--data", "triaxial-drained:200kPa:t3.csv",
+                                                       "--solver", "surrogate:family", "--fit", "phi_g",
+                                                       "--bounds", "phi_g=5:60", "--out", "o"], 1,
+     "--bounds phi_g=5:60 reaches outside the model's training domain (10–45°)"),
+    ("calibrate strains in percent under 1", ["calibrate", "--data", "drained:200kPa:percent_small.csv",
+                                              "--out", "o"], 1, "eps11 reaches 0.96, half the specimen's height"
+                                                                " or more: that looks like a percentage"),
+    ("calibrate q in kPa", ["calibrate", "--data", "drained:200kPa:q_kpa.csv", "--out", "o"], 1,
+     "q_kpa: q peaks at 380 Pa, 0.0019 of p0 = 200 kPa: that looks like kPa"),
+    ("calibrate p0 without unit", ["calibrate", "--data", "triaxial-drained:100:t3.csv", "--out", "o"], 1,
+     "p0 100 has no unit and would be 100 Pa: give its unit (100kPa"),
+    # fem and failure surface
+    ("failure surface step 1e-9", ["failure-surface", "--step", "1e-9", "--max-strain", "0.9", "--out", "o"], 1,
+     "increments of each ray (max_strain 0.9 in steps of 1e-09): 9e+08 exceeds the limit"),
+    ("failure surface 5000 Lode angles", ["failure-surface", "--lode", ",".join(f"{60 * i / 5000:.4f}" for i in
+                                          range(1, 5001)), "--out", "o"], 1, "5001 Lode angles (with 0): at most 61"),
+    ("failure surface rays times increments", ["failure-surface", "--lode", ",".join(str(i) for i in range(61)),
+                                           "--step", "1e-6", "--out", "o"], 1,
+     "increments of the failure surface (61 rays × 300000): 1.83e+07 exceeds the limit"),
+    ("fem nonlocal ell 1e9", ["fem", "biaxial", "--regularization", "nonlocal:ell=1e9", "--out", "o"], 1,
+     "ell = 1e+09 m exceeds the largest dimension of the 0.05 x 0.1 m domain"),
+    ("fem footing ell above the layer", ["fem", "footing", "--regularization", "nonlocal:ell=2", "--out", "o"], 1,
+     "exceeds the largest dimension of the 1 x 0.5 m domain (1 m)"),
 ]
 
 
@@ -158,6 +321,8 @@ def _prepare(folder: Path) -> None:
     for name, content in FILES.items():
         (folder / name).write_bytes(content if isinstance(content, bytes) else content.encode())
     (folder / "folder.safetensors").mkdir()
+    (folder / "dangling").symlink_to("nowhere")
+    (folder / "loop").symlink_to("loop")
 
 
 def run_case(args, folder: Path, capsys) -> tuple[int, str, set[str]]:
@@ -311,6 +476,115 @@ def test_rev_guard_counts_points_directions_and_the_solvers_bytes(monkeypatch):
         rev.initial(5)
 
 
+def test_rev3d_guard_counts_its_geometry_before_building_it(monkeypatch):
+    """A 3D REV's estimate is its geometry (cells × GEOMETRY_BYTES_PER_CELL) and its sets' cells
+    (× the solver's bytes per cell), checked before the frames are built: at the budget it is
+    built, a byte less is refused and no frame is made."""
+    from hmodel.cell.bihex import BiHexSolver
+    from hmodel.rev import Rev3D, Sphere
+    from hmodel.rev.rev3d import GEOMETRY_BYTES_PER_CELL
+
+    sphere = Sphere(order=9, n_azimuth=2)  # 38 bi-hexagons
+    budget = 38 * (GEOMETRY_BYTES_PER_CELL + BiHexSolver().bytes_per_cell)
+    monkeypatch.setenv("HMODEL_MEMORY_LIMIT", str(budget))
+    Rev3D(Params(), sphere)
+    monkeypatch.setenv("HMODEL_MEMORY_LIMIT", str(budget - 1))
+    monkeypatch.setattr(Sphere, "frames", lambda self: pytest.fail("frames built before the guard"))
+    with pytest.raises(WorkTooLarge, match="1 material point × 38 bi-hexagons"):
+        Rev3D(Params(), sphere)
+
+
+@pytest.mark.parametrize("test", ["biaxial", "triaxial"])
+def test_rows_guard_counts_the_table_before_the_run(monkeypatch, test):
+    """A test's table has points × (increments + 1) rows known before it runs (its consolidation
+    counts its final row; its increments are counted as they are recorded): at the limit the run
+    starts and the recorder refuses the consolidation's rows past it, one row less is refused
+    before anything is built. Their memory (rows × columns × TABLE_BYTES_PER_VALUE) counts with
+    the cells': at that budget the test runs, a byte less is refused."""
+    from hmodel.cell.bihex import BiHexSolver
+    from hmodel.limits import TABLE_BYTES_PER_VALUE
+    from hmodel.loading import run_biaxial, run_triaxial
+    from hmodel.loading.result import columns_for
+    from hmodel.rev import Sphere
+
+    if test == "biaxial":
+        params, cells, columns = Params(n_theta=12), 12 * ClosedFormSolver.bytes_per_cell, columns_for(3)
+        run = lambda: run_biaxial(params, [1e5, 2e5, 3e5], 0.001)  # noqa: E731
+    else:
+        sphere = Sphere(order=3, n_azimuth=1)  # 3 bi-hexagons
+        params, cells, columns = Params(sliding_rhs="equilibrium"), 3 * BiHexSolver().bytes_per_cell, columns_for(6)
+        run = lambda: run_triaxial(params, [1e5, 2e5, 3e5], 0.001, sphere=sphere)  # noqa: E731
+    rows = 3 * (10 + 1)  # 0.001 in increments of 1e-4
+    monkeypatch.setenv("HMODEL_MAX_ROWS", str(rows))
+    with pytest.raises(WorkTooLarge, match="the rows recorded so far"):
+        run()
+    monkeypatch.setenv("HMODEL_MAX_ROWS", str(rows - 1))
+    with pytest.raises(WorkTooLarge, match=f"3 material points × 11 rows: a result table of {rows} rows exceeds"):
+        run()
+    monkeypatch.delenv("HMODEL_MAX_ROWS")
+    budget = 3 * cells + rows * len(columns) * TABLE_BYTES_PER_VALUE
+    monkeypatch.setenv("HMODEL_MEMORY_LIMIT", str(budget))
+    assert len(run()) > rows
+    monkeypatch.setenv("HMODEL_MEMORY_LIMIT", str(budget - 1))
+    with pytest.raises(WorkTooLarge, match=f"3 material points .* and a result table of {rows} rows needs"):
+        run()
+
+
+def test_rows_guard_counts_a_programs_increments(monkeypatch):
+    from hmodel.loading import Program
+
+    table = {"stage": [{"preset": "iso", "p": "200kPa"}, {"preset": "drained", "eps11": 0.01, "steps": 50},
+                       {"repeat": 3, "stages": [{"preset": "drained", "eps11": -0.001, "steps": 10}]}]}
+    monkeypatch.setenv("HMODEL_MAX_ROWS", str(1 + 50 + 30))
+    assert Program.from_dict(table).n_increments == 81
+    monkeypatch.setenv("HMODEL_MAX_ROWS", str(80))
+    with pytest.raises(WorkTooLarge, match="a result table of 81 rows exceeds the limit of 80 rows"):
+        Program.from_dict(table)
+
+
+def test_memory_guard_default_follows_the_address_space_limit(monkeypatch):
+    """Under ``ulimit -v`` an allocation fails however much memory is free: the default budget is
+    then half the address space left, when that is less than the available memory."""
+    import resource
+
+    import hmodel.limits as limits
+
+    monkeypatch.setattr(limits, "available_memory", lambda: 2**50)
+    real = resource.getrlimit
+    vm = int(next(line for line in open("/proc/self/status") if line.startswith("VmSize:")).split()[1]) * 1024
+    monkeypatch.setattr(resource, "getrlimit", lambda which: (vm + 2**30, resource.RLIM_INFINITY)
+                        if which == resource.RLIMIT_AS else real(which))
+    limit, source = limits.memory_limit(env={})
+    assert 0 < limit <= 2**29 and "address space left under ulimit -v" in source
+    with pytest.raises(WorkTooLarge, match="address space"):
+        check_memory(2**29 + 1, "a request", env={})
+
+
+@pytest.mark.parametrize("cause", [MemoryError(), SystemError("returned a result with an exception set")])
+def test_out_of_memory_inside_a_compiled_kernel_is_one_line(tmp_path, monkeypatch, capsys, cause):
+    """An allocation that fails inside a Numba kernel reaches Python as a SystemError caused by a
+    MemoryError (or as the MemoryError itself): one line; another SystemError is a bug."""
+    import hmodel.loading.compiled as compiled
+
+    def kernel(*args):
+        if isinstance(cause, MemoryError):
+            raise MemoryError("Allocation failed (probably too large).")
+        raise SystemError("CPUDispatcher(<function _iso_steps>) returned a result with an exception set") \
+            from MemoryError("Allocation failed (probably too large).")
+
+    monkeypatch.setattr(compiled, "_run_iso_steps", kernel)
+    code, err, added = run_case([*T3, "--order", "3", "--azimuths", "1", "--out", "o"], tmp_path, capsys)
+    assert code == 1 and err.startswith("hmodel: error: out of memory") and err.count("\n") == 1, err
+    assert not added
+
+    def bug(*args):
+        raise SystemError("a bug")
+
+    monkeypatch.setattr(compiled, "_run_iso_steps", bug)
+    with pytest.raises(SystemError, match="a bug"):
+        main([*T3, "--order", "3", "--azimuths", "1", "--out", str(tmp_path / "never")])
+
+
 class AlwaysFails(ClosedFormSolver):
     """A cell solver for which no parameter set can be run."""
 
@@ -417,3 +691,90 @@ def test_random_calibration_data(tmp_path_factory, capsys, bounded, header, rows
     (folder / "d.csv").write_text("\n".join([",".join(header)] + [",".join(r) for r in rows]) + "\n")
     _contract(*run_case(["calibrate", "--data", "drained:200kPa:d.csv", "--fit", "phi_g", "--starts", "1",
                          "--out", "o", *FAST], folder, capsys))
+
+
+# ---------------------------------------------------------------- expressions not a number at run time
+
+_SMALL_3D = "dim = 3\n[sphere]\norder = 9\nazimuths = 2\n"
+
+
+@pytest.mark.parametrize("until", ["q >= p0 / (p0 - p0)", "q >= (p0 - p0) / (p0 - p0)"])
+@pytest.mark.parametrize("head, fast", [("", FAST), (_SMALL_3D, [])], ids=["2D", "3D"])
+def test_a_criterion_that_is_not_a_number_is_not_met(tmp_path, capsys, head, fast, until):
+    """``until = "q >= p0 / (p0 - p0)"`` used to be a ZeroDivisionError traceback: the criterion
+    is never met, so the stage runs through and the result is the one without it."""
+    stage = DRAINED + "eps11 = 0.002\nsteps = 5\n"
+    (tmp_path / "plain.toml").write_text(head + stage)
+    (tmp_path / "until.toml").write_text(head + stage + f'until = "{until}"\n')
+    for name in ("plain", "until"):
+        code, err, _ = run_case(["run", "program", f"{name}.toml", "--out", name, *fast], tmp_path, capsys)
+        assert code == 0, err
+    assert (tmp_path / "until" / "result.csv").read_bytes() == (tmp_path / "plain" / "result.csv").read_bytes()
+    code, err, added = run_case(["stability", "--program", "until.toml", "--out", "s", *fast], tmp_path, capsys)
+    assert code == 0 and "s/summary.csv" in added, err
+
+
+# ---------------------------------------------------------------- random 3D programs (Hypothesis)
+
+# mostly values that run, so that the runs are reached; now and then anything
+_often = st.integers(0, 3)
+_strain3 = _often.flatmap(lambda k: st.sampled_from([0, 0.0, 0.001, -0.001, 0.005]) if k else
+                          st.floats(allow_nan=True, allow_infinity=True))
+_stress3 = _often.flatmap(lambda k: st.sampled_from(["hold", "p0", "0.5 * p0", "200kPa", 150000.0, "1.2 * p0"]) if k
+                          else st.one_of(st.sampled_from(["p0 / (p0 - p0)", "(p0 - p0) / (p0 - p0)",
+                                                          "p0 * 1e308 * 10", True]), _expression))
+_shear3 = {c: st.one_of(st.just((f"eps{c}", 0)), st.tuples(st.just(f"eps{c}"), _strain3),
+                        st.tuples(st.just(f"sig{c}"), _stress3)) for c in ("23", "13", "12")}
+_normal3 = {c: st.one_of(st.tuples(st.just(f"eps{c}"), _strain3), st.tuples(st.just(f"sig{c}"), _stress3))
+            for c in ("11", "22", "33")}
+# a row of a combination in place of a normal component's, or a seventh row
+_combination3 = st.tuples(st.sampled_from(["p", "q", "eps_v", "b", "sig22-sig33", "eps22-eps33", "eps12", "bogus"]),
+                          st.one_of(_stress3, _strain3, st.sampled_from([0.5, 1.5, -1])))
+
+
+def _control_table(rows, combination, slot) -> dict:
+    rows = list(rows)
+    if combination is not None:
+        if slot is None:
+            rows.append(combination)
+        else:
+            rows[slot] = combination
+    return dict(rows)
+
+
+_control3 = st.tuples(st.tuples(*_normal3.values(), *_shear3.values()), st.none() | _combination3,
+                      st.sampled_from([None, 1, 2])).map(lambda t: _control_table(*t))
+_criterion3 = st.tuples(st.sampled_from(["q", "p", "eps33", "sig33", "q_eq", "lode", "b", "eps23", "p0", "theta"]),
+                        st.sampled_from([">=", "<", "<="]), _expression).map(" ".join)
+_options3 = {"steps": st.sampled_from([1, 3, 10, 0, 10**25]), "until": _criterion3,
+             "max_increment": st.floats(allow_nan=True, allow_infinity=True), "name": st.text(max_size=8),
+             "stop_on_failure": st.booleans()}
+_stage3 = st.one_of(
+    st.fixed_dictionaries({"control": _control3}, optional=_options3),
+    st.fixed_dictionaries({"control": _control3, "steps": st.sampled_from([1, 3, 10])}),
+    st.fixed_dictionaries({"preset": st.sampled_from(["drained", "undrained", "oedometric", "constant_p",
+                                                      "true_triaxial", "proportional", "iso", "spin"])},
+                          optional={"eps11": _strain3, "q": _stress3, "b": st.sampled_from([0.0, 0.5, 1.5]),
+                                    "direction": st.lists(_strain3, max_size=6), "magnitude": _strain3, **_options3}),
+    _stage)
+_sphere3 = st.fixed_dictionaries({"order": st.sampled_from([9] * 6 + [3, 13])},
+                                 optional={"azimuths": st.sampled_from([2, 2, 2, 1, 0]),
+                                           "alpha_omega": st.sampled_from([0.0, 0.3, -0.5, 1.5])})
+
+
+def _toml_inline(v) -> str:
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{_toml_value(str(k))} = {_toml_inline(x)}" for k, x in v.items()) + "}"
+    return _toml_value(v)
+
+
+@settings(_RANDOM, max_examples=25)
+@given(sphere=_sphere3, stages=st.lists(_stage3, min_size=0, max_size=3), dim=st.sampled_from([3] * 7 + [2]))
+@pytest.mark.slow
+def test_random_3d_programs(tmp_path_factory, capsys, bounded, sphere, stages, dim):
+    folder = tmp_path_factory.mktemp("toml3d")
+    text = f"dim = {dim}\n[sphere]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in sphere.items())
+    for s in [{"preset": "iso", "p": "200kPa"}] + stages:
+        text += "[[stage]]\n" + "".join(f"{k} = {_toml_inline(v)}\n" for k, v in s.items())
+    (folder / "p.toml").write_text(text)
+    _contract(*run_case(["run", "program", "p.toml", "--out", "o"], folder, capsys))

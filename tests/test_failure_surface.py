@@ -181,3 +181,89 @@ def test_compression_peak_against_an_independent_constant_p_triaxial_test():
     res = rec.result()
     assert res["q_eq"].max() / 200e3 == pytest.approx(fs.ratio[0], rel=1e-4)
     assert res["eps11"][np.argmax(res["q_eq"])] == pytest.approx(fs.strain[0, 0], abs=2e-4)
+
+
+# -- sizes and the tension cut-off ---------------------------------------------------------------
+
+def _no_rev(*args, **kwargs):
+    raise AssertionError("the REV was built before the request was checked")
+
+
+def test_increments_and_rays_are_counted_before_anything_is_built(monkeypatch):
+    import hmodel.failure_surface as fsm
+    from hmodel.limits import WorkTooLarge
+
+    monkeypatch.setattr(fsm, "Rev3D", _no_rev)
+    with pytest.raises(WorkTooLarge, match=r"increments of each ray .*: 9e\+08 exceeds the limit"):
+        failure_surface(Params(), 2e5, [0], step=1e-9, max_strain=0.9)
+    # each ray within the limit, the rays together not: 4 rays × 300 increments
+    monkeypatch.setenv("HMODEL_MAX_INCREMENTS", "1000")
+    with pytest.raises(WorkTooLarge, match=r"failure surface \(4 rays × 300\): 1\.2e\+03 exceeds the limit of 1e\+03"):
+        failure_surface(Params(), 2e5, [0, 13, 30, 60], max_strain=0.03)
+    with pytest.raises(AssertionError, match="the REV was built"):  # 3 rays × 300 pass
+        failure_surface(Params(), 2e5, [0, 30, 60], max_strain=0.03)
+    monkeypatch.delenv("HMODEL_MAX_INCREMENTS")
+    # the paths' table: 4 rays × (3000 + 2) rows, against the rows limit and, of 26 columns
+    # (limits.table_bytes: 12.5 MB), against the memory limit
+    monkeypatch.setenv("HMODEL_MAX_ROWS", "12000")
+    with pytest.raises(WorkTooLarge, match=r"paths \(4 rays × 3002 rows\): a result table of 1\.2e\+04 rows"):
+        failure_surface(Params(), 2e5, [0, 13, 30, 60])
+    monkeypatch.delenv("HMODEL_MAX_ROWS")
+    monkeypatch.setenv("HMODEL_MEMORY_LIMIT", "10MB")
+    with pytest.raises(WorkTooLarge, match=r"paths \(12008 rows\) needs about 11\.9 MiB of memory"):
+        failure_surface(Params(), 2e5, [0, 13, 30, 60])
+    monkeypatch.setenv("HMODEL_MEMORY_LIMIT", "20MB")
+    with pytest.raises(AssertionError, match="the REV was built"):
+        failure_surface(Params(), 2e5, [0, 13, 30, 60])
+
+
+def test_the_number_of_lode_angles_is_bounded():
+    from hmodel.failure_surface import MAX_LODE_ANGLES
+    from hmodel.limits import WorkTooLarge
+
+    assert len(check_lode(np.linspace(0.0, 60.0, MAX_LODE_ANGLES))) == MAX_LODE_ANGLES
+    assert len(check_lode([30.0] * 5000)) == 2  # repeated angles are one ray
+    with pytest.raises(WorkTooLarge, match=f"5001 Lode angles \\(with 0\\): at most {MAX_LODE_ANGLES}"):
+        check_lode(np.linspace(0.0, 60.0, 5001)[1:])
+
+
+def test_a_ray_on_the_tension_cut_off_has_no_peak(tmp_path, capsys):
+    """A strong fabric along axis 1 with one azimuth: on the rays at 30° and 60° σ3 falls to 0
+    and stays there (q_eq/p = -3 / (2 cos θ3), φ = 90°). Those rays end there, soon, with no
+    friction angle or strength ratio, and say so in the CSV, the JSON and a warning."""
+    import json
+
+    from hmodel.cli.app import main
+    from hmodel.failure_surface import CHUNK, TENSION
+
+    sphere = Sphere(order=9, n_azimuth=1, alpha_omega=1.0, axis=(1.0, 0.0, 0.0))
+    fs = failure_surface(Params(sliding_rhs="equilibrium"), 200e3, [30.0, 60.0], sphere=sphere)
+    assert fs.ended == ("past peak", "tension cut-off", "tension cut-off")
+    assert fs.peak.tolist() == [True, False, False]
+    assert np.isfinite(fs.phi[0]) and np.all(np.isnan(fs.phi[1:])) and np.all(np.isnan(fs.ratio[1:]))
+    assert math.isnan(fs.strength_ratio) and math.isnan(fs.phi_extension)
+    P = fs.paths
+    for i, t in ((1, 30.0), (2, 60.0)):
+        ray = (P["point"] == i) & (P["stage"] == "ray")
+        minor = np.column_stack([P["sig11"], P["sig22"], P["sig33"]])[ray].min(axis=1)
+        # the path stops at its first state on the cut-off, within a chunk of reaching it
+        assert minor[-1] <= TENSION * 200e3 and np.all(minor[:-1] > TENSION * 200e3)
+        assert ray.sum() < 3000 - CHUNK
+        q = P["q_eq"][ray][-1] / 200e3
+        assert q == pytest.approx(-1.5 / math.cos(math.radians(t) + 2 * math.pi / 3), rel=2e-3)
+    out = tmp_path / "fs"
+    assert main(["failure-surface", "--fabric", "1", "--lode", "30,60", "--order", "9", "--azimuths", "1",
+                 "--out", str(out)]) == 0
+    printed = capsys.readouterr()
+    assert "Lode  30.0°: no peak, σ3 fell to 0 (tension cut-off)" in printed.out
+    assert "strength ratio: none" in printed.out
+    assert printed.err.startswith("hmodel: warning: Lode 30°, 60°: the path reached the tension cut-off")
+    assert printed.err.count("\n") == 1
+    rows = (out / "failure_surface.csv").read_text().splitlines()
+    header = rows[0].split(",")
+    cut = dict(zip(header, rows[2].split(",")))
+    assert cut["phi"] == cut["q_p"] == "" and cut["peak"] == "false" and cut["ended"] == "tension cut-off"
+    assert dict(zip(header, rows[1].split(",")))["peak"] == "true"
+    info = json.loads((out / "failure_surface.json").read_text())
+    assert info["phi"][1:] == [None, None] and info["strength_ratio"] is None
+    assert info["peak"] == [True, False, False] and len(info["warnings"]) == 1

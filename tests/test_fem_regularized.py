@@ -31,6 +31,8 @@ class BilinearSoftening:
     so that d sig / d eps = -H while loading); elastic unloading. Components 22 and 12 are
     linear elastic (E) and uncoupled, so that a strip loaded along 11 is a 1D bar."""
 
+    state = None  # no cells
+
     def __init__(self, fy: np.ndarray, E: float, H: float):
         self.E, self.fy, self.Hp = E, fy, E * H / (E + H)
         n = len(fy)
@@ -258,3 +260,38 @@ def test_a_smooth_wave_gets_the_derived_gradient_stiffness(m):
         errors.append(np.abs(extra - exact).max() / np.abs(exact).max())
     assert errors[1] < 0.035
     assert 1.8 < errors[0] / errors[1] < 2.2  # converging to the derived value, not beside it
+
+
+def test_an_ell_longer_than_the_specimen_is_refused_before_any_work():
+    """ell = 1e9 m made the Helmholtz rows singular to double precision: the run "stopped early"
+    at step 1 with exit 0. A length above the domain's largest dimension is refused, naming
+    both; up to it the regularization is accepted."""
+    from hmodel.fem import Domain
+    from hmodel.fem.regularization import check_length
+
+    domain = Domain(0.05, 0.1, 1, 2)
+    check_length(parse_regularization("nonlocal:ell=0.1"), domain)
+    check_length(parse_regularization("local"), domain)
+    with pytest.raises(InputError, match=r"ell = 1e\+09 m exceeds the largest dimension of the 0.05 x 0.1 m "
+                                         r"domain \(0.1 m\)"):
+        biaxial(SMOOTH, 2e5, 0.01, mesh=(1, 2), n_steps=1, regularization="nonlocal:ell=1e9")
+
+
+def test_a_run_with_no_converged_load_step_is_an_error(tmp_path, capsys, monkeypatch):
+    """Only the consolidated state: nothing to report, exit 1 and no output folder (a run that
+    stops later keeps its converged steps and exits 0 with a warning)."""
+    import hmodel.fem
+    from hmodel.fem import Domain, FemResult
+
+    def stopped_at_once(*args, **kwargs):
+        return FemResult("biaxial", Domain(0.05, 0.1, 1, 2), ("step",), {"step": np.array([0])}, [], [],
+                         np.zeros((2, 0)), np.zeros(0), {"gauss_points": 4, "seconds": 0.0},
+                         "step 1 did not converge at axial strain 0 with the step cut 6 times")
+
+    monkeypatch.setattr(hmodel.fem, "biaxial", stopped_at_once)
+    out = tmp_path / "o"
+    assert main(["fem", "biaxial", "--mesh", "1x2", "-p", "n_theta=12", "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err == ("hmodel: error: no load step converged, nothing written: step 1 did not converge at axial "
+                   "strain 0 with the step cut 6 times\n")
+    assert not out.exists()

@@ -32,7 +32,14 @@ or where Newton fails (the limit state under this control, or a cell event it ca
 with ``sliding_rhs="report"`` a cell sliding with T1 < 0 loses its contact at once and the
 stress jumps, see :class:`hmodel.params.Params`): the peak is the largest q_eq among the
 converged states, and ``FailureSurface.ended`` says which ending it was. The model's
-extension side may have no peak at all before the minor stress vanishes (docs/model3d.md).
+extension side may have no peak at all before the minor stress vanishes (docs/model3d.md):
+a path whose minor stress falls to :data:`TENSION` p ends there, on the **tension cut-off**
+(q_eq/p = -3 / (2 cos θ_3) on the ray, φ = 90° whatever the material), with no peak, no
+friction angle and no strength ratio (NaN), rather than sitting on σ3 = 0 to ``max_strain``.
+
+**Sizes.** A surface is at most :data:`MAX_LODE_ANGLES` rays, and its increments (rays ×
+``max_strain``/``step``) and the rows of its paths' table (and their memory) are counted by the
+work-size guard (:mod:`hmodel.limits`) before anything is built.
 
 The segment's row matrix is shared by all points of a batch (:class:`hmodel.loading.control.Control`),
 and here it depends on θ, so each angle is its own segment on one material point; every angle
@@ -58,8 +65,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import InputError
+from .limits import WorkTooLarge, check_count, check_memory, check_rows, steps_for, table_bytes
 from .loading.named_paths import consolidate
-from .loading.result import PathResult, Recorder, lode_b
+from .loading.result import PathResult, Recorder, columns_for, lode_b
 from .loading.segment import Segment, run_segment
 from .params import Params
 from .rev import Rev3D, Sphere
@@ -76,6 +84,15 @@ PAST_PEAK = 0.01
 #: ... and ε_s grew this much since that maximum (cell events make q_eq jump down and recover
 #: within a few increments: a drop alone is no peak).
 BEYOND = 0.02
+#: A path is on the tension cut-off once its minor principal stress is at most this fraction of
+#: p (φ within 3° of 90°): the stress cannot leave its ray further without tension.
+TENSION = 1e-3
+#: Most Lode angles of one surface: one a degree over [0°, 60°] (each is a path of its own, and a
+#: finer π-plane shows nothing more).
+MAX_LODE_ANGLES = 61
+#: How a path ends with a peak (the largest q_eq of the converged states); ``max strain``: none
+#: yet (a lower bound), ``tension cut-off``: none (σ3 reached 0 first).
+PEAK_ENDINGS = ("past peak", "newton")
 
 _SHIFTS = np.array([0.0, -2.0 * math.pi / 3.0, 2.0 * math.pi / 3.0])
 
@@ -230,20 +247,23 @@ class FailureSurface:
     lode : ndarray (N,)
         Lode angles of the paths [deg], ascending (0 is always among them: the fits need it).
     q_peak : ndarray (N,)
-        Peak q_eq = sqrt(3 J2) [Pa].
+        Peak q_eq = sqrt(3 J2) [Pa]; NaN for a path that ended on the tension cut-off.
     ratio : ndarray (N,)
         q_peak / p.
     phi : ndarray (N,)
-        Mobilized Mohr–Coulomb friction angle at the peak [deg], sin φ = (σ1 - σ3)/(σ1 + σ3).
+        Mobilized Mohr–Coulomb friction angle at the peak [deg], sin φ = (σ1 - σ3)/(σ1 + σ3);
+        NaN on the tension cut-off (there σ3 = 0 and φ = 90° for any material).
     principal : ndarray (N, 3)
-        σ11, σ22, σ33 at the peak [Pa] (major, intermediate, minor).
+        σ11, σ22, σ33 at the peak [Pa] (major, intermediate, minor); on the tension cut-off,
+        where the path ended.
     strain : ndarray (N, 6)
         Strain at the peak (11, 22, 33, 23, 13, 12).
     lode_reached, b_reached : ndarray (N,)
         Lode angle [deg] and b of the peak stress (the path's, to Newton's tolerance).
     ended : tuple of str
-        How each path ended: ``past peak``, ``newton`` (the last converged state kept) or
-        ``max strain`` (no peak before ``max_strain``: ``q_peak`` is a lower bound).
+        How each path ended: ``past peak``, ``newton`` (the last converged state kept),
+        ``max strain`` (no peak before ``max_strain``: ``q_peak`` is a lower bound) or
+        ``tension cut-off`` (σ3 fell to :data:`TENSION` p: no peak).
     paths : PathResult
         Every state of every path (``point`` = the index of its angle; stage ``ray``).
     meta : dict
@@ -264,8 +284,13 @@ class FailureSurface:
     meta: dict = field(default_factory=dict)
 
     @property
+    def peak(self) -> np.ndarray:
+        """Whether each path reached its peak (ended ``past peak`` or ``newton``)."""
+        return np.array([e in PEAK_ENDINGS for e in self.ended], bool)
+
+    @property
     def ratio_compression(self) -> float:
-        """M_c: the peak q_eq/p at θ = 0."""
+        """M_c: the peak q_eq/p at θ = 0 (NaN where that path ended on the tension cut-off)."""
         return float(self.ratio[np.flatnonzero(self.lode == 0.0)[0]])
 
     @property
@@ -299,6 +324,8 @@ class FailureSurface:
         """q_eq/p of the three criteria fitted at θ = 0, at ``lode_deg`` (default the paths'
         angles): ``mohr_coulomb``, ``matsuoka_nakai``, ``lade_duncan``."""
         t = self.lode if lode_deg is None else np.asarray(lode_deg, float)
+        if not math.isfinite(self.ratio_compression):  # no compression peak: nothing to fit
+            return {k: np.full(np.shape(t), math.nan) for k in ("mohr_coulomb", "matsuoka_nakai", "lade_duncan")}
         return {"mohr_coulomb": mohr_coulomb(self.phi_compression, t),
                 "matsuoka_nakai": matsuoka_nakai(self.k_matsuoka_nakai, t),
                 "lade_duncan": lade_duncan(self.k_lade_duncan, t)}
@@ -312,7 +339,7 @@ class FailureSurface:
         f = self.fits()
         return [{"lode": float(t), "q_peak": float(q), "q_p": float(r), "phi": float(ph),
                  "sig11": float(s[0]), "sig22": float(s[1]), "sig33": float(s[2]),
-                 "lode_reached": float(lr), "b": float(b), "ended": e,
+                 "lode_reached": float(lr), "b": float(b), "ended": e, "peak": e in PEAK_ENDINGS,
                  "mohr_coulomb": float(f["mohr_coulomb"][i]),
                  "matsuoka_nakai": float(f["matsuoka_nakai"][i]),
                  "lade_duncan": float(f["lade_duncan"][i])}
@@ -322,15 +349,27 @@ class FailureSurface:
 
 
 def check_lode(lode_angles) -> np.ndarray:
-    """Lode angles [deg] as a sorted array with 0 added, or an InputError (each in [0, 60])."""
+    """Lode angles [deg] as a sorted array with 0 added, or an InputError (each in [0, 60],
+    at most :data:`MAX_LODE_ANGLES` of them)."""
     t = np.atleast_1d(np.asarray(lode_angles, float))
     if t.ndim != 1 or not len(t) or not np.all(np.isfinite(t)):
-        raise InputError(f"Lode angles must be finite numbers in degrees, got {lode_angles!r}")
+        raise InputError(f"Lode angles must be finite numbers in degrees, got {_shown(lode_angles)}")
     bad = t[(t < 0.0) | (t > 60.0)]
     if len(bad):
         raise InputError(f"a Lode angle must lie in [0, 60] degrees (0: triaxial compression, "
-                         f"60: triaxial extension), got {bad.tolist()}")
-    return np.unique(np.concatenate([[0.0], t]))
+                         f"60: triaxial extension), got {_shown(bad.tolist())}")
+    t = np.unique(np.concatenate([[0.0], t]))
+    if len(t) > MAX_LODE_ANGLES:
+        raise WorkTooLarge(f"{len(t)} Lode angles (with 0): at most {MAX_LODE_ANGLES}, one a degree over "
+                           "[0, 60] (each angle is a path of its own)")
+    return t
+
+
+def _shown(values, most: int = 10) -> str:
+    """``values`` for a message, the first ``most`` of a long list."""
+    if isinstance(values, (list, tuple, np.ndarray)) and len(values) > most:
+        return f"{list(values[:most])!r}... ({len(values)} values)"
+    return repr(values)
 
 
 def failure_surface(params: Params, p: float, lode_angles: Sequence[float] | float, *,
@@ -355,10 +394,15 @@ def failure_surface(params: Params, p: float, lode_angles: Sequence[float] | flo
     if step >= max_strain:
         raise InputError(f"step {step} must be smaller than max_strain {max_strain}")
     lode = check_lode(lode_angles)
+    n_total = steps_for(max_strain, step, f"increments of each ray (max_strain {max_strain:g} in steps of {step:g})")
+    check_count(float(len(lode)) * n_total, f"increments of the failure surface ({len(lode)} rays × {n_total})")
+    # the paths' table: each ray's states and its consolidated one
+    rows = check_rows(float(len(lode)) * (n_total + 2), f"the failure surface's paths ({len(lode)} rays × "
+                                                         f"{n_total + 2} rows)")
+    check_memory(table_bytes(rows, len(columns_for(6))), f"the failure surface's paths ({rows} rows)")
     p = float(p)
     rev = Rev3D(params, sphere, solver)
     state0 = consolidate(rev, p, compiled=compiled)
-    n_total = int(math.ceil(max_strain / step - 1e-9))
     cols: list[dict] = []
     ended, peaks = [], []
     for i, theta in enumerate(lode):
@@ -375,8 +419,11 @@ def failure_surface(params: Params, p: float, lode_angles: Sequence[float] | flo
     sig = np.array([[r[f"sig{c}"] for c in ("11", "22", "33", "23", "13", "12")] for r in peaks])
     q = equivalent_stress(sig)
     theta_r, b = lode_b(sig)
+    phi = friction_angle(sig[:, :3])
+    cut = np.array([e == "tension cut-off" for e in ended])
+    q, phi = np.where(cut, math.nan, q), np.where(cut, math.nan, phi)  # no peak there
     return FailureSurface(
-        p=p, lode=lode, q_peak=q, ratio=q / p, phi=friction_angle(sig[:, :3]),
+        p=p, lode=lode, q_peak=q, ratio=q / p, phi=phi,
         principal=sig[:, :3].copy(), strain=eps, lode_reached=theta_r, b_reached=b,
         ended=tuple(ended), paths=paths,
         meta={"p": p, "lode": lode.tolist(), "step": step, "max_strain": max_strain,
@@ -386,8 +433,8 @@ def failure_surface(params: Params, p: float, lode_angles: Sequence[float] | flo
 
 def _ray(rev, state0, p, theta, step, n_total, past_peak, beyond, compiled):
     """One path of :func:`failure_surface`: segments of :data:`CHUNK` increments until it is
-    past its peak, at ``n_total`` increments, or Newton fails; its rows (up to the first state
-    past the peak) and how it ended."""
+    past its peak, on the tension cut-off, at ``n_total`` increments, or Newton fails; its rows
+    (up to the first state past the peak or on the cut-off) and how it ended."""
     rec = Recorder({"lode": theta})
     rec.record(state0, "consolidation")
     state, done, how = state0, 0, "max strain"
@@ -404,14 +451,23 @@ def _ray(rev, state0, p, theta, step, n_total, past_peak, beyond, compiled):
         top = np.maximum.accumulate(q)
         arg = np.maximum.accumulate(np.where(q >= top, np.arange(len(q)), 0))  # index of the max so far
         past = np.flatnonzero((q < (1.0 - past_peak) * top) & (es - es[arg] > beyond))
+        minor = np.min([res.columns[f"sig{c}"][ray] for c in ("11", "22", "33")], axis=0)
+        cut = np.flatnonzero(minor <= TENSION * p)
+        if len(cut) and (not len(past) or cut[0] <= past[0]):
+            return _until(res, ray, cut[0]), "tension cut-off"
         if len(past):
-            keep = np.ones(len(res), bool)
-            keep[np.flatnonzero(ray)[past[0] + 1:]] = False
-            return PathResult({c: v[keep] for c, v in res.columns.items()}, res.meta), "past peak"
+            return _until(res, ray, past[0]), "past peak"
         if failures:
             how = "newton"
             break
     return rec.result(), how
+
+
+def _until(res: PathResult, ray: np.ndarray, last: int) -> PathResult:
+    """The rows of ``res`` up to its ``last``-th state on the ray (``ray``: its rows' mask)."""
+    keep = np.ones(len(res), bool)
+    keep[np.flatnonzero(ray)[last + 1:]] = False
+    return PathResult({c: v[keep] for c, v in res.columns.items()}, res.meta)
 
 
 def _eps_s(eps3: np.ndarray, lode_deg: float) -> np.ndarray:

@@ -6,11 +6,17 @@ Two limits, each overridable by an environment variable:
 - **memory** (``HMODEL_MEMORY_LIMIT``, bytes or ``8GiB``/``500MB``): a request's estimated
   working memory (cells × bytes per cell, Gauss points, recorded rows) must stay within it;
   by default half the memory the system reports available (``MemAvailable`` of
-  ``/proc/meminfo``), so that a run never reaches the out-of-memory killer.
+  ``/proc/meminfo``), so that a run never reaches the out-of-memory killer, or half the
+  address space the process has left where ``ulimit -v`` (or ``-d``) leaves less: an
+  allocation past that limit fails however much memory is free.
 - **disk**: a database's estimated size must fit in the free space of its folder's disk.
 - **increments** (``HMODEL_MAX_INCREMENTS``, default :data:`MAX_INCREMENTS`): the loading
   increments (or load steps) one run may take; more cannot finish in a working day, nor be
   recorded (every increment is a row of the result table).
+- **rows** (``HMODEL_MAX_ROWS``, default :data:`MAX_ROWS`): the rows of one result table, a row
+  per material point and increment; more are no table to read (a spreadsheet holds 2^20 rows)
+  and take minutes to compute and write. Their memory (:func:`table_bytes`) counts with the
+  cells'.
 
 >>> check_count(100, "increments of stage 'shear'", env={})
 100
@@ -39,6 +45,13 @@ MAX_INCREMENTS = 10**7
 MEMORY_SHARE = 0.5
 MEMORY_ENV = "HMODEL_MEMORY_LIMIT"
 INCREMENTS_ENV = "HMODEL_MAX_INCREMENTS"
+#: Default largest number of rows of one result table (``HMODEL_MAX_ROWS``).
+MAX_ROWS = 10**6
+ROWS_ENV = "HMODEL_MAX_ROWS"
+#: Bytes one value of a result table takes at the peak of a run: the recorded blocks, their
+#: concatenation, its sorted copy and the plot's (measured: 32.5 per value of a 3D table of
+#: 26 columns, 845 bytes a row).
+TABLE_BYTES_PER_VALUE = 40
 
 _SIZE = re.compile(r"^\s*([0-9.]+(?:[eE][-+]?\d+)?)\s*([KMGT]i?B?|B)?\s*$")
 _FACTORS = {"": 1, "B": 1, "K": 1e3, "KB": 1e3, "M": 1e6, "MB": 1e6, "G": 1e9, "GB": 1e9,
@@ -82,12 +95,37 @@ def available_memory() -> int:
     return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
 
 
+def address_space_left() -> int | None:
+    """Bytes the process may still map under its ``ulimit -v`` (``RLIMIT_AS``, against its
+    virtual size) or ``ulimit -d`` (``RLIMIT_DATA``, against its data size), the smaller;
+    None without either limit."""
+    import resource  # here: POSIX only, and only when no HMODEL_MEMORY_LIMIT is given
+
+    left = None
+    for limit, field in ((resource.RLIMIT_AS, "VmSize:"), (resource.RLIMIT_DATA, "VmData:")):
+        soft = resource.getrlimit(limit)[0]
+        if soft == resource.RLIM_INFINITY:
+            continue
+        used = 0
+        try:
+            with open("/proc/self/status") as fh:
+                used = next((int(line.split()[1]) * 1024 for line in fh if line.startswith(field)), 0)
+        except OSError:
+            pass
+        left = max(soft - used, 0) if left is None else min(left, max(soft - used, 0))
+    return left
+
+
 def memory_limit(env: Mapping[str, str] | None = None) -> tuple[int, str]:
     """The memory budget of one request [bytes] and a phrase saying where it comes from."""
     env = os.environ if env is None else env
     if env.get(MEMORY_ENV):
         return parse_bytes(env[MEMORY_ENV]), MEMORY_ENV
-    return int(MEMORY_SHARE * available_memory()), f"half the available memory; set {MEMORY_ENV} to change it"
+    available, mapped = available_memory(), address_space_left()
+    if mapped is not None and mapped < available:
+        return (int(MEMORY_SHARE * mapped),
+                f"half the address space left under ulimit -v; set {MEMORY_ENV} to change it")
+    return int(MEMORY_SHARE * available), f"half the available memory; set {MEMORY_ENV} to change it"
 
 
 def check_memory(nbytes: float, what: str, env: Mapping[str, str] | None = None) -> None:
@@ -132,6 +170,38 @@ def check_count(n: float, what: str, env: Mapping[str, str] | None = None) -> in
         shown = f"{float(n):.3g}" if math.isfinite(float(n)) else "an unbounded number"
         raise WorkTooLarge(f"{what}: {shown} exceeds the limit of {limit:.3g} ({INCREMENTS_ENV})")
     return int(n)
+
+
+def max_rows(env: Mapping[str, str] | None = None) -> int:
+    """The largest number of rows of one result table (``HMODEL_MAX_ROWS``)."""
+    env = os.environ if env is None else env
+    text = env.get(ROWS_ENV)
+    if not text:
+        return MAX_ROWS
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (math.isfinite(value) and value >= 1):
+        raise InputError(f"{ROWS_ENV} must be a positive number, got {text!r}")
+    return int(value)
+
+
+def check_rows(n: float, what: str, env: Mapping[str, str] | None = None) -> int:
+    """``n`` rows of a result table as an int if within :func:`max_rows`, else
+    :class:`WorkTooLarge` naming ``what`` (the request the rows come from)."""
+    limit = max_rows(env)
+    if not n <= limit:
+        shown = f"{float(n):.3g}" if math.isfinite(float(n)) else "an unbounded number of"
+        raise WorkTooLarge(f"{what}: a result table of {shown} rows exceeds the limit of {limit:.3g} "
+                           f"rows ({ROWS_ENV})")
+    return int(n)
+
+
+def table_bytes(rows: float, columns: int) -> float:
+    """Estimated memory [bytes] of a result table of ``rows`` rows and ``columns`` columns
+    while it is recorded and written (:data:`TABLE_BYTES_PER_VALUE`)."""
+    return float(rows) * float(columns) * TABLE_BYTES_PER_VALUE
 
 
 def steps_for(change: float, increment: float, what: str) -> int:

@@ -2,7 +2,8 @@
 
 Every error of the user's input or of the environment is printed as one line
 ``hmodel: error: ...``: exit status 1 for a problem with the inputs, the computation or the
-machine (an :class:`~hmodel.errors.HModelError`, an ``OSError``, a ``MemoryError``), 2 for a
+machine (an :class:`~hmodel.errors.HModelError`, an ``OSError``, a ``MemoryError``, also one
+raised inside a compiled kernel, which reaches Python as the cause of a ``SystemError``), 2 for a
 malformed command line (unknown option, a value that is not a number or out of its range, a
 missing argument). Anything else is a bug in hmodel: it keeps its traceback. With
 ``HMODEL_DEBUG=1`` every error shows its full traceback. Outputs are written only once a run
@@ -25,6 +26,7 @@ from . import data as data_cmds
 from . import dem as dem_cmds
 from . import failure as failure_cmd
 from . import fem as fem_cmds
+from . import models as models_cmd
 from . import reproduce as reproduce_cmd
 from . import run as run_cmds
 from . import stability as stability_cmd
@@ -43,6 +45,7 @@ app.command("calibrate")(calibrate_cmd.calibrate)
 app.command("reproduce")(reproduce_cmd.reproduce)
 app.command("stability")(stability_cmd.stability)
 app.command("failure-surface")(failure_cmd.failure)
+app.command("models")(models_cmd.models)
 
 
 def _version(value: bool) -> None:
@@ -74,6 +77,18 @@ def _environment_message(e: BaseException) -> str:
     return f"{e.strerror or e}" + (f": {e.filename!r}" if e.filename else "")
 
 
+def _out_of_memory(e: BaseException) -> bool:
+    """Whether ``e`` is, or was raised by, a ``MemoryError``: an allocation that failed inside
+    a compiled (Numba) kernel reaches Python as a ``SystemError`` caused by one."""
+    seen = set()
+    while e is not None and id(e) not in seen:
+        if isinstance(e, MemoryError):
+            return True
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return False
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``hmodel`` console script; returns the exit status."""
     debug = os.environ.get("HMODEL_DEBUG", "") not in ("", "0")
@@ -90,6 +105,11 @@ def main(argv: list[str] | None = None) -> int:
         if debug:
             raise
         print(f"hmodel: error: {_one_line(_environment_message(e))}", file=sys.stderr)
+        return 1
+    except SystemError as e:
+        if debug or not _out_of_memory(e):  # any other SystemError is a bug: its traceback
+            raise
+        print(f"hmodel: error: {_one_line(_environment_message(MemoryError()))}", file=sys.stderr)
         return 1
     except _ClickException as e:
         if type(e).__name__ == "NoArgsIsHelpError":  # bare group: show its help

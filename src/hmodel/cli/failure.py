@@ -6,7 +6,8 @@ Writes ``failure_surface.csv`` (one row per Lode angle: the peak and the three f
 ``paths.csv`` (every state of every constant-p path, ``point`` = the angle's index),
 ``failure_surface.json`` (friction angles, the extension/compression strength ratios, the fits'
 constants, how each path ended) and ``failure_surface.png`` (the π-plane and q_eq/p against the
-deviatoric strain).
+deviatoric strain). A path that ended on the tension cut-off has no peak: its friction angle and
+peak ratio are empty in the CSV and null in the JSON, and a warning names it.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import typer
 from ..errors import InputError
 from ..failure_surface import (
     BEYOND,
+    MAX_LODE_ANGLES,
     MAX_STRAIN,
     PAST_PEAK,
     STEP,
@@ -47,18 +49,48 @@ def _angles(text: str) -> list[float]:
     try:
         values = [float(t) for t in str(text).split(",")]
     except ValueError:
+        shown = repr(text) if len(str(text)) <= 80 else f"{str(text)[:60]!r}... ({len(str(text))} characters)"
         raise InputError(f"--lode must be Lode angles in degrees, comma-separated (e.g. 0,13,30,60), "
-                         f"got {text!r}") from None
+                         f"got {shown}") from None
     return values
 
 
 def summary(fs: FailureSurface) -> dict:
-    """The numbers of a failure surface for ``failure_surface.json``."""
-    return {"p": fs.p, "lode": fs.lode.tolist(), "q_p": fs.ratio.tolist(), "phi": fs.phi.tolist(),
-            "ended": list(fs.ended), "phi_compression": fs.phi_compression,
-            "phi_extension": fs.phi_extension, "strength_ratio": fs.strength_ratio,
-            "fit_strength_ratios": fs.fit_strength_ratios(),
-            "k_matsuoka_nakai": fs.k_matsuoka_nakai, "k_lade_duncan": fs.k_lade_duncan, **fs.meta}
+    """The numbers of a failure surface for ``failure_surface.json`` (null where a path has no
+    peak: JSON has no NaN)."""
+    return _no_nan({"p": fs.p, "lode": fs.lode.tolist(), "q_p": fs.ratio.tolist(), "phi": fs.phi.tolist(),
+                    "ended": list(fs.ended), "peak": fs.peak.tolist(), "phi_compression": fs.phi_compression,
+                    "phi_extension": fs.phi_extension, "strength_ratio": fs.strength_ratio,
+                    "fit_strength_ratios": fs.fit_strength_ratios(),
+                    "k_matsuoka_nakai": fs.k_matsuoka_nakai, "k_lade_duncan": fs.k_lade_duncan,
+                    "warnings": warnings(fs), **fs.meta})
+
+
+def _no_nan(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _no_nan(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_no_nan(v) for v in value]
+    return value
+
+
+def warnings(fs: FailureSurface) -> list[str]:
+    """One line naming the paths that ended on the tension cut-off, if any."""
+    cut = [f"{t:g}°" for t, e in zip(fs.lode, fs.ended) if e == "tension cut-off"]
+    if not cut:
+        return []
+    return [f"Lode {', '.join(cut)}: the path reached the tension cut-off (σ3 ≈ 0) before any peak: no friction "
+            "angle or strength ratio there (empty in failure_surface.csv, null in failure_surface.json)"]
+
+
+def _cell(v) -> str:
+    if isinstance(v, str):
+        return v
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    return repr(float(v)) if math.isfinite(v) else ""
 
 
 def _write_table(fs: FailureSurface, path: Path) -> None:
@@ -67,7 +99,7 @@ def _write_table(fs: FailureSurface, path: Path) -> None:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
         for r in rows:
-            w.writerow({k: (v if isinstance(v, str) else repr(float(v))) for k, v in r.items()})
+            w.writerow({k: _cell(v) for k, v in r.items()})
 
 
 def plot_failure_surface(fs: FailureSurface, path: Path, subtitle: str = "") -> None:
@@ -86,9 +118,13 @@ def plot_failure_surface(fs: FailureSurface, path: Path, subtitle: str = "") -> 
         a.plot(*np.vstack([xy, xy[:1]]).T, lw=1.0, label=f"{label} (fitted at θ = 0)")
     xy = pi_plane_xy(fs.ratio, fs.lode)
     a.plot(*xy.T, "ko", ms=5, label="H-model peaks")
+    ended = np.sqrt(0.5 * ((fs.principal - np.roll(fs.principal, 1, axis=1)) ** 2).sum(axis=1)) / fs.p
+    cut = np.array([e == "tension cut-off" for e in fs.ended])
+    if cut.any():  # where those paths stopped: on σ3 = 0, not a peak
+        a.plot(*pi_plane_xy(ended[cut], fs.lode[cut]).T, "kx", ms=7, label="tension cut-off (no peak)")
     for k in range(3):  # the three compression meridians
         ang = math.radians(120 * k)
-        r = 1.15 * float(np.max(fs.ratio))
+        r = 1.15 * float(np.nanmax(np.where(cut, ended, fs.ratio)))
         a.plot([0, r * math.sin(ang)], [0, r * math.cos(ang)], color="0.7", lw=0.6)
         a.annotate(f"σ{k + 1}", (r * math.sin(ang), r * math.cos(ang)), fontsize=9, color="0.4")
     a.set(aspect="equal", title=f"π-plane at p = {fs.p / 1e3:g} kPa (radius q_eq/p)")
@@ -108,7 +144,8 @@ def plot_failure_surface(fs: FailureSurface, path: Path, subtitle: str = "") -> 
     b.grid(alpha=0.3)
     b.legend(frameon=False, fontsize=8)
     ratio = fs.strength_ratio
-    fig.suptitle("3D H-model, failure surface" + (f": extension/compression {ratio:.3f}" if ratio else "")
+    shown = ratio is not None and math.isfinite(ratio)
+    fig.suptitle("3D H-model, failure surface" + (f": extension/compression {ratio:.3f}" if shown else "")
                  + (f"\n{subtitle}" if subtitle else ""), fontsize=10)
     fig.savefig(path, dpi=130)
 
@@ -116,7 +153,8 @@ def plot_failure_surface(fs: FailureSurface, path: Path, subtitle: str = "") -> 
 def failure(p: Annotated[str, typer.Option("--p", help="Mean stress of every path: 200kPa, 0.2MPa or Pa.")] = "200kPa",
             lode: Annotated[str, typer.Option(
                 "--lode", help="Lode angles in degrees, comma-separated, each in [0, 60] (0: triaxial "
-                               "compression, 60: extension); 0 is always added (the fits need it).")] = "0,13,30,60",
+                               "compression, 60: extension); 0 is always added (the fits need it); at most "
+                               f"{MAX_LODE_ANGLES} angles.")] = "0,13,30,60",
             param: Param3DOpt = None, order: OrderOpt = None, azimuths: AzimuthsOpt = None,
             fabric: FabricOpt = 0.0,
             step: Annotated[float, typer.Option(help="Increment of the deviatoric strain along the ray.")] = STEP,
@@ -146,8 +184,15 @@ def failure(p: Annotated[str, typer.Option("--p", help="Mean stress of every pat
         "failure_surface.png": lambda f: plot_failure_surface(fs, f, subtitle),
     })
     for t, r, ph, how in zip(fs.lode, fs.ratio, fs.phi, fs.ended):
-        typer.echo(f"Lode {t:5.1f}°: peak q_eq/p = {r:.4f}, phi = {ph:.2f}° ({how})")
-    if fs.strength_ratio is not None:
+        typer.echo(f"Lode {t:5.1f}°: no peak, σ3 fell to 0 ({how})" if how == "tension cut-off"
+                   else f"Lode {t:5.1f}°: peak q_eq/p = {r:.4f}, phi = {ph:.2f}° ({how})")
+    if fs.strength_ratio is not None and math.isfinite(fs.strength_ratio):
         fits = ", ".join(f"{_FITS[k]} {v:.3f}" for k, v in fs.fit_strength_ratios().items())
         typer.echo(f"extension/compression strength ratio: {fs.strength_ratio:.3f} (fitted at compression: {fits})")
+    elif fs.strength_ratio is not None:
+        where = " and ".join(f"{t:g}°" for t, e in zip(fs.lode, fs.ended)
+                             if t in (0.0, 60.0) and e == "tension cut-off")
+        typer.echo(f"extension/compression strength ratio: none (no peak at {where}: the tension cut-off)")
     typer.echo(f"wrote {out / 'failure_surface.csv'}, paths.csv, failure_surface.json and failure_surface.png")
+    for line in info["warnings"]:
+        typer.echo(f"hmodel: warning: {line}", err=True)

@@ -8,7 +8,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from ..errors import InputError
+from ..errors import InputError, SolverError
 from ..params import Params
 from ..solvers import get_solver
 from ..units import parse_pressure
@@ -39,16 +39,23 @@ OutOpt = out_folder("Output folder (result.csv, fields_*.vtu, fields.pvd, fields
 def _finish(res, out: Path) -> None:
     from ..fem import write_result
 
+    if res.stopped and len(res) <= 1:
+        # only the consolidated state: no load step to report, and exit 0 would pass it as a result
+        raise SolverError(f"no load step converged, nothing written: {res.stopped}")
     write_result(res, out)
     typer.echo(f"wrote {out / 'result.csv'} ({len(res) - 1} load steps, "
                f"{res.meta['gauss_points']} Gauss points, {res.meta['seconds']:.1f} s) and fields, figures")
     band = res.meta.get("band") or {}
     if band.get("angle_deg") is not None:
         theory = ", ".join(f"{k.capitalize()} {band[k]:.1f}°" for k in ("coulomb", "roscoe", "arthur") if k in band)
-        typer.echo(f"shear band at {band['angle_deg']:.1f}° from the horizontal"
-                   + (f" ({theory})" if theory else "")
-                   + (f", {1e3 * band['width_m']:.3g} mm wide" if band.get("width_m") else "")
-                   + f", after the peak at step {band['peak_step']}")
+        pair = band.get("conjugate")
+        if pair:  # a conjugate pair: each band, not one line through both
+            where = (f"shear band at {pair[0]['angle_deg']:+.1f}° from the horizontal and its conjugate at "
+                     f"{pair[1]['angle_deg']:+.1f}°")
+        else:
+            where = f"shear band at {band['angle_deg']:.1f}° from the horizontal"
+        wide = f", {1e3 * band['width_m']:.3g} mm wide" + (" each" if pair else "") if band.get("width_m") else ""
+        typer.echo(where + (f" ({theory})" if theory else "") + wide + f", after the peak at step {band['peak_step']}")
     if res.stopped:
         typer.echo(f"hmodel: warning: the run stopped early: {res.stopped}", err=True)
 

@@ -25,7 +25,7 @@ from .bands import shear_band
 from .material import DaskStep, HModelMaterial
 from .mesh import BBAR, Domain, dofs_where, gauss_points
 from .newton import GlobalNewtonSettings, Problem, StepResult, run_steps
-from .regularization import NonlocalProblem, Regularization, parse_regularization, unresolved
+from .regularization import NonlocalProblem, Regularization, check_length, parse_regularization, unresolved
 from .result import FemResult, Snapshot
 
 PLATENS = ("smooth", "rough")
@@ -226,6 +226,7 @@ def biaxial(params: Params | None = None, p0: float = 2e5, axial_strain: float =
     if platens not in PLATENS:
         raise InputError(f"platens must be smooth or rough, got {platens!r}")
     domain = Domain(*size, *mesh, element)
+    check_length(reg, domain)
     _check_size(domain, params, solver)
     basis = domain.basis()
     gx, dx = gauss_points(basis)
@@ -305,6 +306,7 @@ def footing(params: Params | None = None, p0: float = 1e5, settlement: float = 0
     if not (np.isfinite(settlement) and 0 < settlement < 1):
         raise InputError(f"settlement / width must lie in (0, 1), got {settlement}")
     domain = Domain(*layer, *mesh, element)
+    check_length(reg, domain)
     _check_size(domain, params, solver)
     L, H = domain.width, domain.height
     if not (np.isfinite(width) and 0 < width < L):

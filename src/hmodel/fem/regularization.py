@@ -117,6 +117,21 @@ def element_size(domain) -> float:
     return max(domain.width / domain.nx, domain.height / domain.ny)
 
 
+def check_length(reg: Regularization, domain) -> None:
+    """Refuse (InputError) an ell longer than the domain's largest dimension: the average would
+    spread every point's inelastic stress over the whole body (no band fits, the band a few
+    ell wide or more, docs/fem.md), and ell^2 times the gradient term would swamp the mass
+    term of the Helmholtz rows beyond double precision (ell = 1e9 m: the first step never
+    converges)."""
+    if reg.kind != "nonlocal":
+        return
+    size = max(domain.width, domain.height)
+    if not reg.ell <= size:
+        raise InputError(f"the nonlocal length ell = {reg.ell:g} m exceeds the largest dimension of the "
+                         f"{domain.width:g} x {domain.height:g} m domain ({size:g} m): take ell of a few "
+                         "elements, a fraction of the specimen")
+
+
 def unresolved(reg: Regularization, domain) -> str | None:
     """A warning where ell is below the element size (the band, a few ell wide, is then not
     resolved by the mesh), else None."""

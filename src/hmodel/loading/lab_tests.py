@@ -16,13 +16,14 @@ import numpy as np
 
 from ..cell import CellSolver
 from ..errors import InputError
+from ..limits import check_rows
 from ..params import Params
 from ..rev import Rev
 from ..rev.rev3d import Rev3D
 from ..rev.sphere import Sphere
 from . import named_paths
 from .named_paths import AXIAL_STEP, ISO_STEP, Progress
-from .result import PathResult, Recorder
+from .result import PathResult, Recorder, columns_for
 from .segment import run_segment
 from .stages import Stage, check_b
 
@@ -48,11 +49,31 @@ def _meta(params, rev: Rev, test: str, **extra) -> dict:
     return meta
 
 
+def _table_rows(params, n_pressures: int, per_point: int) -> tuple[int, int]:
+    """The material points of a test (one per parameter set or pressure) and the rows of its
+    table known before it runs, ``per_point`` each (a stage's increments; a consolidation counts
+    its final state only, its increments are known as it runs), refused over the rows limit
+    (:func:`~hmodel.limits.check_rows`) before anything is built."""
+    n_points = max(1 if isinstance(params, Params) else len(params), n_pressures)
+    rows = n_points * per_point
+    check_rows(rows, f"{n_points:,} material point{'s' if n_points != 1 else ''} × {per_point:,} "
+                     f"row{'s' if per_point != 1 else ''}")
+    return n_points, rows
+
+
+def _check_table(rev, n_points: int, rows: int) -> None:
+    """Refuse, before the run, ``n_points`` points whose cells and table of ``rows`` rows
+    would not fit in the memory budget together."""
+    rev.check_size(n_points, rows=rows, columns=len(columns_for(rev.n_components)))
+
+
 def run_isotropic(params: Params | Sequence[Params], p0, *, solver: CellSolver | None = None,
                   step: float = ISO_STEP, progress: Progress = None) -> PathResult:
     """Isotropic compression of one material point per value of ``p0`` [Pa]."""
-    rev = Rev(params, solver)
     p0 = np.atleast_1d(np.asarray(p0, float))
+    n_points, rows = _table_rows(params, len(p0), 1)
+    rev = Rev(params, solver)
+    _check_table(rev, n_points, rows)
     rec = Recorder(_meta(params, rev, "iso", p0=p0.tolist(), iso_step=step), rev.solver_fractions)
     named_paths.consolidate(rev, p0, step=step, recorder=rec, progress=progress)
     return rec.result()
@@ -69,9 +90,11 @@ def run_biaxial(params: Params | Sequence[Params], p0, axial_strain: float, *, u
     result's ``meta["failed"]`` maps each dropped point to the reason (its rows stop there).
     ``compiled``: None (the compiled kernel where the cell solver has one) or False (the
     generic driver, e.g. to time or check the two against each other)."""
-    named_paths.strain_steps(axial_strain, step, "axial strain")  # refused before any work
-    rev = Rev(params, solver)
+    n = named_paths.strain_steps(axial_strain, step, "axial strain")  # refused before any work
     p0 = np.atleast_1d(np.asarray(p0, float))
+    n_points, rows = _table_rows(params, len(p0), n + 1)
+    rev = Rev(params, solver)
+    _check_table(rev, n_points, rows)
     rec = Recorder(_meta(params, rev, "undrained biaxial" if undrained else "drained biaxial",
                          p0=p0.tolist(), axial_strain=axial_strain, iso_step=iso_step, step=step),
                    rev.solver_fractions)
@@ -106,7 +129,9 @@ def run_strain_path(params: Params | Sequence[Params], eps, *, solver: CellSolve
     eps = np.asarray(eps, float)
     if eps.ndim == 2 and eps.shape[1] == 2:
         eps = np.column_stack([eps, np.zeros(len(eps))])
+    n_points, rows = _table_rows(params, 1, len(eps) if eps.ndim else 1)
     rev = Rev(params, solver)
+    _check_table(rev, n_points, rows)
     rec = Recorder(_meta(params, rev, "strain path", n_rows=len(eps), max_step=max_step),
                    rev.solver_fractions)
     named_paths.strain_path(rev, eps, max_step=max_step, recorder=rec, progress=progress)
@@ -133,8 +158,10 @@ def _run_3d(params, p0, test: str, rows, n_steps: int, *, sphere: Sphere | None,
     for name in ("alpha_omega", "beta_omega", "alpha0_spread"):
         if any(isinstance(p, Params) and getattr(p, name) != 0 for p in sets):
             check_3d_params([name], "parameters")
-    rev = Rev3D(params, sphere, solver)
     p0 = np.atleast_1d(np.asarray(p0, float))
+    n_points, n_rows = _table_rows(params, len(p0), n_steps + 1)
+    rev = Rev3D(params, sphere, solver)
+    _check_table(rev, n_points, n_rows)
     s = rev.sphere
     rec = Recorder(_meta(params, rev, test, p0=p0.tolist(), iso_step=iso_step, **meta,
                          sphere={"order": s.order, "n_azimuth": s.n_azimuth,

@@ -38,19 +38,21 @@ import numpy as np
 
 from ..cell import CellSolver
 from ..errors import InputError, SolverError
-from ..limits import check_count
+from ..limits import check_count, check_rows
 from ..params import Params
 from ..rev import Rev, RevState
 from ..rev.rev3d import Rev3D
 from ..rev.sphere import Sphere
 from .control import Tangent
-from .expressions import Criterion, Expression
+from .expressions import MAX_LENGTH, Criterion, Expression
 from .lab_tests import check_3d_params
 from .named_paths import ISO_STEP, consolidate
 from .newton import NewtonSettings
 from .result import PathResult, Recorder, columns_for
 from .segment import StageFailed, run_segment
 from .stages import (
+    ROWS,
+    ROWS_3D,
     Stage,
     check_b,
     component_order,
@@ -70,6 +72,17 @@ CRITERION_COLUMNS = CRITERION_COLUMNS_BY_N[3]
 _SPHERE_KEYS = {"order": "order", "azimuths": "n_azimuth", "alpha_omega": "alpha_omega", "axis": "axis"}
 _STAGE_KEYS = {"name", "preset", "control", "steps", "max_increment", "until", "stop_on_failure"}
 _BLOCK_KEYS = {"name", "repeat", "stages", "until", "stop_on_failure"}
+#: Longest name, key or other text of a program file: a stage's name is written on every row of
+#: its result table (and a program's in its messages), and no name needs more.
+MAX_TEXT = 200
+#: Longest ``description`` of a program (a paragraph; it is read by people only).
+MAX_DESCRIPTION = 2000
+#: Keys whose text values are expressions (rows and criteria), whose own limit is
+#: :data:`~hmodel.loading.expressions.MAX_LENGTH`.
+_EXPRESSION_KEYS = {"until", *ROWS, *ROWS_3D}
+#: Largest program file read, in characters: a program is text written or generated for a
+#: person to read; this bounds what parsing a file (or a device such as /dev/zero) may take.
+MAX_FILE_CHARS = 10**7
 
 
 @dataclass(frozen=True)
@@ -106,7 +119,12 @@ class Program:
         """Read a program file (see ``docs/programs.md``)."""
         path = Path(path)
         try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
+            with open(path, encoding="utf-8") as fh:
+                text = fh.read(MAX_FILE_CHARS + 1)
+            if len(text) > MAX_FILE_CHARS:
+                raise InputError(f"program {str(path)!r} is longer than {MAX_FILE_CHARS:,} characters, "
+                                 f"the most a program file may have")
+            data = tomllib.loads(text)
         except OSError as e:
             raise InputError(f"cannot read program {str(path)!r}: {e.strerror}") from None
         except UnicodeDecodeError as e:
@@ -119,6 +137,7 @@ class Program:
     @classmethod
     def from_dict(cls, data: Mapping, default_name: str = "program") -> "Program":
         """A program from the tables of a TOML file: ``name``, ``params`` and ``stage`` (a list)."""
+        _check_text(data, "program")
         _keys(data, {"name", "description", "params", "stage", "dim", "sphere"}, "program")
         sphere = _sphere(data)
         n = 3 if sphere is None else 6
@@ -137,9 +156,12 @@ class Program:
         _check_p0_targets(blocks)
         if sphere is not None:
             check_3d_params([str(k) for k in params], "[params] of a 3D program")
-        program = cls(str(data.get("name", default_name)), tuple(blocks),
-                      {str(k): str(v) for k, v in params.items()}, sphere)
+        name = _name(data["name"], "program: name") if "name" in data else default_name
+        program = cls(name, tuple(blocks), {str(k): _name(v, f"[params] {k}") for k, v in params.items()},
+                      sphere)
         check_count(program.n_increments, "increments of the program")
+        # a row per increment (an iso stage's consolidation counted as its final row)
+        check_rows(program.n_increments, "the program's increments")
         return program
 
     def with_params(self, assignments: Sequence[str] | None) -> Params:
@@ -174,6 +196,7 @@ class Program:
         if not isinstance(params, Params):
             raise InputError("a program runs one material point: give one parameter set")
         rev = self.make_rev(params, solver)
+        rev.check_size(1, rows=self.n_increments, columns=len(columns_for(rev.n_components)) + 1)
         meta = {"test": "program", "program": self.name, "params": params.to_dict(), "dim": self.dim,
                 "solver": rev.solver.name, "stopped": [], "cycles": {},
                 "undrained_stages": self.undrained_stages}
@@ -339,9 +362,43 @@ def _keys(table: Mapping, allowed: set[str], where: str) -> None:
         raise InputError(f"{where}: unknown key {unknown[0]!r} (allowed: {', '.join(sorted(allowed))})")
 
 
+def _check_text(value, where: str, limit: int = MAX_TEXT) -> None:
+    """Refuse a key or text of a program's tables longer than :data:`MAX_TEXT` (an
+    expression's: :data:`~hmodel.loading.expressions.MAX_LENGTH`), before any is read or named
+    in a message."""
+    if isinstance(value, str):
+        if len(value) > limit:
+            kind = {MAX_LENGTH: "an expression", MAX_DESCRIPTION: "a description"}.get(
+                limit, "a name or text of a program")
+            raise InputError(f"{where} is {len(value):,} characters long; {kind} has at most {limit}")
+    elif isinstance(value, Mapping):
+        expressions = where.endswith("control")
+        for key, item in value.items():
+            if len(str(key)) > MAX_TEXT:
+                raise InputError(f"a key of {where} is {len(str(key)):,} characters long; a name or "
+                                 f"text of a program has at most {MAX_TEXT}")
+            limit = (MAX_LENGTH if expressions or key in _EXPRESSION_KEYS else
+                     MAX_DESCRIPTION if key == "description" and where == "program" else MAX_TEXT)
+            # the path to the text, its last steps only (each key is short by now)
+            _check_text(item, key if where == "program" or len(where) > MAX_TEXT else f"{where}: {key}",
+                        limit)
+    elif isinstance(value, list):
+        for i, item in enumerate(value, 1):
+            _check_text(item, f"{where} {i}" if len(where) <= MAX_TEXT else where, limit)
+
+
+def _name(value, where: str) -> str:
+    """A name of a program (any TOML value, as text) of at most :data:`MAX_TEXT` characters."""
+    text = str(value)
+    if len(text) > MAX_TEXT:
+        raise InputError(f"{where} is {len(text):,} characters long; a name or text of a program "
+                         f"has at most {MAX_TEXT}")
+    return text
+
+
 def _label(item: Mapping, i: int) -> str:
     name = item.get("name", item.get("preset", f"stage {i}"))
-    return str(name) if name else f"stage {i}"
+    return _name(name, f"stage {i}: name") if name else f"stage {i}"
 
 
 def _positive_int(value, what: str) -> int:

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..limits import check_rows, max_rows
 from ..rev import RevState
 from ..rev.state import (
     deviatoric_stress,
@@ -123,7 +124,12 @@ class PathResult:
 
 
 class Recorder:
-    """Collects rows while a path runs; :meth:`result` builds the :class:`PathResult`."""
+    """Collects rows while a path runs; :meth:`result` builds the :class:`PathResult`.
+
+    The rows stay within :func:`~hmodel.limits.max_rows`: the rows known before a run are
+    counted then, but not an isotropic consolidation's increments (known only as it runs),
+    so a row past the limit is refused (:class:`~hmodel.limits.WorkTooLarge`) rather than
+    recorded."""
 
     def __init__(self, meta: dict | None = None,
                  columns: Callable[[RevState], dict[str, np.ndarray]] | None = None):
@@ -138,6 +144,8 @@ class Recorder:
         #: extra columns after :data:`COLUMNS`, with the value they take in the rows recorded
         #: from now on (a loading program's ``cycle``); set before the first row is recorded
         self.tags: dict[str, object] = {}
+        self._rows_limit = max_rows()
+        self._n_rows = 0
 
     def record(self, state: RevState, stage: str, mask: np.ndarray | None = None) -> None:
         """Append one row per material point (only those where ``mask`` is true)."""
@@ -162,6 +170,10 @@ class Recorder:
         valid = m[None, :] & np.isfinite(eps[..., 0])
         if K == 0 or not valid.any():
             return
+        self._n_rows += int(valid.sum())
+        if self._n_rows > self._rows_limit:
+            check_rows(self._n_rows, "the rows recorded so far (a consolidation's increments are "
+                                     "known only as it runs)")
         count = np.cumsum(valid, axis=0)
         steps = (self._step[None, :] + count)[valid]
         self._step += count[-1]

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..cell import CellFlags, CellState
 from ..errors import InputError, SolverError
-from ..limits import check_memory
+from ..limits import check_memory, table_bytes
 from ..params import Params
 from .state import RevState
 
@@ -56,12 +56,18 @@ class RevBatch:
         """The first set's compiled increment (None: the solver has none)."""
         return None if self.kernels is None else self.kernels[0]
 
-    def check_size(self, n_points: int, what: str = "") -> None:
+    def check_size(self, n_points: int, what: str = "", extra_bytes: float = 0.0, rows: int = 0,
+                   columns: int = 0) -> None:
         """Refuse (:class:`~hmodel.limits.WorkTooLarge`) ``n_points`` material points whose
-        cells would not fit in the memory budget of :mod:`hmodel.limits`; ``what`` names the
-        request (default: the REV's points and cells)."""
+        cells would not fit in the memory budget of :mod:`hmodel.limits` together with
+        ``extra_bytes`` held beside them (the 3D REV's geometry) and a result table of ``rows``
+        rows of ``columns`` values (:func:`~hmodel.limits.table_bytes`); ``what`` names the
+        request (default: the REV's points and cells, and the table)."""
         cells = float(n_points) * float(self.n_cells)
-        check_memory(cells * self.solver.bytes_per_cell, what or self._describe(n_points))
+        nbytes = cells * self.solver.bytes_per_cell + extra_bytes + table_bytes(rows, columns)
+        if not what:
+            what = self._describe(n_points) + (f" and a result table of {rows:,} rows" if rows else "")
+        check_memory(nbytes, what)
 
     def initial(self, n_points: int = 1) -> RevState:
         """B unloaded material points; with K > 1 parameter sets, the K points (B = K or 1)."""

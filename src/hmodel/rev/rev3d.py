@@ -26,6 +26,10 @@ from .state import RevState
 
 #: Voigt positions (11, 22, 33, 23, 13, 12) of the index pairs (i, j).
 VOIGT = ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))
+#: Bytes per bi-hexagon of what a 3D REV holds whatever its points: the frames, projector rows,
+#: weighted dyads, the compiled trial's geometry block and the temporaries that build them
+#: (measured: about 640 bytes a cell, beside 650 a cell and point).
+GEOMETRY_BYTES_PER_CELL = 1024
 
 
 def voigt_to_tensor(v: np.ndarray) -> np.ndarray:
@@ -102,11 +106,12 @@ class Rev3D(RevBatch):
             check_params(s)
         self.params = self.sets[0]
         self.sphere = Sphere() if sphere is None else sphere
+        # the sphere's cells (directions × azimuths) are counted before their frames are built
+        self.check_size(len(self.sets), extra_bytes=float(self.n_cells) * GEOMETRY_BYTES_PER_CELL)
         #: cell frames (C, 3, 3), rows (n, t1, t2), and weights (C,) summing to 1
         self.frames, self.weights = self.sphere.frames()
         self._proj = np.ascontiguousarray(projector(self.frames))
         self._wdyads = np.ascontiguousarray(self.weights[:, None, None] * dyads(self.frames))
-        self.check_size(len(self.sets))
         cell0 = [self.solver.initial(s, ()) for s in self.sets]
         # V0 = sum_i w_i V_meso,i (eq. 1.14 lifted) per set; all cells of a set start alike.
         #: initial macro volume of each set's points (K,) [m^3]
@@ -122,11 +127,12 @@ class Rev3D(RevBatch):
     @property
     def n_cells(self) -> int:
         """Bi-hexagons per material point (directions × azimuths)."""
-        return len(self.weights)
+        return self.sphere.n_cells
 
     def _describe(self, n_points: int) -> str:
+        cells = f"{self.n_cells:,}" if self.n_cells < 10**12 else f"{float(self.n_cells):.3g}"
         return (f"a 3D REV of {n_points:,} material point{'s' if n_points != 1 else ''} × "
-                f"{self.n_cells} bi-hexagons (Lebedev order {self.sphere.order})")
+                f"{cells} bi-hexagons (Lebedev order {self.sphere.order})")
 
     def _no_flags(self, shape: tuple[int, ...]) -> CellFlags:
         return CellFlags(np.zeros((*shape, len(BIHEX_FLAGS)), bool))
