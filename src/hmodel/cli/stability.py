@@ -10,16 +10,12 @@ from typing import Annotated, Optional
 import typer
 
 from ..errors import InputError
-from ..io import write_outputs
 from ..loading import AXIAL_STEP
 from ..params import Params
 from ..units import parse_pressure
 from .progress import LazyProgress
 from .options import out_folder
 from .run import AzimuthsOpt, FabricOpt, OrderOpt, ParamOpt, _setup_3d
-
-#: The laboratory tests of --test: the 2D model's biaxial test, the 3D model's triaxial test.
-TESTS = ("biaxial", "triaxial")
 
 
 def stability(
@@ -72,9 +68,30 @@ def stability(
     """Where the material can stop sustaining load: d²W of the loading increments, its minimum
     over probe directions at every k-th state, envelopes at --at, the bifurcation-domain entry
     and the loss of controllability."""
+    from ..stability import run_study, write_study
+
+    prog, params, pressure, sphere, at_strains = _inputs(
+        p0, axial_strain, test, extension, param, at, magnitude, program, stress_magnitude,
+        rendulic, controllability, step, order, azimuths, fabric)
+    with LazyProgress("probing") as progress:
+        study = run_study(params, program=prog, test=test, p0=pressure, axial_strain=axial_strain,
+                          undrained=undrained, extension=extension, sphere=sphere, at=at_strains,
+                          step=step, stress_magnitude=stress_magnitude, rendulic=rendulic,
+                          every=every, n_probes=probes, magnitude=magnitude, shear=shear,
+                          loading_probe=loading_probe, controllability=controllability,
+                          progress=progress)
+    write_study(study, out)
+    for line in study.report(written=out):
+        typer.echo(line)
+
+
+def _inputs(p0, axial_strain, test, extension, param, at, magnitude, program, stress_magnitude,
+            rendulic, controllability, step, order, azimuths, fabric):
+    """The options read and checked before any work, in the command line's words: the program
+    (or None), the parameters, the pressure of a laboratory test, its sphere (3D) and the axial
+    strains of its envelopes."""
     from ..loading import Program
-    from ..stability import (RULES, along_biaxial, along_program, along_triaxial, plot_envelopes,
-                             plot_path, table_writers)
+    from ..stability import RULES, TESTS
 
     if test not in TESTS:
         raise InputError(f"--test must be one of {', '.join(TESTS)}, got {test!r}")
@@ -95,7 +112,7 @@ def stability(
     prog = Program.from_toml(program) if program is not None else None
     if prog is not None and at:
         raise InputError("--at applies to the biaxial test, not to --program")
-    sphere = None
+    sphere = pressure = None
     if prog is not None:
         params = prog.with_params(param)
     elif test == "triaxial":
@@ -117,39 +134,4 @@ def stability(
         raise InputError(f"--stress-magnitude must be positive, got {stress_magnitude}")
     if controllability is not None and controllability not in RULES:
         raise InputError(f"--controllability must be one of {', '.join(RULES)}, got {controllability!r}")
-    with LazyProgress("probing") as progress:
-        common = {"every": every, "n_probes": probes, "magnitude": magnitude, "shear": shear,
-                  "progress": progress, "loading_probe": loading_probe,
-                  "controllability": controllability}
-        if prog is not None:
-            ps = along_program(prog, params, **common)
-        elif test == "triaxial":
-            ps = along_triaxial(params, pressure, axial_strain, undrained, extension, sphere,
-                                at=at_strains, step=step, stress_magnitude=stress_magnitude,
-                                rendulic=rendulic, **common)
-        else:
-            ps = along_biaxial(params, pressure, axial_strain, undrained, at=at_strains, step=step,
-                               stress_magnitude=stress_magnitude, **common)
-    drainage = "undrained" if undrained else "drained"
-    if prog is not None:
-        title = f"program {prog.name}"
-    elif test == "triaxial":
-        title = (f"{drainage} triaxial {'extension' if extension else 'compression'}, p0 = "
-                 f"{pressure / 1e3:g} kPa (3D, Lebedev order {sphere.order}, "
-                 f"{sphere.n_azimuth} azimuths)")
-    else:
-        title = f"{drainage} biaxial, p0 = {pressure / 1e3:g} kPa"
-    files = {**table_writers(ps), "d2W-path.png": lambda p: plot_path(ps, p, title)}
-    if ps.envelopes:
-        files["envelopes.png"] = lambda p: plot_envelopes(ps.envelopes, p, title)
-    write_outputs(out, files)
-    fmt = lambda v: "none" if not math.isfinite(v) else f"{100 * v:.3f} %"  # noqa: E731
-    row = lambda v: "" if not math.isfinite(v) else f" (row {v:.0f})"  # noqa: E731
-    by = f", by the {ps.bifurcation_by}" if ps.bifurcation_by else ""
-    reached = float(abs(ps.shear_strain[-1])) if len(ps.shear_strain) else 0.0
-    if prog is None and reached < axial_strain - 0.5 * step:  # the program caught its failure
-        typer.echo(f"the test ended at axial strain {100 * reached:.3f} %: the next increment "
-                   f"could not be solved")
-    typer.echo(f"bifurcation domain entered at axial strain {fmt(ps.bifurcation)}{row(ps.bifurcation_step)}"
-               f"{by}; loss of controllability at {fmt(ps.controllability)}"
-               f"{row(ps.controllability_step)}; wrote {out}")
+    return prog, params, pressure, sphere, at_strains

@@ -1,0 +1,1 @@
+"""Results of the main paths recorded before a refactoring and compared after it."""
