@@ -108,3 +108,27 @@ def test_starts_on_a_dask_cluster_give_the_local_calibration(specimens):
     assert [s["end"] for s in remote.starts] == [s["end"] for s in local.starts]
     np.testing.assert_array_equal(remote.z, local.z)
     assert remote.cost == local.cost
+
+
+@pytest.mark.slow
+def test_run_commands_take_the_calibrated_model_at_a_void_ratio(calibrated, tmp_path):
+    """run biaxial --calibration DIR --e0 E gives the run of -p with the fitted parameters and
+    the alpha0 the map gives at E, bit for bit; a program and fem take it too."""
+    write(calibrated, tmp_path / "cal")
+    p = calibrated.params
+    a0 = math.degrees(alpha0_for_void_ratio(p, 2, 0.78, calibrated.e_ref))
+    common = ["--p0", "100kPa", "--axial-strain", "0.003", "--step", "1e-3"]
+    assert main(["run", "biaxial", *common, "--calibration", str(tmp_path / "cal"), "--e0", "0.78",
+                 "--out", str(tmp_path / "a")]) == 0
+    explicit = [f"{k}={v if isinstance(v, str) else repr(v)}" for k, v in p.to_dict().items() if k != "alpha0"] + [f"alpha0={a0!r}"]
+    assert main(["run", "biaxial", *common, *sum((["-p", e] for e in explicit), []), "--out", str(tmp_path / "b")]) == 0
+    a, b = ((tmp_path / d / "result.csv").read_text().splitlines() for d in "ab")
+    assert len(a) == len(b) > 3
+    np.testing.assert_allclose(np.loadtxt(a[1:], delimiter=",", usecols=range(3, 12)),
+                               np.loadtxt(b[1:], delimiter=",", usecols=range(3, 12)), rtol=1e-12, atol=1e-9)
+    program = tmp_path / "p.toml"
+    program.write_text('[[stage]]\npreset = "iso"\np = "100kPa"\n[[stage]]\npreset = "drained"\neps11 = 0.002\nsteps = 2\n')
+    assert main(["run", "program", str(program), "--calibration", str(tmp_path / "cal"), "--e0", "0.78",
+                 "--out", str(tmp_path / "c")]) == 0
+    assert main(["fem", "biaxial", "--mesh", "1x2", "--steps", "2", "--axial-strain", "0.002",
+                 "--calibration", str(tmp_path / "cal"), "--e0", "0.78", "--out", str(tmp_path / "f")]) == 0

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -67,7 +68,52 @@ class CalibratedModel:
             raise InputError(f"--e0 must be a positive void ratio, got {e0:g}")
         return self.variant.initial_params(self.params, self.dim, e0, self.e_ref)
 
-    def describe(self) -> str:
-        """One line: where the model comes from and what it is."""
-        ref = f" at e_ref = {self.e_ref:.4g}" if self.e_ref is not None else ""
-        return f"calibrated model {self.variant.name}{ref} ({self.dim}D) from {self.source}"
+
+@dataclass(frozen=True)
+class Specimen:
+    """What --model, --calibration, --e0 and --e-ref say of a run's material: the parameters it
+    starts from (a calibration's, or the defaults), its variant, and each point's void ratio."""
+
+    base: Params | None
+    variant: ModelVariant
+    e_ref: float | None
+    e0: tuple[float, ...]
+    dim: int
+    sphere: Sphere | None = None
+
+    @classmethod
+    def make(cls, model: str | None, calibration: "str | Path | None", e0: Sequence[float] | None,
+             e_ref: float | None, dim: int) -> "Specimen | None":
+        """From a variant's name, a calibration folder, void ratios and a reference void ratio
+        (the run commands' --model, --calibration, --e0, --e-ref); None when none is given."""
+        if model is None and calibration is None and e0 is None and e_ref is None:
+            return None
+        cal = CalibratedModel.load(calibration) if calibration is not None else None
+        variant = get_variant(model) if model is not None else (cal.variant if cal else get_variant(None))
+        if cal is not None:
+            if cal.dim != dim:
+                raise InputError(f"--calibration {calibration} is of the {cal.dim}D model, this test of the {dim}D one")
+            if variant.name != cal.variant.name:
+                raise InputError(f"--model {model}: the calibration's model is {cal.variant.name}")
+        e0s = tuple(float(e) for e in e0) if e0 is not None else ()
+        for e in e0s:
+            if not (math.isfinite(e) and e > 0):
+                raise InputError(f"--e0 must be positive void ratios, got {e:g}")
+        if e0s and not variant.uses_e0:
+            raise InputError(f"--e0 sets the initial state through a model that uses it (--model sand); "
+                             f"the model here is {variant.name}")
+        e_ref = e_ref if e_ref is not None else (cal.e_ref if cal is not None else None)
+        if e0s and e_ref is None:
+            raise InputError("--e0 needs the void ratio at which alpha0 holds: --e-ref, or a --calibration")
+        return cls(cal.params if cal else None, variant, e_ref, e0s, dim, cal.sphere if cal else None)
+
+    def at_e0(self, sets: list[Params], n_pressures: int) -> list[Params]:
+        """Each point's parameters at its void ratio (broadcast: equal lengths, or one)."""
+        if not self.e0:
+            return sets
+        n = max(len(sets), len(self.e0), n_pressures)
+        for what, k in (("--param lists", len(sets)), ("--e0", len(self.e0)), ("--p0", n_pressures)):
+            if k not in (1, n):
+                raise InputError(f"{what} gives {k} material points and another option {n}: give equal lengths, or one value")
+        return [self.variant.initial_params(sets[i if len(sets) > 1 else 0], self.dim,
+                                            self.e0[i if len(self.e0) > 1 else 0], self.e_ref) for i in range(n)]

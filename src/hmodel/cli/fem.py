@@ -13,7 +13,7 @@ from ..params import Params
 from ..solvers import get_solver
 from ..units import parse_pressure
 from .progress import LazyProgress
-from .options import out_folder
+from .options import CalibrationOpt, E0Opt, ERefOpt, ModelOpt, out_folder, specimen
 from .run import ParamOpt, SolverOpt
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
@@ -60,10 +60,18 @@ def _finish(res, out: Path) -> None:
         typer.echo(f"hmodel: warning: the run stopped early: {res.stopped}", err=True)
 
 
-def _common(param, steps, solver):
+def _common(param, steps, solver, model, calibration, e0, e_ref):
+    """The material (``-p`` on a calibrated model's parameters, at its void ratio ``--e0``) and
+    the cell solver."""
     if steps < 1:
         raise InputError(f"--steps must be a positive integer, got {steps}")
-    return Params.parse_assignments(param), get_solver(solver)
+    spec = specimen(model, calibration, e0, e_ref, 2)
+    params = Params.parse_assignments(param, None if spec is None else spec.base)
+    if spec is not None:
+        if len(spec.e0) > 1:
+            raise InputError("--e0 of a finite-element run is one void ratio")
+        params = spec.at_e0([params], 1)[0]
+    return params, get_solver(solver)
 
 
 def _regularization(text: str, domain):
@@ -96,6 +104,7 @@ def biaxial_cmd(
     param: ParamOpt = None,
     scheduler: SchedulerOpt = None,
     regularization: RegOpt = "local",
+    model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None,
     out: OutOpt = Path("results/fem-biaxial"),
 ) -> None:
     """Plane-strain biaxial specimen: consolidation to p0, then drained (lateral pressure p0)
@@ -107,7 +116,7 @@ def biaxial_cmd(
         raise InputError(f"--axial-strain must lie in (0, 1), got {axial_strain}")
     nxy = parse_pair(mesh, "--mesh", integer=True)
     wh = parse_pair(size, "--size", integer=False)
-    params, cell_solver = _common(param, steps, solver)
+    params, cell_solver = _common(param, steps, solver, model, calibration, e0, e_ref)
     reg = _regularization(regularization, Domain(*wh, *nxy, element.lower()))
     with LazyProgress("FEM biaxial") as progress:
         res = biaxial(params, pressure, axial_strain, size=wh, mesh=nxy, element=element.lower(),
@@ -130,6 +139,7 @@ def footing_cmd(
     param: ParamOpt = None,
     scheduler: SchedulerOpt = None,
     regularization: RegOpt = "local",
+    model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None,
     out: OutOpt = Path("results/fem-footing"),
 ) -> None:
     """Rigid strip footing on a layer consolidated to p0: the load-settlement curve."""
@@ -138,7 +148,7 @@ def footing_cmd(
     pressure = parse_pressure(p0)
     nxy = parse_pair(mesh, "--mesh", integer=True)
     lh = parse_pair(layer, "--layer", integer=False)
-    params, cell_solver = _common(param, steps, solver)
+    params, cell_solver = _common(param, steps, solver, model, calibration, e0, e_ref)
     reg = _regularization(regularization, Domain(*lh, *nxy, element.lower()))
     with LazyProgress("FEM footing") as progress:
         res = footing(params, pressure, settlement, width=width, layer=lh, mesh=nxy,

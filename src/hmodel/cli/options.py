@@ -13,6 +13,7 @@ from typing import Annotated, Optional
 
 import typer
 
+from ..errors import InputError
 from ..io import check_output_file, check_output_folder
 from ..workers import local_workers
 
@@ -63,3 +64,35 @@ def workers_opt(help: str, optional: bool = False):
     CPU with a warning (``optional``: None when not given)."""
     return Annotated[Optional[int] if optional else int, typer.Option("--workers", min=1, help=help,
                                                                       callback=_workers)]
+
+
+ModelOpt = Annotated[Optional[str], typer.Option(
+    "--model", help="Variant of the H-model (hmodel models): published (default), density (alias sand: "
+                    "alpha0 from the specimen's void ratio --e0).")]
+CalibrationOpt = Annotated[Optional[Path], typer.Option(
+    "--calibration", help="Folder (or calibration.json) of a calibration: run its fitted model (parameters, "
+                          "variant, 3D directions); -p changes parameters on top of it.")]
+E0Opt = Annotated[Optional[str], typer.Option(
+    "--e0", help="Void ratio of the specimen, or a comma list (one material point each, broadcast against "
+                 "--p0): sets alpha0 through a model that uses e0 (sand), from its alpha0 at --e-ref.")]
+ERefOpt = Annotated[Optional[float], typer.Option(
+    "--e-ref", help="Void ratio at which the parameters' alpha0 holds (default: the calibration's).")]
+
+
+def _void_ratios(text: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise InputError(f"--e0 must be void ratios (0.84 or 0.7,0.8), got {text!r}") from None
+    for v in values:
+        if not (v > 0 and v < float("inf")):
+            raise InputError(f"--e0 must be positive void ratios, got {text!r}")
+    return values
+
+
+def specimen(model: str | None, calibration: Path | None, e0: str | None, e_ref: float | None, dim: int):
+    """The run's :class:`~hmodel.calibrate.calibrated.Specimen` of --model, --calibration,
+    --e0 and --e-ref (None when none is given)."""
+    from ..calibrate.calibrated import Specimen
+
+    return Specimen.make(model, calibration, None if e0 is None else _void_ratios(e0), e_ref, dim)

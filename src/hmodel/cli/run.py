@@ -4,11 +4,13 @@ true-triaxial, oedometer; a program in either)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
 
+from ..calibrate.calibrated import Specimen
 from ..errors import InputError
 from ..io import read_strain_path, write_outputs
 from ..loading import (
@@ -31,7 +33,7 @@ from ..plotting import plot_result
 from ..rev.sphere import Sphere
 from ..solvers import get_solver
 from ..units import parse_pressures
-from .options import out_folder
+from .options import CalibrationOpt, E0Opt, ERefOpt, ModelOpt, out_folder, specimen
 from .progress import LazyProgress
 
 app = typer.Typer(no_args_is_help=True, help="Run a loading path or a loading program at the material point.")
@@ -85,13 +87,16 @@ def _positive(value: float, name: str) -> float:
     return value
 
 
-def _material_points(param: list[str] | None, n_pressures: int) -> Params | list[Params]:
+def _material_points(param: list[str] | None, n_pressures: int, model: "Specimen | None" = None) -> Params | list[Params]:
     """``--param`` with comma lists: one parameter set per material point, broadcast against the
-    ``--p0`` list (equal lengths, or one of them 1)."""
-    sets = parse_point_assignments(param)
+    ``--p0`` list (equal lengths, or one of them 1); on the parameters of ``model`` (a
+    calibration's, and each point's e0) where given."""
+    sets = parse_point_assignments(param, None if model is None else model.base)
     if len(sets) > 1 and n_pressures > 1 and len(sets) != n_pressures:
         raise InputError(f"--param lists give {len(sets)} material points and --p0 gives "
                          f"{n_pressures}: give equal lengths, or one value")
+    if model is not None:
+        sets = model.at_e0(sets, n_pressures)
     return sets[0] if len(sets) == 1 else sets
 
 
@@ -99,10 +104,10 @@ def _material_points(param: list[str] | None, n_pressures: int) -> Params | list
 def iso(p0: P0Opt = "200kPa", param: ParamOpt = None, out: OutOpt = Path("results/iso"),
         iso_step: Annotated[float, typer.Option(help="Strain increment of eps11 and eps22.")] = ISO_STEP,
         solver: SolverOpt = "closed-form", gate: GateOpt = None,
-        fallback: FallbackOpt = None) -> None:
+        fallback: FallbackOpt = None, model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None) -> None:
     """Isotropic compression (equal strain increments) until p reaches p0."""
     pressures = parse_pressures(p0)
-    params = _material_points(param, len(pressures))
+    params = _material_points(param, len(pressures), specimen(model, calibration, e0, e_ref, 2))
     with LazyProgress("isotropic compression") as progress:
         cells = _solver(solver, gate, fallback)
         result = run_isotropic(params, pressures, solver=cells,
@@ -119,10 +124,10 @@ def biaxial(p0: P0Opt = "200kPa",
             step: Annotated[float, typer.Option(help="Axial strain increment.")] = AXIAL_STEP,
             iso_step: Annotated[float, typer.Option(help="Strain increment of the consolidation.")] = ISO_STEP,
             solver: SolverOpt = "closed-form", gate: GateOpt = None,
-        fallback: FallbackOpt = None) -> None:
+        fallback: FallbackOpt = None, model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None) -> None:
     """Isotropic consolidation to p0, then drained (sig22 = p0) or undrained biaxial compression."""
     pressures = parse_pressures(p0)
-    params = _material_points(param, len(pressures))
+    params = _material_points(param, len(pressures), specimen(model, calibration, e0, e_ref, 2))
     _positive(axial_strain, "--axial-strain")
     if axial_strain >= 1:
         raise InputError(f"--axial-strain must be below 1, got {axial_strain}")
@@ -142,9 +147,9 @@ def strain_path(path: Annotated[Path, typer.Argument(help="CSV with header eps11
                     help=f"Split a row's increment into sub-steps no larger than this strain "
                          f"(default: one increment per row; {MAX_STRAIN_STEP:g} is converged).")] = None,
                 solver: SolverOpt = "closed-form", gate: GateOpt = None,
-        fallback: FallbackOpt = None) -> None:
+        fallback: FallbackOpt = None, model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None) -> None:
     """Follow a prescribed strain path; one result row per input row, in order."""
-    params = _material_points(param, 1)
+    params = _material_points(param, 1, specimen(model, calibration, e0, e_ref, 2))
     eps = read_strain_path(path)
     if max_step is not None:
         _positive(max_step, "--max-step")
@@ -162,10 +167,16 @@ def program(path: Annotated[Path, typer.Argument(help="TOML file of stages (see 
         fallback: FallbackOpt = None,
             keep_partial: Annotated[bool, typer.Option(
                 "--keep-partial", help="When an increment cannot be solved, still write every state "
-                                       "computed before it (exit status 1 all the same).")] = False) -> None:
+                                       "computed before it (exit status 1 all the same).")] = False,
+            model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None) -> None:
     """A loading program: stages of mixed stress/strain control, cycles, stopping criteria."""
     prog = Program.from_toml(path)
-    params = prog.with_params(param)
+    spec = specimen(model, calibration, e0, e_ref, 2 if prog.sphere is None else 3)
+    params = prog.with_params(param, None if spec is None else spec.base)
+    if spec is not None:
+        if len(spec.e0) > 1:
+            raise InputError("--e0 of a program is one void ratio (a program runs one material point)")
+        params = spec.at_e0([params], 1)[0]
     with LazyProgress(f"program {prog.name}") as progress:
         try:
             result = prog.run(params, solver=_solver(solver, gate, fallback), progress=progress)
@@ -234,20 +245,22 @@ def _solver_3d(spec: str):
     return solver if solver.n_lengths == 3 else BiHexSolver(hexagon=solver)
 
 
-def _points_3d(param: list[str] | None, n_pressures: int, solver=None) -> Params | list[Params]:
+def _points_3d(param: list[str] | None, n_pressures: int, solver=None,
+               model: Specimen | None = None) -> Params | list[Params]:
     """``--param`` of a 3D test (:func:`_material_points`): the 2D model's own parameters are
     refused, naming their 3D equivalent; ``sliding_rhs`` defaults to ``equilibrium`` (with the
     report's λ the mixed-control driver cannot yet pass the jumps of the 3D cells' events), or
-    for a learned hexagon to the one its model was trained with (a surrogate refuses others)."""
+    for a learned hexagon to the one its model was trained with (a surrogate refuses others);
+    a calibrated ``model`` keeps its own."""
     names = [item.partition("=")[0].strip() for item in param or []]
     check_3d_params(names)
-    if "sliding_rhs" not in names:
+    if "sliding_rhs" not in names and (model is None or model.base is None):
         rhs = "equilibrium"
         f = getattr(getattr(solver, "hexagon", None), "formulation", None)
         if f is not None:
             rhs = (f.to_dict().get("params") or {}).get("sliding_rhs", rhs)
         param = [f"sliding_rhs={rhs}", *(param or [])]
-    return _material_points(param, n_pressures)
+    return _material_points(param, n_pressures, model)
 
 
 def _axial(axial_strain: float) -> float:
@@ -257,14 +270,19 @@ def _axial(axial_strain: float) -> float:
     return axial_strain
 
 
-def _setup_3d(p0, param, axial_strain, order, azimuths, fabric, solver):
+def _setup_3d(p0, param, axial_strain, order, azimuths, fabric, solver, model: Specimen | None = None):
     """What every 3D test reads from its options, checked before any work: the pressures, the
-    material points' parameters, the sphere and the cell solver."""
+    material points' parameters, the sphere (a calibration's, changed by the options given) and
+    the cell solver."""
     pressures = parse_pressures(p0)
     cells = _solver_3d(solver)
-    params = _points_3d(param, len(pressures), cells)
+    params = _points_3d(param, len(pressures), cells, model)
     _axial(axial_strain)
-    return pressures, params, _sphere(order, azimuths, fabric), cells
+    sphere = _sphere(order, azimuths, fabric)
+    if model is not None and model.sphere is not None:
+        given = {k: v for k, v in (("order", order), ("n_azimuth", azimuths)) if v is not None}
+        sphere = replace(model.sphere, **given, **({"alpha_omega": fabric} if fabric else {}))
+    return pressures, params, sphere, cells
 
 
 def _steps_3d(sphere, cells, iso_step: float, step: float) -> dict:
@@ -280,11 +298,12 @@ def triaxial(p0: P0Opt = "200kPa", axial_strain: AxialOpt = 0.1,
                  "--extension", help="Axial unloading at constant radial stress (sig11 < sig22 = sig33).")] = False,
              param: Param3DOpt = None, order: OrderOpt = None, azimuths: AzimuthsOpt = None,
              fabric: FabricOpt = 0.0, out: OutOpt = Path("results/triaxial"), step: StepOpt = AXIAL_STEP,
-             iso_step: IsoStepOpt = ISO_STEP, solver: Solver3DOpt = "closed-form") -> None:
+             iso_step: IsoStepOpt = ISO_STEP, solver: Solver3DOpt = "closed-form",
+             model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None) -> None:
     """The 3D H-model's triaxial test: isotropic consolidation to p0, then drained (sig22 = sig33
     = p0) or undrained axial compression, or extension, along axis 1."""
     pressures, params, sphere, cells = _setup_3d(p0, param, axial_strain, order, azimuths, fabric,
-                                                 solver)
+                                                 solver, specimen(model, calibration, e0, e_ref, 3))
     with LazyProgress("triaxial test") as progress:
         result = run_triaxial(params, pressures, axial_strain, undrained=undrained, extension=extension,
                               progress=progress, **_steps_3d(sphere, cells, iso_step, step))
@@ -300,11 +319,12 @@ def true_triaxial(p0: P0Opt = "200kPa",
                   axial_strain: AxialOpt = 0.1, param: Param3DOpt = None, order: OrderOpt = None,
                   azimuths: AzimuthsOpt = None, fabric: FabricOpt = 0.0,
                   out: OutOpt = Path("results/true-triaxial"), step: StepOpt = AXIAL_STEP,
-                  iso_step: IsoStepOpt = ISO_STEP, solver: Solver3DOpt = "closed-form") -> None:
+                  iso_step: IsoStepOpt = ISO_STEP, solver: Solver3DOpt = "closed-form",
+                  model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None) -> None:
     """Drained true triaxial test at constant p = p0 and constant b: isotropic consolidation,
     then compression along axis 1 (the major principal stress)."""
     pressures, params, sphere, cells = _setup_3d(p0, param, axial_strain, order, azimuths, fabric,
-                                                 solver)
+                                                 solver, specimen(model, calibration, e0, e_ref, 3))
     with LazyProgress("true triaxial test") as progress:
         result = run_true_triaxial(params, pressures, b, axial_strain, progress=progress,
                                    **_steps_3d(sphere, cells, iso_step, step))
@@ -315,11 +335,12 @@ def true_triaxial(p0: P0Opt = "200kPa",
 def oedometer(p0: P0Opt = "200kPa", axial_strain: AxialOpt = 0.05, param: Param3DOpt = None,
               order: OrderOpt = None, azimuths: AzimuthsOpt = None, fabric: FabricOpt = 0.0,
               out: OutOpt = Path("results/oedometer"), step: StepOpt = AXIAL_STEP,
-              iso_step: IsoStepOpt = ISO_STEP, solver: Solver3DOpt = "closed-form") -> None:
+              iso_step: IsoStepOpt = ISO_STEP, solver: Solver3DOpt = "closed-form",
+              model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None) -> None:
     """Oedometric compression of the 3D H-model (eps22 = eps33 = 0) from isotropic consolidation
     to p0; K0 = sig_r/sig_a at its end is printed and is the column K0 of result.csv."""
     pressures, params, sphere, cells = _setup_3d(p0, param, axial_strain, order, azimuths, fabric,
-                                                 solver)
+                                                 solver, specimen(model, calibration, e0, e_ref, 3))
     with LazyProgress("oedometric test") as progress:
         result = run_oedometer(params, pressures, axial_strain, progress=progress,
                                **_steps_3d(sphere, cells, iso_step, step))

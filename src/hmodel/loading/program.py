@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 import tomllib
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -106,6 +106,8 @@ class Program:
     #: the 3D H-model's sphere (directions, azimuths, fabric) of a program with ``dim = 3``;
     #: None: a 2D program
     sphere: Sphere | None = None
+    #: the name of the file the program was read from ("" when built in Python); figures' titles
+    file: str = ""
 
     @property
     def dim(self) -> int:
@@ -132,7 +134,7 @@ class Program:
                              f"{e.object[e.start:e.start + 1]!r})") from None
         except tomllib.TOMLDecodeError as e:
             raise InputError(f"program {str(path)!r} is not valid TOML: {e}") from None
-        return cls.from_dict(data, default_name=path.stem)
+        return replace(cls.from_dict(data, default_name=path.stem), file=path.name)
 
     @classmethod
     def from_dict(cls, data: Mapping, default_name: str = "program") -> "Program":
@@ -164,14 +166,15 @@ class Program:
         check_rows(program.n_increments, "the program's increments")
         return program
 
-    def with_params(self, assignments: Sequence[str] | None) -> Params:
-        """The program's ``[params]`` overridden by ``NAME=VALUE`` assignments (``-p``); a 3D
-        program refuses the 2D model's own parameters (n_theta, alpha_omega, beta_omega)."""
+    def with_params(self, assignments: Sequence[str] | None, base: Params | None = None) -> Params:
+        """The program's ``[params]`` overridden by ``NAME=VALUE`` assignments (``-p``), on
+        ``base`` (default: the defaults; a calibrated model's parameters); a 3D program refuses
+        the 2D model's own parameters (n_theta, alpha_omega, beta_omega)."""
         if self.sphere is not None:
             check_3d_params([a.partition("=")[0].strip() for a in assignments or []],
                             "--param of a 3D program")
         return Params.parse_assignments([f"{k}={v}" for k, v in self.params.items()]
-                                        + list(assignments or []))
+                                        + list(assignments or []), base)
 
     @property
     def n_increments(self) -> int:
@@ -197,7 +200,7 @@ class Program:
             raise InputError("a program runs one material point: give one parameter set")
         rev = self.make_rev(params, solver)
         rev.check_size(1, rows=self.n_increments, columns=len(columns_for(rev.n_components)) + 1)
-        meta = {"test": "program", "program": self.name, "params": params.to_dict(), "dim": self.dim,
+        meta = {"test": "program", "program": self.name, "file": self.file, "params": params.to_dict(), "dim": self.dim,
                 "solver": rev.solver.name, "stopped": [], "cycles": {},
                 "undrained_stages": self.undrained_stages}
         if self.sphere is not None:
