@@ -24,7 +24,10 @@ from hmodel.rev import Rev
 
 class LinearElastic:
     """Isotropic linear elasticity (plane strain) with Lamé constants: the patch test's law (any
-    material with ``trial``/``commit``/``checkpoint``/``restore`` runs in the FEM Newton)."""
+    material with ``trial``/``commit``/``checkpoint``/``restore`` and a ``state`` runs in the FEM
+    Newton)."""
+
+    state = None  # no cells
 
     def __init__(self, n_points: int, lam: float, mu: float, sig0: np.ndarray | None = None):
         self.D = np.array([[lam + 2 * mu, lam, 0.0], [lam, lam + 2 * mu, 0.0], [0.0, 0.0, 2 * mu]])

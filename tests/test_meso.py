@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from hmodel import Params
-from hmodel.cell import CellState
+from hmodel.cell import CellSolver, CellState
+from hmodel.cell.base import STATE_OWN
 from hmodel.cell.closed_form import ClosedFormSolver
 from hmodel.cell.mesostress import meso_vsigma
 from hmodel.compare import deviations, run_path, standard_paths
@@ -25,7 +26,7 @@ from hmodel.surrogate.training_rows import read_sample
 PARAMS = Params(sliding_rhs="equilibrium", n_theta=12)
 
 
-class SummaryOfClosedForm:
+class SummaryOfClosedForm(CellSolver):
     """The closed form behind the meso formulation's summary-state interface: what a perfect
     meso surrogate would be."""
 
@@ -33,6 +34,7 @@ class SummaryOfClosedForm:
     stress_rtol = 0.0
     bytes_per_cell = 1024
     n_lengths = 2
+    state_kind = STATE_OWN
 
     def __init__(self, form: MesoFormulation):
         self.form, self.cf = form, ClosedFormSolver()

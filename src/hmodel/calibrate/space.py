@@ -151,8 +151,7 @@ def training_domain(solver) -> dict | None:
     """The training domain (Params units) of a cell solver: its own (a family surrogate's
     ``domain``) or, for the 3D model's bi-hexagon, that of the 2D cell solver stepping its
     hexagons, which sees the material's parameters as they are; None: any material."""
-    own = getattr(solver, "domain", None)
-    return own if own is not None else getattr(getattr(solver, "hexagon", None), "domain", None)
+    return None if solver is None else solver.domain
 
 
 def _default(name: str, trained: dict[str, tuple[float, float]]) -> tuple[float, float]:

@@ -40,7 +40,7 @@ from numba import njit
 
 from ..errors import InputError, SolverError
 from ..params import Params
-from .base import CellKernel, CellSolver
+from .base import STATE_BIHEXAGON, STATE_H_CELL, CellKernel, CellSolver
 from .closed_form import P_R, ClosedFormSolver, cell_increment, kernel_params
 from .mesostress import contact_vsigma
 from .state import FIELDS, FLAGS, CellFlags, CellState, initial_lengths
@@ -157,38 +157,32 @@ def initial_bihex(params: Params, alpha0: np.ndarray) -> CellState:
 def check_hexagon(solver) -> None:
     """Refuse a 2D cell solver that cannot step the hexagons of a bi-hexagon (one-line
     :class:`InputError` naming why): the decomposition into two H-cells sharing δl1
-    (docs/model3d.md) holds for H-cells, whose state is eq. 1.2's eight fields and whose
-    meso-stress is eq. 1.12 of them; a richer cell (a learned ``meso`` state or a DEM cell with
-    more grains), a surrogate learned from DEM cells and a DEM cell solver are not such a
-    hexagon here."""
+    (docs/model3d.md) holds for H-cells of eq. 1.7, whose state is eq. 1.2's eight fields and
+    whose meso-stress is eq. 1.12 of them; a DEM cell solver (the 3D model's DEM cell is a solver
+    of its own, ``dem:bihexagon``), a surrogate learned from DEM cells and a cell state of another
+    kind (a learned ``meso`` summary) are not such a hexagon here. Read from the solver's
+    declarations (:class:`~hmodel.cell.base.CellSolver`)."""
     if not isinstance(solver, CellSolver):
         raise InputError(f"not a cell solver: {solver!r}")
     name = solver.name
     if solver.n_lengths != 2:
         raise InputError(f"the hexagons of a bi-hexagon are 2D cells (two lengths), got the 3D cell "
                          f"solver {name!r}")
-    if name.startswith("dem"):
+    if solver.dem_cells and solver.learned:
+        raise InputError("the surrogate learned the DEM cell it was trained on, not the closed-form H-cell: "
+                         "the 3D H-model's bi-hexagon is two closed-form H-cells sharing dl1, and "
+                         "its learned 3D cell takes a surrogate of that H-cell (e.g. surrogate:default)")
+    if solver.dem_cells:
         raise InputError(f"the 3D H-model's hexagons are H-cells of the closed form or a surrogate of it; "
-                         f"{name!r} is a DEM cell solver (YADE), which the bi-hexagon does not drive "
-                         "(3D DEM samples are a later issue's)")
-    f = getattr(solver, "formulation", None)
-    if f is not None:
-        cell = f.to_dict().get("cell", "closed-form")
-        if f.richer or str(cell).startswith("dem"):
-            raise InputError(f"the surrogate learned the DEM cell {cell!r}, not the closed-form H-cell: "
-                             "the 3D H-model's bi-hexagon is two closed-form H-cells sharing dl1, and "
-                             "its learned 3D cell takes a surrogate of that H-cell (e.g. surrogate:default)")
-        if f.n_state != len(FIELDS):
-            raise InputError(f"the surrogate's cells keep a {f.name!r} summary state of {f.n_state} "
-                             f"fields, not the H-cell's {len(FIELDS)} (eq. 1.2) whose eq. 1.12 stress "
-                             "the bi-hexagon sums; give a surrogate of the H-cell's increment "
-                             "(e.g. surrogate:default)")
-    if solver.initial(Params()).values.shape[-1] != len(FIELDS):
+                         f"{name!r} is a DEM cell solver (YADE): the 3D model's DEM cell is the "
+                         "bi-hexagon of spheres, dem:bihexagon")
+    if solver.state_kind != STATE_H_CELL:
         raise InputError(f"the cell solver {name!r} keeps other cell states than the H-cell's "
-                         f"{len(FIELDS)} fields, which the bi-hexagon's hexagons are")
+                         f"{len(FIELDS)} fields (eq. 1.2), whose eq. 1.12 stress the bi-hexagon sums; "
+                         "give a surrogate of the H-cell's increment (e.g. surrogate:default)")
 
 
-class BiHexSolver:
+class BiHexSolver(CellSolver):
     """The bi-hexagonal 3D cell: two eq. 1.7 systems sharing δl1.
 
     The 3D counterpart of :class:`hmodel.cell.ClosedFormSolver`; its :meth:`step` takes three
@@ -209,12 +203,15 @@ class BiHexSolver:
 
     #: lengths driven by the strain: l1 (n), l2 (t1), l3 (t2)
     n_lengths = 3
+    state_kind = STATE_BIHEXAGON
 
     def __init__(self, hexagon: CellSolver | None = None):
         if hexagon is not None:
             check_hexagon(hexagon)
         #: the 2D solver of each hexagon
         self.hexagon = ClosedFormSolver() if hexagon is None else hexagon
+        #: learned where the hexagons are
+        self.learned = self.hexagon.learned
         #: whether both hexagons are the compiled closed form (:func:`bihex_step_kernel`)
         self.closed_form = type(self.hexagon) is ClosedFormSolver
         #: the hexagon solver's name: ``closed-form``, ``surrogate``, ...
@@ -231,7 +228,21 @@ class BiHexSolver:
     def counts(self) -> dict | None:
         """The hexagon solver's counters (a surrogate's cell updates, fallbacks; each hexagon
         counts once), or None."""
-        return getattr(self.hexagon, "counts", None)
+        return self.hexagon.counts
+
+    @property
+    def domain(self) -> dict | None:
+        """The training domain of the hexagon solver, which sees the material's parameters as
+        they are (a family surrogate's); None: any material."""
+        return self.hexagon.domain
+
+    @property
+    def trained_params(self) -> dict | None:
+        """The material parameters the hexagon solver's cells were trained with, or None."""
+        return self.hexagon.trained_params
+
+    def field_names(self) -> tuple[str, ...]:
+        return BIHEX_FIELDS
 
     def initial(self, params: Params, shape: tuple[int, ...] = ()) -> CellState:
         """Unloaded bi-hexagons of shape ``shape`` (opening angle params.alpha0)."""

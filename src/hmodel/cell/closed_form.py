@@ -18,7 +18,7 @@ from numba import njit
 
 from ..errors import InputError, SolverError
 from ..params import Params
-from .base import CellKernel
+from .base import STATE_H_CELL, CellKernel, CellSolver
 from .state import FIELDS, FLAGS, CellFlags, CellState, initial_cells
 
 # Positions in the packed parameter vector handed to the kernel.
@@ -260,7 +260,7 @@ def step_kernel(values, dl, p, out, flags):
     return bad
 
 
-class ClosedFormSolver:
+class ClosedFormSolver(CellSolver):
     """The H-cell solved in closed form (eq. 1.7). Implements :class:`hmodel.cell.CellSolver`."""
 
     name = "closed-form"
@@ -269,6 +269,9 @@ class ClosedFormSolver:
     #: measured: about 570 B a cell (peak RSS of drained biaxial runs at nθ = 2·10⁴ and 2·10⁵)
     bytes_per_cell = 1024
     n_lengths = 2
+    state_kind = STATE_H_CELL
+    #: a cell's α0 is its state's alpha before any increment: cells may start apart
+    spread_alpha0 = True
 
     @classmethod
     def from_spec(cls, spec: str = "closed-form") -> "ClosedFormSolver":

@@ -57,7 +57,7 @@ def compare(
     ref_solver = get_solver(reference)
     rows, figures = [], {}
     warm = warm_up(params, [ref_solver, other], step, iso_step)
-    if hasattr(other, "counts"):  # count the compared runs only (learned solvers count)
+    if other.counts is not None:  # count the compared runs only (learned solvers count)
         other.counts.update(dict.fromkeys(other.counts, 0))
     with LazyProgress("comparing") as progress:
         for i, spec in enumerate(specs):

@@ -12,7 +12,7 @@ import typer
 from ..errors import InputError
 from ..io import write_outputs
 from ..params import Params
-from .options import out_folder
+from .options import out_folder, workers_opt
 from .progress import LazyProgress
 from .run import ParamOpt
 
@@ -82,7 +82,7 @@ def generate(
                                                          "(default 10; --dim 3: 1).")] = None,
     shard_rows: Annotated[int, typer.Option(help="Rows per shard, about.")] = 250_000,
     param: ParamOpt = None,
-    workers: Annotated[Optional[int], typer.Option(help="Local worker processes (default: one per CPU).")] = None,
+    workers: workers_opt("Local worker processes (default and most: one per CPU).", optional=True) = None,
     scheduler: Annotated[Optional[str], typer.Option(help="Dask scheduler address, e.g. tcp://host:8786.")] = None,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a dataset made with other options.")] = False,
     solver: Annotated[str, typer.Option(help="Cell solver: closed-form or dem (YADE cells, see --mesostructure).")] = "closed-form",

@@ -138,12 +138,13 @@ class DatasetSpec:
         if self.draws_material and self.dim == 3:
             raise InputError("a material per path (--kt-kn, --phi-g ranges) is drawn for 2D datasets only")
         self.material_ranges  # parses and checks
-        if self.dim == 3 and self.solver != "closed-form":
+        cell = get_solver(self.solver)  # what rows it makes: its declarations (CellSolver)
+        if self.dim == 3 and (cell.learned or cell.dem_cells):
             raise InputError(f"--dim 3 rows are the closed-form bi-hexagon's; --solver {self.solver} "
                              "is a 2D cell solver option only")
-        if self.dim == 2 and self.solver.split(":")[:2] == ["dem", "bihexagon"]:
-            raise InputError("the DEM bi-hexagon (dem:bihexagon) is the 3D model's cell, not a 2D cell "
-                             "to make 2D rows of; --dim 3 rows are the closed-form bi-hexagon's")
+        if self.dim == 2 and cell.n_lengths != 2:
+            raise InputError(f"{self.solver} is the 3D model's cell (three lengths), not a 2D cell to make 2D "
+                             "rows of; --dim 3 rows are the closed-form bi-hexagon's")
         if (self.kind == 3) != bool(self.rev_paths.strip()):
             raise InputError("rev_paths (the REV's loading paths) must be given for dataset 3 and "
                              f"only for it, got {self.rev_paths!r} for dataset {self.kind}")

@@ -78,12 +78,12 @@ def _header(spec: DatasetSpec, params: Params) -> dict:
               "options": spec.to_dict(), "params": params.to_dict(), "seed": None,
               "columns": list(columns_for(spec.dim)) + list(MATERIAL_COLUMNS if spec.draws_material else ()),
               "units": UNITS_3D if spec.dim == 3 else UNITS}
-    if spec.solver.startswith("dem"):  # richer DEM cells: names of the extra state fields
-        from ..solvers import get_solver
-        extra = list(get_solver(spec.solver).field_names()[8:])
-        if extra:
-            header["columns"] += list(EXTRA_COLUMNS)
-            header["extra_fields"] = extra
+    from ..solvers import get_solver
+
+    extra = list(get_solver(spec.solver).field_names()[8:])  # a richer cell's extra state fields
+    if extra:
+        header["columns"] += list(EXTRA_COLUMNS)
+        header["extra_fields"] = extra
     return header
 
 

@@ -38,6 +38,7 @@ from ..cell.bihex import (
     check_params,
     initial_bihex,
 )
+from ..cell.base import STATE_BIHEXAGON
 from ..cell.geometry import CellGeometry
 from ..cell.state import CellFlags, CellState
 from ..errors import InputError
@@ -204,6 +205,7 @@ class DEMBiHexSolver(DEMSolver):
     Requests, caching and the YADE process are the 2D DEM solver's (:class:`DEMSolver`)."""
 
     n_lengths = 3
+    state_kind = STATE_BIHEXAGON
     length_columns = (6, 7, 15)
     n_flags = len(BIHEX_FLAGS)
 

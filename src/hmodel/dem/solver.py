@@ -31,6 +31,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..cell.base import STATE_H_CELL, STATE_OWN, CellSolver
 from ..cell.geometry import CellGeometry
 from ..cell.mesostructure import TYPE1, TYPE2, option_names
 from ..cell.state import FLAGS, CellFlags, CellState
@@ -87,8 +88,10 @@ def measure(geo: CellGeometry, params: Params, pos: np.ndarray, contacts: list) 
     return out, flags
 
 
-class DEMSolver:
+class DEMSolver(CellSolver):
     """YADE cells of one mesostructure; see the module docstring for the state layout."""
+
+    dem_cells = True
 
     def __init__(self, spec: str = "dem:standard", options: DEMOptions | None = None):
         #: The cells' state layout and meso-stress (:mod:`hmodel.cell.geometry`).
@@ -126,7 +129,16 @@ class DEMSolver:
     def __repr__(self) -> str:
         return f"DEMSolver({self.name!r})"
 
+    def check_available(self) -> None:
+        """Refuse a run where YADE is not installed (:func:`hmodel.dem.yade.find_yade`)."""
+        find_yade()
+
     # -- state layout (the geometry's) --------------------------------------------------
+    @property
+    def state_kind(self) -> str:
+        """The standard cell's state is an H-cell's; a richer cell keeps its own."""
+        return STATE_H_CELL if self.geometry.standard else STATE_OWN
+
     @property
     def n_fields(self) -> int:
         return self.geometry.n_fields

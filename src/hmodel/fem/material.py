@@ -2,7 +2,8 @@
 
 A law answers one question, the stress after a strain increment from its committed state and
 the consistent tangent there, for all Gauss points at once (:meth:`trial`); :meth:`commit`
-makes a trial the new committed state once the global Newton has converged. Strains, stresses
+makes a trial the new committed state once the global Newton has converged. Its ``state`` (and
+its trials') is the REV state of its Gauss points, or None for a law without cells. Strains, stresses
 and tangents use hmodel's convention (:mod:`hmodel.fem.assembly`).
 """
 
@@ -95,11 +96,12 @@ class HModelMaterial:
             raise InputError(f"Gauss-point parameter sets must lie in [0, {rev.n_sets})")
         start = consolidate(rev, [p0], state=rev.initial(rev.n_sets))
         self.state = start.select(sets if rev.n_sets > 1 else np.zeros(len(sets), np.int64))
-        self.fd_step = max(FD_STEP, 10 * float(getattr(rev.solver, "stress_rtol", 0.0)))
-        #: the compiled kernel's inputs where the cells have one and the REV runs here (2D
-        #: REV; a Dask step or a cell solver without a compiled increment takes four calls)
+        self.fd_step = max(FD_STEP, 10 * float(rev.solver.stress_rtol))
+        #: the compiled kernel's inputs where the cells' law has exact tangents (the closed
+        #: form's) and the REV runs here (2D REV; a Dask step, a learned law or a cell solver
+        #: without a compiled increment takes four calls)
         self._inputs = (batch_inputs(rev) if step is None and rev.kernel is not None
-                        and not rev.kernel.learned and rev.n_components == 3 else None)
+                        and rev.kernel.exact_tangent and rev.n_components == 3 else None)
 
     @property
     def n_points(self) -> int:

@@ -131,8 +131,9 @@ class NotConverged(Exception):
 
 
 def _broken(obj) -> int:
-    """Number of open cells of all Gauss points of a material or trial (0 without cells)."""
-    state = getattr(obj, "state", None)
+    """Number of open cells of all Gauss points of a material or trial (its ``state``: 0 for a
+    law without cells, whose state is None)."""
+    state = obj.state
     return 0 if state is None else int(state.flags.broken.sum())
 
 

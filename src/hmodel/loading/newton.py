@@ -102,7 +102,7 @@ def solver_limits(solver) -> tuple[float, float]:
     the norm taken here. So trials within max_cell_strain / (2 sqrt(2)) are increments the
     cells take, and a nearly singular tangent's trial is held there instead of failing the
     increment."""
-    ceiling = float(getattr(solver, "max_cell_strain", math.inf)) / (2.0 * math.sqrt(2.0))
+    ceiling = float(solver.max_cell_strain) / (2.0 * math.sqrt(2.0))
     return float(solver.stress_rtol), ceiling
 
 

@@ -114,7 +114,7 @@ class RevBatch:
             lengths = [dl[rows, :, k] for k in range(self.solver.n_lengths)]
             new, flags = self.solver.step(s, CellState(state.cells.values[rows]), *lengths)
             return new.values, flags.flags
-        if self.n_sets > 1 and getattr(self.solver, "batches_sets", False):
+        if self.n_sets > 1 and self.solver.batches_sets:
             # a family network takes every set's cells in one call (its material is an input)
             values, flags = self.solver.step_sets(self.sets, state.set_index, state.cells,
                                                   *(dl[..., k] for k in range(self.solver.n_lengths)))

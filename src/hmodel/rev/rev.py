@@ -87,9 +87,9 @@ class Rev(RevBatch):
         #: localization mode of the meso-volume option (eq. 1.1 on l or l*), for the kernels
         self.mode = _LOC_MODE[params.volume]
         spread = [s for s in self.sets if s.alpha0_spread > 0]
-        if spread and solver.name != "closed-form":
+        if spread and not solver.spread_alpha0:
             # the closed form's state carries each cell's α0; a network or DEM cell may read
-            # α0 from the parameters as well
+            # α0 from the parameters as well (CellSolver.spread_alpha0)
             raise InputError(f"alpha0_spread > 0 is implemented for the closed-form H-cell, not "
                              f"for {solver.name} cells")
         cell0 = [solver.initial(s, ()) for s in self.sets]

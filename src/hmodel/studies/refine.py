@@ -223,10 +223,7 @@ def model_trust(model: Surrogate) -> dict:
 
 def _exact_solver(spec: str):
     solver = get_solver(spec)
-    if solver.name.startswith("dem:"):
-        from ..dem.yade import find_yade
-
-        find_yade()  # before any work: a refine run needs its DEM cells
+    solver.check_available()  # before any work: a refine run needs its DEM cells
     return solver
 
 

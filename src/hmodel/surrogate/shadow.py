@@ -29,14 +29,15 @@ import math
 
 import numpy as np
 
-from ..cell import CellFlags, CellState
+from ..cell import CellFlags, CellSolver, CellState
+from ..cell.base import STATE_OWN
 from ..errors import InputError
 from ..params import Params
 from .state_cache import StateCache
 from .gate import gate_for
 
 
-class ShadowedSolver:
+class ShadowedSolver(CellSolver):
     """Implements :class:`hmodel.cell.CellSolver`: a ``meso`` :class:`SurrogateSolver` of a
     richer cell, gated at level ``gate`` to the DEM solver ``fallback`` of the same cells (see
     the module docstring). ``counts`` adds, to the surrogate's, ``gated`` and ``gate_checked``
@@ -47,13 +48,17 @@ class ShadowedSolver:
     #: accurate as smaller sub-steps for fewer DEM calls (measured: docs/notes, 2026-12-02,
     #: the richer cell).
     replay_strain = 4e-3
+    learned = True
+    dem_cells = True
+    #: the summary, the full DEM state and the lag: a layout of its own
+    state_kind = STATE_OWN
 
     def __init__(self, surrogate, fallback, gate: float):
         f = surrogate.formulation
         if not f.richer:
             raise InputError("a DEM fallback keeps a richer cell's meso surrogate in step; "
                              f"this is a {f.name!r} model of {f.cell}")
-        geometry = getattr(fallback, "geometry", None)
+        geometry = fallback.geometry
         if geometry is None or (geometry.mesostructure, geometry.options) != (f.geometry.mesostructure,
                                                                               f.geometry.options):
             raise InputError(f"the fallback solver {fallback.name!r} solves other cells than the "
@@ -87,7 +92,16 @@ class ShadowedSolver:
         """Refuse a material the surrogate was not trained for."""
         self.surrogate.check(params)
 
+    @property
+    def trained_params(self) -> dict | None:
+        """The surrogate's (:attr:`SurrogateSolver.trained_params`)."""
+        return self.surrogate.trained_params
+
     # -- state layout -----------------------------------------------------------------------
+    def field_names(self) -> tuple[str, ...]:
+        """The summary's fields, the full DEM state's, then the lag of the two lengths."""
+        return self.formulation.state_fields + self.fallback.field_names() + ("lag_l1", "lag_l2")
+
     def split(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Summary (..., 11), full DEM state (..., n_full) and lag (..., 2) of states."""
         a, b = self.n_summary, self.n_summary + self.n_full

@@ -49,10 +49,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from functools import cached_property
 
 import numpy as np
 
 from ..cell import CellFlags, CellKernel, CellSolver, CellState
+from ..cell.base import STATE_H_CELL, STATE_OWN
+from ..cell.state import FIELDS
 from ..cell.closed_form import ClosedFormSolver
 from ..errors import InputError, SolverError
 from ..params import ANGLE_PARAMS, Params
@@ -76,7 +79,7 @@ def domain_in_params_units(domain: dict) -> dict[str, tuple[float, float]]:
             for k, lohi in domain.items()}
 
 
-class SurrogateSolver:
+class SurrogateSolver(CellSolver):
     """Implements :class:`hmodel.cell.CellSolver` with a trained :class:`Surrogate` (or an
     ensemble), delegating to its formulation what depends on it; the solver's networks are the
     formulation's :class:`~hmodel.surrogate.formulations.base.Networks`.
@@ -96,6 +99,7 @@ class SurrogateSolver:
     #: at nθ = 2·10⁴ and 2·10⁵): the network's inputs, outputs and cached responses
     bytes_per_cell = 4096
     n_lengths = 2
+    learned = True
     #: Most sub-steps of the largest trained increment one cell increment may be cut into
     #: (strain-input formulations); a larger request is refused with a SolverError.
     max_substeps = 100
@@ -213,6 +217,28 @@ class SurrogateSolver:
         """Fields of a cell state: the H-cell's 8, or the ``meso`` formulation's summary."""
         return self.formulation.n_state
 
+    @property
+    def state_kind(self) -> str:
+        """An H-cell, or the ``meso`` formulation's summary (its own meso-stress)."""
+        return STATE_H_CELL if self.formulation.state_fields == FIELDS else STATE_OWN
+
+    def field_names(self) -> tuple[str, ...]:
+        return self.formulation.state_fields
+
+    @cached_property
+    def dem_cells(self) -> bool:
+        """Whether the network learned DEM cells: those of the cell solver of its training data
+        (the formulation's ``cell``), as that solver declares."""
+        from ..solvers import get_solver
+
+        return get_solver(self.formulation.cell).dem_cells
+
+    @property
+    def trained_params(self) -> dict | None:
+        """The material parameters of the formulation (a ``compliance`` or ``meso`` network's,
+        as its model file stores them), or None (a strain-input network keeps its scales only)."""
+        return self.formulation.to_dict().get("params") or None
+
     def initial(self, params: Params, shape: tuple[int, ...] = ()) -> CellState:
         """Unloaded cells in this surrogate's state layout."""
         return self.formulation.initial(params, shape)
@@ -279,7 +305,7 @@ class SurrogateSolver:
         call: a family network (its material is an input of every cell) whose formulation steps
         several materials at once (``step_cells_sets``: the meso formulation's), without a gate."""
         f = self.formulation
-        return bool(getattr(f, "material_inputs", ())) and hasattr(f, "step_cells_sets") and self.gate is None
+        return bool(f.material_inputs) and f.steps_sets and self.gate is None
 
     def step_sets(self, sets: Sequence[Params], index: np.ndarray, state: CellState,
                   *lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -25,6 +25,7 @@ from typing import NamedTuple, Protocol
 
 import numpy as np
 
+from ...cell.base import STATE_H_CELL
 from ...cell.state import FIELDS, CellState, initial_cells
 from ...params import Params
 
@@ -53,9 +54,11 @@ def material_features(names: tuple[str, ...], params: Params | None = None,
 
 
 def is_h_cell(cell: str) -> bool:
-    """Whether the cell solver ``cell`` (a spec) makes H-cells: the closed form's or the standard
-    DEM cell's (``dem:standard[:...]``)."""
-    return cell == "closed-form" or cell.split(":")[:2] == ["dem", "standard"]
+    """Whether the cell solver ``cell`` (a spec) makes H-cells, as it declares
+    (:attr:`hmodel.cell.CellSolver.state_kind`): the closed form's, the standard DEM cell's."""
+    from ...solvers import get_solver
+
+    return get_solver(cell).state_kind == STATE_H_CELL
 
 
 class Networks(Protocol):
@@ -113,6 +116,8 @@ class Formulation(ABC):
     name: str
     #: Fields of a cell state (the H-cell's 8, or the ``meso`` summary's 11).
     n_state: int = len(FIELDS)
+    #: Their names (the H-cell's, :data:`hmodel.cell.FIELDS`, or the ``meso`` summary's).
+    state_fields: tuple[str, ...] = FIELDS
     #: Index of the output trained by classification (None: all regression).
     logit_column: int | None = None
     #: Outputs of a network whose outputs are not the targets (a structured :meth:`head`;
@@ -144,6 +149,8 @@ class Formulation(ABC):
     #: A family network's material inputs (:data:`MATERIAL_INPUTS`), after the state's; ()
     #: for a network of one material.
     material_inputs: tuple[str, ...] = ()
+    #: Whether :meth:`step_cells_sets` steps cells of several materials in one network call.
+    steps_sets: bool = False
 
     @abstractmethod
     def to_dict(self) -> dict:
@@ -238,6 +245,11 @@ class Formulation(ABC):
         """Every ensemble member's states after cell strains ``strain`` (n, 2) and length
         increments ``dl`` (n, 2) from states ``v``, from its outputs ``outs[k]``."""
         raise TypeError(f"{self.name!r} networks make no ensembles")
+
+    def step_cells_sets(self, net: Networks, sets, row_set: np.ndarray, v, e1, e2, dl) -> Increment:
+        """:meth:`step_cells` of cells of several materials (cell i of ``sets[row_set[i]]``) in
+        one network call, where :attr:`steps_sets` is declared."""
+        raise TypeError(f"{self.name!r} networks step one material at a time")
 
 
 class MaterialScales:

@@ -73,6 +73,8 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
     #: state's; () for one material.
     material_inputs: tuple[str, ...] = ()
     name: str = "meso"
+    #: One network call for the cells of several materials (:meth:`step_cells_sets`).
+    steps_sets = True
     #: float32 inference: checked against float64 on every compared DEM-REV path.
     single_precision = True
     #: Two columns after one network's outputs, where :meth:`responses` puts cos and sin of alpha.

@@ -42,6 +42,7 @@ class MesoSummary(MaterialScales):
     params: Params
     cell: str
     n_state = len(STATE_FIELDS)
+    state_fields = STATE_FIELDS
 
     @cached_property
     def geometry(self) -> CellGeometry:
