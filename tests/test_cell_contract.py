@@ -29,14 +29,8 @@ REGISTERED = {
     "dem": [f"dem:{m}" for m in CONSTRUCTORS] + list(PREFIXED),
 }
 DEM = REGISTERED["dem"]
-#: step_sets lets cells of two materials in one state share the first one's network outputs
-#: (SurrogateSolver.outputs evaluates equal states once, whatever their material inputs).
-SHARED_STATES = pytest.mark.xfail(strict=True, raises=AssertionError,
-                                  reason="step_sets evaluates equal states of two materials once")
-
-
 def _spec_params(spec: str):
-    return pytest.param(spec, marks=SHARED_STATES) if spec == "surrogate:hexagon-center-family" else spec
+    return spec
 
 
 def test_every_entry_point_is_checked():

@@ -42,6 +42,9 @@ STRAIN = 1e-4
 #: Relative tolerance of learned laws against their solver's step (the same network outputs
 #: through another order of operations) and of finite differences of the tangent.
 RTOL = 1e-6
+#: The same for a learned response, relative to each state field's largest value: float32
+#: products of a network differ with the rows they are batched with.
+LEARNED_RTOL = 1e-5
 
 
 class _Check:
@@ -229,7 +232,11 @@ def check_sets(solver: CellSolver, params: Params, state: CellState, dls: list[n
     values, flags = solver.step_sets(sets, index, CellState(start), *dls)
     for b, s in enumerate(sets):
         alone, _ = solver.step(s, CellState(np.ascontiguousarray(start[b:b + 1])), *(d[b:b + 1] for d in dls))
-        check(np.allclose(values[b:b + 1], alone.values, rtol=RTOL, atol=0.0),
+        # a network's float32 products differ with the batch they are in: round-off of each
+        # field's scale, not of each value
+        scale = np.abs(alone.values).max(axis=tuple(range(alone.values.ndim - 1)))
+        check(np.allclose(values[b:b + 1], alone.values, rtol=RTOL, atol=0.0) if not solver.learned else
+              np.all(np.abs(values[b:b + 1] - alone.values) <= LEARNED_RTOL * scale),
               f"step_sets does not give parameter set {b} what step gives it alone")
 
 

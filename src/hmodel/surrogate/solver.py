@@ -407,7 +407,9 @@ class SurrogateSolver(CellSolver):
         # hold a handful of distinct states (their directions' cos^2 + sin^2 round to a few
         # values, scattered over the directions), so a consolidation sends a few rows per
         # material point through the network instead of every cell.
-        rows = distinct_rows(v)
+        # several sets' materials (``key``) make inputs of equal states differ: those rows are
+        # equal only where their inputs are
+        rows = distinct_rows(v if key is None else np.ascontiguousarray(X, dtype=float))
         Xu = X if rows is None else X[rows[0]]
         self.counts["network_cells"] += len(Xu)
         f = self.formulation
