@@ -14,7 +14,7 @@ from ..params import Params
 from ..rev import Sphere
 from ..variants import ModelVariant, get_variant
 from .data import Test
-from .kinds import Kind, dimension
+from .kinds import BUILTIN, OBSERVABLES, Kind, dimension
 
 #: Consolidation increments of a calibration's runs: the last one is solved so that p = p0
 #: exactly, and 10 times the loading paths' default changes q by 3e-7 of its peak and εv by
@@ -71,6 +71,11 @@ class Model:
                                  f"test {missing[0]} has no e0 (give KIND:P0:FILE:e0=VALUE)")
             if self.e_ref is None:
                 object.__setattr__(self, "e_ref", reference_void_ratio(self.tests))
+        for t in self.tests:
+            unknown = [o for o in t.kind.observables() if o not in OBSERVABLES]
+            if unknown:
+                raise InputError(f"test {t.name}: kind {t.kind} observes {', '.join(unknown)}, which the model "
+                                 f"does not predict (it predicts {', '.join(OBSERVABLES)})")
         if self.dim == 2 and self.sphere is not None:
             raise InputError("a sphere of directions (--order, --azimuths, --fabric) is the 3D "
                              "model's: the tests are 2D biaxial ones")
@@ -88,10 +93,8 @@ class Model:
         q = [np.full((K, len(t.eps11)), np.nan) for t in self.tests]
         ev = [np.full((K, len(t.eps11)), np.nan) for t in self.tests]
         failed = [""] * K
-        for kind in Kind:
-            idx = [i for i, t in enumerate(self.tests) if t.kind is kind]
-            if idx:
-                self._run(kind, idx, list(range(K)), sets, q, ev, failed)
+        for kind, idx in _by_kind(self.tests):
+            self._run(kind, idx, list(range(K)), sets, q, ev, failed)
         return Prediction(q, ev, failed)
 
     def _run(self, kind: Kind, idx, which, sets, q, ev, failed) -> None:
@@ -132,25 +135,25 @@ class Model:
             q[idx[j]][k], ev[idx[j]][k] = curves_at(res, b, tests[j])
 
 
+def _by_kind(tests: Sequence[Test]) -> list[tuple[Kind, list[int]]]:
+    """The tests' kinds, each with the indices of its tests: the built-in kinds in the order of
+    :data:`~hmodel.calibrate.kinds.BUILTIN` (a set failing in several keeps the last one's
+    reason), then the others in the order they first appear. A kind is its class and name, so
+    that another instance of a class runs with it and a subclass of a built-in does not."""
+    groups: dict[tuple[type, str], list[int]] = {}
+    for i, t in enumerate(tests):
+        groups.setdefault((type(t.kind), t.kind.value), []).append(i)
+    rank = {(type(k), k.value): r for r, k in enumerate(BUILTIN)}
+    order = sorted(groups, key=lambda g: rank.get(g, len(rank)))  # stable: first appearance after
+    return [(tests[groups[g][0]].kind, groups[g]) for g in order]
+
+
 def curves_at(res, b: int, test: Test, dropped: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """q and εv since consolidation of material point ``b`` of an engine result ``res`` (a
-    test's run), at ``test``'s axial strains. A point ``dropped`` where its Newton failed keeps
+    run of ``test``'s kind), at ``test``'s axial strains (:meth:`Kind.curves
+    <hmodel.calibrate.kinds.Kind.curves>`). A point ``dropped`` where its Newton failed keeps
     its rows up to there: NaN beyond the last strain it reached."""
-    point, stage = res["point"], res["stage"]
-    mine = point == b
-    cons = np.flatnonzero(mine & (stage == "consolidation"))
-    if not len(cons):
-        return np.full(len(test.eps11), np.nan), np.full(len(test.eps11), np.nan)
-    cons = cons[-1]
-    shear = mine & (stage == "shear")
-    # the axial strain's magnitude since consolidation (increasing in extension too)
-    e = test.kind.sign * np.concatenate([[0.0], res["eps11"][shear] - res["eps11"][cons]])
-    q = np.interp(test.strain, e, np.concatenate([[res["q"][cons]], res["q"][shear]]))
-    ev = np.interp(test.strain, e, np.concatenate([[0.0], res["eps_v"][shear] - res["eps_v"][cons]]))
-    if dropped:
-        beyond = test.strain > e[-1]
-        q[beyond] = ev[beyond] = np.nan
-    return q, ev
+    return test.kind.curves(res, b, test, dropped)
 
 
 def reference_void_ratio(tests: Sequence[Test]) -> float:
@@ -159,23 +162,32 @@ def reference_void_ratio(tests: Sequence[Test]) -> float:
 
 
 def residuals(tests: Sequence[Test], pred: Prediction, weighted: bool = True) -> np.ndarray:
-    """Scaled residuals (K, m) of every parameter set: per test, (q_model − q) / peak |q| and, for
-    drained tests with εv, (εv_model − εv) / range of εv; with ``weighted``, each test's
-    residuals divided by the square root of its rows, so that every test weighs alike whatever
-    its sampling. NaN rows where the set failed."""
+    """Scaled residuals (K, m) of every parameter set: per test, for each of its
+    :func:`fitted` observables in turn, (model − measured) / the test's scale of it (q: over
+    peak |q|; εv: over the range of εv); with ``weighted``, each test's residuals divided by the
+    square root of its rows, so that every test weighs alike whatever its sampling. NaN rows
+    where the set failed."""
     parts = []
-    for t, q, ev in zip(tests, pred.q, pred.eps_v):
+    for j, t in enumerate(tests):
         w = 1.0 / math.sqrt(len(t.eps11)) if weighted else 1.0
-        parts.append(w * (q - t.q) / t.q_scale)
-        if has_eps_v(t):
-            parts.append(w * (ev - t.eps_v) / t.eps_v_scale)
+        for o in fitted(t):
+            parts.append(w * (getattr(pred, o)[j] - getattr(t, o)) / getattr(t, f"{o}_scale"))
     return np.concatenate(parts, axis=1)
 
 
+def fitted(test: Test) -> tuple[str, ...]:
+    """The observables of ``test`` that enter the fit, in the residuals' order: those its kind
+    says the model must reproduce (:meth:`Kind.observables
+    <hmodel.calibrate.kinds.Kind.observables>`) that the test measured. Each is the name of a
+    curve of a :class:`Prediction` and of a :class:`~hmodel.calibrate.data.Test`, whose
+    ``NAME_scale`` scales its residuals."""
+    return tuple(o for o in test.kind.observables() if getattr(test, o) is not None)
+
+
 def has_eps_v(test: Test) -> bool:
-    """Whether a test's εv enters the fit (drained tests that measured it; an undrained test's
-    εv is zero by its definition)."""
-    return test.eps_v is not None and not test.kind.undrained
+    """Whether a test's εv enters the fit (tests that measured it whose kind observes it; an
+    undrained test's εv is zero by its definition)."""
+    return "eps_v" in fitted(test)
 
 
 def eps_v_scales(tests: Sequence[Test]) -> np.ndarray:
@@ -186,9 +198,4 @@ def eps_v_scales(tests: Sequence[Test]) -> np.ndarray:
 
 def residual_kinds(tests: Sequence[Test]) -> np.ndarray:
     """Which residual of :func:`residuals` is a q (True) or an εv (False) one, (m,)."""
-    parts = []
-    for t in tests:
-        parts.append(np.ones(len(t.eps11), bool))
-        if has_eps_v(t):
-            parts.append(np.zeros(len(t.eps11), bool))
-    return np.concatenate(parts)
+    return np.concatenate([np.full(len(t.eps11), o == "q") for t in tests for o in fitted(t)])

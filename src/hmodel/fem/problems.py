@@ -25,7 +25,7 @@ from .bands import shear_band
 from .material import DaskStep, HModelMaterial
 from .mesh import BBAR, Domain, dofs_where, gauss_points
 from .newton import GlobalNewtonSettings, Problem, StepResult, run_steps
-from .regularization import NonlocalProblem, Regularization, check_length, parse_regularization, unresolved
+from .regularization import Regularization
 from .result import FemResult, Snapshot
 
 PLATENS = ("smooth", "rough")
@@ -129,12 +129,10 @@ def _material(params: Params, imperfection, domain, gx, solver, p0,
 
 
 def _problem(basis, material, fixed, g, f_ext, reg: Regularization, element: str) -> Problem:
-    """The displacement problem, or with ``reg`` nonlocal the coupled one
-    (:mod:`hmodel.fem.regularization`), with the B-bar strain for the elements that take it."""
-    b_bar = element in BBAR
-    if reg.kind == "nonlocal":
-        return NonlocalProblem(basis, material, fixed, g, f_ext, b_bar, ell=reg.ell, m=reg.m)
-    return Problem(basis, material, fixed, g, f_ext, b_bar)
+    """The problem ``reg`` solves (:mod:`hmodel.fem.regularization`: the displacement problem,
+    or the coupled one of the nonlocal model), with the B-bar strain for the elements that
+    take it."""
+    return reg.problem(basis, material, fixed, g, f_ext, element in BBAR)
 
 
 def _check_common(p0: float, n_steps: int) -> None:
@@ -156,7 +154,7 @@ def _check_size(domain: Domain, params: Params, solver: CellSolver | None) -> No
 
 
 def _reg_meta(reg: Regularization, domain: Domain) -> dict:
-    warning = unresolved(reg, domain)
+    warning = reg.warning(domain)
     return {"regularization": str(reg), "warnings": [warning] if warning else []}
 
 
@@ -220,13 +218,13 @@ def biaxial(params: Params | None = None, p0: float = 2e5, axial_strain: float =
     """
     params = params or Params()
     _check_common(p0, n_steps)
-    reg = parse_regularization(regularization)
+    reg = Regularization.from_spec(regularization)
     if not (np.isfinite(axial_strain) and 0 < axial_strain < 1):
         raise InputError(f"axial strain must lie in (0, 1), got {axial_strain}")
     if platens not in PLATENS:
         raise InputError(f"platens must be smooth or rough, got {platens!r}")
     domain = Domain(*size, *mesh, element)
-    check_length(reg, domain)
+    reg.check(domain)
     _check_size(domain, params, solver)
     basis = domain.basis()
     gx, dx = gauss_points(basis)
@@ -302,11 +300,11 @@ def footing(params: Params | None = None, p0: float = 1e5, settlement: float = 0
     """
     params = params or Params()
     _check_common(p0, n_steps)
-    reg = parse_regularization(regularization)
+    reg = Regularization.from_spec(regularization)
     if not (np.isfinite(settlement) and 0 < settlement < 1):
         raise InputError(f"settlement / width must lie in (0, 1), got {settlement}")
     domain = Domain(*layer, *mesh, element)
-    check_length(reg, domain)
+    reg.check(domain)
     _check_size(domain, params, solver)
     L, H = domain.width, domain.height
     if not (np.isfinite(width) and 0 < width < L):

@@ -39,6 +39,7 @@ bilinear softening law.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 import scipy.sparse as sp
@@ -49,66 +50,153 @@ from .assembly import block_diagonal
 from .material import Trial
 from .newton import Problem
 
-KINDS = ("local", "nonlocal")
+class Regularization:
+    """How the Gauss points' stresses enter the equilibrium, and the problem that the global
+    Newton solves for it: the base of the variants, each one class (:class:`Local`,
+    :class:`Nonlocal`).
+
+    A new variant is one subclass here, listed in :data:`VARIANTS`: its ``name`` (the word
+    before the colon of ``--regularization``) and ``usage`` (its spec in the list of known
+    ones), :meth:`from_options` (its options after the colon), ``__str__`` (its spec back),
+    :meth:`problem` and, where it has them, :meth:`check` and :meth:`warning`.
+    """
+
+    #: the word that names the variant in a spec
+    name: ClassVar[str]
+    #: the variant's spec as the message of an unknown one lists it
+    usage: ClassVar[str]
+
+    @property
+    def kind(self) -> str:
+        """The variant's name (``local``, ``nonlocal``)."""
+        return self.name
+
+    @staticmethod
+    def from_spec(spec) -> Regularization:
+        """``None``/``"local"`` -> no regularization; ``"nonlocal:ell=0.005"`` (metres; also
+        ``nonlocal:0.005``), ``"nonlocal:ell=0.005,m=0.2"`` -> :class:`Nonlocal`; a
+        :class:`Regularization` passes through. One-line InputError for an unknown variant or
+        bad options."""
+        if spec is None:
+            return Local()
+        if isinstance(spec, Regularization):
+            return spec
+        name, _, opts = str(spec).strip().partition(":")
+        name = name.strip().lower()
+        for variant in VARIANTS:
+            if variant.name == name:
+                return variant.from_options(spec, opts)
+        raise InputError(f"unknown regularization {spec!r} (known: {', '.join(v.usage for v in VARIANTS)})")
+
+    @classmethod
+    def from_options(cls, spec, opts: str) -> Regularization:
+        """The variant of options ``opts`` (the spec ``spec`` after its colon, for messages)."""
+        raise NotImplementedError(f"regularization {cls.name} does not say how its options are read")
+
+    def problem(self, basis: Basis, material, fixed: np.ndarray, g: np.ndarray, f_ext: np.ndarray,
+                b_bar: bool) -> Problem:
+        """The :class:`~hmodel.fem.newton.Problem` of the displacement problem's arguments
+        (``b_bar``: the B-bar strain of the elements that take it) under this regularization."""
+        raise NotImplementedError(f"regularization {self.name} does not say what problem it solves")
+
+    def check(self, domain) -> None:
+        """Refuse (InputError) a regularization the :class:`~hmodel.fem.mesh.Domain` cannot
+        take, before any work."""
+
+    def warning(self, domain) -> str | None:
+        """A warning about this regularization on the domain's mesh, or None."""
+        return None
 
 
 @dataclass(frozen=True)
-class Regularization:
-    """``kind``: ``local`` (none) or ``nonlocal`` (inelastic stress averaged over ``ell`` [m]);
-    ``m``: the nonlocal share of the inelastic stress in the equilibrium (1: fully nonlocal)."""
+class Local(Regularization):
+    """No regularization: the local model, each Gauss point's own stress in the equilibrium."""
 
-    kind: str = "local"
-    ell: float | None = None
-    m: float = 1.0
+    name: ClassVar[str] = "local"
+    usage: ClassVar[str] = "local"
 
-    def __post_init__(self):
-        if self.kind not in KINDS:
-            raise InputError(f"unknown regularization {self.kind!r} (known: local, nonlocal:ell=LENGTH)")
-        if self.kind == "nonlocal":
-            if self.ell is None or not (np.isfinite(self.ell) and self.ell > 0):
-                raise InputError(f"the nonlocal regularization needs a length ell > 0 [m], got {self.ell!r}")
-            if not (np.isfinite(self.m) and 0 < self.m <= 1):
-                raise InputError(f"the nonlocal share m must lie in (0, 1], got {self.m!r}")
-        elif self.ell is not None:
-            raise InputError("the local model takes no length (use nonlocal:ell=LENGTH)")
+    @classmethod
+    def from_options(cls, spec, opts: str) -> Local:
+        if opts.strip():
+            raise InputError(f"the local model takes no options, got {spec!r}")
+        return cls()
 
     def __str__(self) -> str:
-        if self.kind == "local":
-            return "local"
+        return "local"
+
+    def problem(self, basis, material, fixed, g, f_ext, b_bar) -> Problem:
+        return Problem(basis, material, fixed, g, f_ext, b_bar)
+
+
+@dataclass(frozen=True)
+class Nonlocal(Regularization):
+    """The inelastic stress averaged over ``ell`` [m] (:class:`NonlocalProblem`); ``m``: the
+    nonlocal share of the inelastic stress in the equilibrium (1: fully nonlocal)."""
+
+    ell: float
+    m: float = 1.0
+    name: ClassVar[str] = "nonlocal"
+    usage: ClassVar[str] = "nonlocal:ell=LENGTH"
+
+    def __post_init__(self):
+        if self.ell is None or not (np.isfinite(self.ell) and self.ell > 0):
+            raise InputError(f"the nonlocal regularization needs a length ell > 0 [m], got {self.ell!r}")
+        if not (np.isfinite(self.m) and 0 < self.m <= 1):
+            raise InputError(f"the nonlocal share m must lie in (0, 1], got {self.m!r}")
+
+    @classmethod
+    def from_options(cls, spec, opts: str) -> Nonlocal:
+        values = {}
+        for i, item in enumerate(opts.split(",")):
+            name, eq, value = item.partition("=")
+            if not eq and i == 0:
+                name, value = "ell", name
+            name = name.strip().lower()
+            if name not in ("ell", "m") or name in values:
+                raise InputError(f"the nonlocal regularization takes ell=LENGTH [m][,m=SHARE], got {spec!r}")
+            try:
+                values[name] = float(value)
+            except ValueError:
+                raise InputError(f"the nonlocal regularization's {name} must be a number, got {value!r}") from None
+        if "ell" not in values:
+            raise InputError(f"the nonlocal regularization needs ell=LENGTH [m], got {spec!r}")
+        return cls(values["ell"], values.get("m", 1.0))
+
+    def __str__(self) -> str:
         return f"nonlocal:ell={self.ell:g}" + (f",m={self.m:g}" if self.m != 1 else "")
+
+    def problem(self, basis, material, fixed, g, f_ext, b_bar) -> Problem:
+        return NonlocalProblem(basis, material, fixed, g, f_ext, b_bar, ell=self.ell, m=self.m)
+
+    def check(self, domain) -> None:
+        """Refuse an ell longer than the domain's largest dimension: the average would spread
+        every point's inelastic stress over the whole body (no band fits, the band a few ell
+        wide or more, docs/fem.md), and ell^2 times the gradient term would swamp the mass term
+        of the Helmholtz rows beyond double precision (ell = 1e9 m: the first step never
+        converges)."""
+        size = max(domain.width, domain.height)
+        if not self.ell <= size:
+            raise InputError(f"the nonlocal length ell = {self.ell:g} m exceeds the largest dimension of the "
+                             f"{domain.width:g} x {domain.height:g} m domain ({size:g} m): take ell of a few "
+                             "elements, a fraction of the specimen")
+
+    def warning(self, domain) -> str | None:
+        """Where ell is below the element size: the band, a few ell wide, is then not resolved
+        by the mesh."""
+        h = element_size(domain)
+        if self.ell < h:
+            return (f"the nonlocal length ell = {self.ell:g} m is below the element size {h:.3g} m: the band "
+                    "is not resolved (refine the mesh or take a larger ell)")
+        return None
+
+
+#: The variants a spec names, by their ``name``.
+VARIANTS: tuple[type[Regularization], ...] = (Local, Nonlocal)
 
 
 def parse_regularization(spec) -> Regularization:
-    """``None``/``"local"`` -> no regularization; ``"nonlocal:ell=0.005"`` (metres; also
-    ``nonlocal:0.005``), ``"nonlocal:ell=0.005,m=0.2"`` -> :class:`Regularization`; a
-    :class:`Regularization` passes through."""
-    if spec is None:
-        return Regularization()
-    if isinstance(spec, Regularization):
-        return spec
-    kind, _, opts = str(spec).strip().partition(":")
-    kind = kind.strip().lower()
-    if kind not in KINDS:
-        raise InputError(f"unknown regularization {spec!r} (known: local, nonlocal:ell=LENGTH)")
-    if kind == "local":
-        if opts.strip():
-            raise InputError(f"the local model takes no options, got {spec!r}")
-        return Regularization()
-    values = {}
-    for i, item in enumerate(opts.split(",")):
-        name, eq, value = item.partition("=")
-        if not eq and i == 0:
-            name, value = "ell", name
-        name = name.strip().lower()
-        if name not in ("ell", "m") or name in values:
-            raise InputError(f"the nonlocal regularization takes ell=LENGTH [m][,m=SHARE], got {spec!r}")
-        try:
-            values[name] = float(value)
-        except ValueError:
-            raise InputError(f"the nonlocal regularization's {name} must be a number, got {value!r}") from None
-    if "ell" not in values:
-        raise InputError(f"the nonlocal regularization needs ell=LENGTH [m], got {spec!r}")
-    return Regularization("nonlocal", values["ell"], values.get("m", 1.0))
+    """:meth:`Regularization.from_spec`."""
+    return Regularization.from_spec(spec)
 
 
 def element_size(domain) -> float:
@@ -118,30 +206,14 @@ def element_size(domain) -> float:
 
 
 def check_length(reg: Regularization, domain) -> None:
-    """Refuse (InputError) an ell longer than the domain's largest dimension: the average would
-    spread every point's inelastic stress over the whole body (no band fits, the band a few
-    ell wide or more, docs/fem.md), and ell^2 times the gradient term would swamp the mass
-    term of the Helmholtz rows beyond double precision (ell = 1e9 m: the first step never
-    converges)."""
-    if reg.kind != "nonlocal":
-        return
-    size = max(domain.width, domain.height)
-    if not reg.ell <= size:
-        raise InputError(f"the nonlocal length ell = {reg.ell:g} m exceeds the largest dimension of the "
-                         f"{domain.width:g} x {domain.height:g} m domain ({size:g} m): take ell of a few "
-                         "elements, a fraction of the specimen")
+    """:meth:`Regularization.check`: a nonlocal ell longer than the domain is refused."""
+    reg.check(domain)
 
 
 def unresolved(reg: Regularization, domain) -> str | None:
-    """A warning where ell is below the element size (the band, a few ell wide, is then not
-    resolved by the mesh), else None."""
-    if reg.kind != "nonlocal":
-        return None
-    h = element_size(domain)
-    if reg.ell < h:
-        return (f"the nonlocal length ell = {reg.ell:g} m is below the element size {h:.3g} m: the band "
-                "is not resolved (refine the mesh or take a larger ell)")
-    return None
+    """:meth:`Regularization.warning`: a warning where a nonlocal ell is below the element
+    size, else None."""
+    return reg.warning(domain)
 
 
 def scalar_operators(basis: Basis) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_matrix]:
