@@ -1,5 +1,6 @@
 """Calibration on curves made by hmodel itself at known parameters (identifiability), failures
-counted instead of fatal, the batched model against single runs, and bad input."""
+counted instead of fatal, the batched model against single runs (these two for the 2D and the
+3D model alike), and bad input; the 3D model's own cases are in test_calibrate3d.py."""
 
 from __future__ import annotations
 
@@ -14,35 +15,21 @@ from hmodel.calibrate import Space, Test, fit, parse_data_spec
 from hmodel.calibrate.model import Model, residuals
 from hmodel.cell import ClosedFormSolver
 from hmodel.cli.app import main
-from hmodel.loading import run_biaxial
-
-BASE = Params(n_theta=36, sliding_rhs="equilibrium")
-TRUE = BASE.with_(phi_g=math.radians(28.0), alpha0=math.radians(50.0), kt_kn=0.5)
-KW = dict(step=1e-3, iso_step=1e-4)
-
-
-def _test(params, kind, p0, strain=0.02, noise=0.0, seed=0, noise_ev=0.0):
-    """A test made by hmodel: every second shear row, q with relative Gaussian noise, εv with
-    absolute Gaussian noise."""
-    r = run_biaxial(params, [p0], strain, undrained=kind == "undrained", **KW)
-    c, s = r.stage("consolidation"), r.stage("shear")
-    e = np.asarray(s["eps11"]) - c["eps11"][-1]
-    q = np.asarray(s["q"])
-    ev = np.asarray(s["eps_v"]) - c["eps_v"][-1]
-    rng = np.random.default_rng(seed)
-    q = q * (1 + noise * rng.normal(size=len(q)))
-    ev = ev + noise_ev * rng.normal(size=len(ev))
-    sel = slice(1, None, 2)
-    return Test(kind, p0, e[sel], q[sel], ev[sel] if kind == "drained" else None)
 
 
 @pytest.fixture(scope="module")
-def tests():
-    return [_test(TRUE, "drained", 1e5), _test(TRUE, "drained", 3e5)]
+def case(own_tests):
+    """The 2D model's biaxial tests made at known parameters (tests/conftest.py)."""
+    return own_tests(2)
 
 
-def test_noise_free_curves_give_back_their_parameters(tests):
-    cal = fit(tests, ("phi_g", "alpha0"), base=BASE, starts=3, **KW)
+@pytest.fixture(scope="module")
+def tests(case):
+    return list(case.tests)
+
+
+def test_noise_free_curves_give_back_their_parameters(tests, case):
+    cal = fit(tests, ("phi_g", "alpha0"), base=case.base, starts=3, **case.kw)
     assert cal.fitted["phi_g"] == pytest.approx(28.0, rel=1e-4)
     assert cal.fitted["alpha0"] == pytest.approx(50.0, rel=1e-4)
     assert cal.cost < 1e-8 and not cal.failures and cal.unidentified == []
@@ -50,9 +37,9 @@ def test_noise_free_curves_give_back_their_parameters(tests):
     assert cal.evaluations >= 3
 
 
-def test_one_percent_noise_on_q_still_gives_phi_and_alpha0_within_two_percent():
-    noisy = [_test(TRUE, "drained", p0, noise=0.01, seed=k) for k, p0 in enumerate((1e5, 2e5, 4e5))]
-    cal = fit(noisy, ("phi_g", "alpha0", "kt_kn"), base=BASE, starts=4, **KW)
+def test_one_percent_noise_on_q_still_gives_phi_and_alpha0_within_two_percent(case):
+    noisy = [case.test("drained", p0, noise=0.01, seed=k) for k, p0 in enumerate((1e5, 2e5, 4e5))]
+    cal = fit(noisy, ("phi_g", "alpha0", "kt_kn"), base=case.base, starts=4, **case.kw)
     assert cal.fitted["phi_g"] == pytest.approx(28.0, rel=0.02)
     assert cal.fitted["alpha0"] == pytest.approx(50.0, rel=0.02)
     assert cal.fitted["kt_kn"] == pytest.approx(0.5, rel=0.10)
@@ -61,10 +48,10 @@ def test_one_percent_noise_on_q_still_gives_phi_and_alpha0_within_two_percent():
         assert 0 < cal.stderr[name] and abs(cal.fitted[name] - true) < 4 * cal.stderr[name] + 1e-9
 
 
-def test_starts_in_worker_processes_give_the_same_calibration(tests):
+def test_starts_in_worker_processes_give_the_same_calibration(tests, case):
     """The least-squares starts are independent: run in two processes, every start ends where
     it ends in this one, with the same counts; and a bad number of workers is refused."""
-    kw = dict(base=BASE.with_(kt_kn=0.4), starts=3, **KW)
+    kw = dict(base=case.base.with_(kt_kn=0.4), starts=3, **case.kw)
     one = fit(tests, ("phi_g", "alpha0"), **kw)
     two = fit(tests, ("phi_g", "alpha0"), workers=2, **kw)
     assert [s["end"] for s in two.starts] == [s["end"] for s in one.starts]
@@ -75,35 +62,42 @@ def test_starts_in_worker_processes_give_the_same_calibration(tests):
         fit(tests, ("phi_g",), workers=0, **kw)
 
 
-def test_a_parameter_without_effect_is_flagged_unidentified(tests):
+def test_a_parameter_without_effect_is_flagged_unidentified(tests, case):
     # with an isotropic fabric (alpha_omega = 0) its major direction beta_omega changes nothing
-    cal = fit(tests, ("phi_g", "beta_omega"), base=TRUE.with_(phi_g=math.radians(30)), starts=1, **KW)
+    cal = fit(tests, ("phi_g", "beta_omega"), base=case.true.with_(phi_g=math.radians(30)), starts=1, **case.kw)
     assert cal.unidentified == ["beta_omega"] and cal.condition > 1e3
     assert cal.fitted["phi_g"] == pytest.approx(28.0, rel=1e-3)
 
 
-def test_batched_predictions_equal_single_ones(tests):
-    model = Model(tuple(tests), **KW)
-    sets = [TRUE, TRUE.with_(phi_g=math.radians(33)), TRUE.with_(kn=3e8)]
+def test_batched_predictions_equal_single_ones(dim, own_tests):
+    case = own_tests(dim)
+    tests = case.tests
+    model = Model(tests, **case.kw)
+    assert model.dim == dim
+    sets = [case.true, case.true.with_(phi_g=math.radians(33)), case.true.with_(kn=3e8)]
     both = model.predict(sets)
+    assert both.ok.all()
     for k, s in enumerate(sets):
         one = model.predict([s])
         for t in range(len(tests)):
             np.testing.assert_allclose(both.q[t][k], one.q[t][0], rtol=1e-9)
             np.testing.assert_allclose(both.eps_v[t][k], one.eps_v[t][0], rtol=1e-9, atol=1e-15)
-    # the truth's own curves: zero residual; q 10 % high everywhere: 0.1 q / peak q / sqrt(n)
-    r = residuals(tests, model.predict([TRUE]))
-    assert np.abs(r).max() < 1e-8
+    # the truth's own curves: zero residual (to the batched Newton's round-off), not another set's
+    r = residuals(tests, both)
+    assert np.abs(r[0]).max() < {2: 1e-8, 3: 1e-10}[dim] and np.abs(r[1]).max() > 1e-2
+    # an undrained test's εv is not fitted (zero by definition), a drained one's is
+    assert r.shape[1] == sum(len(t.eps11) for t in tests) + sum(len(t.eps11) for t in tests if not t.kind.undrained)
+    # q 10 % high everywhere: 0.1 q / peak q / sqrt(n)
     t = tests[0]
     high = Test(t.kind, t.p0, t.eps11, t.q / 1.1, t.eps_v)
-    r = residuals([high], model.__class__((high,), **KW).predict([TRUE]))[0, :len(t.q)]
+    r = residuals([high], Model((high,), **case.kw).predict([case.true]))[0, :len(t.q)]
     np.testing.assert_allclose(r, 0.1 * high.q / high.q_scale / math.sqrt(len(t.q)), rtol=1e-6,
                                atol=1e-9)
 
 
 class FailsAboveThirtyFive(ClosedFormSolver):
     """The closed form, failing for friction angles above 35 deg (a stand-in for a run that
-    leaves a surrogate's training domain)."""
+    leaves a surrogate's training domain); in 3D the hexagons' solver (the generic driver)."""
 
     name = "fails-above-35"
 
@@ -116,14 +110,18 @@ class FailsAboveThirtyFive(ClosedFormSolver):
         return super().step(params, state, dl1, dl2)
 
 
-def test_failed_parameter_sets_are_counted_not_fatal(tests):
-    model = Model(tuple(tests), FailsAboveThirtyFive(), **KW)
-    pred = model.predict([TRUE, TRUE.with_(phi_g=math.radians(40)), TRUE])
+def test_failed_parameter_sets_are_counted_not_fatal(dim, own_tests):
+    case = own_tests(dim)
+    drained = case.tests[:2]
+    model = Model(drained, FailsAboveThirtyFive(), **case.kw)
+    pred = model.predict([case.true, case.true.with_(phi_g=math.radians(40)), case.true])
     assert pred.ok.tolist() == [True, False, True] and "domain" in pred.failed[1]
     assert np.isnan(pred.q[0][1]).all() and np.isfinite(pred.q[0][[0, 2]]).all()
-    cal = fit(tests, ("phi_g",), bounds={"phi_g": (20.0, 45.0)}, base=TRUE.with_(phi_g=0.5),
-              solver=FailsAboveThirtyFive(), starts=3, **KW)
-    assert cal.fitted["phi_g"] == pytest.approx(28.0, rel=1e-3)
+    # 3D: the search at a coarser rule (one azimuth), then the tests' own
+    search = {2: dict(starts=3), 3: dict(starts=2, search_rule=(9, 1))}[dim]
+    cal = fit(drained, ("phi_g",), bounds={"phi_g": (20.0, 45.0)}, base=case.true.with_(phi_g=0.5),
+              solver=FailsAboveThirtyFive(), **search, **case.kw)
+    assert cal.fitted["phi_g"] == pytest.approx(28.0, rel={2: 1e-3, 3: 1e-5}[dim])
     assert cal.failures and all(f["params"]["phi_g"] > 35 for f in cal.failures)
 
 
@@ -181,11 +179,11 @@ def test_cli_writes_the_calibration_and_refuses_bad_input(tmp_path, tests, capsy
     assert err.startswith("hmodel: error:") and "n_theta" in err and "\n" not in err and not bad.exists()
 
 
-def test_bayes_90_percent_intervals_contain_the_truth(tmp_path):
+def test_bayes_90_percent_intervals_contain_the_truth(tmp_path, case):
     # 1 % noise on q, 2e-5 on εv: the likelihood's noise is the one the best fit leaves
-    noisy = [_test(TRUE, "drained", p0, noise=0.01, noise_ev=2e-5, seed=k) for k, p0 in enumerate((1e5, 3e5))]
-    cal = fit(noisy, ("phi_g", "alpha0"), base=BASE, method="bayes", starts=4, walkers=8, steps=300,
-              seed=1, **KW)
+    noisy = [case.test("drained", p0, noise=0.01, noise_ev=2e-5, seed=k) for k, p0 in enumerate((1e5, 3e5))]
+    cal = fit(noisy, ("phi_g", "alpha0"), base=case.base, method="bayes", starts=4, walkers=8, steps=300,
+              seed=1, **case.kw)
     post = cal.posterior
     assert 0.01 / 3 < post.noise.q < 0.03 and 2e-5 / 3 < post.noise.eps_v < 6e-5  # about the noise added
     for name, true in (("phi_g", 28.0), ("alpha0", 50.0)):
@@ -203,13 +201,13 @@ def test_bayes_90_percent_intervals_contain_the_truth(tmp_path):
     assert set(record["posterior"]) == {"phi_g", "alpha0"} and record["method"] == "bayes"
 
 
-def test_the_standard_error_of_kn_survives_its_scale():
+def test_the_standard_error_of_kn_survives_its_scale(case):
     # kn in N/m is 10^8 times the angles: its standard error must come out in its own units,
     # about its relative sensitivity times kn, not lost to round-off
-    noisy = [_test(TRUE, "drained", p0, noise=0.01, seed=k) for k, p0 in enumerate((1e5, 3e5))]
-    cal = fit(noisy, ("kn", "phi_g"), base=TRUE, starts=2, **KW)
-    assert 1e-4 * TRUE.kn < cal.stderr["kn"] < 0.5 * TRUE.kn
-    assert abs(cal.fitted["kn"] - TRUE.kn) < 4 * cal.stderr["kn"]
+    noisy = [case.test("drained", p0, noise=0.01, seed=k) for k, p0 in enumerate((1e5, 3e5))]
+    cal = fit(noisy, ("kn", "phi_g"), base=case.true, starts=2, **case.kw)
+    assert 1e-4 * case.true.kn < cal.stderr["kn"] < 0.5 * case.true.kn
+    assert abs(cal.fitted["kn"] - case.true.kn) < 4 * cal.stderr["kn"]
 
 
 def test_the_uncertainty_of_a_parameter_the_objective_ignores_is_undefined():
@@ -230,9 +228,9 @@ def test_the_uncertainty_of_a_parameter_the_objective_ignores_is_undefined():
     assert weak == ["beta_omega"] and math.isnan(se["beta_omega"]) and se["phi_g"] == pytest.approx(55.0)
 
 
-def test_a_lone_parameter_without_effect_is_unidentified_not_exact(tests):
+def test_a_lone_parameter_without_effect_is_unidentified_not_exact(tests, case):
     # an isotropic fabric: its major direction changes nothing, and it is the only one fitted
-    cal = fit(tests, ("beta_omega",), base=TRUE, starts=1, **KW)
+    cal = fit(tests, ("beta_omega",), base=case.true, starts=1, **case.kw)
     assert cal.unidentified == ["beta_omega"] and math.isnan(cal.stderr["beta_omega"])
     record = cal.to_dict()
     assert record["stderr"] == {"beta_omega": None} and record["unidentified"] == ["beta_omega"]
@@ -269,7 +267,7 @@ def test_a_fit_that_ends_on_a_bound_says_so(tmp_path, tests, capsys):
     assert json.loads((tmp_path / "b" / "calibration.json").read_text())["at_bound"] == {}
 
 
-def test_the_most_common_failure_reasons_are_printed(tmp_path, tests, capsys, monkeypatch):
+def test_the_most_common_failure_reasons_are_printed(tmp_path, tests, capsys, monkeypatch, case):
     import dataclasses
 
     import hmodel.cli.calibrate as cli_cal
@@ -285,7 +283,7 @@ def test_the_most_common_failure_reasons_are_printed(tmp_path, tests, capsys, mo
     failed = json.loads((tmp_path / "o" / "calibration.json").read_text())["failures"]
     assert failed and f"failed, most often: {len(failed)} × outside the stand-in's domain" in out
     # messages that differ only in the values they name are one reason
-    cal = fit(tests, ("phi_g",), base=TRUE, starts=1, **KW)
+    cal = fit(tests, ("phi_g",), base=case.true, starts=1, **case.kw)
     cal = dataclasses.replace(cal, failures=[{"error": "kt_kn=1.47 outside the domain"},
                                              {"error": "Newton failed"},
                                              {"error": "kt_kn=1.9 outside the domain"}])

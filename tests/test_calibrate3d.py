@@ -1,78 +1,46 @@
-"""Calibration of the 3D H-model on triaxial tests (issue 35): triaxial tests made by the 3D model
-at known parameters are recovered (the truth is the parameter set they were made with), the
-objective vanishes there, a parameter set whose test fails does not stop the fit, and the 2D
-model's kinds, files and options are refused with the 3D model's and the reverse, in one line."""
+"""Calibration of the 3D H-model on triaxial tests: triaxial tests made by the 3D model at known
+parameters are recovered (the truth is the parameter set they were made with), extension is
+compression positive, and the 2D model's kinds, files and options are refused with the 3D
+model's and the reverse, in one line. What the 2D and the 3D model share (the batched model
+equals single runs, the objective vanishes at the truth, a parameter set whose test fails does
+not stop the fit) is tested for both in test_calibrate.py."""
 
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 import pytest
 
-from hmodel import InputError, Params, SolverError
-from hmodel.calibrate import Kind, Test, fit, parse_data_spec
+from hmodel import InputError
+from hmodel.calibrate import Test, fit, parse_data_spec
 from hmodel.calibrate.model import Model, residuals
-from hmodel.cell import ClosedFormSolver
 from hmodel.cell.bihex import BiHexSolver
 from hmodel.cli.app import main
-from hmodel.loading import run_triaxial
-from hmodel.rev import Sphere
 
-#: sliding_rhs as the 3D commands default it (the report's λ stops Newton near 1 % in 3D)
-BASE = Params(sliding_rhs="equilibrium")
-TRUE = BASE.with_(phi_g=math.radians(28.0), alpha0=math.radians(50.0), kt_kn=0.5)
-#: a coarse rule keeps the tests fast; the search runs at an even coarser one, then refines here
-SPHERE = Sphere(order=9, n_azimuth=2, axis=(1.0, 0.0, 0.0))  # the command line's axis
+#: the search runs at a coarser rule than the tests' (order 9, two azimuths), then refines there
 SEARCH = (9, 1)
-KW = {"step": 1e-3, "iso_step": 1e-4, "sphere": SPHERE}
 BOUNDS = {"phi_g": (20.0, 40.0), "alpha0": (40.0, 60.0)}
 
 
-def _test(kind, p0, strain=0.02, noise=0.0, noise_ev=0.0, seed=0):
-    """A triaxial test made by the 3D model at TRUE: every second shear row, q with relative
-    Gaussian noise, εv with absolute Gaussian noise; compression positive (extension: eps11 < 0)."""
-    kind = Kind(kind)
-    r = run_triaxial(TRUE, [p0], strain, undrained=kind.undrained, extension=kind.extension,
-                     sphere=SPHERE, step=1e-3, iso_step=1e-4)
-    c, s = r.stage("consolidation"), r.stage("shear")
-    rng = np.random.default_rng(seed)
-    sel = slice(1, None, 2)
-    e = (np.asarray(s["eps11"]) - c["eps11"][-1])[sel]
-    q = np.asarray(s["q"])[sel] * (1 + noise * rng.normal(size=len(e)))
-    ev = (np.asarray(s["eps_v"]) - c["eps_v"][-1])[sel] + noise_ev * rng.normal(size=len(e))
-    return Test(kind, p0, e, q, None if kind.undrained else ev)
+@pytest.fixture(scope="module")
+def case(own_tests):
+    """The 3D model's triaxial tests made at known parameters (tests/conftest.py)."""
+    return own_tests(3)
 
 
 @pytest.fixture(scope="module")
-def tests():
-    return [_test("triaxial-drained", 1e5), _test("triaxial-drained", 3e5),
-            _test("triaxial-undrained", 2e5), _test("triaxial-extension", 2e5)]
+def tests(case):
+    return list(case.tests)
 
 
-def test_the_objective_vanishes_at_the_truth_and_batched_runs_equal_single_ones(tests):
+def test_an_extension_test_is_compression_positive(tests):
     ext = tests[3]
-    assert ext.eps11[-1] < 0 and ext.q[-1] < 0 and ext.strain[-1] > 0  # extension, compression positive
-    model = Model(tuple(tests), step=1e-3, iso_step=1e-4, sphere=SPHERE)
-    assert model.dim == 3
-    sets = [TRUE, TRUE.with_(phi_g=math.radians(33.0)), TRUE.with_(kn=3e8)]
-    both = model.predict(sets)
-    assert both.ok.all()
-    assert np.abs(residuals(tests, both)[0]).max() < 1e-10  # the truth's own curves
-    assert np.abs(residuals(tests, both)[1]).max() > 1e-2   # and not another set's
-    for k, s in enumerate(sets):
-        one = model.predict([s])
-        for t in range(len(tests)):
-            np.testing.assert_allclose(both.q[t][k], one.q[t][0], rtol=1e-9)
-            np.testing.assert_allclose(both.eps_v[t][k], one.eps_v[t][0], rtol=1e-9, atol=1e-15)
-    # the undrained test's εv is not fitted (zero by definition), the drained ones' are
-    assert residuals(tests, both).shape[1] == sum(len(t.eps11) for t in tests) + \
-        sum(len(t.eps11) for t in tests if not t.kind.undrained)
+    assert ext.eps11[-1] < 0 and ext.q[-1] < 0 and ext.strain[-1] > 0
 
 
-def test_noise_free_triaxial_tests_give_back_their_parameters(tests):
-    cal = fit(tests, ("phi_g", "alpha0"), bounds=BOUNDS, base=BASE, starts=2, search_rule=SEARCH, **KW)
+def test_noise_free_triaxial_tests_give_back_their_parameters(tests, case):
+    cal = fit(tests, ("phi_g", "alpha0"), bounds=BOUNDS, base=case.base, starts=2, search_rule=SEARCH, **case.kw)
     assert cal.fitted["phi_g"] == pytest.approx(28.0, rel=1e-5)
     assert cal.fitted["alpha0"] == pytest.approx(50.0, rel=1e-5)
     assert cal.cost < 1e-10 and not cal.failures and cal.unidentified == []
@@ -86,40 +54,16 @@ def test_noise_free_triaxial_tests_give_back_their_parameters(tests):
     assert [t["kind"] for t in record["tests"]][-1] == "triaxial-extension"
 
 
-def test_one_percent_noise_gives_phi_and_alpha0_within_two_percent():
+def test_one_percent_noise_gives_phi_and_alpha0_within_two_percent(case):
     # 1 % of q and 2e-5 of εv: the fitted values' standard errors are a few tenths of a
     # percent; 2 % is 2D's tolerance and the truth must also lie within 4 standard errors
-    noisy = [_test(k, p0, noise=0.01, noise_ev=2e-5, seed=i) for i, (k, p0) in
+    noisy = [case.test(k, p0, noise=0.01, noise_ev=2e-5, seed=i) for i, (k, p0) in
              enumerate((("triaxial-drained", 1e5), ("triaxial-drained", 3e5), ("triaxial-extension", 2e5)))]
-    cal = fit(noisy, ("phi_g", "alpha0"), bounds=BOUNDS, base=BASE, starts=2, search_rule=None, **KW)
+    cal = fit(noisy, ("phi_g", "alpha0"), bounds=BOUNDS, base=case.base, starts=2, search_rule=None, **case.kw)
     assert cal.search is None
     for name, true in (("phi_g", 28.0), ("alpha0", 50.0)):
         assert cal.fitted[name] == pytest.approx(true, rel=0.02)
         assert 0 < cal.stderr[name] and abs(cal.fitted[name] - true) < 4 * cal.stderr[name]
-
-
-class FailsAboveThirtyFive(ClosedFormSolver):
-    """The closed-form H-cell as the hexagons' solver (the generic 3D driver), failing for
-    friction angles above 35 deg: a stand-in for a parameter set whose test cannot be run."""
-
-    name = "fails-above-35"
-
-    def step(self, params, state, dl1, dl2):
-        if params.phi_g > math.radians(35):
-            raise SolverError("outside the stand-in's domain")
-        return super().step(params, state, dl1, dl2)
-
-
-def test_parameter_sets_whose_tests_fail_do_not_stop_the_fit(tests):
-    drained = tests[:2]
-    model = Model(tuple(drained), FailsAboveThirtyFive(), step=1e-3, iso_step=1e-4, sphere=SPHERE)
-    pred = model.predict([TRUE, TRUE.with_(phi_g=math.radians(40)), TRUE])
-    assert pred.ok.tolist() == [True, False, True] and "domain" in pred.failed[1]
-    assert np.isnan(pred.q[0][1]).all() and np.isfinite(pred.q[0][[0, 2]]).all()
-    cal = fit(drained, ("phi_g",), bounds={"phi_g": (20.0, 45.0)}, base=TRUE.with_(phi_g=0.5),
-              solver=FailsAboveThirtyFive(), starts=2, search_rule=SEARCH, **KW)
-    assert cal.fitted["phi_g"] == pytest.approx(28.0, rel=1e-5)
-    assert cal.failures and all(f["params"]["phi_g"] > 35 for f in cal.failures)
 
 
 def _csv(path, header, rows):
@@ -127,17 +71,17 @@ def _csv(path, header, rows):
     return path
 
 
-def test_the_2d_model_and_the_3d_model_are_not_mixed(tmp_path, tests):
+def test_the_2d_model_and_the_3d_model_are_not_mixed(tmp_path, tests, case):
     e = np.linspace(0.001, 0.01, 5)
     biaxial = Test("drained", 1e5, e, np.linspace(1e4, 5e4, 5), e)
     with pytest.raises(InputError, match="mix the 2D model's kinds .drained. with the 3D"):
         fit([biaxial, tests[0]], ("phi_g",))
     with pytest.raises(InputError, match="3D model's: the tests are 2D"):
-        fit([biaxial], ("phi_g",), sphere=SPHERE)
+        fit([biaxial], ("phi_g",), sphere=case.kw["sphere"])
     with pytest.raises(InputError, match="is a 3D cell: the tests are 2D"):
         Model((biaxial,), BiHexSolver())
     with pytest.raises(InputError, match="alpha_omega is the 2D model's"):
-        fit(tests, ("phi_g", "alpha_omega"), **KW)
+        fit(tests, ("phi_g", "alpha_omega"), **case.kw)
     # the files: 3D columns with a 2D kind, 2D columns with a 3D kind
     three = _csv(tmp_path / "t.csv", ["eps_a", "q", "eps_v", "s33"], [(a, 1e4, 0, 1e5) for a in e])
     two = _csv(tmp_path / "b.csv", ["eps11", "eps22", "q"], [(a, -a, 1e4) for a in e])

@@ -9,17 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hmodel.cli.app import main
 from hmodel.loading.result import COLUMNS
 
 CONTRACT = ("eps11", "eps22", "eps12", "sig11", "sig22", "sig12", "p", "q", "eps_v")
 FAST = ["--param", "n_theta=36"]
-
-
-def run_cli(args, capsys):
-    code = main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def read_table(path: Path) -> dict[str, np.ndarray]:
@@ -35,10 +28,10 @@ def check_identities(t):
     np.testing.assert_allclose(t["eps_v"], t["eps11"] + t["eps22"], rtol=1e-12, atol=1e-15)
 
 
-def test_biaxial_writes_table_and_figure(tmp_path, capsys):
+def test_biaxial_writes_table_and_figure(tmp_path, cli):
     out = tmp_path / "fig"
-    code, stdout, err = run_cli(["run", "biaxial", "--p0", "200kPa", "--axial-strain", "0.02",
-                                 *FAST, "--out", out], capsys)
+    code, stdout, err = cli("run", "biaxial", "--p0", "200kPa", "--axial-strain", "0.02",
+                            *FAST, "--out", out)
     assert code == 0, err
     assert "result.csv" in stdout
     t = read_table(out / "result.csv")
@@ -52,9 +45,9 @@ def test_biaxial_writes_table_and_figure(tmp_path, capsys):
     assert [p.name for p in tmp_path.iterdir()] == ["fig"]  # no temporary folder left
 
 
-def test_several_confining_pressures_in_one_run(tmp_path, capsys):
-    code, _, err = run_cli(["run", "biaxial", "--p0", "100kPa,0.2MPa,400000", "--axial-strain",
-                            "0.01", "--undrained", *FAST, "--out", tmp_path], capsys)
+def test_several_confining_pressures_in_one_run(tmp_path, cli):
+    code, _, err = cli("run", "biaxial", "--p0", "100kPa,0.2MPa,400000", "--axial-strain",
+                       "0.01", "--undrained", *FAST, "--out", tmp_path)
     assert code == 0, err
     t = read_table(tmp_path / "result.csv")
     assert sorted(set(t["point"].astype(int))) == [0, 1, 2]
@@ -65,8 +58,8 @@ def test_several_confining_pressures_in_one_run(tmp_path, capsys):
         np.testing.assert_allclose(t["eps_v"][shear], t["eps_v"][cons][-1], atol=1e-13)  # isochoric
 
 
-def test_iso_reaches_p0(tmp_path, capsys):
-    code, _, err = run_cli(["run", "iso", "--p0", "150kPa", *FAST, "--out", tmp_path], capsys)
+def test_iso_reaches_p0(tmp_path, cli):
+    code, _, err = cli("run", "iso", "--p0", "150kPa", *FAST, "--out", tmp_path)
     assert code == 0, err
     t = read_table(tmp_path / "result.csv")
     check_identities(t)
@@ -74,22 +67,22 @@ def test_iso_reaches_p0(tmp_path, capsys):
     np.testing.assert_allclose(t["sig12"], 0.0, atol=1e-6 * 1.5e5)
 
 
-def test_strain_path_one_row_per_input_row_in_order(tmp_path, capsys):
+def test_strain_path_one_row_per_input_row_in_order(tmp_path, cli):
     path = tmp_path / "path.csv"
     eps = [[1e-4, 1e-4, 0.0], [4e-4, 2e-4, 1e-4], [4e-4, 2e-4, -1e-4], [2e-4, 1e-4, 0.0]]
     path.write_text("eps11,eps22,eps12\n" + "\n".join(",".join(map(str, r)) for r in eps) + "\n")
-    code, _, err = run_cli(["run", "strain-path", path, *FAST, "--param", "alpha0=50",
-                            "--out", tmp_path / "o"], capsys)
+    code, _, err = cli("run", "strain-path", path, *FAST, "--param", "alpha0=50",
+                       "--out", tmp_path / "o")
     assert code == 0, err
     t = read_table(tmp_path / "o" / "result.csv")
     np.testing.assert_array_equal(np.column_stack([t["eps11"], t["eps22"], t["eps12"]]), eps)
     check_identities(t)
 
 
-def test_strain_path_without_shear_column(tmp_path, capsys):
+def test_strain_path_without_shear_column(tmp_path, cli):
     path = tmp_path / "path.csv"
     path.write_text("eps11,eps22\n0.0002,0.0001\n0.0004,0.0001\n")
-    code, _, err = run_cli(["run", "strain-path", path, *FAST, "--out", tmp_path / "o"], capsys)
+    code, _, err = cli("run", "strain-path", path, *FAST, "--out", tmp_path / "o")
     assert code == 0, err
     assert len(read_table(tmp_path / "o" / "result.csv")["eps12"]) == 2
 
@@ -117,10 +110,10 @@ BAD_PARAMS = [
 
 
 @pytest.mark.parametrize("extra, word", BAD_PARAMS)
-def test_bad_biaxial_input_is_one_line_and_writes_nothing(tmp_path, capsys, extra, word):
+def test_bad_biaxial_input_is_one_line_and_writes_nothing(tmp_path, cli, extra, word):
     out = tmp_path / "o"
-    code, stdout, err = run_cli(["run", "biaxial", "--axial-strain", "0.01", *FAST, *extra,
-                                 "--out", out], capsys)
+    code, stdout, err = cli("run", "biaxial", "--axial-strain", "0.01", *FAST, *extra,
+                            "--out", out)
     assert code != 0
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("hmodel: error:"), err
@@ -144,9 +137,9 @@ MALFORMED = [
 
 
 @pytest.mark.parametrize("args, word", MALFORMED)
-def test_malformed_command_line_exits_2_with_one_line(tmp_path, capsys, monkeypatch, args, word):
+def test_malformed_command_line_exits_2_with_one_line(tmp_path, cli, monkeypatch, args, word):
     monkeypatch.chdir(tmp_path)  # where the default output folders would go
-    code, stdout, err = run_cli(args, capsys)
+    code, stdout, err = cli(*args)
     assert code == 2, (code, err)
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("hmodel: error:") and word in lines[0], err
@@ -165,13 +158,13 @@ BAD_CSV = {
 
 
 @pytest.mark.parametrize("name", sorted(BAD_CSV))
-def test_malformed_strain_path_is_one_line_and_writes_nothing(tmp_path, capsys, name):
+def test_malformed_strain_path_is_one_line_and_writes_nothing(tmp_path, cli, name):
     text, word = BAD_CSV[name]
     src = tmp_path / "in"
     src.mkdir()
     (src / "path.csv").write_text(text)
     out = tmp_path / "o"
-    code, _, err = run_cli(["run", "strain-path", src / "path.csv", *FAST, "--out", out], capsys)
+    code, _, err = cli("run", "strain-path", src / "path.csv", *FAST, "--out", out)
     assert code != 0
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("hmodel: error:") and word in lines[0], err
@@ -179,27 +172,27 @@ def test_malformed_strain_path_is_one_line_and_writes_nothing(tmp_path, capsys, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in"]
 
 
-def test_missing_and_binary_strain_path_files(tmp_path, capsys):
-    code, _, err = run_cli(["run", "strain-path", tmp_path / "nope.csv", "--out", tmp_path / "o"], capsys)
+def test_missing_and_binary_strain_path_files(tmp_path, cli):
+    code, _, err = cli("run", "strain-path", tmp_path / "nope.csv", "--out", tmp_path / "o")
     assert code != 0 and "nope.csv" in err and len(err.strip().splitlines()) == 1
     (tmp_path / "bin.csv").write_bytes(b"\xff\xfe\x00\x81" * 10)
-    code, _, err = run_cli(["run", "strain-path", tmp_path / "bin.csv", "--out", tmp_path / "o"], capsys)
+    code, _, err = cli("run", "strain-path", tmp_path / "bin.csv", "--out", tmp_path / "o")
     assert code != 0 and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "o").exists()
 
 
-def test_existing_results_survive_a_failed_run(tmp_path, capsys):
+def test_existing_results_survive_a_failed_run(tmp_path, cli):
     out = tmp_path / "o"
-    assert run_cli(["run", "iso", "--p0", "100kPa", *FAST, "--out", out], capsys)[0] == 0
+    assert cli("run", "iso", "--p0", "100kPa", *FAST, "--out", out)[0] == 0
     before = (out / "result.csv").read_bytes()
-    code, _, _ = run_cli(["run", "iso", "--p0", "-1", *FAST, "--out", out], capsys)
+    code, _, _ = cli("run", "iso", "--p0", "-1", *FAST, "--out", out)
     assert code != 0
     assert (out / "result.csv").read_bytes() == before
 
 
-def test_output_path_that_is_a_file_is_refused(tmp_path, capsys):
+def test_output_path_that_is_a_file_is_refused(tmp_path, cli):
     (tmp_path / "o").write_text("mine")
-    code, _, err = run_cli(["run", "iso", "--p0", "100kPa", *FAST, "--out", tmp_path / "o"], capsys)
+    code, _, err = cli("run", "iso", "--p0", "100kPa", *FAST, "--out", tmp_path / "o")
     assert code != 0 and "not a folder" in err
     assert (tmp_path / "o").read_text() == "mine"
 
@@ -225,8 +218,8 @@ def test_console_script_as_installed(tmp_path):
     assert not (tmp_path / "y").exists()
 
 
-def test_version_and_help(capsys):
-    code, out, _ = run_cli(["--version"], capsys)
+def test_version_and_help(cli):
+    code, out, _ = cli("--version")
     assert code == 0 and out.startswith("hmodel ")
-    code, out, _ = run_cli(["run", "biaxial", "--help"], capsys)
+    code, out, _ = cli("run", "biaxial", "--help")
     assert code == 0 and all(o in out for o in ("--undrained", "--p0", "--axial-strain", "--param"))

@@ -310,6 +310,26 @@ CASES = [
      "ell = 1e+09 m exceeds the largest dimension of the 0.05 x 0.1 m domain"),
     ("fem footing ell above the layer", ["fem", "footing", "--regularization", "nonlocal:ell=2", "--out", "o"], 1,
      "exceeds the largest dimension of the 1 x 0.5 m domain (1 m)"),
+    # pressures without unit, and the 3D model's cell and parameters (one rule each)
+    ("p0 without unit, run iso", ["run", "iso", "--p0", "100", "--out", "o"], 1,
+     "--p0 100 has no unit and would be 100 Pa: give its unit (100kPa, or 100Pa if Pa is meant)"),
+    ("p0 without unit in a list, run triaxial", ["run", "triaxial", "--p0", "100kPa,50", "--out", "o"], 1,
+     "--p0 50 has no unit and would be 50 Pa"),
+    ("p without unit, failure-surface", ["failure-surface", "--p", "200", "--out", "o"], 1,
+     "--p 200 has no unit and would be 200 Pa"),
+    ("p0 without unit, stability", ["stability", "--p0", "100", "--out", "o"], 1, "--p0 100 has no unit"),
+    ("p0 without unit, stability triaxial", ["stability", "--test", "triaxial", "--p0", "100", "--out", "o"], 1,
+     "--p0 100 has no unit"),
+    ("p0 without unit, fem footing", ["fem", "footing", "--p0", "100", "--out", "o"], 1, "--p0 100 has no unit"),
+    ("p0 without unit, dem sample", ["dem", "sample", "--p0", "100", "--out", "o"], 1, "--p0 100 has no unit"),
+    ("p0 without unit, data lab", ["data", "lab", "t3.csv", "--kind", "triaxial-drained", "--p0", "100",
+                                   "--out", "o"], 1, "--p0 100 has no unit"),
+    ("3D calibrate given alpha_omega", ["calibrate", "--data", "triaxial-drained:200kPa:t3.csv", "-p",
+                                        "alpha_omega=0.3", "--out", "o"], 1, "--fabric A on the command line"),
+    ("3D program with a DEM hexagon", ["run", "program", "iso_3d.toml", "--solver", "dem:standard", "--out", "o"], 1,
+     "is a DEM cell solver (YADE): the 3D model's DEM cell is the bi-hexagon of spheres, dem:bihexagon"),
+    ("3D program gated", ["run", "program", "iso_3d.toml", "--solver", "surrogate", "--gate", "0.99", "--out", "o"],
+     1, "--gate and --fallback gate a 2D learned cell: a 3D program's learned bi-hexagon runs ungated"),
 ]
 
 
@@ -572,7 +592,7 @@ def test_out_of_memory_inside_a_compiled_kernel_is_one_line(tmp_path, monkeypatc
         raise SystemError("CPUDispatcher(<function _iso_steps>) returned a result with an exception set") \
             from MemoryError("Allocation failed (probably too large).")
 
-    monkeypatch.setattr(compiled, "_run_iso_steps", kernel)
+    monkeypatch.setattr(compiled, "_run_steps", kernel)
     code, err, added = run_case([*T3, "--order", "3", "--azimuths", "1", "--out", "o"], tmp_path, capsys)
     assert code == 1 and err.startswith("hmodel: error: out of memory") and err.count("\n") == 1, err
     assert not added
@@ -580,7 +600,7 @@ def test_out_of_memory_inside_a_compiled_kernel_is_one_line(tmp_path, monkeypatc
     def bug(*args):
         raise SystemError("a bug")
 
-    monkeypatch.setattr(compiled, "_run_iso_steps", bug)
+    monkeypatch.setattr(compiled, "_run_steps", bug)
     with pytest.raises(SystemError, match="a bug"):
         main([*T3, "--order", "3", "--azimuths", "1", "--out", str(tmp_path / "never")])
 

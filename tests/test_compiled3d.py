@@ -230,17 +230,6 @@ def test_a_stopping_criterion_ends_the_compiled_segment_on_the_same_state():
     np.testing.assert_allclose(a.state.sig, b.state.sig, rtol=1e-7, atol=1e-9 * P0)
 
 
-def test_the_2d_kernel_inputs_refuse_a_3d_rev_in_one_line():
-    # A Rev3D passes supports(), so the 2D kernel inputs refuse it rather than reading 2D
-    # directions it does not have (the stability probes take kernel_inputs3d in 3D).
-    from hmodel.errors import InputError
-    from hmodel.loading.compiled import kernel_inputs
-
-    rev = Rev3D(Params(), SPHERE)
-    with pytest.raises(InputError, match="2D REV"):
-        kernel_inputs(rev)
-
-
 def test_a_learned_3d_kernel_is_refused_not_ignored():
     from hmodel.cell import CellKernel
     from hmodel.errors import InputError

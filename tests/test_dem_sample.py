@@ -1,5 +1,7 @@
 """``hmodel dem sample`` (hmodel.dem.sample): a periodic 2D disk assembly in YADE, consolidated and
-sheared in drained and undrained biaxial tests; resumable, bad options refused."""
+sheared in drained and undrained biaxial tests; resumable. What disks and spheres share (bad
+options refused, missing YADE, the seeded initial gas, the size guard) is tested here for both
+dimensions; the spheres' own tests are in test_dem_sample3d.py."""
 
 from __future__ import annotations
 
@@ -28,13 +30,6 @@ def _read_csv(path):
     with open(path, newline="") as fh:
         rows = list(csv.reader(fh))
     return rows[0], np.array(rows[1:], float)
-
-
-def _run(args, capsys):
-    t0 = time.perf_counter()
-    code = main(["dem", "sample", *args])
-    out, err = capsys.readouterr()
-    return code, out, err, time.perf_counter() - t0
 
 
 @pytest.fixture(scope="module")
@@ -128,45 +123,51 @@ def test_stresses_are_love_weber_per_unit_area_and_the_figure_is_drawn(sample_di
 
 
 @pytest.mark.yade
-def test_an_existing_csv_is_not_run_again(sample_dir, monkeypatch, capsys):
+def test_an_existing_csv_is_not_run_again(sample_dir, monkeypatch, cli):
     out, _ = sample_dir
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     monkeypatch.setenv("HMODEL_YADE", "/no/such/yade")  # YADE is never started
-    code, stdout, err, _ = _run([*SMALL, "--out", str(out)], capsys)
+    code, stdout, err = cli("dem", "sample", *SMALL, "--out", out)
     assert code == 0, err
     assert "drained_100kPa.csv exists, skipped" in stdout
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
 @pytest.mark.yade
-def test_a_folder_of_another_sample_is_refused(sample_dir, capsys):
+def test_a_folder_of_another_sample_is_refused(sample_dir, cli):
     out, _ = sample_dir
     before = sorted(p.name for p in out.iterdir())
-    code, _, err, _ = _run(["--disks", "300", "--axial-strain", "0.01", "--rows", "10",
-                            "--p0", "200kPa", "--out", str(out)], capsys)
+    code, _, err = cli("dem", "sample", "--disks", "300", "--axial-strain", "0.01", "--rows", "10",
+                       "--p0", "200kPa", "--out", out)
     assert code == 1 and err.count("\n") == 1 and "other settings (--disks)" in err
     assert sorted(p.name for p in out.iterdir()) == before
 
 
 @pytest.mark.slow
 @pytest.mark.yade
-def test_target_porosity_lowers_the_compaction_friction(tmp_path, capsys):
+def test_target_porosity_lowers_the_compaction_friction(tmp_path, cli):
     out = tmp_path / "loose"
-    code, _, err, _ = _run(["--disks", "200", "--axial-strain", "0.002", "--rows", "2",
-                            "--porosity", "0.18", "--out", str(out)], capsys)
+    code, _, err = cli("dem", "sample", "--disks", "200", "--axial-strain", "0.002", "--rows", "2",
+                       "--porosity", "0.18", "--out", out)
     assert code == 0, err
     rec = json.loads((out / "sample.json").read_text())["tests"]["drained_100kPa"]
     assert 0.17 < rec["consolidated"]["porosity"] <= 0.18
     assert 0 < rec["consolidation_friction_deg"] < 30
     # a target looser than compaction with φg = 30° gives: refused, nothing written
     out2 = tmp_path / "too-loose"
-    code, _, err, _ = _run(["--disks", "200", "--axial-strain", "0.002", "--rows", "2",
-                            "--porosity", "0.4", "--out", str(out2)], capsys)
+    code, _, err = cli("dem", "sample", "--disks", "200", "--axial-strain", "0.002", "--rows", "2",
+                       "--porosity", "0.4", "--out", out2)
     assert code == 1 and err.count("\n") == 1 and "target porosity 0.4 is above" in err
     assert not out2.exists()
 
 
-@pytest.mark.parametrize("args, message", [
+# -- what disks and spheres share (the spheres' own: test_dem_sample3d.py) ---------------------
+
+def _bad(dim, cases):
+    return [pytest.param(dim, args, message, id=f"{dim}d-{message}") for args, message in cases]
+
+
+@pytest.mark.parametrize("dim, args, message", _bad(2, [
     (["--p0", "0"], "pressure must be positive"),
     (["--p0", "-100kPa"], "pressure must be positive"),
     (["--p0", "100kPa,abc"], "cannot read pressure"),
@@ -188,39 +189,80 @@ def test_target_porosity_lowers_the_compaction_friction(tmp_path, capsys):
     (["--disks", "103", "--radius-ratio", "10", "--distribution", "equal-area"], "use at least 104 disks"),
     (["--inertial-number", "1e-4", "--strain-rate", "1e-3"], "not both"),
     (["--strain-rate", "0"], "--strain-rate must be a positive number"),
-])
-def test_bad_options_are_one_line_errors_and_write_nothing(tmp_path, monkeypatch, capsys, args, message):
+]) + _bad(3, [
+    (["--spheres", "60"], "too small a sample to be periodic"),
+    (["--radius-ratio", "4", "--spheres", "100"], "too small a sample to be periodic"),  # 100 pass at 2
+    (["--phi-g", "0"], "--phi-g must lie in (0, 90)"),
+    (["--phi-g", "95"], "--phi-g must lie in (0, 90)"),
+    (["--kn", "-1"], "--kn must be a positive number"),
+    (["--kt-kn", "0"], "--kt-kn must be a positive number"),
+    (["--compaction-friction", "90"], "--compaction-friction must lie in [0, 90)"),
+    (["--distribution", "equal-area"], "one of uniform, equal-volume with spheres"),
+    (["--undrained", "--extension"], "drained and undrained compression and drained extension"),
+    (["--dim", "4"], "--dim must be 2 (disks) or 3 (spheres)"),
+]))
+def test_bad_options_are_one_line_errors_and_write_nothing(tmp_path, monkeypatch, cli, dim, args, message):
     monkeypatch.setenv("HMODEL_YADE", str(tmp_path / "no-such-yade"))  # refused before YADE
     out = tmp_path / "out"
-    code, _, err, _ = _run([*args, "--out", str(out)], capsys)
-    assert code == 1 and err.count("\n") == 1 and err.startswith("hmodel: error: "), err
-    assert message in err, err
-    assert not out.exists() and list(tmp_path.iterdir()) == []
+    sample = ["dem", "sample"] if dim == 2 else ["dem", "sample", "--dim", "3"]  # disks by default
+    cli.refuses([*sample, *args, "--out", out], message, out)
+    assert list(tmp_path.iterdir()) == []
 
 
-def test_unknown_option_and_missing_yade(tmp_path, monkeypatch, capsys):
-    out = tmp_path / "out"
-    code, _, err, _ = _run(["--grains", "200", "--out", str(out)], capsys)
-    assert code == 2 and err.count("\n") == 1 and "No such option: --grains" in err
+def test_missing_yade_is_one_line(tmp_path, monkeypatch, cli, dim):
     monkeypatch.setenv("HMODEL_YADE", str(tmp_path / "no-such-yade"))
-    code, _, err, _ = _run([*SMALL, "--out", str(out)], capsys)
-    assert code == 1 and err.count("\n") == 1 and "YADE is not installed" in err
-    assert not out.exists()
+    out = tmp_path / "out"
+    grains = {2: ["--disks", "200"], 3: ["--dim", "3", "--spheres", "120"]}[dim]
+    cli.refuses(["dem", "sample", *grains, "--out", out], "YADE is not installed", out)
 
 
-def test_initial_packing_is_a_seeded_gas_without_overlap():
-    for dist in ("uniform", "equal-area"):
-        s = SampleSettings(disks=300, radius=2.0, radius_ratio=3.0, distribution=dist, seed=7)
-        r, pos, (lx, ly) = initial_packing(s)
-        assert len(r) == 300 and r.min() >= s.r_min and r.max() <= s.r_max
-        assert s.r_min == pytest.approx(1.0) and s.r_max == pytest.approx(3.0)
-        assert np.all(pos - r[:, None] >= 0) and np.all(pos + r[:, None] <= [lx, ly])
-        d = np.linalg.norm(pos[:, None] - pos[None], axis=-1)
-        gap = d - (r[:, None] + r[None])
-        np.fill_diagonal(gap, 1.0)
-        assert gap.min() > 0
-        r2, pos2, _ = initial_packing(s)
-        assert np.array_equal(r, r2) and np.array_equal(pos, pos2)
+def test_unknown_option(tmp_path, cli):
+    out = tmp_path / "out"
+    cli.refuses(["dem", "sample", "--grains", "200", "--out", out], "No such option: --grains", out, code=2)
+
+
+@pytest.mark.parametrize("dim, dist", [(2, "uniform"), (2, "equal-area"), (3, "uniform"), (3, "equal-volume")])
+def test_initial_packing_is_a_seeded_gas_without_overlap(dim, dist):
+    s = SampleSettings(dim=dim, disks=300, radius=2.0, radius_ratio=3.0, distribution=dist, seed=7)
+    r, pos, cell = initial_packing(s)
+    assert len(r) == 300 and pos.shape == (300, dim) and len(cell) == dim
+    assert r.min() >= s.r_min and r.max() <= s.r_max
+    assert s.r_min == pytest.approx(1.0) and s.r_max == pytest.approx(3.0)
+    assert np.all(pos - r[:, None] >= 0) and np.all(pos + r[:, None] <= cell)
+    gap = np.linalg.norm(pos[:, None] - pos[None], axis=-1) - (r[:, None] + r[None])
+    np.fill_diagonal(gap, 1.0)
+    assert gap.min() > 0
+    r2, pos2, _ = initial_packing(s)
+    assert np.array_equal(r, r2) and np.array_equal(pos, pos2)
+
+
+@pytest.mark.parametrize("dim, grains", [(2, 2000), (3, 1500)])
+def test_a_test_is_sized_before_any_grain_is_drawn(tmp_path, monkeypatch, dim, grains):
+    """A test's estimate is its grains x GRAIN_BYTES and its recorded rows x ROW_BYTES: at the
+    budget the grains are drawn and YADE asked (and found missing); one grain or one row more
+    is refused, and nothing is written."""
+    from dataclasses import replace
+
+    from hmodel.dem.sample import kinds, run_sample, run_test
+    from hmodel.dem.sample.settings import GRAIN_BYTES, ROW_BYTES
+    from hmodel.dem.yade import YadeNotFound
+    from hmodel.limits import WorkTooLarge
+
+    monkeypatch.setenv("HMODEL_YADE", str(tmp_path / "no-such-yade"))
+    s = SampleSettings(dim=dim, disks=grains, rows=10)
+    monkeypatch.setenv("HMODEL_MEMORY_LIMIT", str(grains * GRAIN_BYTES + 11 * ROW_BYTES))
+    kind = kinds(dim)[0]
+    with pytest.raises(YadeNotFound):
+        run_sample(s, [1e5], kind, tmp_path / "o")
+    for more, phrase in ((replace(s, disks=grains + 1), f"{grains + 1:,} "), (replace(s, rows=11), "12 rows")):
+        with pytest.raises(WorkTooLarge, match=phrase):
+            run_sample(more, [1e5], kind, tmp_path / "o")
+        with pytest.raises(WorkTooLarge):
+            run_test(more, kind, 1e5)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_disks_are_spread_by_their_distribution():
     uni = initial_packing(SampleSettings(disks=4000, radius_ratio=3.0))[0]
     area = initial_packing(SampleSettings(disks=4000, radius_ratio=3.0, distribution="equal-area"))[0]
     assert mean_diameter(uni) == pytest.approx(2.0, rel=0.02)

@@ -1,6 +1,7 @@
 """``hmodel dem sample --dim 3`` (hmodel.dem.sample with dim = 3): a periodic assembly of
 polydisperse spheres in YADE, consolidated isotropically and sheared in drained and undrained
-triaxial compression and drained triaxial extension; resumable, bad options refused."""
+triaxial compression and drained triaxial extension; resumable. Bad options, missing YADE, the
+initial gas and the size guard are tested for disks and spheres alike in test_dem_sample.py."""
 
 from __future__ import annotations
 
@@ -147,79 +148,16 @@ def test_figure_resume_and_refused_folder(sample_dir, monkeypatch, capsys):
     assert {p.name: p.read_bytes() for p in sample_dir.iterdir()} == before
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--spheres", "60"], "too small a sample to be periodic"),
-    (["--radius-ratio", "4", "--spheres", "100"], "too small a sample to be periodic"),  # 100 pass at 2
-    (["--phi-g", "0"], "--phi-g must lie in (0, 90)"),
-    (["--phi-g", "95"], "--phi-g must lie in (0, 90)"),
-    (["--kn", "-1"], "--kn must be a positive number"),
-    (["--kt-kn", "0"], "--kt-kn must be a positive number"),
-    (["--compaction-friction", "90"], "--compaction-friction must lie in [0, 90)"),
-    (["--distribution", "equal-area"], "one of uniform, equal-volume with spheres"),
-    (["--undrained", "--extension"], "drained and undrained compression and drained extension"),
-    (["--dim", "4"], "--dim must be 2 (disks) or 3 (spheres)"),
-])
-def test_bad_options_are_one_line_errors_and_write_nothing(tmp_path, monkeypatch, capsys, args, message):
-    monkeypatch.setenv("HMODEL_YADE", str(tmp_path / "no-such-yade"))  # refused before YADE
+def test_extension_of_disks_and_a_2d_kind_of_spheres_are_refused(tmp_path, cli):
     out = tmp_path / "out"
-    code = main(["dem", "sample", "--dim", "3", *args, "--out", str(out)])
-    err = capsys.readouterr().err
-    assert code == 1 and err.count("\n") == 1 and err.startswith("hmodel: error: "), err
-    assert message in err, err
-    assert not out.exists() and list(tmp_path.iterdir()) == []
-
-
-def test_extension_of_disks_missing_yade_and_a_2d_kind(tmp_path, monkeypatch, capsys):
-    out = tmp_path / "out"
-    assert main(["dem", "sample", "--extension", "--out", str(out)]) == 1
-    assert "add --dim 3" in capsys.readouterr().err
-    monkeypatch.setenv("HMODEL_YADE", str(tmp_path / "no-such-yade"))
-    assert main(["dem", "sample", *SMALL, "--out", str(out)]) == 1
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "YADE is not installed" in err
-    assert not out.exists()
+    cli.refuses(["dem", "sample", "--extension", "--out", out], "add --dim 3", out)
     with pytest.raises(InputError, match="sphere sample .* not 'drained'"):
         run_test(SampleSettings(dim=3, disks=200), "drained", P0)
 
 
-def test_initial_packing_of_spheres_is_a_seeded_gas_without_overlap():
-    for dist in ("uniform", "equal-volume"):
-        s = SampleSettings(dim=3, disks=300, radius=2.0, radius_ratio=3.0, distribution=dist, seed=7)
-        r, pos, cell = initial_packing(s)
-        assert len(cell) == 3 and pos.shape == (300, 3) and r.min() >= 1.0 and r.max() <= 3.0
-        assert np.all(pos - r[:, None] >= 0) and np.all(pos + r[:, None] <= cell)
-        gap = np.linalg.norm(pos[:, None] - pos[None], axis=-1) - (r[:, None] + r[None])
-        np.fill_diagonal(gap, 1.0)
-        assert gap.min() > 0
-        r2, pos2, _ = initial_packing(s)
-        assert np.array_equal(r, r2) and np.array_equal(pos, pos2)
+def test_spheres_are_spread_by_their_distribution():
+    # (the seeded gas without overlap, both distributions: test_dem_sample.py)
     vol = initial_packing(SampleSettings(dim=3, disks=8000, radius_ratio=3.0, distribution="equal-volume"))[0]
     # r in [0.5, 1.5] with pdf ~ r^-3: every radius interval holds the same solid volume, so
     # the spheres below r = 1 hold half of it
     assert np.sum(vol[vol < 1.0] ** 3) / np.sum(vol ** 3) == pytest.approx(0.5, abs=0.03)
-
-
-@pytest.mark.parametrize("dim, grains", [(2, 2000), (3, 1500)])
-def test_a_test_is_sized_before_any_grain_is_drawn(tmp_path, monkeypatch, dim, grains):
-    """A test's estimate is its grains x GRAIN_BYTES and its recorded rows x ROW_BYTES: at the
-    budget the grains are drawn and YADE asked (and found missing); one grain or one row more
-    is refused, and nothing is written."""
-    from dataclasses import replace
-
-    from hmodel.dem.sample import kinds, run_sample
-    from hmodel.dem.sample.settings import GRAIN_BYTES, ROW_BYTES
-    from hmodel.dem.yade import YadeNotFound
-    from hmodel.limits import WorkTooLarge
-
-    monkeypatch.setenv("HMODEL_YADE", str(tmp_path / "no-such-yade"))
-    s = SampleSettings(dim=dim, disks=grains, rows=10)
-    monkeypatch.setenv("HMODEL_MEMORY_LIMIT", str(grains * GRAIN_BYTES + 11 * ROW_BYTES))
-    kind = kinds(dim)[0]
-    with pytest.raises(YadeNotFound):
-        run_sample(s, [P0], kind, tmp_path / "o")
-    for more, phrase in ((replace(s, disks=grains + 1), f"{grains + 1:,} "), (replace(s, rows=11), "12 rows")):
-        with pytest.raises(WorkTooLarge, match=phrase):
-            run_sample(more, [P0], kind, tmp_path / "o")
-        with pytest.raises(WorkTooLarge):
-            run_test(more, kind, P0)
-    assert list(tmp_path.iterdir()) == []

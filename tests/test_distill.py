@@ -9,7 +9,6 @@ from hmodel.surrogate.distill import DistillConfig, distill, distill_on_sample
 from hmodel.surrogate.modelfile import load
 from hmodel.surrogate.shipped import model_path
 from hmodel.surrogate.training_rows import read_sample
-from test_cli import run_cli
 
 
 def _increment_gap(student, teacher, cols, seed=1):
@@ -51,13 +50,13 @@ def test_only_meso_teachers_and_sound_settings():
         DistillConfig(raw_weight=-1.0)
 
 
-def test_cli_distill_writes_a_student(tiny_model, tmp_path, capsys):
+def test_cli_distill_writes_a_student(tiny_model, tmp_path, cli):
     teacher, tmp = tiny_model
     out = tmp_path / "student.safetensors"
     args = ["surrogate", "distill", str(tmp / "meso.safetensors"), str(tmp / "sample"), "--width", "8",
             "--depth", "2", "--epochs", "3", "--out"]
-    code, stdout, _ = run_cli(args + [str(out)], capsys)
+    code, stdout, _ = cli(*args, out)
     assert code == 0 and "student" in stdout
     assert load(out).architecture.width == 8
-    code, _, err = run_cli(args + [str(tmp_path / "x.pt")], capsys)
+    code, _, err = cli(*args, tmp_path / "x.pt")
     assert code == 1 and "safetensors" in err and err.count("\n") == 1 and not (tmp_path / "x.pt").exists()

@@ -68,6 +68,7 @@ SLOW = (
     (r"^hmodel calibrate (?!.*--starts [12]\b)", "a fit from the default 8 starts: hundreds of "
                                                  "model runs (20 s to 20 min); a fit from 1 or 2 "
                                                  "starts runs"),
+    (r"--calibration ", "the calibrated model that a calibration shown above (parsed, not run) writes"),
 )
 
 

@@ -9,8 +9,6 @@ import pytest
 from hmodel import InputError, Params
 from hmodel.cell.closed_form import ClosedFormSolver
 from hmodel.compare import run_path
-from hmodel.data import DatasetSpec, generate
-from hmodel.data.sampling import write_split
 from hmodel.loading import standard_paths
 from hmodel.surrogate import modelfile
 from hmodel.surrogate.solver import SurrogateSolver
@@ -19,24 +17,22 @@ from hmodel.surrogate.training_rows import params_of, read_sample
 from hmodel.surrogate.gate import DisagreementGate, disagreement
 from hmodel.surrogate.trust import fit_ensemble_trust
 
-SPEC = DatasetSpec(kind=2, n_directions=7, theta_min=-60, theta_max=150, alpha0_min=40, alpha0_max=50,
-                   alpha0_step=5, max_strain=0.04, step=0.001, start_every=0.004, magnitude=0.002,
-                   magnitude_min=0.0, n_increments=12, substeps=1)
 PARAMS = Params(n_theta=12)
 
 
 @pytest.fixture(scope="module")
-def ensemble(tmp_path_factory):
+def ensemble(tmp_path_factory, small_sample):
+    """Three compliance networks trained on the small sample (tests/conftest.py) with the
+    ensemble's trust: their folder (m0-m2.safetensors), the members and the trust's table."""
     root = tmp_path_factory.mktemp("ens")
-    write_split(generate(SPEC, Params(), root / "d"), root / "sample", 2000, 400, "random", 0)
-    cols, info = read_sample(root / "sample", "train")
+    cols, info = read_sample(small_sample, "train")
     members = []
     for seed in (0, 1, 2):
         m, _ = train(cols, params_of(info), TrainConfig(formulation="compliance", width=16, depth=2, epochs=15,
                                                         seed=seed, device="cpu"))
         m.meta["params"] = info["params"]
         members.append(m)
-    trusted, table = fit_ensemble_trust(members, read_sample(root / "sample", "test")[0])
+    trusted, table = fit_ensemble_trust(members, read_sample(small_sample, "test")[0])
     for k, m in enumerate(trusted):
         modelfile.save(m, root / f"m{k}.safetensors")
     return root, trusted, table
@@ -49,8 +45,8 @@ def test_disagreement_is_the_members_spread():
     assert np.all(disagreement([a, a], np.ones(2)) == 0.0)
 
 
-def test_the_ensemble_averages_compliances_and_ranks_its_errors(ensemble):
-    root, members, table = ensemble
+def test_the_ensemble_averages_compliances_and_ranks_its_errors(ensemble, small_sample):
+    _, members, table = ensemble
     t = members[0].meta["trust"]
     assert t["kind"] == "ensemble" and len(t["members"]) == 3 and members[0].trust_reference is None
     # it ranks the held-out errors: a score unrelated to them has Spearman ~0 and its least
@@ -63,7 +59,7 @@ def test_the_ensemble_averages_compliances_and_ranks_its_errors(ensemble):
     two, _ = run_path(PARAMS, spec, SurrogateSolver([members[1], members[1]]), 2e-3, 1e-3)
     np.testing.assert_array_equal(one.point(0)["q"], two.point(0)["q"])
     # the held-out scores it stores are the spread of the members' own increments of those rows
-    held = read_sample(root / "sample", "test")[0]
+    held = read_sample(small_sample, "test")[0]
     f = members[0].formulation
     names = ("alpha_next", "N1_next", "N2_next", "T1_next")
     before = np.column_stack([held[k[:-5]] for k in names])
@@ -95,7 +91,7 @@ def test_the_gate_refuses_other_members_or_no_disagreement(ensemble):
         SurrogateSolver([members[1], members[2]], gate=0.9, fallback=ClosedFormSolver())
 
 
-def test_cli_trust_and_refine_of_an_ensemble(ensemble, tmp_path, capsys):
+def test_cli_trust_and_refine_of_an_ensemble(ensemble, small_sample, tmp_path, capsys):
     from hmodel.cli.app import main
 
     root, _, _ = ensemble
@@ -105,12 +101,12 @@ def test_cli_trust_and_refine_of_an_ensemble(ensemble, tmp_path, capsys):
         p.meta.pop("trust", None)
         modelfile.save(p, tmp_path / f"p{k}.safetensors")
     assert main(["surrogate", "trust", "+".join(str(tmp_path / f"p{k}.safetensors") for k in range(3)),
-                 str(root / "sample"), "--out", str(tmp_path / "t0.safetensors")]) == 0
+                 str(small_sample), "--out", str(tmp_path / "t0.safetensors")]) == 0
     assert "surrogate:" in capsys.readouterr().out
     assert modelfile.load(tmp_path / "t0.safetensors").meta["trust"]["kind"] == "ensemble"
     out = tmp_path / "al"
     assert main(["surrogate", "refine", "+".join([str(tmp_path / "t0.safetensors")] + m[1:]), "--data",
-                 str(root / "sample"), "--out", str(out), "--rounds", "1", "--gate", "0.05", "--states", "20",
+                 str(small_sample), "--out", str(out), "--rounds", "1", "--gate", "0.05", "--states", "20",
                  "--increments", "4", "--epochs", "2", "--paths", "drained", "--axial-strain", "0.01",
                  "--step", "2e-3", "--iso-step", "1e-3", "-p", "n_theta=12"]) == 0
     summary = json.loads((out / "round-1" / "summary.json").read_text())["summary"]

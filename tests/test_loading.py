@@ -1,4 +1,6 @@
-"""Loading paths (report §1.1.2): what each path controls, step convergence, errors."""
+"""Loading paths (report §1.1.2): what each path controls, step convergence, errors. A batch
+equal to its separate runs and bad input refused are tested for the 2D and the 3D model alike;
+the 3D laboratory tests' own physics is in test_triaxial.py."""
 
 import math
 
@@ -8,8 +10,8 @@ import pytest
 from hmodel import InputError, Params, SolverError
 from hmodel.loading import (Recorder, Segment, biaxial, consolidate, constant_p, oedometric,
                             proportional, run_biaxial, run_isotropic, run_segment,
-                            run_strain_path, strain_path)
-from hmodel.rev import Rev
+                            run_strain_path, run_triaxial, run_true_triaxial, strain_path)
+from hmodel.rev import Rev, Sphere
 
 SMALL = Params(n_theta=36)
 
@@ -38,16 +40,29 @@ def test_undrained_biaxial_is_isochoric_after_consolidation():
     np.testing.assert_allclose(r.stage("shear")["eps_v"], ev0, rtol=0, atol=1e-13)
 
 
-@pytest.mark.parametrize("rule", ["equilibrium", "report"])
-@pytest.mark.parametrize("compiled", [True, False])
-def test_batch_equals_separate_runs(rule, compiled):
+P3, S = Params(sliding_rhs="equilibrium"), Sphere(order=9)  # the 3D commands' default rule
+COLUMNS = ("eps11", "eps22", "sig11", "sig22", "sig33", "q", "eps_v")
+
+
+def _lab_test(dim, rule="equilibrium", compiled=None):
+    """The drained biaxial (2D) or triaxial (3D) test to 1 % as a function of the points' p0."""
+    if dim == 2:
+        return lambda p0: run_biaxial(SMALL.with_(sliding_rhs=rule), p0, 0.01, compiled=compiled)
+    return lambda p0: run_triaxial(P3.with_(sliding_rhs=rule), p0, 0.01, sphere=S, compiled=compiled)
+
+
+@pytest.mark.parametrize("dim, rule, compiled, points", [
+    pytest.param(2, rule, compiled, (1,), id=f"2d-{rule}-{'compiled' if compiled is None else 'generic'}")
+    for rule in ("equilibrium", "report") for compiled in (None, False)
+] + [pytest.param(3, "equilibrium", None, (0, 1), id="3d-equilibrium-compiled")])
+def test_batch_equals_separate_runs(dim, rule, compiled, points):
     # Each point's Newton iteration ignores the others, so a batch changes no number.
-    how = None if compiled else False
-    p = SMALL.with_(sliding_rhs=rule)
-    both = run_biaxial(p, [1e5, 2e5], 0.01, compiled=how)
-    one = run_biaxial(p, [2e5], 0.01, compiled=how)
-    np.testing.assert_allclose(both.point(1)["sig11"], one["sig11"], rtol=1e-8)
-    np.testing.assert_allclose(both.point(1)["eps22"], one["eps22"], rtol=1e-8, atol=1e-12)
+    run = _lab_test(dim, rule, compiled)
+    both = run([1e5, 2e5])
+    for b in points:
+        one = run([(1e5, 2e5)[b]])
+        for c in (c for c in COLUMNS if c in one.columns):
+            np.testing.assert_allclose(both.point(b)[c], one[c], rtol=1e-9, atol=1e-14, err_msg=c)
 
 
 def test_oedometric_and_constant_p_paths():
@@ -126,16 +141,27 @@ def test_unreachable_stress_target_raises_with_strain():
         run_segment(rev, s0, seg).state
 
 
-@pytest.mark.parametrize("bad", [
-    lambda rev: consolidate(rev, [-1.0]),
-    lambda rev: consolidate(rev, [float("nan")]),
-    lambda rev: biaxial(rev, rev.initial(1), -0.1),
-    lambda rev: proportional(rev, rev.initial(1), [0, 0, 0], 0.01),
-    lambda rev: strain_path(rev, np.array([[0.0, float("inf"), 0.0]])),
+@pytest.mark.parametrize("bad, match", [
+    pytest.param(lambda: consolidate(Rev(SMALL), [-1.0]), "p0 must be positive", id="2d-negative-p0"),
+    pytest.param(lambda: consolidate(Rev(SMALL), [float("nan")]), "p0 must be finite", id="2d-nan-p0"),
+    pytest.param(lambda: biaxial(Rev(SMALL), Rev(SMALL).initial(1), -0.1), "axial strain must be a positive",
+                 id="2d-negative-strain"),
+    pytest.param(lambda: proportional(Rev(SMALL), Rev(SMALL).initial(1), [0, 0, 0], 0.01), "not all zero",
+                 id="2d-no-direction"),
+    pytest.param(lambda: strain_path(Rev(SMALL), np.array([[0.0, float("inf"), 0.0]])), "finite numbers",
+                 id="2d-inf-strain"),
+    pytest.param(lambda: run_true_triaxial(P3, 2e5, 1.5, 0.01, sphere=S), r"b must be a number in \[0, 1\]",
+                 id="3d-b"),
+    pytest.param(lambda: run_triaxial(Params(alpha_omega=0.3), 2e5, 0.01, sphere=S), "Sphere\\(alpha_omega",
+                 id="3d-2d-fabric"),
+    pytest.param(lambda: run_triaxial(P3, 2e5, 0.01, sphere=Sphere(order=13)), "Lebedev rule order",
+                 id="3d-order"),
+    pytest.param(lambda: run_triaxial(Params(volume="hexagon-consistent"), 2e5, 0.01, sphere=S),
+                 "hexagon, rectangle, box", id="3d-volume"),
 ])
-def test_bad_path_inputs_raise_input_error(bad):
-    with pytest.raises(InputError):
-        bad(Rev(SMALL))
+def test_bad_path_inputs_raise_input_error_before_any_work(bad, match):
+    with pytest.raises(InputError, match=match):
+        bad()
 
 
 def test_non_finite_increment_is_refused():

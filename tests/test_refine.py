@@ -2,6 +2,7 @@
 solved by the exact solver, the model fine-tuned and measured, round by round, resumably."""
 
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -19,31 +20,26 @@ from hmodel.surrogate.training_rows import params_of, read_sample
 from hmodel.surrogate.gate import scores, threshold
 from hmodel.surrogate.trust import fit_trust
 
-SPEC = DatasetSpec(kind=2, n_directions=7, theta_min=-60, theta_max=150, alpha0_min=40, alpha0_max=50,
-                   alpha0_step=5, max_strain=0.04, step=0.001, start_every=0.004, magnitude=0.002,
-                   magnitude_min=0.0, n_increments=12, substeps=1)
 PATHS = ["--paths", "drained", "--axial-strain", "0.01", "--step", "2e-3", "--iso-step", "1e-3",
          "-p", "n_theta=12"]
 
 
 @pytest.fixture(scope="module")
-def start(tmp_path_factory):
-    """A deliberately poor compliance network (one narrow layer, few epochs) with a trust score."""
-    root = tmp_path_factory.mktemp("al")
-    ds = generate(SPEC, Params(), root / "d")
-    write_split(ds, root / "sample", 2000, 400, "random", 0)
-    cols, info = read_sample(root / "sample", "train")
+def start(tmp_path_factory, small_sample):
+    """A deliberately poor compliance network (one narrow layer, few epochs) with a trust score,
+    and its training sample (tests/conftest.py): ``start.model``, ``start.sample``."""
+    cols, info = read_sample(small_sample, "train")
     s, _ = train(cols, params_of(info), TrainConfig(formulation="compliance", width=8, depth=1, epochs=4,
                                                     device="cpu"))
     s.meta["params"] = info["params"]
-    s, _ = fit_trust(s, cols, read_sample(root / "sample", "test")[0], reference=256, k=4)
-    modelfile.save(s, root / "m.safetensors")
-    return root
+    s, _ = fit_trust(s, cols, read_sample(small_sample, "test")[0], reference=256, k=4)
+    model = modelfile.save(s, tmp_path_factory.mktemp("al") / "m.safetensors")
+    return SimpleNamespace(model=model, sample=small_sample)
 
 
 def _run(start, out, *extra):
     from hmodel.cli.app import main
-    return main(["surrogate", "refine", str(start / "m.safetensors"), "--data", str(start / "sample"),
+    return main(["surrogate", "refine", str(start.model), "--data", str(start.sample),
                  "--out", str(out), "--rounds", "2", "--gate", "0.5", "--states", "40", "--increments", "6",
                  "--epochs", "3", *PATHS, *extra])
 
@@ -69,7 +65,7 @@ def test_rounds_add_exact_rows_from_gated_states(start, tmp_path):
     for j, k in ((2, "alpha_next"), (3, "N1_next"), (4, "N2_next"), (5, "T1_next"), (6, "l1_next")):
         np.testing.assert_allclose(new.values[:, j], rows[k], rtol=1e-12, atol=1e-9 * np.abs(rows[k]).max())
     # ... and every state is one the starting model's gate sent to the exact solver
-    m0 = modelfile.load(start / "m.safetensors")
+    m0 = modelfile.load(start.model)
     states = np.unique(before, axis=0)
     assert np.all(scores(m0, m0.formulation.features(states)) > threshold(m0, 0.5))
     # the refined model learned from them: another model than the start, with its own trust reference
@@ -118,11 +114,11 @@ def test_bad_input_is_one_line_and_writes_nothing(start, tmp_path, monkeypatch, 
 
 
 def test_a_model_without_trust_cannot_be_refined(start, tmp_path):
-    s = modelfile.load(start / "m.safetensors")
+    s = modelfile.load(start.model)
     bare = type(s)(s.formulation, s.architecture, s.x_scaler, s.y_scaler, s.weights,
                    {k: v for k, v in s.meta.items() if k != "trust"}, s.input_range)
     with pytest.raises(InputError, match="trust"):
-        refine(bare, start / "sample", Params(n_theta=12), RefineConfig(paths=("drained",)), tmp_path / "r")
+        refine(bare, start.sample, Params(n_theta=12), RefineConfig(paths=("drained",)), tmp_path / "r")
 
 
 @pytest.mark.yade
@@ -130,7 +126,7 @@ def test_dem_cells_answer_the_gate(start, tmp_path):
     """With YADE, the exact rows come from DEM H-cells (dem:standard), recorded as such."""
     out = tmp_path / "r"
     from hmodel.cli.app import main
-    assert main(["surrogate", "refine", str(start / "m.safetensors"), "--data", str(start / "sample"),
+    assert main(["surrogate", "refine", str(start.model), "--data", str(start.sample),
                  "--out", str(out), "--rounds", "1", "--gate", "0.5", "--states", "3", "--increments", "4",
                  "--epochs", "2", "--solver", "dem:standard", *PATHS]) == 0
     manifest = json.loads((out / "round-1" / "rows" / "manifest.json").read_text())

@@ -1,6 +1,5 @@
 """The 3D REV (bi-hexagons on the sphere, docs/model3d.md): directions and fabric, isotropy,
-objectivity against the Lebedev rule's order, parameter sets, strain-driven triaxial paths
-(issue 34)."""
+objectivity against the Lebedev rule's order, parameter sets, strain-driven triaxial paths."""
 
 import math
 
@@ -92,17 +91,7 @@ def test_bad_sphere_input_is_refused():
 
 # -- isotropy ---------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("order,m", [(3, 1), (7, 2), (17, 2), (35, 3)])
-def test_isotropic_compression_gives_isotropic_stress(order, m):
-    # Every cell sees the same three normal strains, so every cell has the same state, and the
-    # stress is (s_n - s_t) Σ w n⊗n + s_t I = isotropic because Σ w n⊗n = I/3 (degree 2).
-    rev = Rev3D(Params(), Sphere(order=order, n_azimuth=m))
-    s = run(rev, [np.tile(2e-5 * ISO, (100, 1))])
-    sig = s.sig[0]
-    assert sig[0] > 0
-    np.testing.assert_allclose(sig[:3], sig[0], rtol=1e-12)
-    np.testing.assert_allclose(sig[3:], 0.0, atol=1e-12 * sig[0])
-
+# (isotropic compression gives an isotropic stress: test_rev.py, for both REVs)
 
 def test_first_isotropic_increment_by_hand():
     # σ = (s_n + 2 s_t) / (3 V0 det(I - ε)) with s_n, s_t the cell-frame V σ of one cell.

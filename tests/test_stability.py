@@ -1,4 +1,6 @@
-"""Second-order work and response envelopes (Hill's criterion, Gudehus' envelopes)."""
+"""Second-order work and response envelopes (Hill's criterion, Gudehus' envelopes) of the 2D
+model, and what the 2D and 3D analyses share (bad input, the probe guard, the command's files),
+tested in both dimensions."""
 
 import math
 
@@ -6,12 +8,11 @@ import numpy as np
 import pytest
 
 from hmodel import InputError, Params
-from hmodel.cli.app import main
 from hmodel.loading import consolidate
 from hmodel.cell import ClosedFormSolver
-from hmodel.rev import Rev
-from hmodel.stability import (along_biaxial, first_sign_change, probe_directions, second_order_work,
-                              strain_envelope, stress_envelope, tensor_norm)
+from hmodel.rev import Rev, Rev3D, Sphere
+from hmodel.stability import (along_biaxial, along_triaxial, first_sign_change, probe_directions,
+                              second_order_work, strain_envelope, stress_envelope, tensor_norm)
 
 P = Params(n_theta=72)
 
@@ -100,23 +101,77 @@ def test_second_order_work_definitions():
     assert first_sign_change(np.arange(6.0), np.array([1, 1, -1, 1, -1, -1]), persist=2) == pytest.approx(3.5)
 
 
+# -- what the 2D and the 3D analysis share (the 3D model's own: test_stability3d.py) ----------
+
+P3 = Params(sliding_rhs="equilibrium")
+COARSE = Sphere(order=9, n_azimuth=2)  # 38 bi-hexagons
+
+
+def _rev(dim):
+    return Rev(Params(n_theta=18)) if dim == 2 else Rev3D(P3, COARSE)
+
+
+def test_no_probes_and_directions_of_another_dimension_are_refused(dim):
+    rev = _rev(dim)
+    with pytest.raises(InputError, match="probes"):
+        strain_envelope(rev, rev.initial(1), 0, 1e-5)
+    with pytest.raises(InputError, match="shape"):
+        strain_envelope(rev, rev.initial(1), 4, 1e-6, directions=np.ones((4, 9 - rev.n_components)))
+
+
+def test_probes_are_counted_before_they_run(dim, monkeypatch):
+    """The probes of a state are material points of one batched call, counted by the REV's guard
+    (probes x cells x the solver's bytes per cell): at the budget the test runs, one probe more
+    is refused."""
+    from hmodel.limits import WorkTooLarge
+
+    rev = _rev(dim)
+    along = {2: lambda n: along_biaxial(Params(n_theta=18), 2e5, 0.002, step=1e-3, n_probes=n),
+             3: lambda n: along_triaxial(P3, 2e5, 0.002, sphere=COARSE, step=1e-3, n_probes=n)}[dim]
+    monkeypatch.setenv("HMODEL_MEMORY_LIMIT", str(6 * rev.n_cells * rev.solver.bytes_per_cell))
+    cells = {2: "18 directions", 3: "38 bi-hexagons"}[dim]
+    with pytest.raises(WorkTooLarge, match=f"7 probes of {cells}"):
+        along(7)
+    assert len(along(6).check_step) >= 1
+
+
 @pytest.mark.parametrize("args, word", [
-    (["--probes", "0"], "probes"), (["--magnitude", "0"], "magnitude"),
-    (["--at", "0.5"], "--at"), (["--at", "x"], "--at"), (["--every", "0"], "every"),
+    pytest.param(["--param", "n_theta=18", *args], word, id=f"2d-{word}") for args, word in [
+        (["--probes", "0"], "probes"), (["--magnitude", "0"], "magnitude"),
+        (["--at", "0.5"], "--at"), (["--at", "x"], "--at"), (["--every", "0"], "every")]
+] + [
+    pytest.param(args, word, id=f"3d-{word}") for args, word in [
+        (["--test", "oedometer"], "--test"),
+        (["--extension"], "--extension"),
+        (["--order", "9"], "--order"),
+        (["--no-rendulic"], "--no-rendulic"),
+        (["--test", "triaxial", "-p", "n_theta=36"], "n_theta"),
+        (["--test", "triaxial", "--p0", "100kPa,200kPa"], "one material point"),
+        (["--test", "triaxial", "--at", "0.5"], "--at"),
+        (["--test", "triaxial", "--step", "0"], "--step"),
+        (["--controllability", "peak"], "--controllability"),
+        (["--program", "examples/triaxial-unload-reload.toml", "--test", "triaxial"], "--program")]
 ])
-def test_bad_stability_inputs(tmp_path, capsys, args, word):
-    assert main(["stability", "--axial-strain", "0.01", "--param", "n_theta=18", *args,
-                 "--out", str(tmp_path / "o")]) != 0
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and word in err[0], err
-    assert not (tmp_path / "o").exists()
-    with pytest.raises(InputError):
-        strain_envelope(Rev(P), Rev(P).initial(1), 0, 1e-5)
+def test_bad_stability_inputs(tmp_path, cli, args, word):
+    """The 2D options' bad values, and the 3D options given to the 2D test or wrongly to the
+    triaxial test: one line, nothing written."""
+    out = tmp_path / "o"
+    cli.refuses(["stability", "--axial-strain", "0.01", *args, "--out", out], word, out)
 
 
-def test_stability_command(tmp_path, capsys):
-    assert main(["stability", "--axial-strain", "0.05", "--param", "n_theta=36", "--at", "0.01,0.04",
-                 "--probes", "24", "--out", str(tmp_path / "s")]) == 0
-    names = sorted(p.name for p in (tmp_path / "s").iterdir())
+def test_stability_command(tmp_path, cli, dim):
+    args, comps, rows = {
+        2: (["--axial-strain", "0.05", "--param", "n_theta=36", "--at", "0.01,0.04", "--probes", "24"],
+            ("11", "22", "12"), 1 + 2 * 2 * 24),
+        3: (["--test", "triaxial", "--order", "9", "--azimuths", "2", "--axial-strain", "0.01",
+             "--step", "1e-3", "--at", "0.005", "--probes", "12"],
+            ("11", "22", "33", "23", "13", "12"), 1 + 2 * 12)}[dim]
+    out = tmp_path / "s"
+    code, _, err = cli("stability", *args, "--out", out)
+    assert code == 0, err
+    names = sorted(p.name for p in out.iterdir())
     assert names == ["d2W-path.png", "envelopes.csv", "envelopes.png", "path.csv", "probes.csv", "summary.csv"]
-    assert (tmp_path / "s" / "envelopes.csv").read_text().count("\n") == 1 + 2 * 2 * 24
+    lines = (out / "envelopes.csv").read_text().splitlines()
+    assert len(lines) == rows
+    assert lines[0].split(",")[3:3 + 2 * len(comps)] == [f"d{q}{c}" for q in ("eps", "sig") for c in comps]
+    assert ("sig33" in (out / "path.csv").read_text().splitlines()[0]) == (dim == 3)

@@ -1,13 +1,13 @@
-"""Second-order work and controllability of the 3D H-model (issue 34): probes of six components,
-the triaxial test's d²W and the CLI's ``--test triaxial``."""
+"""Second-order work and controllability of the 3D H-model: probes of six components, the
+triaxial test's d²W and the CLI's ``--test triaxial``. What the 2D and 3D analyses share (bad
+input, the probe guard, the command's files) is tested for both in test_stability.py."""
 
 import math
 
 import numpy as np
 import pytest
 
-from hmodel import InputError, Params
-from hmodel.cli.app import main
+from hmodel import Params
 from hmodel.loading import Program, consolidate, run_triaxial
 from hmodel.rev.rev3d import Rev3D, voigt_to_tensor
 from hmodel.rev.sphere import Sphere
@@ -157,15 +157,10 @@ def test_a_3d_program_is_probed_in_six_components():
     ps = along_program(prog, P, every=5, n_probes=12, shear=True)
     assert len(ps.check_step) >= 5 and np.all(np.abs(ps.check_min_w) <= 1)
     assert len(ps.loading_w) == 20
-    with pytest.raises(InputError, match="shape"):
-        strain_envelope(Rev3D(P, COARSE), Rev3D(P, COARSE).initial(1), 4, 1e-6,
-                        directions=np.ones((4, 3)))
 
 
 def test_triaxial_probes_are_counted_before_their_directions_are_drawn(monkeypatch):
-    """The probes of a state are material points of one batched call, counted by the REV's guard
-    (probes x bi-hexagons x the solver's bytes per cell): at the budget the test runs, one probe
-    more is refused before any direction is drawn."""
+    """Refused by the probe guard (test_stability.py), the triaxial test draws no direction."""
     import hmodel.stability as stability
     from hmodel.cell.bihex import BiHexSolver
     from hmodel.limits import WorkTooLarge
@@ -174,46 +169,19 @@ def test_triaxial_probes_are_counted_before_their_directions_are_drawn(monkeypat
     monkeypatch.setattr(stability, "triaxial_directions",
                         lambda n, shear=False: drawn.append(n) or triaxial_directions(n, shear))
     monkeypatch.setenv("HMODEL_MEMORY_LIMIT", str(6 * 38 * BiHexSolver().bytes_per_cell))
-    with pytest.raises(WorkTooLarge, match="7 probes of 38 bi-hexagons"):
+    with pytest.raises(WorkTooLarge):
         along_triaxial(P, 2e5, 0.002, sphere=COARSE, step=1e-3, n_probes=7)
     assert drawn == []
-    ps = along_triaxial(P, 2e5, 0.002, sphere=COARSE, step=1e-3, n_probes=6)
-    assert drawn == [6] and len(ps.check_step) >= 1
+    along_triaxial(P, 2e5, 0.002, sphere=COARSE, step=1e-3, n_probes=6)
+    assert drawn == [6]
 
 
-def test_stability_command_triaxial(tmp_path, capsys):
-    out = tmp_path / "t"
-    assert main(["stability", "--test", "triaxial", "--order", "9", "--azimuths", "2",
-                 "--axial-strain", "0.01", "--step", "1e-3", "--at", "0.005", "--probes", "12",
-                 "--out", str(out)]) == 0
-    names = sorted(p.name for p in out.iterdir())
-    assert names == ["d2W-path.png", "envelopes.csv", "envelopes.png", "path.csv", "probes.csv",
-                     "summary.csv"]
-    lines = (out / "envelopes.csv").read_text().splitlines()
-    assert len(lines) == 1 + 2 * 12 and "deps33" in lines[0] and "dsig23" in lines[0]
-    assert "sig33" in (out / "path.csv").read_text().splitlines()[0]
+def test_stability_command_triaxial_extension(tmp_path, cli):
+    # (the files of the command, compression: test_stability.py)
     ext = tmp_path / "e"
-    assert main(["stability", "--test", "triaxial", "--extension", "--undrained", "--order", "9",
-                 "--azimuths", "2", "--axial-strain", "0.005", "--step", "1e-3", "--probes", "6",
-                 "--out", str(ext)]) == 0
+    code, _, err = cli("stability", "--test", "triaxial", "--extension", "--undrained", "--order", "9",
+                       "--azimuths", "2", "--axial-strain", "0.005", "--step", "1e-3", "--probes", "6",
+                       "--out", ext)
+    assert code == 0, err
     rows = (ext / "path.csv").read_text().splitlines()
     assert float(rows[-1].split(",")[2]) == pytest.approx(-0.005)  # axial strain, extension
-
-
-@pytest.mark.parametrize("args, word", [
-    (["--test", "oedometer"], "--test"),
-    (["--extension"], "--extension"),
-    (["--order", "9"], "--order"),
-    (["--no-rendulic"], "--no-rendulic"),
-    (["--test", "triaxial", "-p", "n_theta=36"], "n_theta"),
-    (["--test", "triaxial", "--p0", "100kPa,200kPa"], "one material point"),
-    (["--test", "triaxial", "--at", "0.5"], "--at"),
-    (["--test", "triaxial", "--step", "0"], "--step"),
-    (["--controllability", "peak"], "--controllability"),
-    (["--program", "examples/triaxial-unload-reload.toml", "--test", "triaxial"], "--program"),
-])
-def test_bad_3d_stability_inputs(tmp_path, capsys, args, word):
-    assert main(["stability", "--axial-strain", "0.01", *args, "--out", str(tmp_path / "o")]) != 0
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and word in err[0], err
-    assert not (tmp_path / "o").exists()

@@ -1,9 +1,10 @@
-"""3D laboratory tests of the H-model (issue 34): the triaxial test drained and undrained, in
-compression and extension, the true triaxial test at constant p and b, the oedometer and its
-K0, as stages on six components, from Python, programs and the command line.
+"""3D laboratory tests of the H-model: the triaxial test drained and undrained, in compression
+and extension, the true triaxial test at constant p and b, the oedometer and its K0, as stages
+on six components, from Python, programs and the command line.
 
 Physics, not copied numbers: what each test holds (its rows) must hold along the path, the
-Lode angle follows from b, batches equal separate runs. A cheap rule (Lebedev order 9, 38
+Lode angle follows from b, batches equal separate runs (a batch of pressures and bad input are
+tested for the 2D and the 3D model alike in test_loading.py). A cheap rule (Lebedev order 9, 38
 bi-hexagons) and ``sliding_rhs=equilibrium`` (the 3D command line's default; with the report's
 λ the mixed-control driver cannot yet pass the stress jumps of the 3D cells' events).
 """
@@ -128,12 +129,8 @@ def test_oedometer_keeps_the_lateral_strains_and_reports_k0():
         np.testing.assert_allclose(c["K0"], 1.0, rtol=1e-9)  # isotropic consolidation
 
 
-def test_batches_equal_separate_runs():
-    both = run_triaxial(P, [1e5, 2e5], 0.01, sphere=S)
-    for b, p0 in enumerate((1e5, 2e5)):
-        one = run_triaxial(P, p0, 0.01, sphere=S)
-        for c in ("eps11", "eps22", "sig11", "sig22", "sig33", "q", "eps_v"):
-            np.testing.assert_allclose(both.point(b)[c], one[c], rtol=1e-9, atol=1e-14)
+def test_a_batch_of_parameter_sets_equals_separate_runs():
+    # (a batch of pressures, and bad input: test_loading.py, for both models)
     sets = [Params(sliding_rhs="equilibrium", phi_g=math.radians(a)) for a in (25, 35)]
     batch = run_true_triaxial(sets, P0, 0.5, 0.01, sphere=S)
     assert batch.meta["point_params"][1]["phi_g"] == pytest.approx(35)
@@ -142,17 +139,6 @@ def test_batches_equal_separate_runs():
         for c in ("eps11", "eps22", "eps33", "sig11", "sig22", "sig33"):
             np.testing.assert_allclose(batch.point(b)[c], one[c], rtol=1e-9, atol=1e-14)
     assert batch.point(1)["q"].max() > batch.point(0)["q"].max()  # more friction, more strength
-
-
-def test_bad_3d_input_is_refused_before_any_work():
-    with pytest.raises(InputError, match=r"b must be a number in \[0, 1\]"):
-        run_true_triaxial(P, P0, 1.5, 0.01, sphere=S)
-    with pytest.raises(InputError, match="Sphere\\(alpha_omega"):
-        run_triaxial(Params(alpha_omega=0.3), P0, 0.01, sphere=S)
-    with pytest.raises(InputError, match="Lebedev rule order"):
-        run_triaxial(P, P0, 0.01, sphere=Sphere(order=13))
-    with pytest.raises(InputError, match="hexagon, rectangle, box"):
-        run_triaxial(Params(volume="hexagon-consistent"), P0, 0.01, sphere=S)
 
 
 # ---------------------------------------------------------------------- stages on 6 components

@@ -195,7 +195,8 @@ def main() -> None:
     peer = json.loads(peer_file.read_text()).get("tests") if peer_file.exists() else None
     if args.replot:
         rec = json.loads(args.out.read_text())
-        plot(tests, rec["tests"], rec["published"], peer, FIGURES / "kfs_grid.png", FIGURES / "kfs_curves.png")
+        rows = [{**r, **rec["curves"]["model"][r["test"]]} for r in rec["tests"]]
+        plot(tests, rows, rec["published"], peer, FIGURES / "kfs_grid.png", FIGURES / "kfs_curves.png")
         return
     by_name = {t.name: t for t in tests}
     cal_tests = [by_name[n] for n in CALIBRATION]
@@ -241,8 +242,10 @@ def main() -> None:
     if bayes:
         head += [(f"(b) {n}: 90 % interval width", v["q95"] - v["q05"], f"{v['q05']:.4g} to {v['q95']:.4g}")
                  for n, v in bayes["summary"].items()]
+    curves = {name: {r["test"]: {k: r.pop(k) for k in ("q_model", "eps_v_model")} for r in rr}
+              for name, rr in (("model", rows), ("published", published))}
     rec = record(__file__, args, 1, head + table, attribution=attribution, calibration=cal.to_dict(),
-                 bayes=bayes, tests=rows, published=published, fractions=fractions,
+                 bayes=bayes, tests=rows, published=published, curves=curves, fractions=fractions,
                  wall_prediction_s=wall_pred, load_average=[load0, load1],
                  sphere={"order": args.order, "azimuths": args.azimuths})
     write_table(head + table, args.out, rec)

@@ -1,4 +1,4 @@
-"""The failure surface of the 3D H-model in the π-plane (issue 34; docs/model3d.md, "Failure
+"""The failure surface of the 3D H-model in the π-plane (docs/model3d.md, "Failure
 surface").
 
 For each Lode angle θ (0° triaxial compression … 60° triaxial extension, the convention of
@@ -73,7 +73,7 @@ from .params import Params
 from .rev import Rev3D, Sphere
 from .rev.state import equivalent_stress
 
-#: Increments of a path between two checks of its peak.
+#: Increments of each segment of a path (Newton's tangent starts afresh with each).
 CHUNK = 200
 #: Default increment of the deviatoric strain ε_s along a path.
 STEP = 1e-4
@@ -432,42 +432,55 @@ def failure_surface(params: Params, p: float, lode_angles: Sequence[float] | flo
 
 
 def _ray(rev, state0, p, theta, step, n_total, past_peak, beyond, compiled):
-    """One path of :func:`failure_surface`: segments of :data:`CHUNK` increments until it is
-    past its peak, on the tension cut-off, at ``n_total`` increments, or Newton fails; its rows
-    (up to the first state past the peak or on the cut-off) and how it ended."""
+    """One path of :func:`failure_surface`: segments of :data:`CHUNK` increments, each ended
+    early by :class:`_PeakOrCut` (past the peak, or on the tension cut-off), until one is, or
+    ``n_total`` increments, or Newton fails; its rows and how it ended."""
     rec = Recorder({"lode": theta})
     rec.record(state0, "consolidation")
+    ending = _PeakOrCut(p, theta, past_peak, beyond)
     state, done, how = state0, 0, "max strain"
     while done < n_total:
         n = min(CHUNK, n_total - done)
         failures: dict = {}
-        state = run_segment(rev, state, ray_segment(p, theta, n * step, n), rec,
-                            failures=failures, compiled=compiled).state
+        out = run_segment(rev, state, ray_segment(p, theta, n * step, n), rec, stop=ending,
+                          failures=failures, compiled=compiled)
+        state = out.state
         done += n
-        res = rec.result()
-        ray = res.columns["stage"] == "ray"
-        q = res.columns["q_eq"][ray]
-        es = _eps_s(np.column_stack([res.columns[f"eps{c}"][ray] for c in ("11", "22", "33")]), theta)
-        top = np.maximum.accumulate(q)
-        arg = np.maximum.accumulate(np.where(q >= top, np.arange(len(q)), 0))  # index of the max so far
-        past = np.flatnonzero((q < (1.0 - past_peak) * top) & (es - es[arg] > beyond))
-        minor = np.min([res.columns[f"sig{c}"][ray] for c in ("11", "22", "33")], axis=0)
-        cut = np.flatnonzero(minor <= TENSION * p)
-        if len(cut) and (not len(past) or cut[0] <= past[0]):
-            return _until(res, ray, cut[0]), "tension cut-off"
-        if len(past):
-            return _until(res, ray, past[0]), "past peak"
+        if out.stopped is not None:
+            return rec.result(), ending.how
         if failures:
             how = "newton"
             break
     return rec.result(), how
 
 
-def _until(res: PathResult, ray: np.ndarray, last: int) -> PathResult:
-    """The rows of ``res`` up to its ``last``-th state on the ray (``ray``: its rows' mask)."""
-    keep = np.ones(len(res), bool)
-    keep[np.flatnonzero(ray)[last + 1:]] = False
-    return PathResult({c: v[keep] for c, v in res.columns.items()}, res.meta)
+class _PeakOrCut:
+    """The stop criterion of a ray (:func:`~hmodel.loading.segment.run_segment`), shown its
+    states once each and in order: met past the peak (q_eq ``past_peak`` below its maximum so
+    far and ε_s ``beyond`` past that maximum's) or on the tension cut-off (the minor normal
+    stress at most :data:`TENSION` p); ``how`` says which came first."""
+
+    def __init__(self, p: float, theta: float, past_peak: float, beyond: float):
+        self.p, self.theta, self.past_peak, self.beyond = p, theta, past_peak, beyond
+        self.top = -math.inf  # the largest q_eq so far, and ε_s there
+        self.es_top = math.nan
+        self.how: str | None = None
+
+    def __call__(self, cols: dict[str, np.ndarray]) -> np.ndarray:
+        q = cols["q_eq"]
+        es = _eps_s(np.column_stack([cols[f"eps{c}"] for c in ("11", "22", "33")]), self.theta)
+        minor = np.min([cols[f"sig{c}"] for c in ("11", "22", "33")], axis=0)
+        met = np.zeros(len(q), bool)
+        for i in np.flatnonzero(np.isfinite(q)):  # (NaN rows: no state there)
+            if q[i] >= self.top:
+                self.es_top = es[i]
+            self.top = max(self.top, q[i])
+            cut = minor[i] <= TENSION * self.p
+            past = q[i] < (1.0 - self.past_peak) * self.top and es[i] - self.es_top > self.beyond
+            if (cut or past) and self.how is None:
+                self.how = "tension cut-off" if cut else "past peak"
+            met[i] = cut or past
+        return met
 
 
 def _eps_s(eps3: np.ndarray, lode_deg: float) -> np.ndarray:

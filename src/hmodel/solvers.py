@@ -15,12 +15,17 @@ from importlib.metadata import entry_points
 
 from .cell import CellSolver
 from .errors import InputError
+from .rev.model3d import cell_solver_3d
 
 GROUP = "hmodel.cell_solvers"
 #: Solvers of hmodel's own named by a longer prefix than their entry point's first word, looked up
 #: first (``module:factory``, imported only when a spec names it): the DEM bi-hexagon is a cell of
 #: its own under the ``dem`` solvers (``dem:bihexagon[:K=V,...]``, 3D, three lengths).
 PREFIXED = {"dem:bihexagon": "hmodel.dem.bihex:DEMBiHexSolver"}
+#: Specs that name another solver in the 3D model: the 3D model runs with the equilibrium λ
+#: (:data:`hmodel.rev.model3d.SLIDING_RHS_3D`), so its shipped learned cell is the network
+#: trained with it.
+SPECS_3D = {"surrogate": "surrogate:equilibrium"}
 
 
 def available() -> list[str]:
@@ -51,3 +56,16 @@ def get_solver(spec: "str | CellSolver") -> CellSolver:
         raise InputError(f"unknown cell solver {spec!r} (available: closed-form, "
                          f"surrogate[:MODEL_FILE], dem:MESOSTRUCTURE, dem:bihexagon)")
     return found[0].load()(spec)
+
+
+def get_solver_3d(spec: "str | CellSolver") -> CellSolver:
+    """The 3D model's cell of a spec (:data:`SPECS_3D` first) or a solver: the closed-form
+    bi-hexagon for ``closed-form``, a bi-hexagon whose hexagons a 2D H-cell solver steps, a
+    3D solver (``dem:bihexagon``) as it is (:func:`hmodel.rev.model3d.cell_solver_3d`).
+
+    >>> get_solver_3d("closed-form").n_lengths
+    3
+    """
+    if isinstance(spec, str):
+        spec = SPECS_3D.get(spec, spec)
+    return cell_solver_3d(get_solver(spec))

@@ -13,11 +13,25 @@ _PRESSURE_UNITS = {"": 1.0, "pa": 1.0, "kpa": 1e3, "mpa": 1e6, "gpa": 1e9}
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
 
-def parse_pressure(text: str) -> float:
+#: A pressure typed without unit below this [Pa] is refused (:func:`parse_pressure` with an
+#: ``option``): a geomechanics user writing 100 means kPa, and 100 Pa is no consolidation
+#: pressure of a laboratory test or a boundary-value problem.
+BARE_PRESSURE_MIN = 1e4
+
+
+def parse_pressure(text: str, option: str | None = None) -> float:
     """A pressure in Pa from ``200kPa``, ``0.2MPa``, ``2e5`` or ``2e5Pa``.
+
+    ``option``: where a user typed it (``--p0``, a test's ``p0``): a bare number (no unit) is
+    then Pa and refused below :data:`BARE_PRESSURE_MIN`, naming the unit to add; with a unit
+    (``100Pa`` included) any positive pressure is taken.
 
     >>> parse_pressure("200kPa"), parse_pressure("0.2 MPa"), parse_pressure("150000")
     (200000.0, 200000.0, 150000.0)
+    >>> parse_pressure("100", "--p0")
+    Traceback (most recent call last):
+    ...
+    hmodel.errors.InputError: --p0 100 has no unit and would be 100 Pa: give its unit (100kPa, or 100Pa if Pa is meant)
     """
     m = re.fullmatch(rf"\s*({_NUMBER})\s*([A-Za-z]*)\s*", str(text))
     if not m or m.group(2).lower() not in _PRESSURE_UNITS:
@@ -25,15 +39,20 @@ def parse_pressure(text: str) -> float:
     value = float(m.group(1)) * _PRESSURE_UNITS[m.group(2).lower()]
     if not math.isfinite(value) or value <= 0:
         raise InputError(f"pressure must be positive and finite, got {text!r}")
+    if option is not None and not m.group(2) and value < BARE_PRESSURE_MIN:
+        bare = m.group(1)
+        raise InputError(f"{option} {bare} has no unit and would be {value:g} Pa: give its unit "
+                         f"({bare}kPa, or {bare}Pa if Pa is meant)")
     return value
 
 
-def parse_pressures(text: str) -> list[float]:
-    """Comma-separated pressures: ``100kPa,200kPa,400kPa`` -> [1e5, 2e5, 4e5]."""
+def parse_pressures(text: str, option: str | None = None) -> list[float]:
+    """Comma-separated pressures: ``100kPa,200kPa,400kPa`` -> [1e5, 2e5, 4e5]; ``option``: as
+    :func:`parse_pressure`, for each."""
     parts = [p for p in str(text).split(",")]
     if not parts or any(not p.strip() for p in parts):
         raise InputError(f"cannot read pressure list {text!r} (example: 100kPa,200kPa,400kPa)")
-    return [parse_pressure(p) for p in parts]
+    return [parse_pressure(p, option) for p in parts]
 
 
 #: Units a column header may carry, as factors to hmodel's (a strain fraction, Pa).

@@ -22,9 +22,6 @@ AXIAL_COLUMNS = ("eps11", "eps_a")
 PERCENT_LIKE = 0.5
 #: The least peak |q| of a test, as a fraction of its p0: below it, q is taken to be in kPa.
 Q_MIN = 0.01
-#: A p0 given without unit below this [Pa] is refused: a geomechanics user writing 100 means
-#: kPa, and 100 Pa is no consolidation pressure of a laboratory test.
-BARE_P0_MIN = 1e4
 #: The columns a test file's rows are read from; any other column may hold text.
 USED_COLUMNS = (*AXIAL_COLUMNS, "q", "eps_v", "sigma_r", "sigma_v")
 
@@ -254,17 +251,10 @@ def parse_data_spec(spec: str) -> Test:
 
 
 def _data_p0(spec: str, text: str) -> float:
-    """The P0 of ``--data`` [Pa]: with its unit (``100kPa``), or a bare number in Pa, which below
-    :data:`BARE_P0_MIN` is refused (a kPa value without its unit, most likely)."""
-    p0 = parse_pressure(text)
-    try:
-        float(text)
-    except ValueError:
-        return p0  # it has a unit
-    if p0 < BARE_P0_MIN:
-        raise InputError(f"--data {spec!r}: p0 {text} has no unit and would be {p0:g} Pa: give its unit "
-                         f"({text}kPa, or {text}Pa if Pa is meant)")
-    return p0
+    """The P0 of ``--data`` [Pa]: with its unit (``100kPa``), or a bare number in Pa, refused
+    below :data:`~hmodel.units.BARE_PRESSURE_MIN` as every pressure of the command line is (a
+    kPa value without its unit, most likely)."""
+    return parse_pressure(text, f"--data {spec!r}: p0")
 
 
 def _is_kind_spec(spec: str) -> bool:

@@ -16,9 +16,9 @@ from scipy.stats import qmc
 
 from ..cell import CellSolver
 from ..errors import InputError, SolverError
-from ..loading.lab_tests import check_3d_params
 from ..params import Params
 from ..rev import Sphere
+from ..rev.model3d import check_3d_params, params_3d
 from ..variants import ModelVariant, get_variant
 from ..workers import run_tasks
 from .bayes import Noise, Posterior, estimate_noise, sample
@@ -233,7 +233,8 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
     The tests' kinds choose the model: the 2D one for biaxial kinds, the 3D one for triaxial
     kinds, whose directions are ``sphere`` (None: ``Sphere()``), the 2D model's own parameters
     (n_theta, alpha_omega, beta_omega) then neither fitted nor given in ``base``; its ``base``
-    defaults to ``sliding_rhs="equilibrium"``, as the 3D commands' (with the report's λ the
+    defaults to the 3D model's parameters, ``sliding_rhs="equilibrium"`` or a learned cell's own
+    (:func:`~hmodel.rev.model3d.params_3d`, as the 3D commands': with the report's λ the
     mixed-control Newton stops a 3D triaxial test near 1 % axial strain). Kinds of both
     dimensions are refused. The 3D multi-start search runs at the coarser rule ``search_rule``
     (Lebedev order, azimuths; the model's fabric) where it has fewer cells than ``sphere``, and
@@ -258,7 +259,7 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
     searcher = None
     if dimension([t.kind for t in tests]) == 3:
         check_3d_params(fit, "--fit")
-        base = Params(sliding_rhs="equilibrium") if base is None else base
+        base = params_3d(solver) if base is None else base
         sphere = Sphere() if sphere is None else sphere
         searcher = _search_sphere(sphere, search_rule)
     variant = model if isinstance(model, ModelVariant) else get_variant(model)

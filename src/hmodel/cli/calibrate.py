@@ -18,11 +18,11 @@ from ..calibrate.model import ISO_STEP
 from ..calibrate.report import write
 from ..errors import InputError
 from ..params import Params
-from ..solvers import get_solver
+from ..solvers import get_solver, get_solver_3d
 from ..variants import get_variant
-from .options import out_folder, workers_opt
+from .common3d import AzimuthsOpt, FabricOpt, OrderOpt, points_3d, sphere as sphere_of
+from .options import FRACTION, out_folder, workers_opt
 from .progress import LazyProgress
-from .run import AzimuthsOpt, FabricOpt, OrderOpt, _points_3d, _solver_3d, _sphere
 
 _DEFAULT_SEARCH = f"{SEARCH_RULE[0]}:{SEARCH_RULE[1]}"
 
@@ -57,7 +57,7 @@ def calibrate(
     data: Annotated[list[str], typer.Option("--data", help=f"A test, KIND:P0:FILE; KIND: drained or undrained (2D biaxial), {', '.join(k for k in Kind if k.dim == 3)} (3D); P0 with its unit (100kPa; a bare number is Pa, refused below 10 kPa); a CSV with columns eps11 (or eps_a), q and optionally eps_v, p: strains as fractions (0.01 is 1 %) since the end of consolidation, stresses in Pa, compression positive; repeatable.")],
     fit_: Annotated[str, typer.Option("--fit", help="Comma list of the parameters to fit (kn, kt_kn, phi_g, alpha0, alpha_omega, beta_omega, alpha0_spread).")] = "kn,kt_kn,phi_g,alpha0",
     bounds: Annotated[Optional[list[str]], typer.Option("--bounds", help="Search range NAME=LOW:HIGH (angles in degrees); repeatable. Default: a range wide enough for real materials, narrowed to the cell model's training domain (a family surrogate, in 3D the one stepping the hexagons), outside which bounds are refused.")] = None,
-    param: Annotated[Optional[list[str]], typer.Option("--param", "-p", metavar="NAME=VALUE", help="A fixed parameter (angles in degrees); repeatable.")] = None,
+    param: Annotated[Optional[list[str]], typer.Option("--param", "-p", metavar="NAME=VALUE", help="A fixed parameter (angles in degrees); repeatable. sliding_rhs defaults to report for 2D tests and to equilibrium for 3D ones (or a learned cell's own), as in hmodel run.")] = None,
     method: Annotated[str, typer.Option(help=f"Calibration method: {', '.join(METHODS)}.")] = "least-squares",
     starts: Annotated[int, typer.Option(help="Starting points of the least-squares fits (a Latin hypercube over the bounds).")] = 8,
     walkers: Annotated[int, typer.Option(help="bayes: emcee walkers (all evaluated in one batched call per step).")] = 32,
@@ -65,8 +65,8 @@ def calibrate(
     noise: Annotated[Optional[str], typer.Option(help="bayes: noise levels q=FRACTION_OF_PEAK_Q,eps_v=STRAIN; default: the RMS the best fit leaves.")] = None,
     seed: Annotated[int, typer.Option(help="Seed of the design of starting points.")] = 0,
     workers: workers_opt("Processes the least-squares starts run in, at most one per CPU (the result is the same; the starts are independent).") = 1,
-    step: Annotated[float, typer.Option(help="Axial strain increment of the model's tests.")] = 1e-3,
-    iso_step: Annotated[float, typer.Option(help="Strain increment of the model's consolidation.")] = ISO_STEP,
+    step: Annotated[float, typer.Option(help=f"Axial strain increment of the model's tests {FRACTION}: 1e-3 here, coarser than hmodel run's 1e-4, as a calibration runs its tests for hundreds of parameter sets (the model's curves are interpolated at the tests' strains).")] = 1e-3,
+    iso_step: Annotated[float, typer.Option(help=f"Strain increment of the model's consolidation {FRACTION}.")] = ISO_STEP,
     solver: Annotated[str, typer.Option(help="Cell solver: closed-form, surrogate[:NAME|:FILE] (a family model fits any material of its training domain), dem:... (3D: of the hexagons of every bi-hexagon).")] = "closed-form",
     order: OrderOpt = None, azimuths: AzimuthsOpt = None, fabric: FabricOpt = 0.0,
     search_rule: Annotated[str, typer.Option(help="3D: Lebedev order and azimuths ORDER:AZIMUTHS of the multi-start search, whose best point is then refined at the model's rule (--order, --azimuths); none: search at the model's rule.")] = _DEFAULT_SEARCH,
@@ -92,14 +92,14 @@ def calibrate(
         base = Params.parse_assignments(param)
         cells = get_solver(solver)
     else:
-        cells = _solver_3d(solver)
-        base = _points_3d(param, 1, cells)  # the 2D model's parameters refused, sliding_rhs's default
+        cells = get_solver_3d(solver)
+        base = points_3d(param, 1, cells)  # the 2D model's parameters refused, sliding_rhs's default
         if not isinstance(base, Params):
             raise InputError("--param gives one value per parameter in a calibration (no comma lists)")
-        sphere = _sphere(order, azimuths, fabric)
+        sphere = sphere_of(order, azimuths, fabric)
     checker = None
     if check is not None:  # refused before the fit, not after it
-        checker = get_solver(check) if dim == 2 else _solver_3d(check)
+        checker = get_solver(check) if dim == 2 else get_solver_3d(check)
         check_tol = 0.02 if check_tol is None else check_tol
         if not (math.isfinite(check_tol) and check_tol >= 0):
             raise InputError(f"--check-tol must be a fraction of peak q >= 0, got {check_tol}")

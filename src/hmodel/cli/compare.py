@@ -11,9 +11,8 @@ import typer
 from ..errors import InputError
 from ..io import write_outputs, write_rows
 from ..params import Params
+from .options import FallbackOpt, GateOpt, ParamOpt, out_folder, strain_help
 from .progress import LazyProgress
-from .options import out_folder
-from .run import FallbackOpt, GateOpt, ParamOpt
 
 
 def compare(
@@ -25,9 +24,9 @@ def compare(
     out: out_folder("Folder for deviations.csv and figures.") = Path("results/compare"),
     paths: Annotated[Optional[str], typer.Option(help="Comma-separated subset of: isotropic, drained, "
                                                       "undrained, unload-reload, oedometric, rotation.")] = None,
-    axial_strain: Annotated[float, typer.Option(help="Axial strain of the biaxial paths.")] = 0.1,
-    step: Annotated[float, typer.Option(help="Strain increment of both solvers.")] = 1e-3,
-    iso_step: Annotated[float, typer.Option(help="Strain increment of the consolidations.")] = 1e-4,
+    axial_strain: Annotated[float, typer.Option(help=strain_help("Axial strain of the biaxial paths."))] = 0.1,
+    step: Annotated[float, typer.Option(help=strain_help("Strain increment of both solvers."))] = 1e-3,
+    iso_step: Annotated[float, typer.Option(help=strain_help("Strain increment of the consolidations."))] = 1e-4,
     param: ParamOpt = None,
     gate: GateOpt = None,
     fallback: FallbackOpt = None,

@@ -12,9 +12,8 @@ import typer
 from ..errors import InputError
 from ..io import write_outputs
 from ..params import Params
-from .options import out_folder, workers_opt
+from .options import ParamOpt, out_folder, strain_help, workers_opt
 from .progress import LazyProgress
-from .run import ParamOpt
 
 app = typer.Typer(no_args_is_help=True, help="Generate, sample and inspect H-cell databases.")
 
@@ -62,9 +61,9 @@ def generate(
                                                       "-60:150, eps2 split between l2 and l3).")] = None,
     alpha0: Annotated[Optional[str], typer.Option(help="Initial opening angles MIN:MAX:STEP [deg] "
                                                        "(default 32:88:2; --dim 3: 40:60:10).")] = None,
-    max_strain: Annotated[Optional[float], typer.Option(help="Total cell strain of a path (default 0.3; "
-                                                             "--dim 3: 0.1).")] = None,
-    step: Annotated[float, typer.Option(help="Strain step of a path (recorded in Dataset 1).")] = 0.001,
+    max_strain: Annotated[Optional[float], typer.Option(help=strain_help("Total cell strain of a path (default 0.3; "
+                                                                         "--dim 3: 0.1)."))] = None,
+    step: Annotated[float, typer.Option(help=strain_help("Strain step of a path (recorded in Dataset 1)."))] = 0.001,
     start_every: Annotated[Optional[float], typer.Option(help="Dataset 2: strain between start states "
                                                               "(default 0.01; --dim 3: 0.005).")] = None,
     from_unloaded: Annotated[bool, typer.Option("--from-unloaded", help="Dataset 2: increments from the unloaded cell too.")] = False,
@@ -99,10 +98,9 @@ def generate(
     """Compute a database into --out; re-running the same command resumes an interrupted run."""
     from ..data import DatasetSpec
     from ..data import generate as run
-    from ..data.generator import DIM3_DEFAULTS
+    from ..data.kinds import option_defaults
 
-    if dim not in (2, 3):
-        raise InputError(f"--dim must be 2 or 3, got {dim}")
+    defaults = option_defaults(dim)  # refuses a dimension no kind of rows has
     if dim == 3 and (solver != "closed-form" or mesostructure is not None):
         raise InputError("--dim 3 rows are the closed-form bi-hexagon's; --solver and --mesostructure are "
                          "2D cell solver options only")
@@ -111,9 +109,6 @@ def generate(
     given = {"n_directions": directions, "theta": theta, "alpha0": alpha0, "max_strain": max_strain,
              "start_every": start_every, "magnitude": magnitude, "magnitude_min": magnitude_min,
              "n_increments": increments, "substeps": substeps}
-    defaults = DIM3_DEFAULTS if dim == 3 else {"n_directions": 91, "theta": "0:90", "alpha0": "32:88:2",
-                                              "max_strain": 0.30, "start_every": 0.01, "magnitude": 0.01,
-                                              "magnitude_min": None, "n_increments": 168, "substeps": 10}
     o = {k: defaults[k] if v is None else v for k, v in given.items()}
     directions, theta, alpha0, max_strain, start_every = (o[k] for k in ("n_directions", "theta", "alpha0",
                                                                          "max_strain", "start_every"))
@@ -129,7 +124,7 @@ def generate(
                        shard_rows=shard_rows, solver=_solver(solver, mesostructure), dim=dim,
                        kt_kn_range=kt_kn, phi_g_range=phi_g, material_seed=material_seed)
     params = Params.parse_assignments(param)
-    what = f"dataset {dataset}" + (" (3D, bi-hexagons)" if dim == 3 else "")
+    what = spec.dataset_kind.label
     with LazyProgress(f"{what}: {spec.n_rows:,} rows") as progress:
         ds = run(spec, params, out, workers=workers or os.cpu_count() or 1, scheduler=scheduler,
                  progress=progress, overwrite=overwrite)
@@ -227,7 +222,7 @@ def lab(
     from ..calibrate.lab import summary_rows, write_test_csv
     from ..units import parse_pressure
 
-    tests, attribution = read_lab_tests(file, test, kind, parse_pressure(p0) if p0 is not None else None)
+    tests, attribution = read_lab_tests(file, test, kind, parse_pressure(p0, "--p0") if p0 is not None else None)
     rows = summary_rows(tests)
     table = Table(title=f"{file}: {len(tests)} test(s), in hmodel's units")
     for c in ("test", "kind", "p0 [kPa]", "e0", "rows", "eps_a end", "peak q [kPa]", "eps_v end"):

@@ -13,9 +13,11 @@ from ..errors import InputError
 from ..io import write_outputs, write_rows
 from ..limits import check_count
 from ..params import Params
+from .options import out_folder, param_option, strain_help
 from .progress import LazyProgress
-from .options import out_folder
-from .run import ParamOpt
+
+ParamOpt = param_option("sliding_rhs defaults to equilibrium here: the DEM keeps every grain in "
+                        "equilibrium (report in the 2D commands).")
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
                   help="Cells, and a disk sample to calibrate on, solved by the DEM engine YADE "
@@ -34,7 +36,7 @@ def _params(param: list[str] | None, alpha0: float | None) -> Params:
 @app.command("validate")
 def validate_cmd(
     alpha0: Annotated[Optional[float], typer.Option(help="Opening angle α0 [deg].")] = None,
-    strain: Annotated[float, typer.Option(help="Total cell strain of every path.")] = 0.03,
+    strain: Annotated[float, typer.Option(help=strain_help("Total cell strain of every path."))] = 0.03,
     steps: Annotated[int, typer.Option(help="Increments per path.")] = 30,
     dim: Annotated[int, typer.Option(help="2: the standard H-cell; 3: the bi-hexagon of the 3D "
                                           "model (ten spheres).")] = 2,
@@ -140,7 +142,7 @@ def draw_cmd(
     mesostructure: Annotated[str, typer.Option(help="standard, hexagon-center or hexagon-unequal.")] = "standard",
     alpha0: Annotated[Optional[float], typer.Option(help="Opening angle α0 [deg].")] = None,
     ratio: Annotated[Optional[float], typer.Option(help="Radius ratio of the richer cells.")] = None,
-    strain: Annotated[float, typer.Option(help="Cell strain (ε1, ε2) applied before drawing.")] = 0.01,
+    strain: Annotated[float, typer.Option(help=strain_help("Cell strain (ε1, ε2) applied before drawing."))] = 0.01,
     theta: Annotated[float, typer.Option(help="Direction of that strain in the (ε1, ε2) plane [deg].")] = 0.0,
     steps: Annotated[int, typer.Option(help="Increments.")] = 10,
     param: ParamOpt = None,
@@ -173,14 +175,15 @@ def draw_cmd(
 def sample_cmd(
     p0: Annotated[str, typer.Option("--p0", help="Consolidation pressure(s) [N/m, i.e. Pa for unit "
                                                  "thickness; Pa for spheres]: 100kPa, or a comma list "
-                                                 "100kPa,200kPa (one test and CSV each).")] = "100kPa",
+                                                 "100kPa,200kPa (one test and CSV each); a number without "
+                                                 "unit is Pa, refused below 10 kPa.")] = "100kPa",
     dim: Annotated[int, typer.Option(help="2: disks, biaxial tests; 3: spheres, triaxial tests.")] = 2,
     undrained: Annotated[bool, typer.Option("--undrained", help="Constant-area (constant-volume with "
                                                                 "spheres: undrained) test instead of "
                                                                 "drained (lateral stresses held at p0).")] = False,
     extension: Annotated[bool, typer.Option("--extension", help="Drained triaxial extension (--dim 3): "
                                                                 "the axial strain is an extension.")] = False,
-    axial_strain: Annotated[float, typer.Option(help="Axial strain of the test (logarithmic).")] = 0.1,
+    axial_strain: Annotated[float, typer.Option(help=strain_help("Axial strain of the test (logarithmic)."))] = 0.1,
     disks: Annotated[Optional[int], typer.Option("--disks", "--spheres", help="Number of disks, or of "
                                                  "spheres with --dim 3 (default 2000 disks, 1500 spheres).")] = None,
     radius: Annotated[float, typer.Option(help="Mean radius (r_min + r_max)/2 [m].")] = 1.0,
@@ -218,7 +221,7 @@ def sample_cmd(
     from ..dem.sample import SampleSettings, run_sample
     from ..units import parse_pressures
 
-    pressures = parse_pressures(p0)
+    pressures = parse_pressures(p0, "--p0")
     if inertial_number is not None and strain_rate is not None:
         raise InputError("give --inertial-number or --strain-rate, not both")
     if extension and dim != 3:

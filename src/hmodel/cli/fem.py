@@ -12,9 +12,18 @@ from ..errors import InputError, SolverError
 from ..params import Params
 from ..solvers import get_solver
 from ..units import parse_pressure
+from .options import (
+    CalibrationOpt,
+    E0Opt,
+    ERefOpt,
+    ModelOpt,
+    ParamOpt,
+    SolverOpt,
+    out_folder,
+    specimen,
+    strain_help,
+)
 from .progress import LazyProgress
-from .options import CalibrationOpt, E0Opt, ERefOpt, ModelOpt, out_folder, specimen
-from .run import ParamOpt, SolverOpt
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
                   help="Finite elements (plane strain) with an H-model material point at every Gauss point.")
@@ -88,8 +97,9 @@ def _regularization(text: str, domain):
 
 @app.command("biaxial")
 def biaxial_cmd(
-    p0: Annotated[str, typer.Option(help="Confining pressure, e.g. 200kPa.")] = "200kPa",
-    axial_strain: Annotated[float, typer.Option(help="Platen displacement / height after consolidation.")] = 0.05,
+    p0: Annotated[str, typer.Option(help="Confining pressure, e.g. 200kPa (a number without unit is Pa, "
+                                         "refused below 10 kPa).")] = "200kPa",
+    axial_strain: Annotated[float, typer.Option(help=strain_help("Platen displacement / height after consolidation."))] = 0.05,
     mesh: MeshOpt = "8x16",
     size: Annotated[str, typer.Option(help="Specimen width x height [m].")] = "0.05x0.1",
     element: ElementOpt = "q4",
@@ -111,7 +121,7 @@ def biaxial_cmd(
     or undrained compression by the top platen."""
     from ..fem import Domain, biaxial, parse_pair
 
-    pressure = parse_pressure(p0)
+    pressure = parse_pressure(p0, "--p0")
     if not (math.isfinite(axial_strain) and 0 < axial_strain < 1):
         raise InputError(f"--axial-strain must lie in (0, 1), got {axial_strain}")
     nxy = parse_pair(mesh, "--mesh", integer=True)
@@ -127,8 +137,9 @@ def biaxial_cmd(
 
 @app.command("footing")
 def footing_cmd(
-    p0: Annotated[str, typer.Option(help="Initial isotropic stress and surcharge, e.g. 100kPa.")] = "100kPa",
-    settlement: Annotated[float, typer.Option(help="Final settlement / footing width.")] = 0.05,
+    p0: Annotated[str, typer.Option(help="Initial isotropic stress and surcharge, e.g. 100kPa (a number "
+                                         "without unit is Pa, refused below 10 kPa).")] = "100kPa",
+    settlement: Annotated[float, typer.Option(help=strain_help("Final settlement / footing width."))] = 0.05,
     mesh: MeshOpt = "20x10",
     layer: Annotated[str, typer.Option(help="Layer width x depth [m].")] = "1.0x0.5",
     width: Annotated[float, typer.Option(help="Footing width [m] (its edges on mesh nodes).")] = 0.2,
@@ -145,7 +156,7 @@ def footing_cmd(
     """Rigid strip footing on a layer consolidated to p0: the load-settlement curve."""
     from ..fem import Domain, footing, parse_pair
 
-    pressure = parse_pressure(p0)
+    pressure = parse_pressure(p0, "--p0")
     nxy = parse_pair(mesh, "--mesh", integer=True)
     lh = parse_pair(layer, "--layer", integer=False)
     params, cell_solver = _common(param, steps, solver, model, calibration, e0, e_ref)

@@ -19,8 +19,10 @@ def reproduce(
     solver: Annotated[str, typer.Option(help="Surrogate compared with the closed form in --quick: "
                                              "surrogate (shipped), surrogate:NAME or surrogate:MODEL_FILE.")] = "surrogate",
 ) -> None:
-    """Engine curves (Fig. 1.7), a database, the surrogate's accuracy, the macro comparison and
-    timings, written as a self-contained HTML report."""
+    """Reproduce the study in one self-contained HTML report.
+
+    The report holds the engine curves (the report's Fig. 1.7), a database, the surrogate's
+    accuracy, the macro comparison and timings."""
     from ..studies.reproduce import reproduce as run
 
     with LazyProgress("reproducing the study") as progress:

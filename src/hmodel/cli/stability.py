@@ -13,15 +13,20 @@ from ..errors import InputError
 from ..loading import AXIAL_STEP
 from ..params import Params
 from ..units import parse_pressure
+from .common3d import AzimuthsOpt, FabricOpt, OrderOpt, setup_3d
+from .options import out_folder, param_option, strain_help
 from .progress import LazyProgress
-from .options import out_folder
-from .run import AzimuthsOpt, FabricOpt, OrderOpt, ParamOpt, _setup_3d
+
+ParamOpt = param_option("sliding_rhs defaults to report in 2D and to equilibrium with --test triaxial "
+                        "and in a 3D program, as in hmodel run; in 3D not n_theta, alpha_omega, "
+                        "beta_omega (--order, --azimuths, --fabric).")
 
 
 def stability(
-    p0: Annotated[str, typer.Option(help="Confining pressure, e.g. 200kPa.")] = "200kPa",
-    axial_strain: Annotated[float, typer.Option(help="Axial strain after consolidation (its "
-                                                     "magnitude in extension).")] = 0.1,
+    p0: Annotated[str, typer.Option(help="Confining pressure, e.g. 200kPa (a number without unit is Pa, "
+                                         "refused below 10 kPa).")] = "200kPa",
+    axial_strain: Annotated[float, typer.Option(help=strain_help("Axial strain after consolidation (its "
+                                                                 "magnitude in extension)."))] = 0.1,
     undrained: Annotated[bool, typer.Option("--undrained", help="Isochoric (undrained) test.")] = False,
     test: Annotated[str, typer.Option(
         "--test", help="The laboratory test: biaxial (the 2D H-model) or triaxial (the 3D "
@@ -59,7 +64,7 @@ def stability(
         help="How the loss of controllability is located: increments (the loading increments' "
              "d²W <= 0 for 5 increments; the 2D default) or secant (the first state from which "
              "the secant work to every later state of its stage is <= 0; the 3D default).")] = None,
-    step: Annotated[float, typer.Option(help="Axial strain increment of the laboratory test.")] = AXIAL_STEP,
+    step: Annotated[float, typer.Option(help=strain_help("Axial strain increment of the laboratory test."))] = AXIAL_STEP,
     order: OrderOpt = None,
     azimuths: AzimuthsOpt = None,
     fabric: FabricOpt = 0.0,
@@ -116,8 +121,8 @@ def _inputs(p0, axial_strain, test, extension, param, at, magnitude, program, st
     if prog is not None:
         params = prog.with_params(param)
     elif test == "triaxial":
-        pressures, params, sphere, _ = _setup_3d(p0, param, axial_strain, order, azimuths, fabric,
-                                                 "closed-form")
+        pressures, params, sphere, _ = setup_3d(p0, param, axial_strain, order, azimuths, fabric,
+                                                "closed-form")
         if len(pressures) != 1 or not isinstance(params, Params):
             raise InputError("hmodel stability follows one material point: give one --p0 and one "
                              "value per --param")
@@ -125,7 +130,7 @@ def _inputs(p0, axial_strain, test, extension, param, at, magnitude, program, st
     else:
         params = Params.parse_assignments(param)
     if test == "biaxial":
-        pressure = parse_pressure(p0)
+        pressure = parse_pressure(p0, "--p0")
     try:
         at_strains = tuple(float(a) for a in at.split(",") if a.strip()) if at else ()
     except ValueError:

@@ -10,9 +10,8 @@ import typer
 
 from ..errors import InputError
 from ..io import write_outputs, write_rows
-from .options import out_file, out_folder
+from .options import ParamOpt, out_file, out_folder, strain_help
 from .progress import LazyProgress
-from .run import ParamOpt
 
 app = typer.Typer(no_args_is_help=True, help="Train, evaluate and compare neural surrogates of the H-cell.")
 
@@ -153,55 +152,22 @@ def evaluate_cmd(
     """Metrics (MAE, RMSE, R², max |error|) on the state after and on the increments, and
     parity plots (report Figs. 2.4-2.6), for every --data."""
     from ..surrogate import modelfile
-    from ..surrogate.evaluation import evaluate, parity_plot
+    from ..surrogate.folder_evaluation import evaluate_folder
     from ..surrogate.shipped import model_path
-    from ..surrogate.training_rows import read_rows
 
     s = modelfile.load(model_path(model))
     table, writers = [], {}
     for i, d in enumerate(data):
-        if _dim(d) == 3:  # bi-hexagon rows: the learned 3D cell (two learned hexagons sharing dl1)
-            table += _evaluate_3d(s, d, rows, seed)
-            continue
-        cols, info = read_rows(d, "test", rows, seed)
-        label = f"{d.name} (dataset {info['provenance']['kind']})"
-        table += evaluate(s, cols, label)
-        writers[f"parity-{i}-{d.name}.png"] = (lambda c, lab: lambda p: parity_plot(
-            s, c, p, f"{Path(model).name}: {lab}, {len(c['deps1']):,} rows"))(cols, label)
+        metrics, parity = evaluate_folder(s, d, rows, seed)
+        table += metrics
+        if parity is not None:  # bi-hexagon rows have none
+            writers[f"parity-{i}-{d.name}.png"] = (lambda w: lambda p: w(p, Path(model).name))(parity)
     write_outputs(out, {"metrics.csv": lambda p: write_rows(table, p), **writers})
     for r in table:
         if r["quantity"] in ("state after", "meso-stress"):
             typer.echo(f"{r['data']:<40} {r['output']:<11} R² {r['r2']:.6f}  MAE {r['mae']:.4g}  "
                        f"max {r['max_abs']:.4g}")
     typer.echo(f"wrote {out / 'metrics.csv'} and {len(writers)} parity plot(s)")
-
-
-def _dim(folder: Path) -> int:
-    """3 for a dataset folder of bi-hexagon rows (``hmodel data generate --dim 3``), else 2."""
-    import json
-
-    try:
-        m = json.loads((Path(folder) / "manifest.json").read_text())
-    except (OSError, ValueError):
-        return 2
-    return int((m.get("options") or {}).get("dim", 2)) if m.get("format") == "hmodel-cell-dataset" else 2
-
-
-def _evaluate_3d(s, folder: Path, rows: int | None, seed: int) -> list[dict]:
-    """Metric rows of the learned 3D cell of model ``s`` (``BiHexSolver(hexagon=SurrogateSolver(s))``)
-    on ``rows`` random rows (all where fewer) of a 3D dataset, against its closed-form rows."""
-    import numpy as np
-
-    from ..data import Dataset
-    from ..surrogate.evaluation import evaluate_bihex
-    from ..surrogate.solver import SurrogateSolver
-
-    ds = Dataset.open(folder)
-    pick = None
-    if rows is not None and rows < ds.n_rows:
-        pick = np.sort(np.random.default_rng(seed).choice(ds.n_rows, rows, replace=False))
-    label = f"{Path(folder).name} (3D dataset {ds.manifest['kind']})"
-    return evaluate_bihex(SurrogateSolver(s), ds.read(rows=pick), ds.params, label, ds.spec.substeps)
 
 
 @app.command("trust")
@@ -363,9 +329,9 @@ def refine_cmd(
     magnitude: Annotated[float, typer.Option(help="Largest cell strain increment of the new rows.")] = 2e-3,
     epochs: Annotated[int, typer.Option(help="Fine-tuning epochs per round (early stopping may end sooner).")] = 100,
     patience: Patience = 20, lr: Annotated[float, typer.Option(help="Fine-tuning learning rate.")] = 1e-3,
-    axial_strain: Annotated[float, typer.Option(help="Axial strain of the biaxial paths.")] = 0.1,
-    step: Annotated[float, typer.Option(help="Strain increment of the REV paths.")] = 1e-3,
-    iso_step: Annotated[float, typer.Option(help="Strain increment of the consolidations.")] = 1e-4,
+    axial_strain: Annotated[float, typer.Option(help=strain_help("Axial strain of the biaxial paths."))] = 0.1,
+    step: Annotated[float, typer.Option(help=strain_help("Strain increment of the REV paths."))] = 1e-3,
+    iso_step: Annotated[float, typer.Option(help=strain_help("Strain increment of the consolidations."))] = 1e-4,
     param: ParamOpt = None,
     seed: Seed = 0,
 ) -> None:

@@ -25,7 +25,7 @@ has α0 number j and θ number i.
   ``start_strain`` the axial strain since consolidation; the α0 and θ grids and ``prestrain``
   do not apply.
 
-**3D rows** (``dim = 3``, issue 34): Dataset 2 of the bi-hexagon of the 3D H-model
+**3D rows** (``dim = 3``): Dataset 2 of the bi-hexagon of the 3D H-model
 (docs/model3d.md), solved in closed form (``BiHexSolver``): path ``path_id`` loads a
 bi-hexagon of opening angle α0 along the cell-strain direction (cos θ, sin θ cos ψ, sin θ sin ψ)
 of its three lengths (l1 along n, l2 and l3 the two hexagons' columns), ψ ∈ [0, π/2] spread over
@@ -33,7 +33,10 @@ the paths by the golden-ratio sequence (so that the two hexagons see different l
 strains); from its states every ``start_every``, increments of the spec's magnitudes in
 ``n_increments`` directions of (δε1, δε2, δε3) on the unit sphere (a Fibonacci lattice), in
 ``substeps`` sub-steps. Columns: :data:`~hmodel.data.schema.COLUMNS_3D`. Small defaults:
-:data:`DIM3_DEFAULTS`. Dataset 2 only, closed form only.
+:data:`~hmodel.data.kinds.DIM3_DEFAULTS`. Dataset 2 only, closed form only.
+
+Each kind of rows (the three datasets, the 3D rows) is one class of :mod:`hmodel.data.kinds`,
+which :class:`DatasetSpec` finds from its ``kind`` and ``dim`` (the numbers manifests store).
 
 Cell strains are measured on the initial lengths, compression positive: δl = −(l10, l20)·δε.
 A shard is a contiguous range of paths, so that any shard can be computed alone, in any
@@ -43,39 +46,20 @@ process, and always gives the same rows.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 import pyarrow as pa
 
-from ..cell import CellState
-from ..cell.bihex import BiHexSolver
 from ..errors import InputError
 from ..params import Params
 from ..solvers import get_solver
-from .schema import (
-    EXTRA_COLUMNS,
-    FLAG_COLUMNS,
-    FLAG_COLUMNS_3D,
-    STATE,
-    STATE_B,
-    arrow_schema,
-    to_arrow,
-)
+from . import kinds
+from .kinds import DIM3_DEFAULTS, DatasetKind  # noqa: F401 (DIM3_DEFAULTS: importers of its first home)
+from .rows import increment_rows, table as _table  # noqa: F401 (importers of their first home)
 
 #: The REV loading paths of Dataset 3.
 REV_LOADINGS = ("drained", "undrained")
-#: Field order of the packed cell state (hmodel.cell.state.FIELDS) for each schema column.
-_PACKED = {"d1": 0, "d2": 1, "alpha": 2, "N1": 3, "N2": 4, "T1": 5, "l1": 6, "l2": 7}
-#: The same for hexagon B's columns of a bi-hexagon state (hmodel.cell.bihex.BIHEX_FIELDS).
-_PACKED_B = {b: 8 + _PACKED[a] for a, b in zip(STATE, STATE_B)}
-#: Options of a ``dim = 3`` dataset where ``hmodel data generate --dim 3`` is given none: single
-#: REV-scale increments (≤ 0.2 %, as the shipped default network's REV_DATASET) from 12 paths
-#: × 3 opening angles × 20 start states, 26 directions: 18,720 rows.
-DIM3_DEFAULTS = {"n_directions": 12, "theta": "-60:150", "alpha0": "40:60:10", "max_strain": 0.1,
-                 "start_every": 0.005, "magnitude": 0.002, "magnitude_min": 0.0, "n_increments": 26,
-                 "substeps": 1}
 #: Golden ratio's fractional part: the low-discrepancy sequences of ψ and of the sphere lattice.
 _GOLDEN = 0.6180339887498949
 
@@ -87,6 +71,7 @@ class DatasetSpec:
     Angles in degrees here (as on the command line); rows store radians.
     """
 
+    #: The dataset: 1, 2 or 3 (the kinds of rows are :mod:`hmodel.data.kinds`).
     kind: int = 1
     n_directions: int = 91
     theta_min: float = 0.0
@@ -114,7 +99,7 @@ class DatasetSpec:
     rev_paths: str = ""
     #: 2: H-cell rows; 3: bi-hexagon rows of the 3D H-model (Dataset 2, closed form only).
     dim: int = 2
-    #: A material per path (issue 36, networks over a range of materials): ``"LO:HI"`` ranges of
+    #: A material per path (for networks over a range of materials): ``"LO:HI"`` ranges of
     #: kt/kn and of φg [deg], each path's value drawn uniformly from them by a generator seeded
     #: with (``material_seed``, path id), so that a path's material does not depend on the shard
     #: it falls in; "" keeps the parameters' value. Rows record it (MATERIAL_COLUMNS).
@@ -128,28 +113,11 @@ class DatasetSpec:
             v = getattr(self, f.name)
             if "float" in str(f.type) and isinstance(v, (int, float)) and not isinstance(v, bool):
                 object.__setattr__(self, f.name, float(v))
-        if self.kind not in (1, 2, 3):
-            raise InputError(f"dataset must be 1, 2 or 3, got {self.kind}")
-        if self.dim not in (2, 3):
-            raise InputError(f"dim must be 2 or 3, got {self.dim!r}")
-        if self.dim == 3 and self.kind != 2:
-            raise InputError(f"--dim 3 writes dataset 2 (bi-hexagon increments from the states of "
-                             f"bi-hexagon paths); dataset {self.kind} is the 2D H-cell's only")
-        if self.draws_material and self.dim == 3:
+        rows = self.dataset_kind  # refuses an unknown kind or dimension
+        if self.draws_material and not rows.material_per_path:
             raise InputError("a material per path (--kt-kn, --phi-g ranges) is drawn for 2D datasets only")
         self.material_ranges  # parses and checks
-        cell = get_solver(self.solver)  # what rows it makes: its declarations (CellSolver)
-        if self.dim == 3 and (cell.learned or cell.dem_cells):
-            raise InputError(f"--dim 3 rows are the closed-form bi-hexagon's; --solver {self.solver} "
-                             "is a 2D cell solver option only")
-        if self.dim == 2 and cell.n_lengths != 2:
-            raise InputError(f"{self.solver} is the 3D model's cell (three lengths), not a 2D cell to make 2D "
-                             "rows of; --dim 3 rows are the closed-form bi-hexagon's")
-        if (self.kind == 3) != bool(self.rev_paths.strip()):
-            raise InputError("rev_paths (the REV's loading paths) must be given for dataset 3 and "
-                             f"only for it, got {self.rev_paths!r} for dataset {self.kind}")
-        if self.kind == 3 and self.prestrain:
-            raise InputError("prestrain does not apply to dataset 3 (its REV is consolidated to p0)")
+        rows.check(self, get_solver(self.solver))  # the rows its solver makes: its declarations
         self.rev_loadings  # parses and checks
         for name in ("n_directions", "n_increments", "substeps", "shard_rows"):
             v = getattr(self, name)
@@ -175,9 +143,14 @@ class DatasetSpec:
         if self.max_strain >= 1.0:
             raise InputError(f"max_strain must be below 1, got {self.max_strain}")
         _ratio(self.max_strain, self.step, "max_strain", "step")
-        if self.kind >= 2:
+        if rows.increments:
             _ratio(self.start_every, self.step, "start_every", "step")
             _ratio(self.max_strain, self.start_every, "max_strain", "start_every")
+
+    @property
+    def dataset_kind(self) -> DatasetKind:
+        """The kind of its rows (:mod:`hmodel.data.kinds`), from ``kind`` and ``dim``."""
+        return kinds.dataset_kind(self.kind, self.dim)
 
     # -- materials ---------------------------------------------------------------------------
     @property
@@ -208,9 +181,7 @@ class DatasetSpec:
         """The material of each path (``params`` with the drawn kt/kn and φg); dataset 3: of
         each REV loading path (``paths`` its index), whose α0 is drawn too, uniformly over
         [alpha0_min, alpha0_max] (its REV's cells share one)."""
-        ranges = dict(self.material_ranges)
-        if self.kind == 3:
-            ranges["alpha0"] = (self.alpha0_min, self.alpha0_max)
+        ranges = self.dataset_kind.drawn_ranges(self)
         out = []
         for path in paths:
             rng = np.random.default_rng((self.material_seed, int(path)))
@@ -270,9 +241,7 @@ class DatasetSpec:
 
     @property
     def n_paths(self) -> int:
-        if self.kind == 3:
-            return len(self.rev_loadings) * self.n_directions
-        return len(self.alpha0_deg) * self.n_directions
+        return self.dataset_kind.n_paths(self)
 
     @property
     def n_steps(self) -> int:
@@ -308,13 +277,11 @@ class DatasetSpec:
 
     @property
     def rows_per_path(self) -> int:
-        return self.n_steps if self.kind == 1 else len(self.start_steps) * self.n_increments
+        return self.dataset_kind.rows_per_path(self)
 
     @property
     def paths_per_shard(self) -> int:
-        if self.kind == 3:  # one REV loading path per shard
-            return self.n_directions
-        return max(1, self.shard_rows // self.rows_per_path)
+        return self.dataset_kind.paths_per_shard(self)
 
     @property
     def n_shards(self) -> int:
@@ -355,203 +322,14 @@ def _ratio(total: float, step: float, a: str, b: str) -> int:
 def compute_shard(spec: DatasetSpec, params: Params, shard: int) -> pa.Table:
     """The rows of one shard, in path order (a pure function of its arguments)."""
     paths = spec.shard_paths(shard)
-    if spec.draws_material:  # one material per path (dataset 3: per REV): one by one
+    rows = spec.dataset_kind
+    if spec.draws_material:  # one material per group of paths (dataset 3: per REV): one by one
         parts = []
-        groups = [paths] if spec.kind == 3 else [np.array([p]) for p in paths]
-        keys = [shard] if spec.kind == 3 else paths
+        groups, keys = rows.material_groups(spec, shard, paths)
         for group, material in zip(groups, spec.path_materials(params, keys)):
-            t = _paths(spec, material, group)
+            t = rows.rows(spec, material, group)
             n = t.num_rows
             parts.append(t.append_column("kt_kn", pa.array(np.full(n, material.kt_kn)))
                          .append_column("phi_g", pa.array(np.full(n, material.phi_g))))
         return pa.concat_tables(parts)
-    return _paths(spec, params, paths)
-
-
-def _paths(spec: DatasetSpec, params: Params, paths: np.ndarray) -> pa.Table:
-    """The rows of ``paths`` of one material."""
-    if spec.dim == 3:
-        return _bihex_increments(spec, params, paths)
-    if spec.kind == 3:
-        return _rev_histories(spec, params, int(paths[0]) // spec.n_directions, paths)
-    alpha0 = np.radians(spec.alpha0_deg)[paths // spec.n_directions]
-    theta = spec.theta[paths % spec.n_directions]
-    solver = get_solver(spec.solver)
-    # each solver makes its own cell states (richer DEM cells: more than the 8 fields)
-    cells = solver.initial_cells(params, alpha0)
-    l10, l20 = cells.l1.copy(), cells.l2.copy()
-    for _ in range(spec.prestrain_steps):
-        cells, _ = solver.step(params, cells, -l10 * spec.step, -l20 * spec.step)
-    dl1, dl2 = -l10 * spec.step * np.cos(theta), -l20 * spec.step * np.sin(theta)
-    if spec.kind == 1:
-        return _dataset1(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta)
-    return _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta, (l10, l20))
-
-
-def _dataset1(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta) -> pa.Table:
-    P, n = len(paths), spec.n_steps
-    nf = cells.values.shape[-1]
-    after = np.empty((P, n, nf))
-    flags = np.empty((P, n, len(FLAG_COLUMNS)), bool)
-    state = cells
-    for k in range(n):
-        state, f = solver.step(params, state, dl1, dl2)
-        after[:, k], flags[:, k] = state.values, f.flags
-    total = spec.step * np.arange(1, n + 1)
-    deps = np.stack([np.outer(np.cos(theta), total), np.outer(np.sin(theta), total)], axis=-1)
-    before = np.broadcast_to(cells.values[:, None, :], after.shape)
-    labels = (alpha0, paths, theta, np.zeros(P))
-    return _table(deps.reshape(-1, 2), before.reshape(-1, nf), after.reshape(-1, nf),
-                  flags.reshape(-1, flags.shape[-1]), [np.repeat(v, n) for v in labels])
-
-
-def _dataset2(spec, params, solver, cells, dl1, dl2, paths, alpha0, theta, l0) -> pa.Table:
-    state = cells
-
-    def advance() -> np.ndarray:
-        nonlocal state
-        state, _ = solver.step(params, state, dl1, dl2)
-        return state.values
-
-    start = _start_states(spec, cells.values, advance)
-    return _increments(spec, params, solver, start, l0, paths, alpha0, theta)
-
-
-def _rev_histories(spec, params, shard, paths) -> pa.Table:
-    """Dataset 3: the increments from the states of a REV's cells along one loading path."""
-    from ..loading.named_paths import (  # the loading layer sits above the data's
-        biaxial,
-        consolidate,
-    )
-    from ..rev import Rev
-
-    loading, p0 = spec.rev_loadings[shard]
-    solver = get_solver(spec.solver)
-    rev = Rev(replace(params, n_theta=spec.n_directions), solver)
-    cells0 = rev.initial(1).cells.values[0]
-    state = consolidate(rev, [p0], step=spec.step / 5)
-    undrained = loading == "undrained"
-
-    def advance() -> np.ndarray:
-        nonlocal state
-        state = biaxial(rev, state, spec.step, undrained=undrained,
-                        lateral_stress=None if undrained else [p0], step=spec.step)
-        return state.cells.values[0]
-
-    start = _start_states(spec, state.cells.values[0], advance)
-    alpha0 = np.full(len(paths), params.alpha0)
-    return _increments(spec, params, solver, start, (cells0[:, 6], cells0[:, 7]), paths, alpha0,
-                       rev.directions.theta)
-
-
-def _start_states(spec, first: np.ndarray, advance: Callable[[], np.ndarray]) -> np.ndarray:
-    """The states (P, L, n_fields) of P paths at the spec's start steps: ``first`` (P, n_fields)
-    at step 0, then what ``advance()`` returns at each step."""
-    starts = spec.start_steps
-    out = np.empty((first.shape[0], len(starts), first.shape[1]))
-    level = 0
-    if starts[0] == 0:
-        out[:, 0] = first
-        level = 1
-    for k in range(1, spec.n_steps + 1):
-        values = advance()
-        if level < len(starts) and k == starts[level]:
-            out[:, level] = values
-            level += 1
-    return out
-
-
-def _increments(spec, params, solver, start, l0, paths, alpha0, theta) -> pa.Table:
-    """Dataset-2 increments from start states (P, L, n_fields) of P paths."""
-    return increment_rows(spec, params, solver, start, l0, paths, alpha0, theta,
-                          spec.step * spec.start_steps)
-
-
-def increment_rows(spec: DatasetSpec, params: Params, solver, start: np.ndarray, l0, paths: np.ndarray,
-                   alpha0: np.ndarray, theta: np.ndarray, strain: np.ndarray) -> pa.Table:
-    """Rows of the spec's Dataset-2 increments (``n_increments`` directions, their magnitudes,
-    ``substeps``) applied by ``solver`` to start states (P, L, n_fields): P cells of initial
-    lengths ``l0`` = (l10, l20) (P,) each, at L states each, labelled by ``paths``, ``alpha0``,
-    ``theta`` (P,) and ``strain`` (L,, the ``start_strain`` column). Used by the generator and
-    by active learning (:mod:`hmodel.studies.refine`), whose start states are a REV's."""
-    P, L, nf = start.shape
-    J = spec.n_increments
-    phi = spec.increment_angles
-    deps = spec.increment_magnitudes[:, None] * np.stack([np.cos(phi), np.sin(phi)], axis=-1)  # (J, 2)
-    l10 = np.broadcast_to(l0[0][:, None, None], (P, L, J))  # strains on the initial lengths
-    l20 = np.broadcast_to(l0[1][:, None, None], (P, L, J))
-    sub1 = -l10 * deps[:, 0] / spec.substeps
-    sub2 = -l20 * deps[:, 1] / spec.substeps
-    before = CellState(np.ascontiguousarray(np.broadcast_to(start[:, :, None, :], (P, L, J, nf))))
-    state = before
-    for _ in range(spec.substeps):
-        state, f = solver.step(params, state, sub1, sub2)
-    labels = (np.repeat(alpha0, L * J), np.repeat(paths, L * J), np.repeat(theta, L * J),
-              np.tile(np.repeat(strain, J), P))
-    return _table(np.tile(deps, (P * L, 1)), before.values.reshape(-1, nf),
-                  state.values.reshape(-1, nf), f.flags.reshape(-1, len(FLAG_COLUMNS)), labels)
-
-
-def _bihex_increments(spec: DatasetSpec, params: Params, paths: np.ndarray) -> pa.Table:
-    """3D Dataset 2: bi-hexagon increments from the states of bi-hexagon paths (module doc)."""
-    solver = BiHexSolver()
-    alpha0 = np.radians(spec.alpha0_deg)[paths // spec.n_directions]
-    theta = spec.theta[paths % spec.n_directions]
-    psi = spec.psi[paths]
-    cells = solver.initial_cells(params, alpha0)
-    l0 = [cells.values[:, k].copy() for k in (6, 7, 15)]  # l10, l20, l30
-    for _ in range(spec.prestrain_steps):
-        cells, _ = solver.step(params, cells, *(-l * spec.step for l in l0))
-    direction = (np.cos(theta), np.sin(theta) * np.cos(psi), np.sin(theta) * np.sin(psi))
-    dl = [-l * spec.step * d for l, d in zip(l0, direction)]
-    state = cells
-
-    def advance() -> np.ndarray:
-        nonlocal state
-        state, _ = solver.step(params, state, *dl)
-        return state.values
-
-    start = _start_states(spec, cells.values, advance)  # (P, L, 16)
-    P, L, nf = start.shape
-    J = spec.n_increments
-    deps = spec.increment_magnitudes[:, None] * spec.increment_directions_3d  # (J, 3)
-    sub = [-np.broadcast_to(l[:, None, None], (P, L, J)) * deps[:, k] / spec.substeps
-           for k, l in enumerate(l0)]
-    before = CellState(np.ascontiguousarray(np.broadcast_to(start[:, :, None, :], (P, L, J, nf))))
-    new = before
-    for _ in range(spec.substeps):
-        new, f = solver.step(params, new, *sub)
-    labels = (np.repeat(alpha0, L * J), np.repeat(paths, L * J), np.repeat(theta, L * J),
-              np.tile(np.repeat(spec.step * spec.start_steps, J), P))
-    b, a = before.values.reshape(-1, nf), new.values.reshape(-1, nf)
-    deps = np.tile(deps, (P * L, 1))
-    cols = {"deps1": deps[:, 0], "deps2": deps[:, 1], "deps3": deps[:, 2]}
-    for packed in (_PACKED, _PACKED_B):
-        for c, k in packed.items():
-            cols[c] = b[:, k]
-    for packed in (_PACKED, _PACKED_B):
-        for c, k in packed.items():
-            cols[f"{c}_next"] = a[:, k]
-    flags = f.flags.reshape(-1, len(FLAG_COLUMNS_3D))
-    for j, c in enumerate(FLAG_COLUMNS_3D):
-        cols[c] = flags[:, j]
-    cols.update(alpha0=labels[0], path_id=labels[1].astype(np.int32), theta=labels[2], start_strain=labels[3])
-    schema = arrow_schema(dim=3)
-    return pa.Table.from_arrays([to_arrow(cols[fl.name], fl.type) for fl in schema], schema=schema)
-
-
-def _table(deps, before, after, flags, labels) -> pa.Table:
-    cols = {"deps1": deps[:, 0], "deps2": deps[:, 1]}
-    for c in STATE:
-        cols[c] = before[:, _PACKED[c]]
-    for c in STATE:
-        cols[f"{c}_next"] = after[:, _PACKED[c]]
-    for j, c in enumerate(FLAG_COLUMNS):
-        cols[c] = flags[:, j]
-    alpha0, paths, theta, start = labels
-    cols.update(alpha0=alpha0, path_id=paths.astype(np.int32), theta=theta, start_strain=start)
-    n_extra = before.shape[1] - 8
-    schema = arrow_schema(n_extra=n_extra)
-    if n_extra:
-        cols.update(zip(EXTRA_COLUMNS, (before[:, 8:], after[:, 8:])))
-    return pa.Table.from_arrays([to_arrow(cols[f.name], f.type) for f in schema], schema=schema)
+    return rows.rows(spec, params, paths)

@@ -20,11 +20,12 @@ of float64, the state fields 9.. before and after the increment, whose names (un
 the manifest lists under ``extra_fields``. Every other column is unchanged; datasets of the
 closed form and of ``dem:standard`` have no extra column.
 
-Datasets that draw a material per path (issue 36) carry :data:`MATERIAL_COLUMNS` ``kt_kn``
-and ``phi_g`` [rad] after the labels: each row's own kt/kn and φg.
+Datasets that draw a material per path (for networks over a range of materials) carry
+:data:`MATERIAL_COLUMNS` ``kt_kn`` and ``phi_g`` [rad] after the labels: each row's own kt/kn
+and φg.
 
-**3D rows** (``dim = 3``, :data:`COLUMNS_3D`; issue 34): one row is one increment of a
-bi-hexagon (docs/model3d.md), the cell strains ``deps1, deps2, deps3`` of its three lengths
+**3D rows** (``dim = 3``, :data:`COLUMNS_3D`): one row is one increment of a bi-hexagon
+(docs/model3d.md), the cell strains ``deps1, deps2, deps3`` of its three lengths
 (δl1 = −l10·δε1, δl2 = −l20·δε2, δl3 = −l30·δε3, l30 = l20) applied to hexagon A's state
 (the 2D columns above, l2 its column length) and hexagon B's (:data:`STATE_B`: the same fields
 with ``_b``, l3 its column length, l1_b = l1), giving both after (``*_next``) and the 11 flags

@@ -35,8 +35,6 @@ from .schema import (
     EXTRA_COLUMNS,
     MATERIAL_COLUMNS,
     SCHEMA_VERSION,
-    UNITS,
-    UNITS_3D,
     arrow_schema,
     column_array,
     columns_for,
@@ -74,10 +72,11 @@ def _write_json(path: Path, obj: dict) -> None:
 
 def _header(spec: DatasetSpec, params: Params) -> dict:
     """The part of a manifest that identifies what the dataset is."""
+    rows = spec.dataset_kind
     header = {"format": FORMAT, "schema_version": SCHEMA_VERSION, "kind": spec.kind,
               "options": spec.to_dict(), "params": params.to_dict(), "seed": None,
-              "columns": list(columns_for(spec.dim)) + list(MATERIAL_COLUMNS if spec.draws_material else ()),
-              "units": UNITS_3D if spec.dim == 3 else UNITS}
+              "columns": list(rows.columns) + list(MATERIAL_COLUMNS if spec.draws_material else ()),
+              "units": rows.units}
     from ..solvers import get_solver
 
     extra = list(get_solver(spec.solver).field_names()[8:])  # a richer cell's extra state fields

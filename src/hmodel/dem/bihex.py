@@ -1,4 +1,4 @@
-"""The bi-hexagon as a DEM cell (issue 35): the 3D H-model's cell (docs/model3d.md) built from
+"""The bi-hexagon as a DEM cell: the 3D H-model's cell (docs/model3d.md) built from
 ten spheres in YADE, the cell solver ``dem:bihexagon`` that can take the closed-form
 :class:`~hmodel.cell.bihex.BiHexSolver`'s place.
 

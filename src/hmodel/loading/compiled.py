@@ -7,12 +7,14 @@ increment (:meth:`hmodel.cell.CellSolver.kernel`: the closed form, a ``meso`` or
 surrogate), a whole segment instead runs in one Numba kernel: per increment and per material
 point, the one Newton of :mod:`hmodel.loading.newton`, its trials evaluated here with
 localization (eq. 1.1), the cell increment and averaging (eq. 1.15) fused in one loop over
-directions (:func:`trial`).
+directions: the REV's own trial (:func:`hmodel.rev.trial.point_trial`), on the REV's kernel
+inputs (:meth:`hmodel.rev.batch.RevBatch.kernel_inputs`).
 
-The kernels are written for n components: n = 3 runs the H-cell trial above, n = 6 the 3D REV's
-bi-hexagon trial (:func:`hmodel.rev.kernels3d.bihex_trial`, :func:`any_trial`), whose backend
-is :class:`hmodel.loading.compiled3d.CompiledSegment3D`; Newton, the event loop, the batched
-per-point kernel and the hand-back to the generic driver are the same code.
+The kernels are written for n components and never ask which REV runs: the REV's kernel inputs
+(one row of geometry per cell, each set's packed cell parameters) say which trial applies, the
+2D REV's H-cells (:func:`hmodel.rev.kernels.trial`) or the 3D REV's bi-hexagons
+(:func:`hmodel.rev.kernels3d.bihex_trial`); Newton, the event loop, the batched per-point kernel
+and the hand-back to the generic driver are the same code.
 
 A learned cell response (``meso`` and ``compliance`` surrogates) sees the state only, so each
 increment starts with one evaluation of every cell of every point (:func:`cell_responses`,
@@ -20,7 +22,7 @@ which may refuse cells outside a training domain), and every trial of the increm
 that response, in :func:`hmodel.cell.meso_kernel.meso_increment` or
 :func:`hmodel.cell.compliance_kernel.compliance_increment` (the law packed in the kernel's
 parameters). Where one stress row is controlled, each trial of a meso response also gives the
-exact stress slope along the free strain direction (:func:`trial_tangent`), in place of
+exact stress slope along the free strain direction (:func:`hmodel.rev.kernels.trial_tangent`), in place of
 Broyden's secant there.
 
 The kernel has the generic driver's event fallback (a stress target inside the jump of a cell
@@ -37,16 +39,13 @@ import types
 import numpy as np
 from numba import njit, prange
 
-from ..cell.base import LAW_COMPLIANCE, LAW_MESO, P_LAW
-from ..cell.closed_form import P_KN, P_R, cell_increment, cell_jacobian
-from ..cell.compliance_kernel import compliance_increment
-from ..cell.meso_kernel import meso_increment
-from ..cell.mesostress import vsigma_local
+from ..cell.base import LAW_MESO, P_LAW
 from ..cell.state import CellFlags, CellState
-from ..errors import InputError, PointFailure
+from ..errors import PointFailure, SolverError
 from ..rev import Rev, RevState
-from ..rev.kernels import cell_dl, weighted_global
-from ..rev.kernels3d import bihex_trial
+from ..rev.kernels import closed_form_tangent, trial, trial_tangent  # noqa: F401 (their face here)
+from ..rev.state import normal_components
+from ..rev.trial import point_trial
 from .control import Control, Tangent, solve_increment
 from .newton import (
     ASK_SLOPE,
@@ -67,6 +66,7 @@ from .newton import (
     event_targets,
     free_direction,
     segment_targets,
+    solve,
     told_tangent,
     told_trial,
     workspace_size,
@@ -84,28 +84,24 @@ def supports(rev: Rev) -> bool:
 
 
 def kernel_inputs(rev: Rev, k: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """(geo, p) for :func:`trial` of a point of parameter set k: the direction factors cos²,
-    sin², sin·cos and their weighted versions (6, n_theta), and the solver kernel's packed
-    parameters. A 2D REV's only (the 3D REV's: :func:`hmodel.loading.compiled3d.kernel_inputs3d`)."""
-    if rev.n_components != 3:
-        raise InputError(f"these compiled kernel inputs (and the stability probes built on them) are "
-                         f"the 2D REV's, got a REV of {rev.n_components} components")
-    d = rev.directions
-    w = rev.weights[k]
-    geo = np.ascontiguousarray(np.stack([d.cos2, d.sin2, d.sincos, w * d.cos2, w * d.sin2,
-                                         w * d.sincos]))
-    return geo, rev.kernels[k].params
+    """(geo, p) of the compiled trial of a point of parameter set k: its rows of the REV's
+    kernel inputs (:meth:`~hmodel.rev.batch.RevBatch.kernel_inputs`), geometry (C, width) and
+    packed cell parameters (P,)."""
+    geo, p = rev.kernel_inputs()
+    return geo[k if len(geo) > 1 else 0], p[k]
 
 
 def batch_inputs(rev: Rev) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`kernel_inputs` of every parameter set, stacked: (K, 6, n_theta) and (K, P)."""
-    parts = [kernel_inputs(rev, k) for k in range(rev.n_sets)]
-    return (np.ascontiguousarray(np.stack([g for g, _ in parts])),
-            np.ascontiguousarray(np.stack([p for _, p in parts])))
+    """The REV's kernel inputs: geometry rows (K or 1, C, width) and parameters (K, P)."""
+    return rev.kernel_inputs()
+
+
+#: The trial of a point of either REV (:func:`hmodel.rev.trial.point_trial`).
+any_trial = point_trial
 
 
 def cell_responses(rev: Rev, values: np.ndarray, sets: np.ndarray | None = None) -> np.ndarray:
-    """Per-cell inputs of :func:`trial` that depend on the cells' states (B, n_theta, n_fields)
+    """Per-cell inputs of the trial that depend on the cells' states (B, n_theta, n_fields)
     of points with parameter sets ``sets`` (B,) (None: the first for all): a learned response's
     packed rows (..., R), one evaluation per set present (which may refuse cells outside a
     training domain); nothing (..., 0) for the closed form."""
@@ -129,133 +125,6 @@ def cell_responses_of(kernel, values: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy")
-def trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
-    """REV step of one material point: cells ``values`` (n, n_fields) -> ``out``, stress -> ``sig``.
-
-    Same operations, in the same order, as ``Rev.localize``, the cell solver and ``Rev.stress``:
-    the closed-form cell kernel, or with learned responses ``resp`` (n, R > 0) the law at
-    ``p[P_LAW]``: the meso surrogate's trial (``meso_kernel.meso_increment``) or learned
-    compliances (``compliance_kernel.compliance_increment``). Returns False when a cell increment
-    failed.
-    """
-    return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, False,
-                       deps, sig)
-
-
-@njit(cache=True, error_model="numpy")
-def trial_tangent(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, u, dsig):
-    """:func:`trial` of a meso surrogate that also gives ``dsig``, the derivative of the stress
-    along the strain direction ``u`` (3,): exact within every cell's regime."""
-    return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, True, u,
-                       dsig)
-
-
-@njit(cache=True, error_model="numpy")
-def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, tangent, u, dsig):
-    cos2, sin2, sincos, wcos2, wsin2, wsincos = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5]
-    two_r = 2.0 * p[P_R]
-    kn = p[P_KN]
-    e11, e22, e12 = deps[0], deps[1], deps[2]
-    s11 = 0.0
-    s22 = 0.0
-    s12 = 0.0
-    d11 = 0.0
-    d22 = 0.0
-    d12 = 0.0
-    dv = np.empty(2)
-    ok = True
-    law = p[P_LAW] if resp.shape[1] > 0 else 0.0
-    meso = law == LAW_MESO
-    for i in range(values.shape[0]):
-        dl1, dl2 = cell_dl(values, i, e11, e22, e12, cos2[i], sin2[i], sincos[i], mode, p[P_R])
-        if meso:
-            ddl1 = ddl2 = 0.0
-            if tangent:  # cell_dl is linear in the strain: its derivative along u is cell_dl(u)
-                ddl1, ddl2 = cell_dl(values, i, u[0], u[1], u[2], cos2[i], sin2[i], sincos[i], mode,
-                                     p[P_R])
-            ok &= meso_increment(values, i, dl1, dl2, p, resp, out, flags, tangent, ddl1, ddl2, dv)
-            vnn, vtt = out[i, 8], out[i, 9]  # V sigma_nt = 0
-            if tangent:
-                b11, b22, b12 = weighted_global(dv[0], dv[1], wcos2[i], wsin2[i], wsincos[i])
-                d11 += b11
-                d22 += b22
-                d12 += b12
-        else:
-            if law == LAW_COMPLIANCE:
-                ok &= compliance_increment(values, i, dl1, dl2, resp, p, out, flags)
-            else:
-                ok &= cell_increment(values, i, dl1, dl2, p, out, flags, 0, 0)
-            vnn, vtt = vsigma_local(out, i, kn, two_r)
-        a11, a22, a12 = weighted_global(vnn, vtt, wcos2[i], wsin2[i], wsincos[i])
-        s11 += a11
-        s22 += a22
-        s12 += a12
-    t11 = eps[0] + e11  # total strain after the trial: the macro volume V0 det(I - eps)
-    t22 = eps[1] + e22
-    t12 = eps[2] + e12
-    v = volume0 * ((1 - t11) * (1 - t22) - t12 ** 2)
-    sig[0] = s11 / v
-    sig[1] = s22 / v
-    sig[2] = s12 / v
-    if tangent:  # d(S / V) = dS / V - sig dV / V
-        dvol = volume0 * (-(1 - t22) * u[0] - (1 - t11) * u[1] - 2.0 * t12 * u[2])
-        dsig[0] = (d11 - sig[0] * dvol) / v
-        dsig[1] = (d22 - sig[1] * dvol) / v
-        dsig[2] = (d12 - sig[2] * dvol) / v
-    return ok
-
-
-@njit(cache=True, error_model="numpy")
-def closed_form_tangent(values, eps, deps, geo, p, mode, volume0, sig, D):
-    """The exact tangent ``D`` (3, 3), dsig_i / ddeps_j, of the closed form's :func:`trial` at
-    ``deps`` whose stress is ``sig``, in the regime each cell takes there (one pass over the
-    cells, where forward differences take three trials). Returns False where a cell increment
-    fails.
-
-    Chain rule through the operations of :func:`trial`: the localization (eq. 1.1, linear in
-    the strain, so its derivative along e_j is itself at e_j), the cells' own Jacobians
-    (:func:`hmodel.cell.closed_form.cell_jacobian`), the weighted rotation to the global frame
-    (eqs. 1.15-1.16, linear) and the macro volume V0 det(I - eps): d(S / V) = dS / V - sig dV / V.
-    """
-    cos2, sin2, sincos, wcos2, wsin2, wsincos = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5]
-    e11, e22, e12 = deps[0], deps[1], deps[2]
-    D[:, :] = 0.0
-    ok = True
-    for i in range(values.shape[0]):
-        dl1, dl2 = cell_dl(values, i, e11, e22, e12, cos2[i], sin2[i], sincos[i], mode, p[P_R])
-        good, j11, j12, j21, j22 = cell_jacobian(
-            values[i, 0], values[i, 1], values[i, 2], values[i, 3], values[i, 4], values[i, 5],
-            values[i, 6], values[i, 7], dl1, dl2, p)
-        ok &= good
-        for j in range(3):
-            u1, u2 = cell_dl(values, i, 1.0 if j == 0 else 0.0, 1.0 if j == 1 else 0.0,
-                             1.0 if j == 2 else 0.0, cos2[i], sin2[i], sincos[i], mode, p[P_R])
-            b11, b22, b12 = weighted_global(j11 * u1 + j12 * u2, j21 * u1 + j22 * u2, wcos2[i],
-                                            wsin2[i], wsincos[i])
-            D[0, j] += b11
-            D[1, j] += b22
-            D[2, j] += b12
-    t11 = eps[0] + e11
-    t22 = eps[1] + e22
-    t12 = eps[2] + e12
-    v = volume0 * ((1 - t11) * (1 - t22) - t12 ** 2)
-    dvol = (-volume0 * (1 - t22), -volume0 * (1 - t11), -2.0 * volume0 * t12)
-    for j in range(3):
-        for k in range(3):
-            D[k, j] = (D[k, j] - sig[k] * dvol[j]) / v
-    return ok
-
-
-@njit(cache=True, error_model="numpy")
-def any_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
-    """The REV trial of n = eps.shape[0] components: :func:`trial` (2D, n = 3) or the 3D REV's
-    :func:`~hmodel.rev.kernels3d.bihex_trial` (n = 6, closed form, ``resp`` unused)."""
-    if eps.shape[0] == 6:
-        return bihex_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig)
-    return trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp)
-
-
-@njit(cache=True, error_model="numpy")
 def fd_tangent(values, eps, x, geo, p, mode, volume0, h, out, flags, K, resp):
     """K[i, j] = dsig_i / dx_j (n x n) by forward differences at trial increment x (n,): n + 1
     trials."""
@@ -263,21 +132,21 @@ def fd_tangent(values, eps, x, geo, p, mode, volume0, h, out, flags, K, resp):
     sig0 = np.empty(n)
     sig1 = np.empty(n)
     xp = x.copy()
-    any_trial(values, eps, xp, geo, p, mode, volume0, out, flags, sig0, resp)
+    point_trial(values, eps, xp, geo, p, mode, volume0, out, flags, sig0, resp)
     for j in range(n):
         xp[:] = x
         xp[j] += h
-        any_trial(values, eps, xp, geo, p, mode, volume0, out, flags, sig1, resp)
+        point_trial(values, eps, xp, geo, p, mode, volume0, out, flags, sig1, resp)
         for i in range(n):
             K[i, j] = (sig1[i] - sig0[i]) / h
 
 
 @njit(cache=True, error_model="numpy")
 def _slope_trial(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp, exact, u, K):
-    """:func:`any_trial`; with ``exact`` (a 2D meso surrogate), also the stress slope du along
+    """:func:`~hmodel.rev.trial.point_trial`; with ``exact`` (a 2D meso surrogate), also the stress slope du along
     u, set into K: K u = du, K unchanged on directions normal to u (a rank-one update)."""
     if not exact:
-        return any_trial(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp)
+        return point_trial(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp)
     du = np.empty(3)
     ok = trial_tangent(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp, u, du)
     uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2]
@@ -443,9 +312,32 @@ def _geo_row(geo, k):
     return k if geo.shape[0] > 1 else 0
 
 
+@njit(cache=True, inline="always")
+def _mean_normal(s, n_normal):
+    """The mean of the first ``n_normal`` components of a stress ``s``: its mean stress p, as
+    :func:`hmodel.rev.state.mean_stress` computes it."""
+    t = 0.0
+    for r in range(n_normal):
+        t += s[r]
+    return t / n_normal
+
+
+@njit(cache=True, error_model="numpy")
+def _known_increment(S, M, start, end, k, n_steps, v, x):
+    """The strain increment ``x`` of increment k of a segment of strain rows only, M^-1 v, as
+    Newton's one trial takes it (:func:`~hmodel.loading.newton.begin`); False where the rows
+    are dependent (Newton then says so)."""
+    segment_targets(S, start, end, k, n_steps, v)
+    r = solve(M, v)
+    if r is None:
+        return False
+    x[:] = r
+    return True
+
+
 def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_from, k_end,
-           geo, p, mode, volume0, c, max_events, rec, k_rec, stop, resp, guess, trials, sets,
-           dropped):
+           geo, p, mode, volume0, c, max_events, rec, k_rec, until, before, n_normal, met_at,
+           stop, resp, guess, trials, sets, dropped):
     """Increments k_from[b]..k_end-1 (1-based k of n_steps) of a segment for each of B material
     points of m components (3 or 6).
 
@@ -458,9 +350,18 @@ def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_from,
     compiled with ``parallel=True`` (:data:`_run_steps_parallel`) they run on all cores, each
     through all its increments (a point that needs more Newton trials than the others then
     holds up no increment of theirs). A ``dropped`` point (a failed one the caller chose to go
-    on without) is left as it is, its records NaN.
+    on without, or one a criterion ended) is left as it is, its records NaN.
+
+    ``until`` (B,) (empty: none): a point also ends at the first increment k after which its
+    mean stress (of its ``n_normal`` normal components) reaches ``until[b]``: ``met_at[b] = k``,
+    the point's state that one (or, ``before``, the one before it, the increment undone), its
+    later records NaN.
     """
     B, n = values.shape[0], values.shape[1]
+    m = eps.shape[1]
+    watch = until.shape[0] > 0
+    strain_only = not S.any()
+    save = watch and before and not strain_only
     for b in prange(B):
         stop[b] = k_end
         if dropped[b]:
@@ -480,64 +381,69 @@ def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_from,
         vals = values[b].copy()
         flg = flags[b].copy()
         gb, pb, rb = geo[_geo_row(geo, sets[b])], p[sets[b]], resp[b].copy()
+        # the state before each increment, where an increment that meets ``until`` is undone
+        kept = np.empty((n if save else 0, values.shape[2]))
+        kept_flags = np.empty((n if save else 0, flags.shape[2]), dtype=np.bool_)
+        kept_eps, kept_sig, kept_K = np.empty(m), np.empty(m), np.empty((m, m))
+        kept_guess = np.empty(guess.shape[1])
+        kept_has = False
+        # Strain rows only: every increment is the same known one, M^-1 v, and Newton's one
+        # trial evaluates it; made here, it is checked against ``until`` before it is taken.
+        x = np.empty(m)
+        known = strain_only and _known_increment(S, M, start[b], end[b], k_from[b], n_steps, v, x)
+        sig_n = np.empty(m)
         for k in range(k_from[b], k_end):
+            if known:
+                trials[b] += 1
+                if not point_trial(vals, eps[b], x, gb, pb, mode, volume0[sets[b]], buf[0], bufflags[0],
+                                 sig_n, rb):
+                    stop[b] = k  # the state is the one before increment k
+                    break
+                met = watch and _mean_normal(sig_n, n_normal) >= until[b]
+                if not (met and before):
+                    vals[:] = buf[0]
+                    flg[:] = bufflags[0]
+                    eps[b] += x
+                    sig[b, :] = sig_n
+                    _record(rec[k - k_rec, b], eps[b], sig[b], flg)
+                if met:
+                    met_at[b] = k
+                    for j in range(k if before else k + 1, k_end):
+                        rec[j - k_rec, b, :] = np.nan
+                    break
+                continue
             segment_targets(S, start[b], end[b], k, n_steps, v)
+            if save:
+                kept[:] = vals
+                kept_flags[:] = flg
+                kept_eps[:] = eps[b]
+                kept_sig[:] = sig[b]
+                kept_K[:] = K[b]
+                kept_guess[:] = guess[b]
+                kept_has = has_K[b]
             if solve_point(vals, flg, eps[b], sig[b], K[b], has_K[b:b + 1], S, M, v, gb, pb, mode,
                            volume0[sets[b]], c, max_events, buf, bufflags, rb, guess[b],
                            trials[b:b + 1]) != OK:
                 stop[b] = k  # solve_point restored the state before increment k
                 break
+            if watch and _mean_normal(sig[b], n_normal) >= until[b]:
+                met_at[b] = k
+                if before:
+                    vals[:] = kept
+                    flg[:] = kept_flags
+                    eps[b, :] = kept_eps
+                    sig[b, :] = kept_sig
+                    K[b, :, :] = kept_K
+                    guess[b, :] = kept_guess
+                    has_K[b] = kept_has
+                else:
+                    _record(rec[k - k_rec, b], eps[b], sig[b], flg)
+                for j in range(k if before else k + 1, k_end):
+                    rec[j - k_rec, b, :] = np.nan
+                break
             _record(rec[k - k_rec, b], eps[b], sig[b], flg)
         values[b] = vals
         flags[b] = flg
-
-
-def _iso_steps(values, flags, eps, sig, geo, p, mode, volume0, sets, step, p0, rec, done, failed,
-               resp):
-    """Up to ``rec.shape[0]`` isotropic strain increments (step on every normal component, no
-    shear: (step, step, 0) in 2D, (step, step, step, 0, 0, 0) in 3D) of every point not
-    ``done``, each committed while the mean stress stays below the point's ``p0``; the first
-    that would reach it is not, and marks the point ``done``. ``rec[j, b]`` receives the state
-    after the point's j-th committed increment (:func:`_record`), NaN where there is none.
-    A point whose cell increment fails is marked ``failed`` (and done), its state unchanged.
-    Learned responses ``resp`` (B, n, R > 0) belong to the states they were evaluated at: one
-    increment per call then (the caller evaluates the network between calls)."""
-    B = values.shape[0]
-    for b in prange(B):
-        rec[:, b, :] = np.nan
-        if done[b]:
-            continue
-        vals = values[b].copy()  # thread-local copies, as in _steps
-        flg = flags[b].copy()
-        out = np.empty_like(vals)
-        oflags = np.empty_like(flg)
-        gk = geo[_geo_row(geo, sets[b])]  # indexed in place, not copied: as in _steps
-        pk = p[sets[b]]
-        rb = resp[b].copy()
-        m = eps.shape[1]
-        normal = 2 if m == 3 else 3
-        x = np.zeros(m)
-        x[:normal] = step
-        e = eps[b].copy()
-        sg = sig[b].copy()
-        s = np.empty(m)
-        for j in range(rec.shape[0]):
-            if not any_trial(vals, e, x, gk, pk, mode, volume0[sets[b]], out, oflags, s, rb):
-                failed[b] = True
-                done[b] = True
-                break
-            if (0.5 * (s[0] + s[1]) if m == 3 else (s[0] + s[1] + s[2]) / 3.0) >= p0[b]:
-                done[b] = True
-                break
-            vals[:] = out
-            flg[:] = oflags
-            e += x
-            sg[:] = s
-            _record(rec[j, b], e, sg, flg)
-        values[b] = vals
-        flags[b] = flg
-        eps[b] = e
-        sig[b] = sg
 
 
 def _renamed(fn, name: str):
@@ -556,32 +462,6 @@ def _renamed(fn, name: str):
 _run_steps = njit(cache=True, error_model="numpy")(_steps)
 _run_steps_parallel = njit(cache=True, parallel=True, error_model="numpy")(
     _renamed(_steps, "_steps_parallel"))
-_run_iso_steps = njit(cache=True, parallel=True, error_model="numpy")(_iso_steps)
-
-
-def isotropic_steps(rev: Rev, state: RevState, step: float, p0: np.ndarray, n_max: int,
-                    failed: np.ndarray, inputs=batch_inputs) -> tuple[RevState, np.ndarray, np.ndarray]:
-    """Up to ``n_max`` isotropic strain increments of ``step`` of every point whose mean
-    stress is below its ``p0`` (B,), each stopping before the increment that would reach it
-    (the compiled form of the loop in :func:`hmodel.loading.named_paths.consolidate`).
-
-    Returns the new state, whether each point is done (reached p0 or failed; ``failed`` (B,)
-    is updated in place) and the records (n, B, 2m + 4) of the committed increments (NaN where a
-    point made none): n = n_max, or 1 for learned cells, whose responses are evaluated here for
-    the states of this one increment. ``inputs(rev)``: the kernel's (geo, p)
-    (:func:`batch_inputs` in 2D)."""
-    values = np.array(state.cells.values, dtype=float, order="C")
-    flags = np.array(state.flags.flags, dtype=np.bool_, order="C")
-    eps = np.array(state.eps, dtype=float, order="C")
-    sig = np.array(state.sig, dtype=float, order="C")
-    geo, p = inputs(rev)
-    done = np.ascontiguousarray(state.p >= p0) | failed
-    resp = cell_responses(rev, values, state.sets)
-    rec = np.empty((1 if rev.kernel.learned else n_max, state.n_points, 2 * state.n_components + 4))
-    _run_iso_steps(values, flags, eps, sig, geo, p, rev.mode, rev.volumes0,
-                   state.set_index.astype(np.int64), float(step), np.ascontiguousarray(p0, float),
-                   rec, done, failed, resp)
-    return RevState(CellState(values), CellFlags(flags), eps, sig, state.sets), done, rec
 
 
 class CompiledSegment:
@@ -589,16 +469,13 @@ class CompiledSegment:
 
     The state lives in arrays owned by this object; :meth:`state` returns it as a new
     :class:`RevState`. ``tangent`` is shared with the generic driver for handed-back increments.
-    Written for n components; :meth:`inputs` packs the REV's kernel inputs (the 2D REV's here,
-    the 3D REV's in :class:`hmodel.loading.compiled3d.CompiledSegment3D`).
+    Written for n components, on the REV's kernel inputs (2D or 3D alike).
     """
-
-    #: (geo, p) of the kernel: per-set geometry rows and packed cell parameters
-    inputs = staticmethod(batch_inputs)
 
     def __init__(self, rev: Rev, state: RevState, stress_rows, matrix, start, end, n_steps: int,
                  tangent: Tangent, settings: NewtonSettings = NewtonSettings(),
-                 failures: dict | None = None):
+                 failures: dict | None = None, until: np.ndarray | None = None,
+                 before: bool = False):
         self.rev, self.n_steps, self.tangent, self.settings = rev, n_steps, tangent, settings
         #: states kept by a run (none: its records are all there is; see GenericSegment)
         self.states: list[RevState] = []
@@ -616,7 +493,7 @@ class CompiledSegment:
         B, n = state.n_points, state.n_components
         self.has_K = np.full(B, tangent.K is not None and tangent.K.shape[0] == B)
         self.K = tangent.K.copy() if self.has_K.all() else np.zeros((B, n, n))
-        self.geo, self.p = self.inputs(rev)
+        self.geo, self.p = rev.kernel_inputs()  # (geometry rows per set or shared, parameters)
         self.sets = state.set_index.astype(np.int64)
         self._sets = state.sets  # as the state had them (None: all the first set)
         self.meso = rev.kernel.learned
@@ -629,6 +506,24 @@ class CompiledSegment:
         self.trials = np.zeros(B, dtype=np.int64)
         # the solver's own tolerance floor, as the generic driver takes it (``solve_increment``)
         self.c = settings.packed_for(rev.solver)
+        #: each point's mean stress at which the kernel ends it (empty: no such criterion;
+        #: ``before``: on the state before the increment that reaches it), the increment that
+        #: did (0: none yet) and the points a criterion ended, which take no more increments
+        self.until = (np.empty(0) if until is None else
+                      np.ascontiguousarray(np.broadcast_to(np.asarray(until, float), B)))
+        self.before = bool(before)
+        self.n_normal = normal_components(n)
+        self.met_at = np.zeros(B, dtype=np.int64)
+        self.frozen = np.zeros(B, dtype=np.bool_)
+
+    @property
+    def evaluates_stop(self) -> bool:
+        """Whether the kernel itself ends points at a mean stress (``until``)."""
+        return self.until.shape[0] > 0
+
+    def freeze(self, points: np.ndarray) -> None:
+        """The points of the mask (B,) take no more increments (a criterion ended them)."""
+        self.frozen |= points
 
     def state(self) -> RevState:
         return RevState(CellState(self.values.copy()), CellFlags(self.flags.copy()),
@@ -637,39 +532,54 @@ class CompiledSegment:
     # Copies of everything :meth:`run` changes, so that a caller can go back to a state between
     # chunks and run the same increments again (a loading program stopping on a criterion
     # re-runs the chunk that crossed it up to the crossing: same increments, same results).
-    _MUTABLE = ("values", "flags", "eps", "sig", "K", "has_K", "guess", "trials")
+    _MUTABLE = ("values", "flags", "eps", "sig", "K", "has_K", "guess", "trials", "met_at", "frozen")
 
     def snapshot(self) -> dict:
         """Copies of the arrays that :meth:`run` changes (see :meth:`restore`)."""
-        return {a: getattr(self, a).copy() for a in self._MUTABLE}
+        return {**{a: getattr(self, a).copy() for a in self._MUTABLE}, "dropped": self.dropped.copy()}
 
-    def restore(self, snap: dict) -> None:
-        """Go back to the state of a :meth:`snapshot` (the arrays are copied in place)."""
+    def restore(self, snap: dict, points: np.ndarray | None = None) -> None:
+        """Go back to the state of a :meth:`snapshot` (the arrays are copied in place): of
+        every point, or of the ``points`` (B,) mask's, which are also no longer dropped where
+        they were not then (the caller forgets their failures)."""
         for a in self._MUTABLE:
-            getattr(self, a)[...] = snap[a]
+            if points is None:
+                getattr(self, a)[...] = snap[a]
+            else:
+                getattr(self, a)[points] = snap[a][points]
+        if points is not None:
+            self.dropped[points] = snap["dropped"][points]
 
-    def run(self, k_begin: int, k_end: int) -> np.ndarray:
-        """Increments k_begin..k_end-1; returns their records (k_end - k_begin, B, 2n + 4)."""
+    def run(self, k_begin: int, k_end: int, caps: np.ndarray | None = None) -> np.ndarray:
+        """Increments k_begin..k_end-1 (each point below its ``caps`` (B,), where given);
+        returns their records (k_end - k_begin, B, 2n + 4), NaN where a point took none."""
         B, n = self.eps.shape
-        rec = np.empty((k_end - k_begin, B, 2 * n + 4))
+        shape = (k_end - k_begin, B, 2 * n + 4)
+        rec = np.empty(shape) if caps is None else np.full(shape, np.nan)
         # A meso surrogate's responses belong to the states an increment starts from: one
         # increment per kernel call, the network evaluated between them for every cell at once.
         stride = 1 if self.meso else k_end - k_begin
         steps = _run_steps_parallel if B > 1 else _run_steps
         for k0 in range(k_begin, k_end, stride):
-            k1 = min(k0 + stride, k_end)
-            k_from = np.full(B, k0, dtype=np.int64)
-            resp = cell_responses(self.rev, self.values, self._sets)
-            while (k_from < k1).any():
-                stop = np.empty(B, dtype=np.int64)
-                steps(self.values, self.flags, self.eps, self.sig, self.K, self.has_K, self.S,
-                      self.M, self.start, self.end, self.n_steps, k_from, k1, self.geo, self.p,
-                      self.rev.mode, self.rev.volumes0, self.c, self.settings.max_events, rec,
-                      k_begin, stop, resp, self.guess, self.trials, self.sets, self.dropped)
-                failed = stop < k1
-                for k in np.unique(stop[failed]):  # each failed increment to the generic driver
-                    self._hand_back(int(k), stop == k, rec[k - k_begin])
-                k_from = np.where(failed, stop + 1, k1)
+            for a, k1 in _windows(k0, min(k0 + stride, k_end), caps):
+                k_from = np.full(B, a, dtype=np.int64)
+                if caps is not None:  # the points whose cap comes first run no further
+                    k_from[caps < k1] = k1
+                    if not (k_from < k1).any():
+                        continue
+                resp = cell_responses(self.rev, self.values, self._sets)
+                while (k_from < k1).any():
+                    stop = np.empty(B, dtype=np.int64)
+                    steps(self.values, self.flags, self.eps, self.sig, self.K, self.has_K, self.S,
+                          self.M, self.start, self.end, self.n_steps, k_from, k1, self.geo, self.p,
+                          self.rev.mode, self.rev.volumes0, self.c, self.settings.max_events, rec,
+                          k_begin, self.until, self.before, self.n_normal, self.met_at, stop, resp,
+                          self.guess, self.trials, self.sets, self.dropped | self.frozen)
+                    self.frozen |= self.met_at > 0
+                    failed = stop < k1
+                    for k in np.unique(stop[failed]):  # each failed increment to the generic driver
+                        self._hand_back(int(k), stop == k, rec[k - k_begin])
+                    k_from = np.where(failed, stop + 1, k1)
         self.tangent.K = self.K.copy()
         if self.guess.shape[1]:
             self.tangent.previous = self.guess.copy()
@@ -686,11 +596,19 @@ class CompiledSegment:
                 if self.failures is None:
                     raise
                 points = e.drop_into(self.failures)
-                self.dropped[points] = True
-                rec_row[points] = np.nan
-                idx = idx[~np.isin(idx, points)]
-                if not len(idx):
+            except SolverError as e:  # a cell increment that cannot be solved, of some point
+                if self.failures is None:
+                    raise
+                if len(idx) > 1:  # whose: each point alone
+                    for b in idx:
+                        self._hand_back(k, np.arange(len(failed)) == b, rec_row)
                     return None
+                points = PointFailure(str(e), idx).drop_into(self.failures)
+            self.dropped[points] = True
+            rec_row[points] = np.nan
+            idx = idx[~np.isin(idx, points)]
+            if not len(idx):
+                return None
 
     def _hand_back_points(self, k: int, idx: np.ndarray, rec_row: np.ndarray) -> None:
         """Increment k of the points ``idx`` through ``solve_increment``."""
@@ -703,12 +621,33 @@ class CompiledSegment:
             out = solve_increment(self.rev, sub, control, tangent, self.settings)
         except PointFailure as e:  # name the failed points in this segment's batch
             raise e.renumber(idx)
+        take = np.ones(len(idx), bool)
+        if self.evaluates_stop:  # the kernel's criterion, on the increments it handed back
+            p = out.sig[:, 0].copy()
+            for r in range(1, self.n_normal):
+                p += out.sig[:, r]
+            hit = p / self.n_normal >= self.until[idx]
+            self.met_at[idx[hit]] = k
+            self.frozen[idx[hit]] = True
+            if self.before:  # those keep the state before the increment
+                take = ~hit
+                rec_row[idx[hit]] = np.nan
+        out, idx = out.select(take), idx[take]
         if self.guess.shape[1]:
-            self.guess[idx] = tangent.previous
+            self.guess[idx] = tangent.previous[take]
         self.values[idx], self.flags[idx] = out.cells.values, out.flags.flags
         self.eps[idx], self.sig[idx] = out.eps, out.sig
-        self.K[idx], self.has_K[idx] = tangent.K, True
+        self.K[idx], self.has_K[idx] = tangent.K[take], True
         n = out.n_components
         rec_row[idx, :n], rec_row[idx, n:2 * n] = out.eps, out.sig
         fr = out.fractions()
         rec_row[idx, 2 * n:] = np.stack([fr[c] for c in FRACTIONS], axis=1)
+
+
+def _windows(a: int, b: int, caps: np.ndarray | None) -> list[tuple[int, int]]:
+    """Increments a..b-1 cut where a point's cap (exclusive) falls inside them (one window
+    without caps)."""
+    if caps is None:
+        return [(a, b)]
+    cuts = sorted({a, b, *(int(c) for c in np.unique(caps) if a < c < b)})
+    return list(zip(cuts[:-1], cuts[1:]))

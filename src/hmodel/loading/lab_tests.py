@@ -15,10 +15,11 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..cell import CellSolver
-from ..errors import InputError
 from ..limits import check_rows
 from ..params import Params
 from ..rev import Rev
+# check_3d_params: the 3D model's refusal, imported from here by the stability probes too
+from ..rev.model3d import check_3d_param_sets, check_3d_params, params_3d  # noqa: F401
 from ..rev.rev3d import Rev3D
 from ..rev.sphere import Sphere
 from . import named_paths
@@ -26,17 +27,6 @@ from .named_paths import AXIAL_STEP, ISO_STEP, Progress
 from .result import PathResult, Recorder, columns_for
 from .segment import run_segment
 from .stages import Stage, check_b
-
-#: Parameters of the 2D model only, and what takes their place in 3D (:func:`check_3d_params`).
-PARAMS_2D_ONLY = {
-    "n_theta": "the 3D directions are the Lebedev rule's: --order N (and --azimuths M) on the "
-               "command line, [sphere] order in a program, Sphere(order=...) in Python",
-    "alpha_omega": "the 3D fabric is the sphere's: --fabric A on the command line, [sphere] "
-                   "alpha_omega in a program, Sphere(alpha_omega=...) in Python",
-    "beta_omega": "the 3D fabric's axis is the sphere's: the axial axis 1 on the command line, "
-                  "[sphere] axis in a program, Sphere(axis=...) in Python",
-    "alpha0_spread": "the 3D model's bi-hexagons all start at alpha0",
-}
 
 
 # ``solver``: a cell solver (None: the closed form); resolve a spec with hmodel.solvers.get_solver.
@@ -140,24 +130,15 @@ def run_strain_path(params: Params | Sequence[Params], eps, *, solver: CellSolve
 
 # ---------------------------------------------------------------------- 3D laboratory tests
 
-def check_3d_params(names, where: str = "--param") -> None:
-    """Refuse a 2D-only parameter (:data:`PARAMS_2D_ONLY`) given to a 3D test, naming its 3D
-    equivalent (one-line InputError)."""
-    for name in names:
-        if name in PARAMS_2D_ONLY:
-            raise InputError(f"{where}: parameter {name} is the 2D model's and has no meaning in 3D: "
-                             f"{PARAMS_2D_ONLY[name]}")
-
-
 def _run_3d(params, p0, test: str, rows, n_steps: int, *, sphere: Sphere | None,
             solver, iso_step: float, progress: Progress, drop_failed: bool,
             compiled: bool | None, **meta) -> Recorder:
     """Isotropic consolidation of a :class:`Rev3D` to each ``p0``, then the stage whose rows
-    ``rows(p0)`` gives (p0 per point, (B,)) in ``n_steps`` increments, recorded as ``shear``."""
-    sets = (params,) if isinstance(params, Params) else tuple(params)
-    for name in ("alpha_omega", "beta_omega", "alpha0_spread"):
-        if any(isinstance(p, Params) and getattr(p, name) != 0 for p in sets):
-            check_3d_params([name], "parameters")
+    ``rows(p0)`` gives (p0 per point, (B,)) in ``n_steps`` increments, recorded as ``shear``;
+    ``params`` None: the 3D model's defaults with this solver (:func:`~hmodel.rev.model3d.params_3d`)."""
+    if params is None:
+        params = params_3d(solver)
+    check_3d_param_sets(params)
     p0 = np.atleast_1d(np.asarray(p0, float))
     n_points, n_rows = _table_rows(params, len(p0), n_steps + 1)
     rev = Rev3D(params, sphere, solver)
@@ -180,7 +161,7 @@ def _run_3d(params, p0, test: str, rows, n_steps: int, *, sphere: Sphere | None,
 _SHEARS = {"eps23": 0.0, "eps13": 0.0, "eps12": 0.0}
 
 
-def run_triaxial(params: Params | Sequence[Params], p0, axial_strain: float, *,
+def run_triaxial(params: Params | Sequence[Params] | None, p0, axial_strain: float, *,
                  undrained: bool = False, extension: bool = False, sphere: Sphere | None = None,
                  solver=None, iso_step: float = ISO_STEP, step: float = AXIAL_STEP,
                  progress: Progress = None, drop_failed: bool = False,
@@ -191,9 +172,15 @@ def run_triaxial(params: Params | Sequence[Params], p0, axial_strain: float, *,
     σ33 = p0) or undrained (eps_v = 0, eps22 = eps33): the ``drained`` and ``undrained``
     stages of :data:`~hmodel.loading.stages.PRESETS_3D`.
 
-    ``sphere``: the directions, azimuths and fabric (default ``Sphere()``); ``solver``: a 3D
-    cell solver (default the closed-form bi-hexagon). ``params``, ``drop_failed``,
-    ``compiled``: as :func:`run_biaxial`. The result has the 3D columns of
+    ``params``: one Params for every material point, or one per point, used as given (their
+    ``sliding_rhs`` included: ``Params()`` is the report's λ, with which this test stops near
+    1 % axial strain); None: the 3D model's defaults, ``sliding_rhs="equilibrium"`` or a learned
+    cell's own (:func:`~hmodel.rev.model3d.params_3d`, which also builds them with other values,
+    as ``hmodel run triaxial`` does). ``sphere``: the directions, azimuths and fabric (default
+    ``Sphere()``); ``solver``: a 3D cell solver, or a 2D H-cell solver stepping the hexagons of
+    every bi-hexagon (default the closed-form bi-hexagon;
+    :func:`~hmodel.rev.model3d.cell_solver_3d`). ``drop_failed``, ``compiled``: as
+    :func:`run_biaxial`. The result has the 3D columns of
     :func:`~hmodel.loading.result.columns_for` (q = σ11 - (σ22 + σ33)/2, negative in
     extension; the Lode angle and b)."""
     n = named_paths.strain_steps(axial_strain, step, "axial strain")  # refused before any work
@@ -210,7 +197,7 @@ def run_triaxial(params: Params | Sequence[Params], p0, axial_strain: float, *,
     return rec.result()
 
 
-def run_true_triaxial(params: Params | Sequence[Params], p0, b: float, axial_strain: float, *,
+def run_true_triaxial(params: Params | Sequence[Params] | None, p0, b: float, axial_strain: float, *,
                       sphere: Sphere | None = None, solver=None, iso_step: float = ISO_STEP,
                       step: float = AXIAL_STEP, progress: Progress = None,
                       drop_failed: bool = False, compiled: bool | None = None) -> PathResult:
@@ -231,7 +218,7 @@ def run_true_triaxial(params: Params | Sequence[Params], p0, b: float, axial_str
     return rec.result()
 
 
-def run_oedometer(params: Params | Sequence[Params], p0, axial_strain: float, *,
+def run_oedometer(params: Params | Sequence[Params] | None, p0, axial_strain: float, *,
                   sphere: Sphere | None = None, solver=None, iso_step: float = ISO_STEP,
                   step: float = AXIAL_STEP, progress: Progress = None, drop_failed: bool = False,
                   compiled: bool | None = None) -> PathResult:

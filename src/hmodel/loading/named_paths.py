@@ -18,10 +18,9 @@ import numpy as np
 from ..errors import InputError, SolverError
 from ..limits import check_count, steps_for
 from ..rev import Rev, RevState
-from .compiled import isotropic_steps, supports
-from .compiled3d import isotropic_steps3d
+from ..rev.state import normal_components
 from .result import COMPONENTS, Recorder
-from .segment import CHUNK, Progress, Segment, alive, run_segment
+from .segment import MeanStressReaches, Progress, Segment, alive, run_segment
 from .stages import AXIAL_STEP, Stage
 
 #: Default strain increment of the isotropic compression (each of eps11, eps22).
@@ -43,11 +42,11 @@ def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_S
                 compiled: bool | None = None) -> RevState:
     """Isotropic compression: equal strain increments until the mean stress reaches ``p0``.
 
-    Each material point b stops at its own ``p0[b]`` [Pa]; the last increment is solved
-    (mixed control on p, :func:`isotropic_segment`) so that p = p0 exactly (``failures`` and
-    ``compiled``: see :func:`~hmodel.loading.segment.run_segment`; the compiled form runs every point's increments in
-    one kernel call, or, for learned cells, one increment per call with the network evaluated
-    between calls).
+    Each material point b stops at its own ``p0[b]`` [Pa]: the segment of
+    :func:`compression_segment`, each point ending before the increment that would reach it
+    (:class:`~hmodel.loading.segment.MeanStressReaches`), then one increment solved (mixed
+    control on p, :func:`isotropic_segment`) so that p = p0 exactly (``failures`` and
+    ``compiled``: see :func:`~hmodel.loading.segment.run_segment`).
     """
     p0 = _as_points(p0, "p0")
     if np.any(p0 <= 0):
@@ -58,18 +57,31 @@ def consolidate(rev: Rev, p0, state: RevState | None = None, step: float = ISO_S
     if len(p0) not in (1, state.n_points):
         raise InputError(f"{len(p0)} pressures for {state.n_points} material points")
     p0 = np.broadcast_to(p0, state.n_points).copy()  # one pressure for every parameter set
-    if compiled is None:
-        compiled = supports(rev)
-    if compiled:
-        state = _consolidate_compiled(rev, state, p0, step, recorder, progress, max_steps, failures)
-    else:
-        state = _consolidate_generic(rev, state, p0, step, recorder, progress, max_steps)
+    out = run_segment(rev, state, compression_segment(rev, step, max_steps), recorder,
+                      stop=MeanStressReaches(p0), stop_before=True, progress=progress,
+                      failures=failures, compiled=compiled)
+    state = out.state
+    short = ~(out.stopped if out.stopped is not None else np.zeros(state.n_points, bool))
+    if failures:
+        short &= alive(state.n_points, failures)
+    if short.any():
+        raise SolverError(f"isotropic compression did not reach p0 within {max_steps} steps "
+                          f"(p = {state.p.tolist()} Pa at strain {state.eps[:, 0].tolist()})")
     # (a segment of one increment: compiled where the solver allows it)
     state = run_segment(rev, state, isotropic_segment(state, p0), failures=failures,
-                        compiled=None if compiled else False).state
+                        compiled=None if compiled is not False else False).state
     if recorder is not None:
         recorder.record(state, "consolidation", alive(state.n_points, failures))
     return state
+
+
+def compression_segment(rev: Rev, step: float, max_steps: int) -> Segment:
+    """At most ``max_steps`` isotropic strain increments: ``step`` on every normal component,
+    no shear; a criterion ends it (:func:`consolidate`)."""
+    n = rev.n_components
+    values = np.zeros(n)
+    values[:normal_components(n)] = step
+    return Segment((False,) * n, np.eye(n), values, max_steps, "consolidation", per_increment=True)
 
 
 def isotropic_segment(state: RevState, p0: np.ndarray) -> Segment:
@@ -77,7 +89,7 @@ def isotropic_segment(state: RevState, p0: np.ndarray) -> Segment:
     shear strain: rows deps11 - deps22 = 0 (and deps22 - deps33 = 0 in 3D), p = p0, the
     shear strains held."""
     n = state.n_components
-    normal = 2 if n == 3 else 3
+    normal = normal_components(n)
     M = np.zeros((n, n))
     for i in range(normal - 1):
         M[i, i], M[i, i + 1] = 1.0, -1.0
@@ -86,62 +98,6 @@ def isotropic_segment(state: RevState, p0: np.ndarray) -> Segment:
     values = np.zeros((state.n_points, n))
     values[:, normal - 1] = p0
     return Segment(tuple(r == normal - 1 for r in range(n)), M, values, 1, "consolidation")
-
-
-def _consolidate_compiled(rev, state, p0, step, recorder, progress, max_steps, failures):
-    """The strain-controlled part of :func:`consolidate` in the compiled kernel, CHUNK
-    increments per call; a point whose cell increment fails is dropped into ``failures``
-    (or, without, stops the run)."""
-    failed = np.zeros(state.n_points, dtype=np.bool_)
-    if failures:
-        failed[list(failures)] = True
-    n = 0
-    while True:
-        start = state
-        steps = isotropic_steps3d if state.n_components == 6 else isotropic_steps
-        state, done, rec = steps(rev, state, step, p0, CHUNK, failed)
-        if recorder is not None:
-            m = state.n_components
-            recorder.record_block(rec[:, :, :m], rec[:, :, m:2 * m], rec[:, :, 2 * m:],
-                                  "consolidation")
-        n += len(rec)
-        if progress is not None:
-            progress(float(np.clip(np.min(np.where(failed, 1.0, state.p / p0)), 0, 1)))
-        for b in np.flatnonzero(failed):
-            if failures is None:
-                raise SolverError(f"isotropic compression failed: a cell increment of material "
-                                  f"point {b} could not be solved at strain {start.eps[b].tolist()}")
-            failures.setdefault(int(b), f"isotropic compression failed: a cell increment could "
-                                        f"not be solved at strain {state.eps[b].tolist()}")
-        if done.all():
-            return state
-        if n >= max_steps:
-            _not_reached(state, max_steps)
-
-
-def _not_reached(state, max_steps):
-    raise SolverError(f"isotropic compression did not reach p0 within {max_steps} steps "
-                      f"(p = {state.p.tolist()} Pa at strain {state.eps[:, 0].tolist()})")
-
-
-def _consolidate_generic(rev, state, p0, step, recorder, progress, max_steps):
-    """The strain-controlled part of :func:`consolidate`, one batched REV step at a time."""
-    active = state.p < p0
-    inc = np.zeros((state.n_points, state.n_components))
-    inc[:, :2 if state.n_components == 3 else 3] = step
-    n = 0
-    while active.any():
-        trial = rev.step(state, inc)
-        active &= trial.p < p0
-        state = trial.where(active, state)
-        if recorder is not None:
-            recorder.record(state, "consolidation", active)
-        n += 1
-        if progress is not None:
-            progress(float(np.clip(np.min(state.p / p0), 0, 1)))
-        if n >= max_steps:
-            _not_reached(state, max_steps)
-    return state
 
 
 def strain_steps(total: float, step: float, name: str) -> int:
@@ -224,9 +180,11 @@ def strain_path(rev: Rev, eps: np.ndarray, state: RevState | None = None,
     """Follow cumulative strains ``eps`` (rows, n), one recorded state per row (n: the REV's
     components, :data:`~hmodel.loading.result.COMPONENTS`).
 
-    Each row is reached from the previous one (the unloaded state for the first) in one
-    increment, split into equal sub-steps when ``max_step`` is given and a strain component
-    changes by more than it.
+    Each row is reached from the previous one (the unloaded state for the first) in a segment
+    of one increment, split into equal sub-steps when ``max_step`` is given and a strain
+    component changes by more than it; the state is then put at the row's strain exactly (its
+    stress recomputed there). The segments run on the generic driver, whose states are
+    :meth:`Rev.step`'s (the compiled 3D trial agrees with it to round-off only).
     """
     eps = np.asarray(eps, dtype=float)
     names = ", ".join(f"eps{c}" for c in COMPONENTS[rev.n_components])
@@ -238,10 +196,10 @@ def strain_path(rev: Rev, eps: np.ndarray, state: RevState | None = None,
     subs = [1 if not max_step else steps_for(c, max_step, f"strain path row {i + 1}")
             for i, c in enumerate(changes)]
     check_count(sum(subs), "increments of the strain path")
+    rows = (False,) * rev.n_components
     for i, (row, n) in enumerate(zip(eps, subs)):
-        d = row - prev
-        for _ in range(n):
-            state = rev.step(state, (d / n)[None, :])
+        seg = Segment(rows, np.eye(rev.n_components), row - prev, n, "path")
+        state = run_segment(rev, state, seg, compiled=False).state
         state = RevState(state.cells, state.flags, np.broadcast_to(row, state.eps.shape).copy(),
                          rev.stress(state.cells, row[None, :]))
         prev = row

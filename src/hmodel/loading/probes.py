@@ -6,9 +6,9 @@ compiled kernel: the public face of the compiled point for stability analyses
 eq. 1.7 or the solver's learned response); :func:`stress_responses` solves, for each stress
 target, the strain increment that reaches it (the loading paths' mixed-control Newton with every
 row stress-controlled; NaN where it does not converge). Both leave the state as it was.
-Both run on the kernels of :mod:`hmodel.loading.compiled`, written for n components: the 2D
-REV's three (the H-cell trial) and the 3D REV's six (the bi-hexagon trial,
-:mod:`hmodel.loading.compiled3d`). They need a solver with a compiled kernel (:func:`supports`).
+Both run on the kernels of :mod:`hmodel.loading.compiled`, written for n components, with the
+REV's own trial and kernel inputs (:func:`hmodel.rev.trial.point_trial`: the 2D REV's H-cells,
+the 3D REV's bi-hexagons). They need a solver with a compiled kernel (:func:`supports`).
 """
 
 from __future__ import annotations
@@ -17,9 +17,8 @@ import numpy as np
 from numba import njit
 
 from ..rev import Rev, RevState
-from .compiled import (NOT_CONVERGED, any_trial, cell_responses_of, fd_tangent, kernel_inputs,
-                       solve_point, supports)
-from .compiled3d import kernel_inputs3d
+from ..rev.trial import point_trial
+from .compiled import NOT_CONVERGED, cell_responses_of, fd_tangent, kernel_inputs, solve_point, supports
 from .newton import NewtonSettings
 
 __all__ = ["strain_responses", "stress_responses", "supports"]
@@ -30,7 +29,7 @@ def _strain_kernel(values, n_flags, eps, probes, geo, p, mode, volume0, sig, res
     out = np.empty_like(values)
     flags = np.empty((values.shape[0], n_flags), dtype=np.bool_)
     for k in range(probes.shape[0]):
-        any_trial(values, eps, probes[k], geo, p, mode, volume0, out, flags, sig[k], resp)
+        point_trial(values, eps, probes[k], geo, p, mode, volume0, out, flags, sig[k], resp)
 
 
 @njit(cache=True, error_model="numpy")
@@ -54,19 +53,11 @@ def _stress_kernel(values, flags, eps, sig, K, targets, geo, p, mode, volume0, c
             deps_out[k, j] = np.nan if status == NOT_CONVERGED else e[j] - eps[j]
 
 
-def _point_inputs(rev: Rev, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """(geo, p) of the kernel for a point of parameter set k, of a 2D or a 3D REV."""
-    if rev.n_components == 6:
-        geo, p = kernel_inputs3d(rev)  # one geometry for every set
-        return geo[0], np.ascontiguousarray(p[k])
-    return kernel_inputs(rev, k)
-
-
 def strain_responses(rev: Rev, one: RevState, deps: np.ndarray) -> np.ndarray:
     """Stresses (n, c) after each strain increment ``deps`` (n, c) from the single material
     point ``one`` (c: the REV's components, 3 in 2D, 6 in 3D)."""
     k = int(one.set_index[0])
-    geo, p = _point_inputs(rev, k)
+    geo, p = kernel_inputs(rev, k)
     sig = np.empty((len(deps), one.n_components))
     values = np.ascontiguousarray(one.cells.values[0])
     _strain_kernel(values, one.flags.flags.shape[-1], one.eps[0], np.ascontiguousarray(deps, float),
@@ -80,7 +71,7 @@ def stress_responses(rev: Rev, one: RevState, targets: np.ndarray,
     material point ``one`` (NaN rows where Newton does not converge), starting every solve
     from the point's finite-difference tangent."""
     k = int(one.set_index[0])
-    geo, p = _point_inputs(rev, k)
+    geo, p = kernel_inputs(rev, k)
     c = one.n_components
     values = np.ascontiguousarray(one.cells.values[0])
     flags = np.ascontiguousarray(one.flags.flags[0])

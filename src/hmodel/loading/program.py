@@ -41,11 +41,11 @@ from ..errors import InputError, SolverError
 from ..limits import check_count, check_rows
 from ..params import Params
 from ..rev import Rev, RevState
+from ..rev.model3d import assignments_3d, check_3d_params
 from ..rev.rev3d import Rev3D
 from ..rev.sphere import Sphere
 from .control import Tangent
 from .expressions import MAX_LENGTH, Criterion, Expression
-from .lab_tests import check_3d_params
 from .named_paths import ISO_STEP, consolidate
 from .newton import NewtonSettings
 from .result import PathResult, Recorder, columns_for
@@ -166,15 +166,21 @@ class Program:
         check_rows(program.n_increments, "the program's increments")
         return program
 
-    def with_params(self, assignments: Sequence[str] | None, base: Params | None = None) -> Params:
+    def with_params(self, assignments: Sequence[str] | None, base: Params | None = None,
+                    solver: CellSolver | None = None) -> Params:
         """The program's ``[params]`` overridden by ``NAME=VALUE`` assignments (``-p``), on
-        ``base`` (default: the defaults; a calibrated model's parameters); a 3D program refuses
-        the 2D model's own parameters (n_theta, alpha_omega, beta_omega)."""
-        if self.sphere is not None:
-            check_3d_params([a.partition("=")[0].strip() for a in assignments or []],
-                            "--param of a 3D program")
-        return Params.parse_assignments([f"{k}={v}" for k, v in self.params.items()]
-                                        + list(assignments or []), base)
+        ``base`` (default: the defaults; a calibrated model's parameters). A 3D program refuses
+        the 2D model's own parameters (n_theta, alpha_omega, beta_omega) and, where neither its
+        ``[params]``, the assignments nor a ``base`` set ``sliding_rhs``, takes the 3D model's
+        (``equilibrium``, or the one the learned cell of ``solver`` was trained with:
+        :func:`~hmodel.rev.model3d.assignments_3d`), as ``hmodel run triaxial`` does."""
+        given = [f"{k}={v}" for k, v in self.params.items()]
+        if self.sphere is None:
+            return Params.parse_assignments(given + list(assignments or []), base)
+        check_3d_params([a.partition("=")[0].strip() for a in assignments or []],
+                        "--param of a 3D program")
+        return Params.parse_assignments(assignments_3d(given + list(assignments or []), solver, base,
+                                                       "[params] of a 3D program"), base)
 
     @property
     def n_increments(self) -> int:
@@ -184,10 +190,15 @@ class Program:
 
     # ------------------------------------------------------------------ running
 
-    def run(self, params: Params, solver: CellSolver | None = None, progress=None,
+    def run(self, params: Params | None, solver: CellSolver | None = None, progress=None,
             chunk: Callable[[RevState, int], int] | None = None,
             settings: NewtonSettings = NewtonSettings()) -> PathResult:
         """Run the program on one material point of ``params``; returns the table of every state.
+
+        ``params`` is used as given (in 3D too: ``Params()`` is the report's λ); None: the
+        program's own, :meth:`with_params` (the 3D model's defaults in a 3D program).
+        ``solver``: the cell solver (None: the closed form); in a 3D program a 2D H-cell solver
+        steps the hexagons of every bi-hexagon (:func:`~hmodel.rev.model3d.cell_solver_3d`).
 
         ``meta["stopped"]`` lists the criteria that ended stages or cycles early (stage, cycle,
         criterion). An increment that cannot be solved raises :class:`ProgramFailed`, whose
@@ -196,6 +207,8 @@ class Program:
         ``settings``: the mixed-control Newton's (e.g. ``max_events``, the cell events one
         increment may commit before it is refused).
         """
+        if params is None:
+            params = self.with_params(None, solver=solver)
         if not isinstance(params, Params):
             raise InputError("a program runs one material point: give one parameter set")
         rev = self.make_rev(params, solver)
@@ -222,14 +235,10 @@ class Program:
 
     def make_rev(self, params: Params, solver: CellSolver | None = None) -> Rev | Rev3D:
         """The REV the program runs on (also the stability probes' REV, :mod:`hmodel.stability`):
-        a 2D :class:`Rev`, or for ``dim = 3`` a :class:`Rev3D` of the program's sphere."""
+        a 2D :class:`Rev`, or for ``dim = 3`` a :class:`Rev3D` of the program's sphere, whose
+        bi-hexagons a 2D H-cell ``solver`` steps (the closed form's: the closed-form bi-hexagon)."""
         if self.sphere is None:
             return Rev(params, solver)
-        if solver is not None and solver.n_lengths != 3:
-            if solver.name != "closed-form":
-                raise InputError(f"a 3D program runs on the closed-form bi-hexagon; the cell "
-                                 f"solver {solver.name!r} is a 2D one")
-            solver = None  # "closed-form" of the command line: the bi-hexagon's in 3D
         return Rev3D(params, self.sphere, solver)
 
     @property

@@ -8,6 +8,8 @@ localization and averaging.
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 
 from ..cell import CellFlags, CellState
@@ -55,6 +57,25 @@ class RevBatch:
     def kernel(self):
         """The first set's compiled increment (None: the solver has none)."""
         return None if self.kernels is None else self.kernels[0]
+
+    def kernel_inputs(self) -> tuple[np.ndarray, np.ndarray]:
+        """The inputs of the compiled trial of a point (:func:`hmodel.rev.trial.point_trial`),
+        the same encoding in 2D and 3D: the cells' geometry rows (G, C, width), one block per
+        parameter set (G = K) or one for all (G = 1), and each set's packed cell parameters
+        (K, P) (:meth:`hmodel.cell.CellSolver.kernel`). Built once; read-only."""
+        return self._kernel_inputs
+
+    @cached_property
+    def _kernel_inputs(self) -> tuple[np.ndarray, np.ndarray]:
+        if self.kernels is None:
+            raise InputError(f"{self.solver.name} cells have no compiled increment: the REV runs on "
+                             "the generic driver")
+        return (np.ascontiguousarray(self._kernel_geometry()),
+                np.ascontiguousarray(np.stack([k.params for k in self.kernels])))
+
+    def _kernel_geometry(self) -> np.ndarray:
+        """The geometry rows (G, C, width) of :meth:`kernel_inputs`."""
+        raise NotImplementedError
 
     def check_size(self, n_points: int, what: str = "", extra_bytes: float = 0.0, rows: int = 0,
                    columns: int = 0) -> None:

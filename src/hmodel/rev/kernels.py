@@ -1,18 +1,31 @@
-"""Compiled loops of the REV: strain localization (eq. 1.1) and stress averaging (eq. 1.15).
+"""Compiled loops of the REV: strain localization (eq. 1.1) and stress averaging (eq. 1.15),
+and the 2D REV's fused trial of one material point (:func:`trial`, for the compiled loading
+path and the FEM material).
 
-Arrays are flat over (material point, direction): cell ``k = b*n_theta + i``.
+In :func:`localize` and :func:`average` arrays are flat over (material point, direction): cell
+``k = b*n_theta + i``. The trial reads its geometry as the 3D REV's does
+(:mod:`hmodel.rev.kernels3d`): one row per cell, here (cos², sin², sin·cos and their weighted
+versions) (:data:`GEO_WIDTH`, :meth:`hmodel.rev.Rev.kernel_inputs`).
 """
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
+from ..cell.base import LAW_COMPLIANCE, LAW_MESO, P_LAW
+from ..cell.closed_form import P_KN, P_R, cell_increment, cell_jacobian
+from ..cell.compliance_kernel import compliance_increment
+from ..cell.meso_kernel import meso_increment
 from ..cell.mesostress import vsigma_local
 
 # Localization modes: on which lengths the strain acts (docs/model.md, step 5).
 LOC_CELL, LOC_BOX, LOC_VIRTUAL = 0, 1, 2
+#: Per-cell inputs of the 2D trial: cos², sin², sin·cos of the direction, then each times its
+#: weight (eq. 1.17).
+GEO_WIDTH = 6
 
 
 @njit(cache=True, inline="always")
@@ -73,3 +86,119 @@ def average(values, wcos2, wsin2, wsincos, kn, sets, radius, vsig):
         vsig[b, 0] = s11
         vsig[b, 1] = s22
         vsig[b, 2] = s12
+
+
+@njit(cache=True, error_model="numpy")
+def trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
+    """REV step of one material point: cells ``values`` (n, n_fields) -> ``out``, stress -> ``sig``.
+
+    Same operations, in the same order, as ``Rev.localize``, the cell solver and ``Rev.stress``:
+    the closed-form cell kernel, or with learned responses ``resp`` (n, R > 0) the law at
+    ``p[P_LAW]``: the meso surrogate's trial (``meso_kernel.meso_increment``) or learned
+    compliances (``compliance_kernel.compliance_increment``). Returns False when a cell increment
+    failed.
+    """
+    return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, False,
+                       deps, sig)
+
+
+@njit(cache=True, error_model="numpy")
+def trial_tangent(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, u, dsig):
+    """:func:`trial` of a meso surrogate that also gives ``dsig``, the derivative of the stress
+    along the strain direction ``u`` (3,): exact within every cell's regime."""
+    return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, True, u,
+                       dsig)
+
+
+@njit(cache=True, error_model="numpy")
+def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, tangent, u, dsig):
+    two_r = 2.0 * p[P_R]
+    kn = p[P_KN]
+    e11, e22, e12 = deps[0], deps[1], deps[2]
+    s11 = 0.0
+    s22 = 0.0
+    s12 = 0.0
+    d11 = 0.0
+    d22 = 0.0
+    d12 = 0.0
+    dv = np.empty(2)
+    ok = True
+    law = p[P_LAW] if resp.shape[1] > 0 else 0.0
+    meso = law == LAW_MESO
+    for i in range(values.shape[0]):
+        dl1, dl2 = cell_dl(values, i, e11, e22, e12, geo[i, 0], geo[i, 1], geo[i, 2], mode, p[P_R])
+        if meso:
+            ddl1 = ddl2 = 0.0
+            if tangent:  # cell_dl is linear in the strain: its derivative along u is cell_dl(u)
+                ddl1, ddl2 = cell_dl(values, i, u[0], u[1], u[2], geo[i, 0], geo[i, 1], geo[i, 2], mode,
+                                     p[P_R])
+            ok &= meso_increment(values, i, dl1, dl2, p, resp, out, flags, tangent, ddl1, ddl2, dv)
+            vnn, vtt = out[i, 8], out[i, 9]  # V sigma_nt = 0
+            if tangent:
+                b11, b22, b12 = weighted_global(dv[0], dv[1], geo[i, 3], geo[i, 4], geo[i, 5])
+                d11 += b11
+                d22 += b22
+                d12 += b12
+        else:
+            if law == LAW_COMPLIANCE:
+                ok &= compliance_increment(values, i, dl1, dl2, resp, p, out, flags)
+            else:
+                ok &= cell_increment(values, i, dl1, dl2, p, out, flags, 0, 0)
+            vnn, vtt = vsigma_local(out, i, kn, two_r)
+        a11, a22, a12 = weighted_global(vnn, vtt, geo[i, 3], geo[i, 4], geo[i, 5])
+        s11 += a11
+        s22 += a22
+        s12 += a12
+    t11 = eps[0] + e11  # total strain after the trial: the macro volume V0 det(I - eps)
+    t22 = eps[1] + e22
+    t12 = eps[2] + e12
+    v = volume0 * ((1 - t11) * (1 - t22) - t12 ** 2)
+    sig[0] = s11 / v
+    sig[1] = s22 / v
+    sig[2] = s12 / v
+    if tangent:  # d(S / V) = dS / V - sig dV / V
+        dvol = volume0 * (-(1 - t22) * u[0] - (1 - t11) * u[1] - 2.0 * t12 * u[2])
+        dsig[0] = (d11 - sig[0] * dvol) / v
+        dsig[1] = (d22 - sig[1] * dvol) / v
+        dsig[2] = (d12 - sig[2] * dvol) / v
+    return ok
+
+
+@njit(cache=True, error_model="numpy")
+def closed_form_tangent(values, eps, deps, geo, p, mode, volume0, sig, D):
+    """The exact tangent ``D`` (3, 3), dsig_i / ddeps_j, of the closed form's :func:`trial` at
+    ``deps`` whose stress is ``sig``, in the regime each cell takes there (one pass over the
+    cells, where forward differences take three trials). Returns False where a cell increment
+    fails.
+
+    Chain rule through the operations of :func:`trial`: the localization (eq. 1.1, linear in
+    the strain, so its derivative along e_j is itself at e_j), the cells' own Jacobians
+    (:func:`hmodel.cell.closed_form.cell_jacobian`), the weighted rotation to the global frame
+    (eqs. 1.15-1.16, linear) and the macro volume V0 det(I - eps): d(S / V) = dS / V - sig dV / V.
+    """
+    e11, e22, e12 = deps[0], deps[1], deps[2]
+    D[:, :] = 0.0
+    ok = True
+    for i in range(values.shape[0]):
+        dl1, dl2 = cell_dl(values, i, e11, e22, e12, geo[i, 0], geo[i, 1], geo[i, 2], mode, p[P_R])
+        good, j11, j12, j21, j22 = cell_jacobian(
+            values[i, 0], values[i, 1], values[i, 2], values[i, 3], values[i, 4], values[i, 5],
+            values[i, 6], values[i, 7], dl1, dl2, p)
+        ok &= good
+        for j in range(3):
+            u1, u2 = cell_dl(values, i, 1.0 if j == 0 else 0.0, 1.0 if j == 1 else 0.0,
+                             1.0 if j == 2 else 0.0, geo[i, 0], geo[i, 1], geo[i, 2], mode, p[P_R])
+            b11, b22, b12 = weighted_global(j11 * u1 + j12 * u2, j21 * u1 + j22 * u2, geo[i, 3],
+                                            geo[i, 4], geo[i, 5])
+            D[0, j] += b11
+            D[1, j] += b22
+            D[2, j] += b12
+    t11 = eps[0] + e11
+    t22 = eps[1] + e22
+    t12 = eps[2] + e12
+    v = volume0 * ((1 - t11) * (1 - t22) - t12 ** 2)
+    dvol = (-volume0 * (1 - t22), -volume0 * (1 - t11), -2.0 * volume0 * t12)
+    for j in range(3):
+        for k in range(3):
+            D[k, j] = (D[k, j] - sig[k] * dvol[j]) / v
+    return ok

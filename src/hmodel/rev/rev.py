@@ -135,6 +135,13 @@ class Rev(RevBatch):
     def _no_flags(self, shape: tuple[int, ...]) -> CellFlags:
         return CellFlags.none(shape)
 
+    def _kernel_geometry(self) -> np.ndarray:
+        """Each set's direction factors (K, n_theta, 6) of the 2D trial
+        (:func:`hmodel.rev.kernels.trial`): cos², sin², sin·cos and each times the set's weight."""
+        d = self.directions
+        return np.stack([np.stack([d.cos2, d.sin2, d.sincos, w * d.cos2, w * d.sin2, w * d.sincos],
+                                  axis=-1) for w in self.weights])
+
     def localize(self, cells: CellState, deps: np.ndarray) -> np.ndarray:
         """Length increments (B, n_theta, 2) of every cell for macro strain increments (B, 3)."""
         values = np.ascontiguousarray(cells.values[..., :8]).reshape(-1, 8)

@@ -21,6 +21,7 @@ from ..params import Params, check_batch
 from .batch import RevBatch
 from .kernels import LOC_BOX, LOC_CELL
 from .kernels3d import geometry
+from .model3d import cell_solver_3d
 from .sphere import Sphere
 from .state import RevState
 
@@ -80,7 +81,12 @@ class Rev3D(RevBatch):
         e.g. the DEM bi-hexagon ``dem:bihexagon``, runs on the generic loading driver when it
         has no compiled kernel), or a 2D H-cell solver, which
         then steps each hexagon of every bi-hexagon (``BiHexSolver(hexagon=solver)``; e.g. a
-        surrogate of the closed-form H-cell: the learned 3D cell, docs/model3d.md).
+        surrogate of the closed-form H-cell: the learned 3D cell, docs/model3d.md): the 3D
+        model's rule, :func:`hmodel.rev.model3d.cell_solver_3d`.
+
+    The parameters are used as given: ``Params()`` is the report's λ, with which the 3D REV's
+    mixed-control tests stop near 1 % strain; :func:`hmodel.rev.model3d.params_3d` gives the
+    3D model's defaults (``sliding_rhs="equilibrium"``).
 
     Examples
     --------
@@ -95,11 +101,7 @@ class Rev3D(RevBatch):
 
     def __init__(self, params: Params | Sequence[Params], sphere: Sphere | None = None,
                  solver: BiHexSolver | None = None):
-        if solver is None:
-            solver = BiHexSolver()
-        elif solver.n_lengths != 3:  # a 2D H-cell solver steps the hexagons
-            solver = BiHexSolver(hexagon=solver)
-        self.solver = solver
+        self.solver = cell_solver_3d(solver)
         #: the parameter sets (K,), and the first, whose shared fields all sets have
         self.sets = check_batch(params)
         for s in self.sets:
@@ -183,3 +185,12 @@ class Rev3D(RevBatch):
         if deps.shape != state.eps.shape:
             raise InputError(f"a 3D strain increment has shape {state.eps.shape}, got {deps.shape}")
         return super().step(state, deps)
+
+    def _kernel_geometry(self) -> np.ndarray:
+        """The cells' projector rows and weighted dyads (1, C, 36), one block for every set
+        (:meth:`geometry`). The 3D trial is the closed form's: a learned 3D cell's kernel is
+        refused (one-line :class:`~hmodel.errors.InputError`), not ignored."""
+        if any(k.learned for k in self.kernels):
+            raise InputError("the compiled 3D trial applies the closed-form bi-hexagon; a learned 3D "
+                             "cell runs on the generic driver (run_segment(..., compiled=False))")
+        return self.geometry()[None]

@@ -15,8 +15,9 @@ from ..cell import CellFlags, CellState
 from ..errors import InputError
 
 
-def _normal(n: int) -> int:
-    """Normal components of a (..., n) strain or stress: 2 in 2D (n = 3), 3 in 3D (n = 6)."""
+def normal_components(n: int) -> int:
+    """Normal components of a (..., n) strain or stress, the first ones: 2 in 2D (n = 3), 3 in
+    3D (n = 6)."""
     if n not in (3, 6):
         raise InputError(f"a strain or stress has 3 (2D) or 6 (3D) components, got {n}")
     return 2 if n == 3 else 3
@@ -24,7 +25,7 @@ def _normal(n: int) -> int:
 
 def mean_stress(sig: np.ndarray) -> np.ndarray:
     """p (...) of stresses (..., n): the mean of the normal components."""
-    if _normal(sig.shape[-1]) == 2:
+    if normal_components(sig.shape[-1]) == 2:
         return 0.5 * (sig[..., 0] + sig[..., 1])
     return (sig[..., 0] + sig[..., 1] + sig[..., 2]) / 3.0
 
@@ -33,7 +34,7 @@ def deviatoric_stress(sig: np.ndarray) -> np.ndarray:
     """q (...) of stresses (..., n): sig11 - sig22 in 2D (the report's q, §1.1.2); in 3D
     sig11 - (sig22 + sig33)/2, axis 1 axial: sig_a - sig_r in a triaxial test, negative in
     extension (the contract of DESIGN.md; :func:`equivalent_stress` is the invariant)."""
-    if _normal(sig.shape[-1]) == 2:
+    if normal_components(sig.shape[-1]) == 2:
         return sig[..., 0] - sig[..., 1]
     return sig[..., 0] - 0.5 * (sig[..., 1] + sig[..., 2])
 
@@ -48,7 +49,7 @@ def equivalent_stress(sig: np.ndarray) -> np.ndarray:
 
 def volumetric_strain(eps: np.ndarray) -> np.ndarray:
     """eps_v (...) of strains (..., n): the trace."""
-    if _normal(eps.shape[-1]) == 2:
+    if normal_components(eps.shape[-1]) == 2:
         return eps[..., 0] + eps[..., 1]
     return eps[..., 0] + eps[..., 1] + eps[..., 2]
 

@@ -16,11 +16,11 @@
 
 - ``family`` (``h-cell-family.safetensors``): the default network's recipe over a range of
   materials (kt/kn 0.2–1, φg 10–45°, α0 35–75°; kn and r scaled out): kt/kn and tan φg are
-  inputs, the training domain is stored and checked (issue 36).
+  inputs, the training domain is stored and checked.
 - ``hexagon-center-family`` (``hexagon-center-family.safetensors``): the richer cell's ``meso``
   network over a range of materials (kt/kn 0.2–1, φg 10–45°, α0 35–60°: kt/kn, tan φg and α0
   are inputs), from 508,800 DEM rows of 168 materials; runs without YADE, with
-  ``sliding_rhs=equilibrium``, and calibrates (issue 36).
+  ``sliding_rhs=equilibrium``, and calibrates.
 
 Each is produced by the commands in ``models/README.md`` (a fixed dataset, sample and seed) and
 loaded like any other model file (checked, never unpickled).

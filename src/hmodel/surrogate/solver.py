@@ -67,7 +67,7 @@ from .state_cache import StateCache, distinct_rows
 
 #: Parameters a surrogate is specific to (it was trained on cells with these values).
 MATERIAL = ("kn", "kt_kn", "phi_g", "radius", "g2", "sliding_rhs", "volume")
-#: Parameters a family network (one with material inputs, issue 36) scales out: its inputs and
+#: Parameters a family network (one with material inputs) scales out: its inputs and
 #: outputs are forces in kn·2r and lengths in 2r, so any kn and r give the same scaled response.
 SCALED = ("kn", "radius")
 

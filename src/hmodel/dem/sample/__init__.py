@@ -3,6 +3,8 @@ isotropically to p0 and sheared in a drained or undrained biaxial test; or, with
 3D periodic assembly of polydisperse spheres sheared in a drained or undrained triaxial
 compression or a drained triaxial extension (the differences are listed at the end).
 
+- :mod:`~hmodel.dem.sample.geometry`: :class:`Disks` and :class:`Spheres`, everything that
+  differs between a 2D and a 3D sample (:func:`grains`);
 - :mod:`~hmodel.dem.sample.settings`: :class:`SampleSettings` (everything but a test's kind and
   p0), the strain rate and inertial number;
 - :mod:`~hmodel.dem.sample.packing`: the seeded radii and initial gas of disks;
@@ -43,15 +45,17 @@ in Pa, masses density 4/3 pi r^3, and sample.png shows the tests' curves.
 """
 
 from .draw import draw_curves, draw_sample
+from .geometry import (CONTACT_COLUMNS, CONTACT_COLUMNS_3D, CSV_COLUMNS, CSV_COLUMNS_3D, DISTRIBUTIONS,
+                       DISTRIBUTIONS_3D, KINDS, KINDS_3D, ROW_COLUMNS, ROW_COLUMNS_3D, Disks, Grains,
+                       Spheres, grains)
 from .packing import initial_packing, mean_diameter, radii
-from .result import CSV_COLUMNS, CSV_COLUMNS_3D, ROW_COLUMNS, ROW_COLUMNS_3D, SampleTest, file_stem
+from .result import SampleTest, file_stem
 from .run import RESUME_FREE, run_sample, run_test
-from .settings import (DISTRIBUTIONS, DISTRIBUTIONS_3D, KINDS, KINDS_3D, SampleSettings, inertial_number,
-                       kinds, option_name, strain_rate)
-from .state import CONTACT_COLUMNS, CONTACT_COLUMNS_3D, SampleState
+from .settings import SampleSettings, inertial_number, kinds, option_name, strain_rate
+from .state import SampleState
 
 __all__ = ["CONTACT_COLUMNS", "CONTACT_COLUMNS_3D", "CSV_COLUMNS", "CSV_COLUMNS_3D", "DISTRIBUTIONS",
-           "DISTRIBUTIONS_3D", "KINDS", "KINDS_3D", "RESUME_FREE", "ROW_COLUMNS", "ROW_COLUMNS_3D",
-           "SampleSettings", "SampleState", "SampleTest", "draw_curves", "draw_sample", "file_stem",
-           "inertial_number", "initial_packing", "kinds", "mean_diameter", "option_name", "radii",
-           "run_sample", "run_test", "strain_rate"]
+           "DISTRIBUTIONS_3D", "Disks", "Grains", "KINDS", "KINDS_3D", "RESUME_FREE", "ROW_COLUMNS",
+           "ROW_COLUMNS_3D", "SampleSettings", "SampleState", "SampleTest", "Spheres", "draw_curves",
+           "draw_sample", "file_stem", "grains", "inertial_number", "initial_packing", "kinds",
+           "mean_diameter", "option_name", "radii", "run_sample", "run_test", "strain_rate"]

@@ -8,13 +8,11 @@ import os
 
 import numpy as np
 
-from .state import SampleState
 
-
-def draw_sample(states: list[tuple[str, SampleState]], path: "str | os.PathLike") -> None:
-    """The packings side by side: disks, and contacts as lines from centre to centre whose
-    width and colour follow the normal force (force chains); contacts across the periodic
-    boundary are drawn from both ends."""
+def draw_sample(states: list[tuple[str, "SampleState"]], path: "str | os.PathLike") -> None:
+    """The packings (title, :class:`~hmodel.dem.sample.state.SampleState`) side by side: disks,
+    and contacts as lines from centre to centre whose width and colour follow the normal force
+    (force chains); contacts across the periodic boundary are drawn from both ends."""
     from matplotlib import colormaps
     from matplotlib.cm import ScalarMappable
     from matplotlib.collections import LineCollection, PatchCollection

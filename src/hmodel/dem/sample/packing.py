@@ -16,10 +16,7 @@ def radii(settings: SampleSettings, rng: np.random.Generator) -> np.ndarray:
     u = rng.random(settings.disks)
     if settings.distribution == "uniform" or a == b:
         return a + (b - a) * u
-    if settings.dim == 2:
-        return 1.0 / (1.0 / a - u * (1.0 / a - 1.0 / b))  # equal-area: pdf ~ r^-2
-    # equal-volume: pdf ~ r^-3, inverse of the CDF (a^-2 - r^-2) / (a^-2 - b^-2) (derived here)
-    return (a ** -2 - u * (a ** -2 - b ** -2)) ** -0.5
+    return settings.grains.graded_radii(a, b, u)  # equal-area disks, equal-volume spheres
 
 
 def initial_packing(settings: SampleSettings) -> tuple[np.ndarray, np.ndarray, tuple[float, ...]]:
@@ -27,14 +24,8 @@ def initial_packing(settings: SampleSettings) -> tuple[np.ndarray, np.ndarray, t
     (cube) of a jittered lattice of spacing 2.1 r_max (no overlap), in random sites."""
     rng = np.random.default_rng(settings.seed)
     r = radii(settings, rng)
-    n, dim = settings.disks, settings.dim
-    if dim == 2:
-        nx = math.ceil(math.sqrt(n))
-        shape = (nx, math.ceil(n / nx))
-    else:
-        nx = round(n ** (1.0 / 3.0))
-        nx += nx ** 3 < n
-        shape = (nx, nx, math.ceil(n / nx ** 2))
+    n, dim = settings.disks, settings.grains.dim
+    shape = settings.grains.lattice(n)
     s = 2.1 * settings.r_max
     sites = rng.permutation(math.prod(shape))[:n]
     ij = np.stack(np.unravel_index(sites, shape, order="F"), axis=1).astype(float)

@@ -6,33 +6,35 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from .state import SampleState, contact_columns
-
-#: Columns of the test CSV: the ``--data`` format of ``hmodel calibrate`` (eps11, q, eps_v, p),
-#: then the coordination number and the sliding fraction (ignored by ``--data``).
-CSV_COLUMNS = ("eps11", "q", "eps_v", "p", "coordination", "sliding")
-#: Columns of a recorded row (``rows`` of the npz file); contacts: YADE's real interactions,
-#: sliding: the fraction of the contacts at the Coulomb limit.
-ROW_COLUMNS = ("eps11", "eps22", "s11", "s22", "s12", "unbalanced", "contacts", "sliding")
-#: Columns of a sphere sample's test CSV: the triaxial ``--data`` format (eps_a, q, eps_v, p),
-#: then the coordination number, the sliding fraction and the stress tensor [Pa].
-CSV_COLUMNS_3D = ("eps_a", "q", "eps_v", "p", "coordination", "sliding",
-                  "sig11", "sig22", "sig33", "sig12", "sig13", "sig23")
-#: Columns of a sphere sample's recorded row (``rows`` of the npz file); contacts: pairs in
-#: contact, sliding: the fraction of them at the Coulomb limit.
-ROW_COLUMNS_3D = ("eps11", "eps22", "eps33", "s11", "s22", "s33", "s12", "s13", "s23",
-                  "unbalanced", "contacts", "sliding")
+from .geometry import (  # noqa: F401 (the columns: importers of their first home)
+    CSV_COLUMNS,
+    CSV_COLUMNS_3D,
+    ROW_COLUMNS,
+    ROW_COLUMNS_3D,
+    grains,
+)
+from .state import SampleState
 
 
 def row_columns(dim: int) -> tuple[str, ...]:
-    return ROW_COLUMNS if dim == 2 else ROW_COLUMNS_3D
+    return grains(dim).row_columns
 
 
 def csv_columns(dim: int) -> tuple[str, ...]:
-    return CSV_COLUMNS if dim == 2 else CSV_COLUMNS_3D
+    return grains(dim).csv_columns
+
+
+def read_table(path: Path) -> dict[str, np.ndarray] | None:
+    """A test CSV's columns, or None for a CSV removed by hand."""
+    if not path.exists():
+        return None
+    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    header = path.read_text().split("\n", 1)[0].split(",")
+    return {c: data[:, k] for k, c in enumerate(header)}
 
 
 def file_stem(kind: str, p0: float) -> str:
@@ -75,27 +77,16 @@ class SampleTest:
         return self.consolidated.dim
 
     def column(self, name: str) -> np.ndarray:
-        return self.rows[:, row_columns(self.dim).index(name)]
+        return self.rows[:, self.consolidated.grains.row_columns.index(name)]
 
     def table(self) -> dict[str, np.ndarray]:
         """The CSV's columns: :data:`CSV_COLUMNS` for disks (q = s11 - s22, p = (s11 + s22) / 2);
         :data:`CSV_COLUMNS_3D` for spheres (q = s11 - (s22 + s33) / 2, p = tr(s) / 3)."""
-        if self.dim == 2:
-            e1, e2 = self.column("eps11"), self.column("eps22")
-            s1, s2 = self.column("s11"), self.column("s22")
-            return {"eps11": e1, "q": s1 - s2, "eps_v": e1 + e2, "p": 0.5 * (s1 + s2),
-                    "coordination": 2.0 * self.column("contacts") / len(self.final.radii),
-                    "sliding": self.column("sliding")}
-        e = [self.column(f"eps{i}{i}") for i in (1, 2, 3)]
-        s = {c: self.column("s" + c) for c in ("11", "22", "33", "12", "13", "23")}
-        return {"eps_a": e[0], "q": s["11"] - 0.5 * (s["22"] + s["33"]), "eps_v": e[0] + e[1] + e[2],
-                "p": (s["11"] + s["22"] + s["33"]) / 3.0,
-                "coordination": 2.0 * self.column("contacts") / len(self.final.radii),
-                "sliding": self.column("sliding"), **{"sig" + c: v for c, v in s.items()}}
+        return self.consolidated.grains.table(self)
 
     def write_csv(self, path: "str | os.PathLike") -> None:
         t = self.table()
-        columns = csv_columns(self.dim)
+        columns = self.consolidated.grains.csv_columns
         with open(path, "w") as fh:
             fh.write(",".join(columns) + "\n")
             for k in range(len(self.rows)):
@@ -103,8 +94,9 @@ class SampleTest:
 
     def write_npz(self, path: "str | os.PathLike") -> None:
         with open(path, "wb") as fh:
-            np.savez_compressed(fh, rows=self.rows, row_columns=np.array(row_columns(self.dim)),
-                                contact_columns=np.array(contact_columns(self.dim)),
+            g = self.consolidated.grains
+            np.savez_compressed(fh, rows=self.rows, row_columns=np.array(g.row_columns),
+                                contact_columns=np.array(g.contact_columns),
                                 radii=self.final.radii,
                                 **self.consolidated.arrays("consolidated"),
                                 **self.final.arrays("final"))

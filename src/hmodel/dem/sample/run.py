@@ -21,10 +21,9 @@ import numpy as np
 from ...errors import InputError
 from ...io import check_output_folder, write_outputs
 from ..yade import DEMError, run
-from .draw import draw_curves, draw_sample
 from .packing import initial_packing, mean_diameter
-from .result import SampleTest, file_stem, row_columns
-from .settings import SampleSettings, inertial_number, kinds, option_name, strain_rate
+from .result import SampleTest, file_stem, read_table
+from .settings import SampleSettings, inertial_number, option_name, strain_rate
 from .state import SampleState
 
 #: Settings that may differ between the runs that fill one folder.
@@ -32,10 +31,9 @@ RESUME_FREE = ("timeout",)
 
 
 def _check_kind(settings: SampleSettings, kind: str) -> None:
-    known = kinds(settings.dim)
-    if kind not in known:
-        what = "disk sample (--dim 2)" if settings.dim == 2 else "sphere sample (--dim 3)"
-        raise InputError(f"a {what} runs {', '.join(known)} tests, not {kind!r}")
+    g = settings.grains
+    if kind not in g.kinds:
+        raise InputError(f"a {g.sample} runs {', '.join(g.kinds)} tests, not {kind!r}")
 
 
 def run_test(settings: SampleSettings, kind: str, p0: float) -> SampleTest:
@@ -73,13 +71,13 @@ def run_test(settings: SampleSettings, kind: str, p0: float) -> SampleTest:
     }
     t0 = time.perf_counter()
     try:
-        out = run("biaxial" if settings.dim == 2 else "triaxial", spec, timeout=settings.timeout)
+        out = run(settings.grains.task, spec, timeout=settings.timeout)
     except DEMError as e:
         if "target porosity" in str(e):
             raise InputError(str(e).removeprefix("DEM: ")) from None
         raise
     wall = time.perf_counter() - t0
-    rows = np.asarray(out["rows"], float).reshape(-1, len(row_columns(settings.dim)))
+    rows = np.asarray(out["rows"], float).reshape(-1, len(settings.grains.row_columns))
     test = SampleTest(kind=kind, p0=float(p0), rows=rows,
                       consolidated=SampleState.from_json(out["consolidated"]),
                       final=SampleState.from_json(out["final"]), info={})
@@ -104,29 +102,6 @@ def _read_json(path: Path) -> dict | None:
         return json.loads(path.read_text())
     except (OSError, ValueError):
         return None
-
-
-def _load_state(path: Path) -> SampleState | None:
-    if not path.exists():
-        return None
-    with np.load(path) as z:
-        return SampleState(cell=tuple(float(v) for v in z["final_cell"]), radii=z["radii"],
-                           positions=z["final_positions"], contacts=z["final_contacts"])
-
-
-def _read_table(path: Path) -> dict[str, np.ndarray] | None:
-    """A test CSV's columns, or None for a CSV removed by hand."""
-    if not path.exists():
-        return None
-    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-    header = path.read_text().split("\n", 1)[0].split(",")
-    return {c: data[:, k] for k, c in enumerate(header)}
-
-
-def _title(rec: dict, st: SampleState) -> str:
-    axial = "eps11" if st.dim == 2 else "eps_a"
-    return (f"{rec['kind']} {rec['p0'] / 1e3:g} kPa, {axial} = {100 * rec['axial_strain']:g} %: "
-            f"n = {st.porosity:.3f}, z = {st.coordination:.2f}")
 
 
 def _open_folder(out: Path, settings: SampleSettings, names: list[str]) -> dict:
@@ -186,16 +161,10 @@ def run_sample(settings: SampleSettings, pressures: list[float], kind: str,
         meta["tests"] = dict(sorted(meta["tests"].items(), key=lambda kv: (kv[1]["kind"], kv[1]["p0"])))
 
         def draw(path: Path, meta=meta, test=test, name=name) -> None:
-            if settings.dim == 3:  # spheres: the tests' curves (the CSVs hold them)
-                draw_curves([(n, test.table() if n == name else _read_table(out / f"{n}.csv"))
-                             for n in meta["tests"]], path)
-                return
-            states = []
-            for n, r in meta["tests"].items():
-                st = test.final if n == name else _load_state(out / f"{n}.npz")
-                if st is not None:  # an npz removed by hand: its panel is left out
-                    states.append((_title(r, st), st))
-            draw_sample(states, path)
+            # this test's files are not in the folder yet
+            settings.grains.draw_sample(
+                meta["tests"], lambda n: test.final if n == name else SampleState.from_npz(out / f"{n}.npz"),
+                lambda n: test.table() if n == name else read_table(out / f"{n}.csv"), path)
 
         # the CSV last: a test whose CSV exists has all its files
         write_outputs(out, {f"{name}.npz": test.write_npz,

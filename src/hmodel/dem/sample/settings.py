@@ -12,21 +12,17 @@ from dataclasses import asdict, dataclass
 
 from ...errors import InputError
 from ...limits import check_memory
+from .geometry import (  # noqa: F401 (KINDS...DENSEST_3D: importers of their first home)
+    DENSEST_2D,
+    DENSEST_3D,
+    DISTRIBUTIONS,
+    DISTRIBUTIONS_3D,
+    KINDS,
+    KINDS_3D,
+    Grains,
+    grains,
+)
 
-#: Test kinds of a disk sample (biaxial).
-KINDS = ("drained", "undrained")
-#: Test kinds of a sphere sample (dim = 3), named as ``hmodel calibrate --data`` names them.
-KINDS_3D = ("triaxial-drained", "triaxial-undrained", "triaxial-extension")
-#: Radius distributions of a disk sample.
-DISTRIBUTIONS = ("uniform", "equal-area")
-#: Radius distributions of a sphere sample.
-DISTRIBUTIONS_3D = ("uniform", "equal-volume")
-#: Solid fraction of the densest sphere packing: a sphere sample's cell is never smaller than
-#: its solid volume over this.
-DENSEST_3D = math.pi / math.sqrt(18.0)
-#: Solid fraction of the densest disk packing (hexagonal): a disk sample's cell is never
-#: smaller than its solid area over this.
-DENSEST_2D = math.pi / (2.0 * math.sqrt(3.0))
 #: A sample's cell edge must hold this many of its largest diameters, so that no grain reaches
 #: its own periodic image and the cell is more than a few grains.
 MIN_DIAMETERS_3D = 3.0
@@ -42,7 +38,7 @@ ROW_BYTES = 4 * 2**10
 
 def kinds(dim: int) -> tuple[str, ...]:
     """The test kinds of a sample of dimension ``dim``."""
-    return KINDS if dim == 2 else KINDS_3D
+    return grains(dim).kinds
 
 
 @dataclass(frozen=True)
@@ -151,16 +147,13 @@ class SampleSettings:
                      "compaction_inertial_number", "gain", "lateral_rate_factor", "timeout"):
             if not (finite(name) and getattr(self, name) > 0):
                 raise InputError(f"{option_name(name)} must be a positive number, got {getattr(self, name)}")
-        if self.dim not in (2, 3):
-            raise InputError(f"--dim must be 2 (disks) or 3 (spheres), got {self.dim}")
-        if self.dim == 2 and self.disks < 20:
-            raise InputError(f"--disks must be at least 20, got {self.disks}")
+        g = self.grains  # refuses another dim
+        g.check_count(self.disks)
         if self.radius_ratio < 1:
             raise InputError(f"--radius-ratio must be >= 1 (r_max / r_min), got {self.radius_ratio}")
-        names = DISTRIBUTIONS if self.dim == 2 else DISTRIBUTIONS_3D
-        if self.distribution not in names:
-            raise InputError(f"--distribution must be one of {', '.join(names)}"
-                             f"{'' if self.dim == 2 else ' with spheres'}, got {self.distribution!r}")
+        if self.distribution not in g.distributions:
+            raise InputError(f"--distribution must be one of {', '.join(g.distributions)}"
+                             f"{g.distribution_note}, got {self.distribution!r}")
         self._check_periodic()
         if not (finite("phi_g") and 0 < self.phi_g < 90):
             raise InputError(f"--phi-g must lie in (0, 90) degrees, got {self.phi_g}")
@@ -189,26 +182,13 @@ class SampleSettings:
         """A sample's cell at its densest (solid fraction :data:`DENSEST_3D`, or
         :data:`DENSEST_2D` for disks) must be :data:`MIN_DIAMETERS_3D` largest diameters wide;
         the expected solid volume (area) is used, so the check does not depend on the seed."""
-        a, b = self.r_min, self.r_max
-        if self.dim == 2:
-            # mean of r^2: r uniform in [a, b], or density ~ r^-2 (equal-area), whose mean is ab
-            r2 = (a * a + a * b + b * b) / 3.0 if self.distribution == "uniform" or a == b else a * b
-            need = math.ceil((MIN_DIAMETERS_3D * 2.0 * b) ** 2 * DENSEST_2D / (math.pi * r2))
-            if self.disks < need:
-                raise InputError(f"--disks {self.disks} is too small a sample to be periodic: its "
-                                 f"densest cell is narrower than {MIN_DIAMETERS_3D:g} largest "
-                                 f"diameters; use at least {need} disks (or a smaller --radius-ratio)")
-            return
-        if self.distribution == "uniform" or a == b:
-            r3 = (a ** 3 + a * a * b + a * b * b + b ** 3) / 4.0  # mean of r^3, r uniform in [a, b]
-        else:
-            r3 = 2.0 * (b - a) / (a ** -2 - b ** -2)  # mean of r^3, density ~ r^-3 in [a, b]
-        solid = 4.0 / 3.0 * math.pi * r3
-        need = math.ceil((MIN_DIAMETERS_3D * 2.0 * b) ** 3 * DENSEST_3D / solid)
+        a, b, g = self.r_min, self.r_max, self.grains
+        need = math.ceil((MIN_DIAMETERS_3D * 2.0 * b) ** g.dim * g.densest
+                         / g.mean_solid(a, b, self.distribution))
         if self.disks < need:
-            raise InputError(f"--spheres {self.disks} is too small a sample to be periodic: its "
+            raise InputError(f"{g.option} {self.disks} is too small a sample to be periodic: its "
                              f"densest cell is narrower than {MIN_DIAMETERS_3D:g} largest "
-                             f"diameters; use at least {need} spheres (or a smaller --radius-ratio)")
+                             f"diameters; use at least {need} {g.noun} (or a smaller --radius-ratio)")
 
     def estimated_bytes(self) -> float:
         """Estimated memory [bytes] of one test: its grains (:data:`GRAIN_BYTES`) and its
@@ -218,9 +198,14 @@ class SampleSettings:
     def check_size(self) -> None:
         """Refuse (:class:`~hmodel.limits.WorkTooLarge`) a test whose :meth:`estimated_bytes` exceeds
         the memory budget, before any grain is drawn or YADE started."""
-        grains = "disks (--disks)" if self.dim == 2 else "spheres (--spheres)"
-        check_memory(self.estimated_bytes(), f"a test of {self.disks:,} {grains} and {self.rows + 1:,} "
-                                        f"rows (--rows)")
+        g = self.grains
+        check_memory(self.estimated_bytes(), f"a test of {self.disks:,} {g.noun} ({g.option}) and "
+                                        f"{self.rows + 1:,} rows (--rows)")
+
+    @property
+    def grains(self) -> Grains:
+        """Its grains (:mod:`~hmodel.dem.sample.geometry`): what differs between disks and spheres."""
+        return grains(self.dim)
 
     @property
     def r_min(self) -> float:

@@ -32,7 +32,7 @@ from ...params import Params
 #: The predicted state columns of an H-cell (report §2.3).
 OUTPUTS = ("alpha_next", "N1_next", "N2_next", "T1_next")
 
-#: Material inputs a network over a range of materials (a *family*, issue 36) may take, each
+#: Material inputs a network over a range of materials (a *family*) may take, each
 #: dimensionless: kn and r are scaled out (forces in kn·2r, lengths in 2r), so the response in
 #: those units depends on these alone. Each maps to (the value of a Params, the column of
 #: database rows that draw a material per path, :data:`hmodel.data.schema.MATERIAL_COLUMNS`).

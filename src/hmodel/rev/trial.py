@@ -1,0 +1,29 @@
+"""The compiled trial of one material point, of either REV: the one face the compiled loading
+path (:mod:`hmodel.loading.compiled`) calls.
+
+Each REV gives its kernel inputs in one encoding (:meth:`hmodel.rev.batch.RevBatch.kernel_inputs`):
+one row of numbers per cell, the same rows for every point of a parameter set, and each set's
+packed cell parameters. The row says which trial runs: the H-cell's direction factors
+(:data:`hmodel.rev.kernels.GEO_WIDTH`, the 2D REV's :func:`hmodel.rev.kernels.trial`) or the
+bi-hexagon's projector rows and weighted dyads (:data:`hmodel.rev.kernels3d.GEO_WIDTH`, the 3D
+REV's :func:`hmodel.rev.kernels3d.bihex_trial`).
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from .kernels import trial
+from .kernels3d import GEO_WIDTH as BIHEX_WIDTH
+from .kernels3d import bihex_trial
+
+
+@njit(cache=True, error_model="numpy")
+def point_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
+    """The REV step of one point: cells ``values`` (C, n_fields) at strain ``eps`` by ``deps``
+    -> cells ``out``, flags ``flags``, stress ``sig``; ``geo`` (C, width) and ``p`` the point's
+    rows of its REV's kernel inputs, ``resp`` its learned responses (C, R; R = 0: none). Returns
+    False when a cell increment failed."""
+    if geo.shape[1] == BIHEX_WIDTH:
+        return bihex_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig)
+    return trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp)
