@@ -66,6 +66,10 @@ def dyads(frames: np.ndarray) -> np.ndarray:
 class Rev3D(RevBatch):
     """Directional averaging of bi-hexagons over the sphere, for a batch of material points.
 
+    The parameters are used as given: ``Params()`` is the report's λ, with which the tests of
+    the 3D REV under mixed control stop near 1 % strain; :func:`hmodel.rev.model3d.params_3d`
+    gives the 3D model's defaults (``sliding_rhs="equilibrium"``).
+
     Parameters
     ----------
     params : Params or sequence of Params
@@ -83,10 +87,6 @@ class Rev3D(RevBatch):
         then steps each hexagon of every bi-hexagon (``BiHexSolver(hexagon=solver)``; e.g. a
         surrogate of the closed-form H-cell: the learned 3D cell, docs/model3d.md): the 3D
         model's rule, :func:`hmodel.rev.model3d.cell_solver_3d`.
-
-    The parameters are used as given: ``Params()`` is the report's λ, with which the 3D REV's
-    mixed-control tests stop near 1 % strain; :func:`hmodel.rev.model3d.params_3d` gives the
-    3D model's defaults (``sliding_rhs="equilibrium"``).
 
     Examples
     --------
