@@ -149,16 +149,21 @@ def check_disk(nbytes: float, folder: "str | os.PathLike", what: str) -> None:
 
 def max_increments(env: Mapping[str, str] | None = None) -> int:
     """The largest number of increments of one run (``HMODEL_MAX_INCREMENTS``)."""
+    return _env_count(env, INCREMENTS_ENV, MAX_INCREMENTS)
+
+
+def _env_count(env: Mapping[str, str] | None, name: str, default: int) -> int:
+    """A positive count from the environment variable ``name`` (``default`` when unset)."""
     env = os.environ if env is None else env
-    text = env.get(INCREMENTS_ENV)
+    text = env.get(name)
     if not text:
-        return MAX_INCREMENTS
+        return default
     try:
         value = float(text)
     except ValueError:
         value = float("nan")
     if not (math.isfinite(value) and value >= 1):
-        raise InputError(f"{INCREMENTS_ENV} must be a positive number, got {text!r}")
+        raise InputError(f"{name} must be a positive number, got {text!r}")
     return int(value)
 
 
@@ -174,17 +179,7 @@ def check_count(n: float, what: str, env: Mapping[str, str] | None = None) -> in
 
 def max_rows(env: Mapping[str, str] | None = None) -> int:
     """The largest number of rows of one result table (``HMODEL_MAX_ROWS``)."""
-    env = os.environ if env is None else env
-    text = env.get(ROWS_ENV)
-    if not text:
-        return MAX_ROWS
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not (math.isfinite(value) and value >= 1):
-        raise InputError(f"{ROWS_ENV} must be a positive number, got {text!r}")
-    return int(value)
+    return _env_count(env, ROWS_ENV, MAX_ROWS)
 
 
 def check_rows(n: float, what: str, env: Mapping[str, str] | None = None) -> int:

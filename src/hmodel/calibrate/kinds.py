@@ -180,13 +180,18 @@ class Drained(_Biaxial):
     loading = "drained biaxial compression (σ22 held at p0), 2D"
 
 
-class Undrained(_Biaxial):
-    value = "undrained"
-    loading = "undrained (isochoric) biaxial compression, 2D"
+class _Isochoric:
+    """An undrained test: εv is zero by its definition, so only q is measured."""
+
     undrained = True
 
     def observables(self) -> tuple[str, ...]:
-        return ("q",)  # εv is zero by the test's definition: nothing measured
+        return ("q",)
+
+
+class Undrained(_Isochoric, _Biaxial):
+    value = "undrained"
+    loading = "undrained (isochoric) biaxial compression, 2D"
 
 
 class TriaxialDrained(_Triaxial):
@@ -194,13 +199,9 @@ class TriaxialDrained(_Triaxial):
     loading = "drained triaxial compression (σ22 = σ33 held at p0), 3D"
 
 
-class TriaxialUndrained(_Triaxial):
+class TriaxialUndrained(_Isochoric, _Triaxial):
     value = "triaxial-undrained"
     loading = "undrained triaxial compression (εv = 0, ε22 = ε33), 3D"
-    undrained = True
-
-    def observables(self) -> tuple[str, ...]:
-        return ("q",)  # εv is zero by the test's definition: nothing measured
 
 
 class TriaxialExtension(_Triaxial):
