@@ -17,13 +17,20 @@ from .errors import InputError
 
 VOLUMES = ("hexagon", "rectangle", "box", "hexagon-consistent")
 SLIDING_RHS = ("report", "equilibrium")
+#: Contact laws of the cells' grains: the published linear springs (kn, kt) or Hertz-Mindlin
+#: spheres (shear_modulus, poisson), docs/mechanisms.md.
+CONTACTS = ("linear", "hertz-mindlin")
+#: What becomes of a cell whose contact opened: nothing (published: it stays force-free until
+#: its grains meet again) or a new cell at contact in the space the old one held.
+RENEWALS = ("none", "rebirth")
 ANGLE_PARAMS = ("phi_g", "alpha0", "beta_omega")
 
 #: Units shown in tables, figures and ``--help``.
 UNITS = {
     "kn": "N/m", "kt_kn": "-", "phi_g": "deg", "alpha0": "deg", "alpha_omega": "-",
     "beta_omega": "deg", "n_theta": "-", "radius": "m", "volume": "-", "g2": "-",
-    "sliding_rhs": "-", "alpha0_spread": "-",
+    "sliding_rhs": "-", "alpha0_spread": "-", "contact": "-", "shear_modulus": "Pa",
+    "poisson": "-", "renewal": "-",
 }
 
 
@@ -61,6 +68,17 @@ class Params:
         the n_theta mid-quantiles of a uniform distribution on α0 ± alpha0_spread ·
         min(α0 − 30°, 90° − α0), one per direction in an order uncorrelated with θ
         (:func:`hmodel.rev.directions.opening_angles`); 0 is the H-model of one α0.
+    contact : str
+        Contact law (:data:`CONTACTS`): ``linear`` (published: kn, kt) or ``hertz-mindlin``
+        (spheres of radius r, shear modulus and Poisson ratio of the grains; kn and kt_kn are
+        then not used).
+    shear_modulus : float
+        Grains' shear modulus G [Pa] of the Hertz-Mindlin law.
+    poisson : float
+        Grains' Poisson ratio ν [-] of the Hertz-Mindlin law, in [0, 0.5).
+    renewal : str
+        Fate of a cell whose contact opened (:data:`RENEWALS`): ``none`` (published) or
+        ``rebirth`` (reborn at contact, force-free, in the space it held).
     """
 
     kn: float = 2.0e8
@@ -75,6 +93,10 @@ class Params:
     g2: int = 0
     sliding_rhs: str = "report"
     alpha0_spread: float = 0.0
+    contact: str = "linear"
+    shear_modulus: float = 29.0e9
+    poisson: float = 0.2
+    renewal: str = "none"
 
     def __post_init__(self) -> None:
         self.validate()
@@ -133,6 +155,14 @@ class Params:
         if self.sliding_rhs not in SLIDING_RHS:
             raise InputError(
                 f"parameter sliding_rhs must be one of {', '.join(SLIDING_RHS)}, got {self.sliding_rhs!r}")
+        if self.contact not in CONTACTS:
+            raise InputError(f"parameter contact must be one of {', '.join(CONTACTS)}, got {self.contact!r}")
+        if self.shear_modulus <= 0:
+            raise InputError(f"parameter shear_modulus must be positive (Pa), got {self.shear_modulus}")
+        if not 0 <= self.poisson < 0.5:
+            raise InputError(f"parameter poisson must lie in [0, 0.5), got {self.poisson}")
+        if self.renewal not in RENEWALS:
+            raise InputError(f"parameter renewal must be one of {', '.join(RENEWALS)}, got {self.renewal!r}")
 
     # -- conversions --------------------------------------------------------------------
     def with_(self, **changes) -> "Params":

@@ -29,9 +29,9 @@ from .state import FIELDS, CellFlags, CellState
 if TYPE_CHECKING:
     from .geometry import CellGeometry
 
-#: Index, in a learned kernel's packed parameters (after the closed form's seven), of the law
+#: Index, in a learned kernel's packed parameters (after the closed form's ten), of the law
 #: its trials apply to the response rows: :data:`LAW_MESO` or :data:`LAW_COMPLIANCE`.
-P_LAW = 7
+P_LAW = 10  # closed_form.N_CELL_PARAMS
 #: A ``meso`` response (:func:`hmodel.cell.meso_kernel.meso_increment`), whose trials also
 #: give their exact stress slope.
 LAW_MESO = 1.0

@@ -21,16 +21,32 @@ from ..params import Params
 from .base import STATE_H_CELL, CellKernel, CellSolver
 from .state import FIELDS, FLAGS, CellFlags, CellState, initial_cells
 
-# Positions in the packed parameter vector handed to the kernel.
-P_KN, P_KT, P_TAN, P_G2, P_R, P_CONSISTENT, P_EQ_RHS = range(7)
+# Positions in the packed parameter vector handed to the kernel. P_HERTZ: 0 for linear
+# contacts, else the Hertz constant c of N = c δ^(3/2); P_MINDLIN: kt/kn of Mindlin's no-slip
+# tangential stiffness; P_RENEW: 1 when an opened cell is reborn (docs/mechanisms.md).
+(P_KN, P_KT, P_TAN, P_G2, P_R, P_CONSISTENT, P_EQ_RHS, P_HERTZ, P_MINDLIN,
+ P_RENEW) = range(10)
+#: Length of the closed form's packed parameters (a learned law's constants follow).
+N_CELL_PARAMS = 10
+
+
+def hertz_constants(params: Params) -> tuple[float, float]:
+    """(c, kt/kn) of Hertz-Mindlin contacts between two spheres of radius r (docs/mechanisms.md):
+    N = c δ^(3/2) with c = 4/3 E* sqrt(R*), E* = E / (2 (1 - ν²)), E = 2 G (1 + ν), R* = r/2;
+    Mindlin's tangential stiffness over Hertz's normal tangent stiffness is 2 (1 - ν)/(2 - ν)."""
+    nu = params.poisson
+    e_star = 2.0 * params.shear_modulus * (1.0 + nu) / (2.0 * (1.0 - nu * nu))
+    return 4.0 / 3.0 * e_star * math.sqrt(params.radius / 2.0), 2.0 * (1.0 - nu) / (2.0 - nu)
 
 
 def kernel_params(params: Params) -> np.ndarray:
     """Pack the parameters the cell kernel needs into a float vector."""
+    c, ratio = hertz_constants(params) if params.contact == "hertz-mindlin" else (0.0, 0.0)
     return np.array([
         params.kn, params.kt, params.tan_phi, float(params.g2), params.radius,
         1.0 if params.volume == "hexagon-consistent" else 0.0,
         1.0 if params.sliding_rhs == "equilibrium" else 0.0,
+        c, ratio, 1.0 if params.renewal == "rebirth" else 0.0,
     ])
 
 
@@ -231,6 +247,8 @@ def finish_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, dd1, dd2, da, sliding
         n2_new = 0.0
         t1_new = 0.0
         sliding = False
+    # renewal >>>
+    # renewal <<<
     ok = math.isfinite(d1_new) and math.isfinite(d2_new) and math.isfinite(a_new)
     ok = ok and math.isfinite(n1_new) and math.isfinite(n2_new) and math.isfinite(t1_new)
     return (ok, d1_new, d2_new, a_new, n1_new, n2_new, t1_new, l1_new, l2_new, sliding, open1,
