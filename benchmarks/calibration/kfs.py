@@ -5,15 +5,16 @@ The data: the KFS file of the Sand Triaxial Test Database (H. Wang, NGI; CC BY 4
 DOI 10.4121/086847a6-ba39-4d66-973b-6b93028c7ad8), tests of Wichtmann & Triantafyllidis (2016),
 Acta Geotechnica 11(4):739–761, shipped with hmodel as ``example:kfs``.
 
-(a) least squares of kn, kt/kn, φg and α0 on TMD12 (101 kPa, e0 0.817) and TMD14 (299 kPa,
-    e0 0.814), ``--starts`` starts, every test resampled every ``--every`` rows of its 0.1 %
-    steps; the model ``--model`` (default ``sand``: α0 follows each specimen's e0, from the α0
-    fitted at the two tests' mean e0);
+(a) least squares of the variant's parameters (``hmodel models``: kn, kt/kn, φg and α0; with
+    Hertz-Mindlin contacts the grains' shear modulus and Poisson ratio in place of kn and kt/kn)
+    on TMD12 (101 kPa, e0 0.817) and TMD14 (299 kPa, e0 0.814), ``--starts`` starts, every test
+    resampled every ``--every`` rows of its 0.1 % steps; the model ``--model`` (default
+    ``density``: α0 follows each specimen's e0, from the α0 fitted at the two tests' mean e0);
 (b) emcee from that optimum (``--walkers`` × ``--steps``; ``--steps 0`` skips it): the 90 %
     intervals of the parameters;
 (c) every test predicted with its own p0 and e0: RMS and max of |Δq| / peak q and RMS of Δεv
-    (strain) per test, for the variant fitted and for the published model (α0 the same for
-    every density); where the model ends before 20 % (Newton), the strain it reached;
+    (strain) per test, for the variant fitted and for the same variant with one α0 for every
+    density (for ``density``: the published model); where the model ends before 20 % (Newton), the strain it reached;
 (d) the sand's own ends (e and p at 20 %, q/p) beside the model's, and the model's cell
     fractions (sliding, open) at the end of four tests.
 
@@ -21,10 +22,12 @@ The model's directions are ``--order``/``--azimuths`` (default order 17, 2 azimu
 calibration's search rule, within 4.2 % of peak q of a fine rule on triaxial tests,
 benchmarks/calibration/calibrate3d.json), used for every run here, the intervals included.
 
-Usage: ``python -m benchmarks.calibration.kfs [--model sand] [--starts 8] [--steps 300]
-[--walkers 16] [--workers 2] [--replot]``. Prints a table, writes ``kfs.json`` and the figures
-``docs/figures/kfs_grid.png`` and ``docs/figures/kfs_curves.png`` (with the OpenSees peer's
-errors beside the H-model's where ``kfs_peer.json`` exists).
+Usage: ``python -m benchmarks.calibration.kfs [--model density] [--tag TAG] [--starts 8]
+[--steps 300] [--walkers 16] [--workers 2] [--replot]``. Prints a table, writes
+``kfs[_TAG].json`` and the figures ``docs/figures/kfs_grid[_TAG].png`` and
+``docs/figures/kfs_curves[_TAG].png`` (with the OpenSees peer's errors beside the H-model's
+where ``kfs_peer.json`` exists). ``kfs.json`` is the ``density`` variant's (it was run as
+``--model sand`` when ``sand`` named it).
 """
 
 from __future__ import annotations
@@ -49,7 +52,6 @@ from hmodel.rev import Sphere
 from hmodel.variants import get_variant
 
 CALIBRATION = ("TMD12", "TMD14")
-FITTED = ("kn", "kt_kn", "phi_g", "alpha0")
 HERE = Path(__file__).parent
 FRACTIONS_OF = ("TMD12", "TMD14", "TMD2", "TMD22")  # the calibration tests, the loosest and densest at 100 kPa
 
@@ -133,7 +135,7 @@ def plot(tests, rows, published, peer, out_grid: Path, out_curves: Path) -> None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    panels = [("H-model, " + rows[0]["variant"], rows), ("H-model, published (alpha0 the same)", published)]
+    panels = [("H-model, " + rows[0]["variant"], rows), (f"H-model, {rows[0]['variant']} (one alpha0)", published)]
     if peer:
         panels.append(("Manzari-Dafalias (OpenSees)", peer))
     fig, axes = plt.subplots(1, len(panels), figsize=(4.6 * len(panels), 4.2), squeeze=False)
@@ -178,7 +180,9 @@ def plot(tests, rows, published, peer, out_grid: Path, out_curves: Path) -> None
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--model", default="sand")
+    ap.add_argument("--model", default="density", help="the variant fitted (hmodel models); its "
+                    "parameters are the ones fitted")
+    ap.add_argument("--tag", default="", help="suffix of the default JSON and figure names")
     ap.add_argument("--starts", type=int, default=8)
     ap.add_argument("--walkers", type=int, default=16)
     ap.add_argument("--steps", type=int, default=300)
@@ -187,16 +191,19 @@ def main() -> None:
     ap.add_argument("--order", type=int, default=17)
     ap.add_argument("--azimuths", type=int, default=2)
     ap.add_argument("--step", type=float, default=1e-3)
-    ap.add_argument("--out", type=Path, default=HERE / "kfs.json")
+    ap.add_argument("--out", type=Path, default=None, help="default: kfs[_TAG].json")
     ap.add_argument("--replot", action="store_true", help="only draw the figures again from --out (and the peer's JSON)")
     args = ap.parse_args()
+    suffix = f"_{args.tag}" if args.tag else ""
+    args.out = args.out or HERE / f"kfs{suffix}.json"
+    figures = FIGURES / f"kfs_grid{suffix}.png", FIGURES / f"kfs_curves{suffix}.png"
     tests, attribution = load_tests(args.every)
     peer_file = HERE / "kfs_peer.json"
     peer = json.loads(peer_file.read_text()).get("tests") if peer_file.exists() else None
     if args.replot:
         rec = json.loads(args.out.read_text())
         rows = [{**r, **rec["curves"]["model"][r["test"]]} for r in rec["tests"]]
-        plot(tests, rows, rec["published"], peer, FIGURES / "kfs_grid.png", FIGURES / "kfs_curves.png")
+        plot(tests, rows, rec["published"], peer, *figures)
         return
     by_name = {t.name: t for t in tests}
     cal_tests = [by_name[n] for n in CALIBRATION]
@@ -204,7 +211,7 @@ def main() -> None:
     variant = get_variant(args.model)
     load0 = os.getloadavg()[0]
     # bayes: the least-squares fit, then emcee from its optimum (one call, one fit)
-    cal = fit(cal_tests, FITTED, base=Params(sliding_rhs="equilibrium"), starts=args.starts, sphere=sphere,
+    cal = fit(cal_tests, variant.fitted, base=Params(sliding_rhs="equilibrium"), starts=args.starts, sphere=sphere,
               search_rule=None, step=args.step, workers=args.workers, model=variant,
               method="bayes" if args.steps > 0 else "least-squares", walkers=args.walkers, steps=max(args.steps, 1))
     bayes = None
@@ -215,13 +222,15 @@ def main() -> None:
     t2 = time.perf_counter()
     rows = predictions(tests, params, variant, e_ref, sphere, args.step)
     wall_pred = time.perf_counter() - t2
-    published = predictions(tests, params, get_variant("published"), None, sphere, args.step)
+    # the same mechanisms with one alpha0 for every density (the published model for density)
+    one_alpha0 = replace(variant, name=f"{variant.name}, one alpha0", uses_e0=False)
+    published = predictions(tests, params, one_alpha0, None, sphere, args.step)
     for r in rows:
         r["variant"] = variant.name
     for r, t in zip(rows, tests):
         r.update(sand_ends(t))
     fractions = cell_fractions(tests, params, variant, e_ref, sphere, args.step)
-    plot(tests, rows, published, peer, FIGURES / "kfs_grid.png", FIGURES / "kfs_curves.png")
+    plot(tests, rows, published, peer, *figures)
     load1 = os.getloadavg()[0]
 
     table = []

@@ -4,7 +4,9 @@
     (consolidation + shear + recording, i.e. everything ``run_biaxial`` computes), compiled
     kernel and generic Python driver;
 (b) cell updates per second on one core: the closed-form cell kernel (``ClosedFormSolver.step``)
-    on a large batch, and the fused REV trial of the compiled path (localize + cell + average).
+    on a large batch, and the fused REV trial of the compiled path (localize + cell + average);
+(c) the same fused trial with Hertz-Mindlin contacts (``contact="hertz-mindlin"``,
+    docs/mechanisms.md), and its cost per cell over the linear law's, the two timed in turn.
 
 Usage: ``python -m benchmarks.engine.engine [--repeat N] [--out PATH]``. The first call of each kernel
 compiles it (or loads Numba's cache); it is excluded, and the best of N runs is reported.
@@ -46,11 +48,12 @@ def cell_updates(repeat: int, n_cells: int = 2_000_000) -> float:
     return n_cells / best_of(lambda: solver.step(params, state, dl1, dl2), repeat)
 
 
-def fused_trials(repeat: int, n_calls: int = 2000) -> float:
-    """Cell updates per second inside the compiled REV trial (nθ = 360, one material point)."""
+def _fused_trial(params: Params, n_calls: int):
+    """n_calls compiled REV trials of one material point consolidated to 200 kPa (nθ = 360), a
+    strain increment of 1e-4 each: a function of no argument."""
     from hmodel.loading.compiled import trial
 
-    rev = Rev(Params(n_theta=360))
+    rev = Rev(params.with_(n_theta=360))
     s0 = consolidate(rev, [2e5])
     seg = CompiledSegment(rev, s0, (False, True, False), np.eye(3), s0.sig,
                           np.array([[0.1, 2e5, 0.0]]), 1000, Tangent())
@@ -62,7 +65,24 @@ def fused_trials(repeat: int, n_calls: int = 2000) -> float:
     def run():
         for _ in range(n_calls):
             trial(*args)
-    return n_calls * 360 / best_of(run, repeat)
+    return run
+
+
+def fused_trials(repeat: int, n_calls: int = 2000, params: Params = Params()) -> float:
+    """Cell updates per second inside the compiled REV trial (nθ = 360, one material point)."""
+    return n_calls * 360 / best_of(_fused_trial(params, n_calls), repeat)
+
+
+def hertz_cost(repeat: int, n_calls: int = 500) -> tuple[float, float]:
+    """(Hertz-Mindlin cell updates per second in the fused REV trial, their cost per cell over
+    the linear law's): the two trials timed in turn, ``4 * repeat`` times each, the best of
+    each kept, so that a load beside the run weighs on both alike."""
+    runs = {contact: _fused_trial(Params(contact=contact), n_calls) for contact in ("linear", "hertz-mindlin")}
+    best = {contact: best_of(run, 1) for contact, run in runs.items()}
+    for _ in range(4 * repeat):
+        for contact, run in runs.items():
+            best[contact] = min(best[contact], best_of(run, 1))
+    return n_calls * 360 / best["hertz-mindlin"], best["hertz-mindlin"] / best["linear"]
 
 
 def main() -> None:
@@ -78,6 +98,11 @@ def main() -> None:
         ("cell updates per second, ClosedFormSolver.step (one core)",
          cell_updates(args.repeat), ">= 1e7"),
         ("cell updates per second, fused REV trial (one core)", fused_trials(args.repeat), ">= 1e7"),
+    ]
+    hertz_rate, hertz_ratio = hertz_cost(args.repeat)
+    rows += [
+        ("cell updates per second, fused REV trial, Hertz-Mindlin contacts (one core)", hertz_rate, "-"),
+        ("cost of a cell update, Hertz-Mindlin over linear contacts, fused REV trial", hertz_ratio, "<= 1.5"),
     ]
     write_table(rows, args.out, record(__file__, args, args.repeat, rows), value_width=12)
 

@@ -12,7 +12,9 @@ to ``engine3d.json``.
 (c) bi-hexagon updates per second on one core, ``BiHexSolver.step`` on a large batch and inside
     the fused 3D REV trial, beside the 2D engine's cell updates per second measured in the same
     run (``benchmarks.engine.engine``);
-(d) test (a) compiled at several (order, azimuths) pairs, to choose the defaults.
+(d) test (a) compiled at several (order, azimuths) pairs, to choose the defaults;
+(e) test (a) compiled with Hertz-Mindlin contacts (``contact="hertz-mindlin"``, grains of the
+    default G = 29 GPa, ν = 0.2, docs/mechanisms.md), beside (a) in the same run.
 
 All tests use ``sliding_rhs="equilibrium"``: with the report's λ, Newton's event loop stops a
 3D drained triaxial test near 1 % axial strain (the same increment in both drivers). Points
@@ -76,8 +78,8 @@ def triaxial(rev: Rev3D, p0, axial: float = 0.1, n_steps: int = 1000, compiled: 
     return rec.result()
 
 
-def single(repeat: int, compiled: bool, sphere: Sphere = Sphere()) -> float:
-    rev = Rev3D(BASE, sphere)
+def single(repeat: int, compiled: bool, sphere: Sphere = Sphere(), params: Params = BASE) -> float:
+    rev = Rev3D(params, sphere)
     return best_of(lambda: triaxial(rev, [2e5], compiled=compiled), repeat)
 
 
@@ -144,6 +146,8 @@ def main() -> None:
         (f"drained triaxial 200 kPa to 10 %, default rule: {rule}, compiled [s]", single(r, True), "<= 0.5"),
         (f"drained triaxial 200 kPa to 10 %, default rule: {rule}, generic driver [s]",
          single(max(1, r // 3), False), "-"),
+        (f"drained triaxial 200 kPa to 10 %, default rule: {rule}, Hertz-Mindlin contacts, compiled [s]",
+         single(r, True, params=BASE.with_(contact="hertz-mindlin")), "<= 0.5"),
         ("32 parameter sets x 3 triaxial tests, calibration setting (5 %, steps 1e-3), "
          "default rule, one batched call [s]", t_cal, "<= 2"),
         ("  points dropped (Newton failed)", drop_cal, "0"),

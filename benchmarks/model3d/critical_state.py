@@ -36,6 +36,15 @@ from hmodel.loading import Recorder, Segment, consolidate, run_segment
 from hmodel.rev import Rev3D, Sphere
 
 
+def parse_mechanisms(text: str) -> dict:
+    """``NAME=VALUE,...`` (the cell's mechanism options, Params fields) as a dict."""
+    out = {}
+    for item in filter(None, (t.strip() for t in text.split(","))):
+        name, _, value = item.partition("=")
+        out[name.strip()] = value.strip()
+    return out
+
+
 def segment(undrained: bool, p0: np.ndarray, strain: float, steps: int) -> Segment:
     M = np.eye(6)
     if undrained:
@@ -121,9 +130,17 @@ def main() -> None:
     ap.add_argument("--step", type=float, default=1e-4)
     ap.add_argument("--window", type=float, default=0.03, help="strain window of the end rates")
     ap.add_argument("--sliding-rhs", default="equilibrium")
-    ap.add_argument("--out", type=Path, default=Path(__file__).with_name("critical_state.json"))
-    ap.add_argument("--figure", type=Path, default=FIGURES / "critical_state_3d.png")
+    ap.add_argument("--mechanisms", default="", help="the cell's mechanisms on, NAME=VALUE,... "
+                    "(docs/mechanisms.md; e.g. contact=hertz-mindlin,renewal=rebirth); the outputs "
+                    "then carry the tag --tag")
+    ap.add_argument("--tag", default="", help="suffix of the default JSON and figure names")
+    ap.add_argument("--out", type=Path, default=None, help="default: critical_state[_TAG].json")
+    ap.add_argument("--figure", type=Path, default=None, help="default: docs/figures/critical_state_3d[_TAG].png")
     args = ap.parse_args()
+    suffix = f"_{args.tag}" if args.tag else ""
+    args.out = args.out or Path(__file__).with_name(f"critical_state{suffix}.json")
+    args.figure = args.figure or FIGURES / f"critical_state_3d{suffix}.png"
+    mechanisms = parse_mechanisms(args.mechanisms)
     d = Sphere()
     sphere = Sphere(order=args.order or d.order, n_azimuth=args.n_azimuth or d.n_azimuth)
     pressures = [float(x) for x in args.pressures.split(",")]
@@ -131,7 +148,7 @@ def main() -> None:
     sets, p0, labels = [], [], []
     for state, a0 in states:
         for k, p in enumerate(pressures):
-            sets.append(Params(alpha0=math.radians(a0), sliding_rhs=args.sliding_rhs))
+            sets.append(Params.from_strings(mechanisms, Params(alpha0=math.radians(a0), sliding_rhs=args.sliding_rhs)))
             p0.append(p)
             labels.append({"state": state, "alpha0": a0, "p0": p, "k": k})
     p0 = np.array(p0)
@@ -161,7 +178,7 @@ def main() -> None:
                ("largest |deps_v/deps11| at the end of the drained tests",
                 max(abs(r["deps_v_deps11_end"]) for r in drained), "-> 0 at a critical state"),
                ("wall time of the two batched runs [s]", wall, "-")]
-    rec = record(__file__, args, 1, results, table=table,
+    rec = record(__file__, args, 1, results, table=table, mechanisms=mechanisms,
                  sphere={"order": sphere.order, "n_azimuth": sphere.n_azimuth}, v_ref=v_ref)
     args.out.write_text(json.dumps(rec, indent=2) + "\n")
     for name, value, target in results:

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.timing import FIGURES, record
+from benchmarks.model3d.critical_state import parse_mechanisms
 from hmodel import Params
 from hmodel.failure_surface import (
     failure_surface,
@@ -92,12 +93,19 @@ def main() -> None:
     ap.add_argument("--n-azimuth", type=int, default=None, help="default: Sphere()'s")
     ap.add_argument("--max-strain", type=float, default=0.3)
     ap.add_argument("--sliding-rhs", default="equilibrium")
-    ap.add_argument("--out", type=Path, default=Path(__file__).with_name("pi_plane.json"))
-    ap.add_argument("--figure", type=Path, default=FIGURES / "pi_plane.png")
+    ap.add_argument("--mechanisms", default="", help="the cell's mechanisms on, NAME=VALUE,... "
+                    "(docs/mechanisms.md); the outputs then carry the tag --tag")
+    ap.add_argument("--tag", default="", help="suffix of the default JSON and figure names")
+    ap.add_argument("--out", type=Path, default=None, help="default: pi_plane[_TAG].json")
+    ap.add_argument("--figure", type=Path, default=None, help="default: docs/figures/pi_plane[_TAG].png")
     args = ap.parse_args()
     d = Sphere()
     sphere = Sphere(order=args.order or d.order, n_azimuth=args.n_azimuth or d.n_azimuth)
-    params = Params(sliding_rhs=args.sliding_rhs)
+    suffix = f"_{args.tag}" if args.tag else ""
+    args.out = args.out or Path(__file__).with_name(f"pi_plane{suffix}.json")
+    args.figure = args.figure or FIGURES / f"pi_plane{suffix}.png"
+    mechanisms = parse_mechanisms(args.mechanisms)
+    params = Params.from_strings(mechanisms, Params(sliding_rhs=args.sliding_rhs))
     t0 = time.perf_counter()
     fs = failure_surface(params, args.p, [float(x) for x in args.lode.split(",")], sphere=sphere,
                          max_strain=args.max_strain)

@@ -13,14 +13,13 @@ False
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass, replace
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 
 from .errors import InputError
 from .params import Params
-import math
-
 from .rev.density import alpha0_for_void_ratio, largest_alpha0
 
 DEFAULT = "published"
@@ -37,16 +36,29 @@ class ModelVariant:
         Whether a test's void ratio sets its initial state: α0 follows e0 through the REV's
         initial volume (:func:`hmodel.rev.density.alpha0_for_void_ratio`), from the α0 the
         parameters give at the reference void ratio e_ref.
+    options : Mapping
+        The cell's mechanisms this variant switches on (:class:`~hmodel.params.Params` fields
+        and values, docs/mechanisms.md), applied to every parameter set it runs.
+    fitted : tuple of str
+        The parameters a calibration of this variant fits unless told otherwise (``--fit``).
     """
 
     name: str
     description: str
     uses_e0: bool = False
+    options: Mapping = field(default_factory=lambda: MappingProxyType({}))
+    fitted: tuple[str, ...] = ("kn", "kt_kn", "phi_g", "alpha0")
+
+    def apply(self, params: Params) -> Params:
+        """``params`` with this variant's mechanisms on (a mechanism has two values, off and
+        the variant's: a variant cannot contradict a parameter set, only switch it on)."""
+        return replace(params, **self.options) if self.options else params
 
     def initial_params(self, params: Params, dim: int, e0: float | None = None,
                        e_ref: float | None = None) -> Params:
-        """The parameters of a specimen at void ratio ``e0``; ``params`` unchanged when the
-        variant does not use e0 or no e0 is given."""
+        """The parameters of a specimen at void ratio ``e0``, with this variant's mechanisms on
+        (:meth:`apply`); α0 unchanged when the variant does not use e0 or no e0 is given."""
+        params = self.apply(params)
         if not self.uses_e0 or e0 is None:
             return params
         if e_ref is None:
@@ -63,12 +75,22 @@ class ModelVariant:
         return {"alpha0": (31.0, math.floor(10 * top) / 10)}
 
 
+_HERTZ = ("shear_modulus", "poisson", "phi_g", "alpha0")
+
 VARIANTS = MappingProxyType({
     "published": ModelVariant("published", "The H-model as published (Nicot & Darve 2011) and its 3D bi-hexagon "
                                            "lift: alpha0 as given, whatever the specimen's density."),
     "density": ModelVariant("density", "The published model with alpha0 set by each specimen's void ratio e0 "
                                        "(the REV's initial volume follows the specimen's, 1 + e0), from the "
                                        "alpha0 calibrated at a reference void ratio e_ref.", uses_e0=True),
+    "hertz": ModelVariant("hertz", "The density model with Hertz-Mindlin contacts between the grains (shear "
+                                   "modulus and Poisson ratio of the grains in place of kn and kt/kn): "
+                                   "stiffness that grows with pressure.", uses_e0=True,
+                          options=MappingProxyType({"contact": "hertz-mindlin"}), fitted=_HERTZ),
+    "rebirth": ModelVariant("rebirth", "The hertz model whose cells are reborn, at contact and force-free, "
+                                       "in the space a cell held when its contacts opened.", uses_e0=True,
+                            options=MappingProxyType({"contact": "hertz-mindlin", "renewal": "rebirth"}),
+                            fitted=_HERTZ),
 })
 #: Other names of variants: the one the docs recommend for sands.
 ALIASES = MappingProxyType({"sand": "density"})

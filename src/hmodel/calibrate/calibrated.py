@@ -110,7 +110,7 @@ class Specimen:
     def at_e0(self, sets: list[Params], n_pressures: int) -> list[Params]:
         """Each point's parameters at its void ratio (broadcast: equal lengths, or one)."""
         if not self.e0:
-            return sets
+            return [self.variant.apply(s) for s in sets]
         n = max(len(sets), len(self.e0), n_pressures)
         for what, k in (("--param lists", len(sets)), ("--e0", len(self.e0)), ("--p0", n_pressures)):
             if k not in (1, n):

@@ -190,6 +190,20 @@ class _Objective:
         return ((r - r0) / h[:, None]).T
 
 
+#: The parameters only one contact law reads (Params.contact).
+_LAW_PARAMS = {"linear": ("kn", "kt_kn"), "hertz-mindlin": ("shear_modulus", "poisson")}
+
+
+def _check_contact_params(names: Sequence[str], contact: str) -> None:
+    """Refuse fitting a parameter the model's contact law does not read (its objective would be
+    flat in it)."""
+    for law, own in _LAW_PARAMS.items():
+        unused = [n for n in names if n in own and law != contact]
+        if unused:
+            raise InputError(f"{unused[0]} is not read by {contact} contacts: fit "
+                             f"{' and '.join(_LAW_PARAMS[contact])} instead (--fit)")
+
+
 def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "alpha0"),
         bounds: dict | None = None, base: Params | None = None, method: str = "least-squares",
         solver: CellSolver | None = None, starts: int = 8, seed: int = 0, step: float = 1e-3,
@@ -263,6 +277,7 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
         sphere = Sphere() if sphere is None else sphere
         searcher = _search_sphere(sphere, search_rule)
     variant = model if isinstance(model, ModelVariant) else get_variant(model)
+    _check_contact_params(fit, variant.apply(base or Params()).contact)
     model = Model(tests, solver, step, iso_step, sphere, variant)
     needed = variant.default_bounds(base or Params(), model.dim, [t.e0 for t in tests], model.e_ref)
     bounds = {**{n: b for n, b in needed.items() if n in fit}, **(bounds or {})}

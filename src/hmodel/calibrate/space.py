@@ -15,10 +15,11 @@ from ..params import ANGLE_PARAMS, Params
 DEFAULT_BOUNDS = {
     "kn": (1e6, 1e11), "kt_kn": (0.05, 2.0), "phi_g": (5.0, 60.0), "alpha0": (31.0, 89.0),
     "alpha_omega": (0.0, 0.9), "beta_omega": (0.0, 180.0), "alpha0_spread": (0.0, 0.95),
+    "shear_modulus": (1e7, 1e12), "poisson": (0.0, 0.45),
 }
 FITTABLE = tuple(DEFAULT_BOUNDS)
 #: Searched on a log scale (a stiffness spans orders of magnitude).
-LOG = ("kn",)
+LOG = ("kn", "shear_modulus")
 #: A fitted value within this fraction of its search range (in the unit box: of the decades of
 #: kn) of a bound has ended on it: the data pull it there, and the best fit may lie beyond.
 AT_BOUND = 0.02
@@ -27,7 +28,8 @@ _VALID = {"kn": (0.0, math.inf, True), "kt_kn": (0.0, math.inf, True), "phi_g": 
           "alpha0": (30.0, 90.0, True), "alpha_omega": (0.0, 1.0, False),
           "beta_omega": (-math.inf, math.inf, False),
           # [0, 1) in Params: a search reaching 1 would ask for a cell at 30° or 90°
-          "alpha0_spread": (0.0, 0.99, False)}
+          "alpha0_spread": (0.0, 0.99, False),
+          "shear_modulus": (0.0, math.inf, True), "poisson": (0.0, 0.5, False)}
 
 
 @dataclass(frozen=True)

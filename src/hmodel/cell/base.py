@@ -47,6 +47,30 @@ STATE_BIHEXAGON = "bi-hexagon"
 #: (:meth:`CellSolver.meso`): a richer DEM cell's, a ``meso`` surrogate's summary, ...
 STATE_OWN = "own"
 STATE_KINDS = (STATE_H_CELL, STATE_BIHEXAGON, STATE_OWN)
+#: The cell mechanisms a parameter set may switch on (docs/mechanisms.md): Params fields whose
+#: default is the published H-model; a solver declares which other values its cells implement
+#: (:attr:`CellSolver.mechanisms`).
+MECHANISM_PARAMS = ("contact", "renewal")
+
+
+def mechanisms_of(params: Params) -> frozenset[str]:
+    """The mechanisms ``params`` switches on: ``NAME=VALUE`` of each :data:`MECHANISM_PARAMS`
+    field away from its default (``contact=hertz-mindlin``, ``renewal=rebirth``)."""
+    default = Params()
+    return frozenset(f"{name}={getattr(params, name)}" for name in MECHANISM_PARAMS
+                     if getattr(params, name) != getattr(default, name))
+
+
+def check_mechanisms(solver: "CellSolver", sets: Sequence[Params]) -> None:
+    """Refuse, in one line, parameter sets that switch on a mechanism the solver's cells do not
+    implement (:attr:`CellSolver.mechanisms`): a learned cell (surrogate, DEM cell, compliance
+    or meso kernel) learned the published model's linear contacts without renewal."""
+    for params in sets:
+        missing = sorted(mechanisms_of(params) - solver.mechanisms)
+        if missing:
+            raise InputError(f"{missing[0]} is not implemented by the {solver.name} cells (their "
+                             "law is the published one: linear contacts, no renewal); the "
+                             "closed-form cells implement it (--solver closed-form)")
 
 
 @dataclass(frozen=True)
@@ -139,6 +163,11 @@ class CellSolver(ABC):
     geometry : CellGeometry or None
         The grains of a DEM cell (:class:`hmodel.cell.geometry.CellGeometry`: layout and
         Love-Weber sum), or None (the default).
+    mechanisms : frozenset of str
+        The cell mechanisms its cells implement beyond the published H-model, as
+        ``NAME=VALUE`` of :class:`~hmodel.params.Params` (:data:`MECHANISM_PARAMS`:
+        ``contact=hertz-mindlin``, ``renewal=rebirth``); a REV refuses parameters that switch
+        on another (:func:`check_mechanisms`). Default: none (a learned cell's).
     """
 
     name: str
@@ -155,6 +184,7 @@ class CellSolver(ABC):
     domain: dict | None = None
     trained_params: dict | None = None
     geometry: "CellGeometry | None" = None
+    mechanisms: frozenset[str] = frozenset()
 
     @abstractmethod
     def initial(self, params: Params, shape: tuple[int, ...] = ()) -> CellState:

@@ -41,8 +41,10 @@ from numba import njit
 from ..errors import InputError, SolverError
 from ..params import Params
 from .base import STATE_BIHEXAGON, STATE_H_CELL, CellKernel, CellSolver
-from .closed_form import P_R, ClosedFormSolver, cell_increment, kernel_params
+from .closed_form import P_HERTZ, P_R, P_RENEW, ClosedFormSolver, cell_increment, kernel_params as cell_kernel_params
+from .hertz import extra_force
 from .mesostress import contact_vsigma
+from .renewal import RENEW_BIHEX, renew_bihex
 from .state import FIELDS, FLAGS, CellFlags, CellState, initial_lengths
 
 #: Fields of a bi-hexagon's state: hexagon A (plane n, t1), then hexagon B (plane n, t2).
@@ -51,6 +53,15 @@ BIHEX_FIELDS = FIELDS + ("d1_b", "d2_b", "alpha_b", "N1_b", "N2_b", "T1_b", "l1_
 BIHEX_FLAGS = FLAGS + tuple(f + "_b" for f in FLAGS) + ("cross",)
 #: Meso-volume options of the 3D cell (Params.volume); ``hexagon-consistent`` has none in 3D.
 VOLUMES_3D = ("hexagon", "rectangle", "box")
+
+
+def kernel_params(params: Params):
+    """The closed form's packed parameters (:func:`hmodel.cell.closed_form.kernel_params`), with
+    renewal at the bi-hexagon's scale: both hexagons reborn together, not each as a 2D cell."""
+    p = cell_kernel_params(params)
+    if p[P_RENEW] != 0.0:
+        p[P_RENEW] = RENEW_BIHEX
+    return p
 
 
 def check_params(params: Params) -> None:
@@ -75,19 +86,23 @@ def bihex_increment(values, i, dl1, dl2, dl3, p, out, flags):
     hexagon is the 2D increment of eq. 1.7 (closed_form.cell_increment) with the shared δl1. Returns False when either hexagon's increment failed."""
     ok_a = cell_increment(values, i, dl1, dl2, p, out, flags, 0, 0)
     ok_b = cell_increment(values, i, dl1, dl3, p, out, flags, 8, 5)
+    if p[P_RENEW] == RENEW_BIHEX:  # docs/mechanisms.md, "Renewal"
+        renew_bihex(out, flags, i, 2.0 * p[P_R])
     flags[i, 10] = cross_contact(0.5 * (out[i, 1] - out[i, 9]), out[i, 7], out[i, 15],
                                  2.0 * p[P_R])
     return ok_a and ok_b
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def bihex_vsigma(v, i, kn, two_r):
+def bihex_vsigma(v, i, kn, hertz, two_r):
     """V σ in the cell frame, (nn, t1t1, t2t2), of bi-hexagon state ``v[i]`` (16 fields).
 
     Love-Weber (eq. 1.11) over the twelve contacts: each hexagon contributes eq. 1.12 in its own
     plane (its nn term to σ_nn, its tt term to σ_t1t1 for A, σ_t2t2 for B); the extra contacts
     of docs/model.md step 3 (Fig. 1.6): grains 1-4 once (shared) when l1 <= 2r, grains 2-6/3-5
-    when l2 <= 2r, 7-10/8-9 when l3 <= 2r. Off-diagonal terms vanish by the mirror symmetries.
+    when l2 <= 2r, 7-10/8-9 when l3 <= 2r, each of force kn (2r - l), or c (2r - l)^(3/2) of
+    Hertz-Mindlin contacts (``hertz`` = c; :func:`hmodel.cell.hertz.extra_force`).
+    Off-diagonal terms vanish by the mirror symmetries.
     """
     ann, att = contact_vsigma(v[i, 0], v[i, 1], math.cos(v[i, 2]), math.sin(v[i, 2]), v[i, 3],
                               v[i, 4], v[i, 5])
@@ -96,11 +111,11 @@ def bihex_vsigma(v, i, kn, two_r):
     l1, l2, l3 = v[i, 6], v[i, 7], v[i, 15]
     nn = ann + bnn
     if l1 <= two_r:
-        nn += kn * (two_r - l1) * l1
+        nn += extra_force(kn, hertz, two_r - l1) * l1
     if l2 <= two_r:
-        att += 2.0 * kn * (two_r - l2) * l2
+        att += 2.0 * extra_force(kn, hertz, two_r - l2) * l2
     if l3 <= two_r:
-        btt += 2.0 * kn * (two_r - l3) * l3
+        btt += 2.0 * extra_force(kn, hertz, two_r - l3) * l3
     return nn, att, btt
 
 
@@ -118,11 +133,11 @@ def bihex_step_kernel(values, dl, p, out, flags):
 
 
 @njit(cache=True, error_model="numpy")
-def bihex_vsigma_kernel(values, kn, two_r, out):
+def bihex_vsigma_kernel(values, kn, hertz, two_r, out):
     """V σ in the cell frame, (nn, t1t1, t2t2) (n, 3), of bi-hexagon states (n, 16)
     (:func:`bihex_vsigma`)."""
     for i in range(values.shape[0]):
-        out[i, 0], out[i, 1], out[i, 2] = bihex_vsigma(values, i, kn, two_r)
+        out[i, 0], out[i, 1], out[i, 2] = bihex_vsigma(values, i, kn, hertz, two_r)
 
 
 def bihex_volume(params: Params, values: np.ndarray) -> np.ndarray:
@@ -212,6 +227,8 @@ class BiHexSolver(CellSolver):
         self.hexagon = ClosedFormSolver() if hexagon is None else hexagon
         #: learned where the hexagons are
         self.learned = self.hexagon.learned
+        #: the hexagons' (the closed form's: Hertz-Mindlin contacts, and bi-hexagons reborn)
+        self.mechanisms = self.hexagon.mechanisms
         #: whether both hexagons are the compiled closed form (:func:`bihex_step_kernel`)
         self.closed_form = type(self.hexagon) is ClosedFormSolver
         #: the hexagon solver's name: ``closed-form``, ``surrogate``, ...
@@ -261,7 +278,8 @@ class BiHexSolver(CellSolver):
         """
         values = np.ascontiguousarray(np.asarray(state.values, float).reshape(-1, len(BIHEX_FIELDS)))
         diag = np.empty((values.shape[0], 3))
-        bihex_vsigma_kernel(values, params.kn, 2.0 * params.radius, diag)
+        bihex_vsigma_kernel(values, params.kn, kernel_params(params)[P_HERTZ], 2.0 * params.radius,
+                            diag)
         out = np.zeros((values.shape[0], 6))
         out[:, :3] = diag
         shape = state.values.shape[:-1]

@@ -3,7 +3,10 @@
 One increment of every cell of a batch is a compiled loop (Numba) over cells; each cell solves
 the 3x3 system of eq. 1.7 by Cramer's rule, first without sliding, then, if the trial
 tangential force leaves the Coulomb cone, again with the sliding closure (eqs. 1.8-1.10).
-Contacts that open (d > 2r) make the cell force-free (Fig. 1.5).
+Contacts that open (d > 2r) make the cell force-free (Fig. 1.5). With Hertz-Mindlin contacts
+(``contact="hertz-mindlin"``, :mod:`hmodel.cell.hertz`) each contact has its own stiffness and
+the third row, solved by Newton's method, follows the normal law exactly; the linear law's
+expressions are kept as they are wherever the Hertz constant is zero.
 
 The kernel takes the packed state (``values[..., 8]``, see :mod:`hmodel.cell.state`) and returns
 new arrays; it never writes its inputs.
@@ -18,7 +21,9 @@ from numba import njit
 
 from ..errors import InputError, SolverError
 from ..params import Params
+from . import hertz
 from .base import STATE_H_CELL, CellKernel, CellSolver
+from .renewal import RENEW_CELL, reborn_cell
 from .state import FIELDS, FLAGS, CellFlags, CellState, initial_cells
 
 # Positions in the packed parameter vector handed to the kernel. P_HERTZ: 0 for linear
@@ -64,6 +69,19 @@ def _solve3(a11, a12, a13, a21, a22, a23, a31, a32, a33, b1, b2, b3):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _compatibility(d1, ca, sa, p):
+    """Rows 1-2 of eq. 1.7, geometric compatibility (eq. 1.2 differentiated; eq. 1.21: the
+    virtual rectangle): ``(a11, a13, a21, a23)`` of [[a11, 1, a13], [a21, 0, a23]]."""
+    if p[P_CONSISTENT] != 0.0:
+        a11 = ca
+        a13 = -d1 * sa
+    else:
+        a11 = 2.0 * ca
+        a13 = -2.0 * d1 * sa
+    return a11, a13, 2.0 * sa, 2.0 * d1 * ca
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _regime(d1, a, n1, t1, dl1, dl2, p):
     """The system of eq. 1.7 in the regime the increment (dl1, dl2) takes: ``(a11, a13, a21,
     a23, a31, a33, rhs3, sliding, xi)``, the matrix [[a11, 1, a13], [a21, 0, a23], [a31, -1,
@@ -77,15 +95,7 @@ def _regime(d1, a, n1, t1, dl1, dl2, p):
     ca = math.cos(a)
     sa = math.sin(a)
     gs = p[P_G2] + sa
-    # Rows 1-2: geometric compatibility, eq. 1.2 differentiated (eq. 1.21: virtual rectangle).
-    if p[P_CONSISTENT] != 0.0:
-        a11 = ca
-        a13 = -d1 * sa
-    else:
-        a11 = 2.0 * ca
-        a13 = -2.0 * d1 * sa
-    a21 = 2.0 * sa
-    a23 = 2.0 * d1 * ca
+    a11, a13, a21, a23 = _compatibility(d1, ca, sa, p)
     # Row 3, no sliding (eqs. 1.8-1.9): equilibrium of grain 2 with dT1 = kt d1 dalpha.
     a33 = (n1 * sa - t1 * ca - kt * d1 * gs) / kn
     dd1, dd2, da, det = _solve3(a11, 1.0, a13, a21, 0.0, a23, ca, -1.0, a33, dl1, dl2, 0.0)
@@ -100,6 +110,45 @@ def _regime(d1, a, n1, t1, dl1, dl2, p):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p):
+    """Eq. 1.7 of Hertz-Mindlin contacts (docs/mechanisms.md) in the regime the increment
+    (dl1, dl2) takes, as :func:`_regime` (trial without sliding, Coulomb check, sliding):
+    ``(ok, δd1, δd2, δα, N1', N2', T1' without sliding, sliding, ξ, b1, b2, coef, gt, kt)``,
+    the solution, its forces and what :func:`hmodel.cell.hertz.column` differentiates it
+    with.
+
+    The third row with a stiffness per contact, in forces: cos α δN1 - δN2 + (T1 cos α -
+    N1 sin α) δα + (g2 + sin α) δT1 = 0 (eq. 1.6; the linear row times -kn), δNk of the exact
+    law (:func:`hmodel.cell.hertz.solve`) and Mindlin's δT1 = kt d1 δα, kt = m kn(N1) at the
+    start; sliding, T1 follows the Coulomb cone and λ of eq. 1.10 enters as the force kn λ
+    (:func:`sliding_force`)."""
+    c = p[P_HERTZ]
+    tanphi = p[P_TAN]
+    ca = math.cos(a)
+    sa = math.sin(a)
+    gs = p[P_G2] + sa
+    a11, a13, a21, a23 = _compatibility(d1, ca, sa, p)
+    two_r = 2.0 * p[P_R]
+    u1 = hertz.overlap_root(n1, c, two_r - d1)
+    u2 = hertz.overlap_root(n2, c, two_r - d2)
+    kt = p[P_MINDLIN] * 1.5 * c * u1
+    g = t1 * ca - n1 * sa
+    coef = ca
+    gt = g + gs * kt * d1
+    ok, dd1, dd2, da, f1, f2, b1, b2 = hertz.solve(c, u1, u2, n1, n2, dl1, dl2, a11, a13, a21,
+                                                  a23, coef, gt, 0.0)
+    t1_new = t1 + kt * d1 * da
+    sliding = abs(t1_new) >= tanphi * f1
+    xi = 1.0 if t1_new >= 0.0 else -1.0
+    if sliding:
+        coef = ca + xi * tanphi * gs
+        gt = g
+        ok, dd1, dd2, da, f1, f2, b1, b2 = hertz.solve(c, u1, u2, n1, n2, dl1, dl2, a11, a13, a21,
+                                                      a23, coef, gt, sliding_force(a, n1, t1, xi, p))
+    return ok, dd1, dd2, da, f1, f2, t1 + kt * d1 * da, sliding, xi, b1, b2, coef, gt, kt
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def cell_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p):
     """One cell's increment by (dl1, dl2) on scalars: the state's eight fields (d1, d2, α, N1,
     N2, T1, l1, l2) in, ``(ok, *eight new fields, *five flags)`` out (:func:`finish_update`).
@@ -107,11 +156,20 @@ def cell_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p):
     The kernel of every closed-form caller (:func:`cell_increment` writes it into arrays):
     scalars in and out, so that a loop over cells makes no array views, each of which costs an
     atomic reference count (the bi-hexagon's REV trial makes two such updates per cell).
-    ``ok`` is False when the system of eq. 1.7 is singular or the result is not finite.
+    ``ok`` is False when the system of eq. 1.7 is singular or the result is not finite (or,
+    with Hertz-Mindlin contacts, :func:`hmodel.cell.hertz.solve` found no solution).
     """
+    if p[P_HERTZ] != 0.0:
+        h = _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p)
+        r = finish_update(d1, d2, a, l1, l2, dl1, dl2, h[1], h[2], h[3], h[4], h[5], h[6], h[7],
+                          h[8], p)
+        return ((h[0] and r[0]), r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], r[10],
+                r[11], r[12], r[13])
     a11, a13, a21, a23, a31, a33, rhs3, sliding, xi = _regime(d1, a, n1, t1, dl1, dl2, p)
     dd1, dd2, da, det = _solve3(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33, dl1, dl2, rhs3)
-    r = finish_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, dd1, dd2, da, sliding, xi, p)
+    n1_new, n2_new, t1_new = linear_forces(d1, n1, n2, t1, dd1, dd2, da, p)
+    r = finish_update(d1, d2, a, l1, l2, dl1, dl2, dd1, dd2, da, n1_new, n2_new, t1_new, sliding,
+                      xi, p)
     return ((det != 0.0 and r[0]), r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], r[10],
             r[11], r[12], r[13])
 
@@ -126,10 +184,16 @@ def cell_jacobian(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p):
     A⁻¹ (dl1, dl2, rhs3) (:func:`_regime`), so its columns for dl1 and dl2 are A⁻¹ e1 and
     A⁻¹ e2; the new forces follow eqs. 1.8-1.9 (on the Coulomb cone when sliding), an open cell
     carries none, and the extra contacts of docs/model.md step 3 depend on l1, l2. ``ok`` is
-    False where :func:`cell_update` would fail."""
+    False where :func:`cell_update` would fail. With Hertz-Mindlin contacts
+    (:func:`_hertz_jacobian`) the solution is not affine in (dl1, dl2): its derivatives follow
+    from the implicit function theorem on eq. 1.7's third row at the solution."""
+    if p[P_HERTZ] != 0.0:
+        return _hertz_jacobian(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p)
     a11, a13, a21, a23, a31, a33, rhs3, sliding, xi = _regime(d1, a, n1, t1, dl1, dl2, p)
     dd1, dd2, da, det = _solve3(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33, dl1, dl2, rhs3)
-    r = finish_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, dd1, dd2, da, sliding, xi, p)
+    n1_new, n2_new, t1_new = linear_forces(d1, n1, n2, t1, dd1, dd2, da, p)
+    r = finish_update(d1, d2, a, l1, l2, dl1, dl2, dd1, dd2, da, n1_new, n2_new, t1_new, sliding,
+                      xi, p)
     carries = not (r[10] or r[11])  # an open cell's forces are zero whatever the increment
     nn1, tt1 = _jacobian_column(a11, a13, a21, a23, a31, a33, 1.0, 0.0, sliding, xi, carries,
                                 d1, r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], p)
@@ -144,8 +208,20 @@ def _jacobian_column(a11, a13, a21, a23, a31, a33, e1, e2, sliding, xi, carries,
     """d(V σnn, V σtt) along the increment direction (dl1, dl2) = (e1, e2) of
     :func:`cell_jacobian`, at the new state (d1n, ..., l2n) from d1."""
     kn = p[P_KN]
-    two_r = 2.0 * p[P_R]
     x1, x2, xa, _ = _solve3(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33, e1, e2, 0.0)
+    dn1 = -kn * x1
+    dt1 = xi * p[P_TAN] * dn1 if sliding else p[P_KT] * d1 * xa
+    return _vsigma_slope(x1, x2, xa, dn1, -kn * x2, dt1, e1, e2, carries, d1n, d2n, an, n1n,
+                         n2n, t1n, l1n, l2n, p)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _vsigma_slope(x1, x2, xa, dn1, dn2, dt1, e1, e2, carries, d1n, d2n, an, n1n, n2n, t1n, l1n,
+                  l2n, p):
+    """d(V σnn, V σtt) (eq. 1.12 and the extra contacts) of a cell at the new state (d1n, ...,
+    l2n) whose (δd1, δd2, δα) and forces move by (x1, x2, xa) and (dn1, dn2, dt1) along the
+    increment direction (e1, e2)."""
+    two_r = 2.0 * p[P_R]
     c = math.cos(an)
     s = math.sin(an)
     dc = -s * xa
@@ -153,20 +229,44 @@ def _jacobian_column(a11, a13, a21, a23, a31, a33, e1, e2, sliding, xi, carries,
     jnn = 0.0
     jtt = 0.0
     if carries:
-        dn1 = -kn * x1
-        dt1 = xi * p[P_TAN] * dn1 if sliding else p[P_KT] * d1 * xa
         # eq. 1.12: 4 N1 d1 c² + 4 T1 d1 c s + 2 N2 d2 and 4 N1 d1 s² - 4 T1 d1 c s
         shear = 4.0 * (dt1 * d1n * c * s + t1n * x1 * c * s + t1n * d1n * (dc * s + c * ds))
         jnn = (4.0 * (dn1 * d1n * c * c + n1n * x1 * c * c + 2.0 * n1n * d1n * c * dc) + shear
-               + 2.0 * (-kn * x2 * d2n + n2n * x2))
+               + 2.0 * (dn2 * d2n + n2n * x2))
         jtt = 4.0 * (dn1 * d1n * s * s + n1n * x1 * s * s + 2.0 * n1n * d1n * s * ds) - shear
-    if l1n <= two_r:  # grains 1-4 touch: kn (2r - l1) l1 on V σnn
+    if l1n <= two_r:  # grains 1-4 touch: F(2r - l1) l1 on V σnn
         # l1' = l1 - d1 cos(α) + dl1 + d1' cos(α') (eq. 1.21), else l1 + dl1
         dl1n = e1 + x1 * c + d1n * dc if p[P_CONSISTENT] != 0.0 else e1
-        jnn += kn * (two_r - 2.0 * l1n) * dl1n
-    if l2n <= two_r:  # grains 2-6 and 3-5: 2 kn (2r - l2) l2 on V σtt
-        jtt += 2.0 * kn * (two_r - 2.0 * l2n) * e2
+        jnn += hertz.extra_slope(p[P_KN], p[P_HERTZ], two_r, l1n) * dl1n
+    if l2n <= two_r:  # grains 2-6 and 3-5: 2 F(2r - l2) l2 on V σtt
+        jtt += 2.0 * hertz.extra_slope(p[P_KN], p[P_HERTZ], two_r, l2n) * e2
     return jnn, jtt
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _hertz_jacobian(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p):
+    """:func:`cell_jacobian` of Hertz-Mindlin contacts: the columns of the solution's
+    derivatives along dl1 and dl2 by :func:`hmodel.cell.hertz.column` (the third row of eq. 1.7
+    differentiated at the solution, with the tangents at its end), then eq. 1.12
+    differentiated (:func:`_vsigma_slope`)."""
+    ok, dd1, dd2, da, f1, f2, t1s, sliding, xi, b1, b2, coef, gt, kt = _hertz_regime(
+        d1, d2, a, n1, n2, t1, dl1, dl2, p)
+    r = finish_update(d1, d2, a, l1, l2, dl1, dl2, dd1, dd2, da, f1, f2, t1s, sliding, xi, p)
+    carries = not (r[10] or r[11])
+    c = p[P_HERTZ]
+    a11, a13, a21, a23 = _compatibility(d1, math.cos(a), math.sin(a), p)
+    q, _, w, _ = hertz.affine(a11, a13, a21, a23, 0.0, 0.0)
+    ktd1 = kt * d1
+    xitan = xi * p[P_TAN]
+    x1, x2, xa, dn1, dn2, dt1 = hertz.column(c, b1, b2, q, w, coef, gt, sliding, ktd1, xitan, 1.0,
+                                             0.0)
+    nn1, tt1 = _vsigma_slope(x1, x2, xa, dn1, dn2, dt1, 1.0, 0.0, carries, r[1], r[2], r[3], r[4],
+                             r[5], r[6], r[7], r[8], p)
+    x1, x2, xa, dn1, dn2, dt1 = hertz.column(c, b1, b2, q, w, coef, gt, sliding, ktd1, xitan,
+                                             -a13 / a23, 1.0 / a23)
+    nn2, tt2 = _vsigma_slope(x1, x2, xa, dn1, dn2, dt1, 0.0, 1.0, carries, r[1], r[2], r[3], r[4],
+                             r[5], r[6], r[7], r[8], p)
+    return ok and r[0], nn1, nn2, tt1, tt2
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -208,30 +308,44 @@ def cell_increment(values, i, dl1, dl2, p, out, flags, k, f):
 def sliding_lambda(a, n1, t1, xi, p):
     """Right-hand side λ of eq. 1.7's third row while sliding in the direction ξ (eq. 1.10),
     of a cell at (α, N1, T1)."""
-    gs = p[P_G2] + math.sin(a)
-    if p[P_EQ_RHS] != 0.0:
-        return gs * (xi * p[P_TAN] * n1 - t1) / p[P_KN]
-    return xi * gs * (p[P_TAN] * n1 - t1) / p[P_KN]  # eq. 1.10 as corrected in docs/model.md
+    return sliding_force(a, n1, t1, xi, p) / p[P_KN]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def finish_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, dd1, dd2, da, sliding, xi, p):
-    """New state of a cell (its eight fields, scalars) from the solution (δd1, δd2, δα) of eq.
-    1.7 in its regime: ``(ok, d1, d2, α, N1, N2, T1, l1, l2, sliding, open1, open2, touch14,
-    touch26)``.
+def sliding_force(a, n1, t1, xi, p):
+    """kn λ of :func:`sliding_lambda`: the third row's right-hand side in forces, as the
+    Hertz-Mindlin row takes it (its stiffness is no constant)."""
+    gs = p[P_G2] + math.sin(a)
+    if p[P_EQ_RHS] != 0.0:
+        return gs * (xi * p[P_TAN] * n1 - t1)
+    return xi * gs * (p[P_TAN] * n1 - t1)  # eq. 1.10 as corrected in docs/model.md
 
-    Forces by eqs. 1.8-1.9 (δN = −kn δd, δT1 = kt d1 δα, or T1 on the Coulomb cone when
-    sliding), lengths, openings and extra contacts (docs/model.md step 3); ``ok`` is False when
-    the result is not finite.
-    """
+
+@njit(cache=True, inline="always", error_model="numpy")
+def linear_forces(d1, n1, n2, t1, dd1, dd2, da, p):
+    """New forces of linear contacts (eqs. 1.8-1.9), (N1, N2, T1 without sliding):
+    δN = −kn δd, δT1 = kt d1 δα."""
     kn = p[P_KN]
+    return n1 - kn * dd1, n2 - kn * dd2, t1 + p[P_KT] * d1 * da
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def finish_update(d1, d2, a, l1, l2, dl1, dl2, dd1, dd2, da, n1_new, n2_new, t1_new, sliding, xi,
+                  p):
+    """New state of a cell (its eight fields, scalars) from the solution (δd1, δd2, δα) of eq.
+    1.7 in its regime and the contact law's new forces (:func:`linear_forces`, or those of
+    Hertz-Mindlin contacts): ``(ok, d1, d2, α, N1, N2, T1, l1, l2, sliding, open1, open2,
+    touch14, touch26)``.
+
+    T1 on the Coulomb cone when sliding, lengths, openings and extra contacts (docs/model.md
+    step 3); ``ok`` is False when the result is not finite.
+    """
     two_r = 2.0 * p[P_R]
-    n1_new = n1 - kn * dd1
-    t1_new = xi * p[P_TAN] * n1_new if sliding else t1 + p[P_KT] * d1 * da  # on the cone (eq. 1.3)
+    if sliding:  # on the cone (eq. 1.3)
+        t1_new = xi * p[P_TAN] * n1_new
     d1_new = d1 + dd1
     d2_new = d2 + dd2
     a_new = a + da
-    n2_new = n2 - kn * dd2
     if p[P_CONSISTENT] != 0.0:  # dl1 acted on l1* = l1 - d1 cos(alpha) (eq. 1.21)
         l1_new = l1 - d1 * math.cos(a) + dl1 + d1_new * math.cos(a_new)
     else:
@@ -248,6 +362,10 @@ def finish_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, dd1, dd2, da, sliding
         t1_new = 0.0
         sliding = False
     # renewal >>>
+    if p[P_RENEW] == RENEW_CELL and (open1 or open2):  # docs/mechanisms.md, "Renewal"
+        reborn, rd1, rd2, ra, rl1, rl2 = reborn_cell(d1_new, d2_new, a_new, two_r)
+        if reborn:
+            d1_new, d2_new, a_new, l1_new, l2_new = rd1, rd2, ra, rl1, rl2
     # renewal <<<
     ok = math.isfinite(d1_new) and math.isfinite(d2_new) and math.isfinite(a_new)
     ok = ok and math.isfinite(n1_new) and math.isfinite(n2_new) and math.isfinite(t1_new)
@@ -259,9 +377,10 @@ def finish_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, dd1, dd2, da, sliding
 def finish_increment(values, i, dl1, dl2, dd1, dd2, da, sliding, xi, p, out, flags):
     """:func:`finish_update` of H-cell ``values[i]`` (8 fields) written into ``out[i]`` and
     ``flags[i]``; returns False when the result is not finite."""
-    r = finish_update(values[i, 0], values[i, 1], values[i, 2], values[i, 3], values[i, 4],
-                      values[i, 5], values[i, 6], values[i, 7], dl1, dl2, dd1, dd2, da, sliding,
-                      xi, p)
+    n1_new, n2_new, t1_new = linear_forces(values[i, 0], values[i, 3], values[i, 4], values[i, 5],
+                                           dd1, dd2, da, p)
+    r = finish_update(values[i, 0], values[i, 1], values[i, 2], values[i, 6], values[i, 7], dl1,
+                      dl2, dd1, dd2, da, n1_new, n2_new, t1_new, sliding, xi, p)
     return write_update(r, out, flags, i, 0, 0)
 
 
@@ -290,6 +409,8 @@ class ClosedFormSolver(CellSolver):
     state_kind = STATE_H_CELL
     #: a cell's α0 is its state's alpha before any increment: cells may start apart
     spread_alpha0 = True
+    #: eq. 1.7 of Hertz-Mindlin contacts, and cells reborn (docs/mechanisms.md)
+    mechanisms = frozenset({"contact=hertz-mindlin", "renewal=rebirth"})
 
     @classmethod
     def from_spec(cls, spec: str = "closed-form") -> "ClosedFormSolver":

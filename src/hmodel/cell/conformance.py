@@ -20,6 +20,7 @@ from ..params import Params
 from .base import (
     LAW_COMPLIANCE,
     LAW_MESO,
+    MECHANISM_PARAMS,
     P_LAW,
     STATE_BIHEXAGON,
     STATE_H_CELL,
@@ -116,6 +117,10 @@ def check_declarations(solver: CellSolver, params: Params) -> None:
     check(solver.counts is None or isinstance(solver.counts, dict), "counts is neither None nor a dict")
     check(solver.trained_params is None or isinstance(solver.trained_params, dict),
           "trained_params is neither None nor a dict")
+    mechanisms = solver.mechanisms
+    check(isinstance(mechanisms, frozenset)
+          and all(isinstance(m, str) and m.partition("=")[0] in MECHANISM_PARAMS for m in mechanisms),
+          f"mechanisms {mechanisms!r} is not a frozenset of NAME=VALUE of {MECHANISM_PARAMS}")
     domain = solver.domain
     check(domain is None or (isinstance(domain, dict) and all(lo <= hi for lo, hi in domain.values())),
           "domain is neither None nor {name: (lo, hi)}")

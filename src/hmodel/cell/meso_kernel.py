@@ -20,7 +20,8 @@ import numpy as np
 from numba import njit
 
 from ..cell.base import LAW_MESO, P_LAW
-from ..cell.closed_form import P_KN, P_R, P_TAN, kernel_params as cell_kernel_params
+from ..cell.closed_form import P_HERTZ, P_KN, P_R, P_TAN, kernel_params as cell_kernel_params
+from ..cell.hertz import extra_slope
 from ..cell.mesostress import contact_vsigma, vsigma_local
 from ..params import Params
 
@@ -212,13 +213,13 @@ def meso_increment(values, i, dl1, dl2, p, resp, out, flags, tangent, ddl1, ddl2
                 dvtt = dhtt + dw * (vtt - htt) + w * (dvtt - dhtt)
             vnn, vtt = hnn + w * (vnn - hnn), htt + w * (vtt - htt)
     else:  # an H-cell: eq. 1.12 of the fields
-        vnn, vtt = vsigma_local(o, i, p[P_KN], two_r)
+        vnn, vtt = vsigma_local(o, i, p[P_KN], p[P_HERTZ], two_r)
         if tangent:
             dvnn, dvtt = dhnn, dhtt
             if l1 <= two_r:  # the extra contacts of vsigma_local
-                dvnn += p[P_KN] * (two_r - 2.0 * l1) * ddl1
+                dvnn += extra_slope(p[P_KN], p[P_HERTZ], two_r, l1) * ddl1
             if l2 <= two_r:
-                dvtt += 2.0 * p[P_KN] * (two_r - 2.0 * l2) * ddl2
+                dvtt += 2.0 * extra_slope(p[P_KN], p[P_HERTZ], two_r, l2) * ddl2
     if tangent:
         dv[0], dv[1] = dvnn, dvtt
     o[i, 8], o[i, 9], o[i, 10] = vnn, vtt, 0.0

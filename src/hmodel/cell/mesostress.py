@@ -12,6 +12,8 @@ import numpy as np
 from numba import njit
 
 from ..params import Params
+from .closed_form import P_HERTZ, kernel_params
+from .hertz import extra_force
 from .state import CellState
 
 
@@ -25,35 +27,36 @@ def contact_vsigma(d1, d2, ca, sa, n1, n2, t1):
 
 
 @njit(cache=True, inline="always")
-def vsigma_local(v, i, kn, two_r):
+def vsigma_local(v, i, kn, hertz, two_r):
     """(V sigma_nn, V sigma_tt) of cell i from its packed state ``v[i]`` (eq. 1.12), indexed in
     place (no row view: see closed_form.cell_update).
 
-    Over-compressed cells get the extra contacts of docs/model.md, step 3: kn (2r - l1) l1 on
-    V sigma_nn when l1 <= 2r (grains 1-4) and 2 kn (2r - l2) l2 on V sigma_tt when l2 <= 2r
-    (grains 2-6 and 3-5).
+    Over-compressed cells get the extra contacts of docs/model.md, step 3: F(2r - l1) l1 on
+    V sigma_nn when l1 <= 2r (grains 1-4) and 2 F(2r - l2) l2 on V sigma_tt when l2 <= 2r
+    (grains 2-6 and 3-5), with F(δ) = kn δ, or c δ^(3/2) for Hertz-Mindlin contacts
+    (``hertz`` = c, 0 for linear ones; :func:`hmodel.cell.hertz.extra_force`).
     """
     l1, l2 = v[i, 6], v[i, 7]
     vnn, vtt = contact_vsigma(v[i, 0], v[i, 1], math.cos(v[i, 2]), math.sin(v[i, 2]), v[i, 3],
                               v[i, 4], v[i, 5])
     if l1 <= two_r:
-        vnn += kn * (two_r - l1) * l1
+        vnn += extra_force(kn, hertz, two_r - l1) * l1
     if l2 <= two_r:
-        vtt += 2.0 * kn * (two_r - l2) * l2
+        vtt += 2.0 * extra_force(kn, hertz, two_r - l2) * l2
     return vnn, vtt
 
 
 @njit(cache=True)
-def _vsigma_all(values, kn, two_r, out):
+def _vsigma_all(values, kn, hertz, two_r, out):
     for i in range(values.shape[0]):
-        out[i, 0], out[i, 1] = vsigma_local(values, i, kn, two_r)
+        out[i, 0], out[i, 1] = vsigma_local(values, i, kn, hertz, two_r)
 
 
 def meso_vsigma(params: Params, state: CellState) -> np.ndarray:
     """V_meso * (sigma_nn, sigma_tt) of every cell, shape (..., 2) (eq. 1.12)."""
     values = np.ascontiguousarray(state.values.reshape(-1, state.values.shape[-1]))
     out = np.empty((values.shape[0], 2))
-    _vsigma_all(values, params.kn, 2.0 * params.radius, out)
+    _vsigma_all(values, params.kn, kernel_params(params)[P_HERTZ], 2.0 * params.radius, out)
     return out.reshape(*state.shape, 2)
 
 

@@ -55,7 +55,7 @@ def _search_rule(text: str) -> tuple[int, int] | None:
 
 def calibrate(
     data: Annotated[list[str], typer.Option("--data", help=f"A test, KIND:P0:FILE; KIND: drained or undrained (2D biaxial), {', '.join(k for k in Kind if k.dim == 3)} (3D); P0 with its unit (100kPa; a bare number is Pa, refused below 10 kPa); a CSV with columns eps11 (or eps_a), q and optionally eps_v, p: strains as fractions (0.01 is 1 %) since the end of consolidation, stresses in Pa, compression positive; repeatable.")],
-    fit_: Annotated[str, typer.Option("--fit", help="Comma list of the parameters to fit (kn, kt_kn, phi_g, alpha0, alpha_omega, beta_omega, alpha0_spread).")] = "kn,kt_kn,phi_g,alpha0",
+    fit_: Annotated[Optional[str], typer.Option("--fit", help="Comma list of the parameters to fit (kn, kt_kn, phi_g, alpha0, alpha_omega, beta_omega, alpha0_spread, shear_modulus, poisson). Default: the model's (kn,kt_kn,phi_g,alpha0; shear_modulus,poisson,phi_g,alpha0 with Hertz-Mindlin contacts: hmodel models).")] = None,
     bounds: Annotated[Optional[list[str]], typer.Option("--bounds", help="Search range NAME=LOW:HIGH (angles in degrees); repeatable. Default: a range wide enough for real materials, narrowed to the cell model's training domain (a family surrogate, in 3D the one stepping the hexagons), outside which bounds are refused.")] = None,
     param: Annotated[Optional[list[str]], typer.Option("--param", "-p", metavar="NAME=VALUE", help="A fixed parameter (angles in degrees); repeatable. sliding_rhs defaults to report for 2D tests and to equilibrium for 3D ones (or a learned cell's own), as in hmodel run.")] = None,
     method: Annotated[str, typer.Option(help=f"Calibration method: {', '.join(METHODS)}.")] = "least-squares",
@@ -105,7 +105,7 @@ def calibrate(
             raise InputError(f"--check-tol must be a fraction of peak q >= 0, got {check_tol}")
     elif check_tol is not None:
         raise InputError("--check-tol applies to --check SOLVER, which is not given")
-    names = [n.strip() for n in fit_.split(",") if n.strip()]
+    names = list(variant.fitted) if fit_ is None else [n.strip() for n in fit_.split(",") if n.strip()]
     fixed = {item.partition("=")[0].strip() for item in param or []}
     both = [n for n in names if n in fixed]
     if both:

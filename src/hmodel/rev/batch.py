@@ -13,6 +13,7 @@ from functools import cached_property
 import numpy as np
 
 from ..cell import CellFlags, CellState
+from ..cell.base import check_mechanisms
 from ..errors import InputError, SolverError
 from ..limits import check_memory, table_bytes
 from ..params import Params
@@ -76,6 +77,13 @@ class RevBatch:
     def _kernel_geometry(self) -> np.ndarray:
         """The geometry rows (G, C, width) of :meth:`kernel_inputs`."""
         raise NotImplementedError
+
+    def check_mechanisms(self) -> None:
+        """Refuse (one-line :class:`~hmodel.errors.InputError`) parameter sets that switch on a
+        cell mechanism the solver's cells do not implement
+        (:func:`hmodel.cell.base.check_mechanisms`): the one place where a REV meets its
+        solver's cells."""
+        check_mechanisms(self.solver, self.sets)
 
     def check_size(self, n_points: int, what: str = "", extra_bytes: float = 0.0, rows: int = 0,
                    columns: int = 0) -> None:

@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 from ..cell.base import LAW_COMPLIANCE, LAW_MESO, P_LAW
-from ..cell.closed_form import P_KN, P_R, cell_increment, cell_jacobian
+from ..cell.closed_form import P_HERTZ, P_KN, P_R, cell_increment, cell_jacobian
 from ..cell.compliance_kernel import compliance_increment
 from ..cell.meso_kernel import meso_increment
 from ..cell.mesostress import vsigma_local
@@ -64,11 +64,12 @@ def weighted_global(vnn, vtt, wc2, ws2, wsc):
 
 
 @njit(cache=True)
-def average(values, wcos2, wsin2, wsincos, kn, sets, radius, vsig):
+def average(values, wcos2, wsin2, wsincos, kn, hertz, sets, radius, vsig):
     """vsig[b] = sum_i w_i V_i sigma_i in the global frame (eqs. 1.12, 1.15, 1.16).
 
     Weighted trigonometric factors are precomputed per parameter set (K, n_theta): w*cos^2,
-    w*sin^2, w*sin*cos; kn (K,); point b has set ``sets[b]``.
+    w*sin^2, w*sin*cos; kn (K,) and the Hertz constants (K,) of the extra contacts (0: linear,
+    :func:`hmodel.cell.mesostress.vsigma_local`); point b has set ``sets[b]``.
     """
     n_theta = wcos2.shape[1]
     two_r = 2.0 * radius
@@ -78,7 +79,7 @@ def average(values, wcos2, wsin2, wsincos, kn, sets, radius, vsig):
         s22 = 0.0
         s12 = 0.0
         for i in range(n_theta):
-            vnn, vtt = vsigma_local(values, b * n_theta + i, kn[k], two_r)
+            vnn, vtt = vsigma_local(values, b * n_theta + i, kn[k], hertz[k], two_r)
             a11, a22, a12 = weighted_global(vnn, vtt, wcos2[k, i], wsin2[k, i], wsincos[k, i])
             s11 += a11
             s22 += a22
@@ -114,6 +115,7 @@ def trial_tangent(values, eps, deps, geo, p, mode, volume0, out, flags, sig, res
 def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, tangent, u, dsig):
     two_r = 2.0 * p[P_R]
     kn = p[P_KN]
+    hertz = p[P_HERTZ]
     e11, e22, e12 = deps[0], deps[1], deps[2]
     s11 = 0.0
     s22 = 0.0
@@ -144,7 +146,7 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
                 ok &= compliance_increment(values, i, dl1, dl2, resp, p, out, flags)
             else:
                 ok &= cell_increment(values, i, dl1, dl2, p, out, flags, 0, 0)
-            vnn, vtt = vsigma_local(out, i, kn, two_r)
+            vnn, vtt = vsigma_local(out, i, kn, hertz, two_r)
         a11, a22, a12 = weighted_global(vnn, vtt, geo[i, 3], geo[i, 4], geo[i, 5])
         s11 += a11
         s22 += a22

@@ -22,6 +22,7 @@ from ..cell import (
     ClosedFormSolver,
     meso_volume,
 )
+from ..cell.closed_form import P_HERTZ, kernel_params
 from ..errors import InputError
 from ..params import Params, check_batch
 from .batch import RevBatch
@@ -77,6 +78,7 @@ class Rev(RevBatch):
         self.sets = check_batch(params)
         self.params = params = self.sets[0]
         self.solver = solver
+        self.check_mechanisms()
         self.check_size(len(self.sets))
         self.directions = d = Directions.from_params(params)
         self._trig = (d.cos2, d.sin2, d.sincos)
@@ -84,6 +86,7 @@ class Rev(RevBatch):
         self.weights = np.stack([Directions.from_params(s).weights for s in self.sets])
         self._wtrig = tuple(np.ascontiguousarray(self.weights * t) for t in self._trig)
         self._kn = np.array([s.kn for s in self.sets])
+        self._hertz = np.array([kernel_params(s)[P_HERTZ] for s in self.sets])
         #: localization mode of the meso-volume option (eq. 1.1 on l or l*), for the kernels
         self.mode = _LOC_MODE[params.volume]
         spread = [s for s in self.sets if s.alpha0_spread > 0]
@@ -164,7 +167,7 @@ class Rev(RevBatch):
         else:
             vsig = np.empty((cells.shape[0], 3))
             average(np.ascontiguousarray(cells.values[..., :8]).reshape(-1, 8), *self._wtrig,
-                    self._kn, idx, self.params.radius, vsig)
+                    self._kn, self._hertz, idx, self.params.radius, vsig)
         return vsig / self.macro_volume(eps, None if sets is None else idx)[:, None]
 
     def _meso_stress(self, cells: CellState, idx: np.ndarray) -> np.ndarray:

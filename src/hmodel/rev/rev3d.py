@@ -106,6 +106,7 @@ class Rev3D(RevBatch):
         self.sets = check_batch(params)
         for s in self.sets:
             check_params(s)
+        self.check_mechanisms()
         self.params = self.sets[0]
         self.sphere = Sphere() if sphere is None else sphere
         # the sphere's cells (directions × azimuths) are counted before their frames are built

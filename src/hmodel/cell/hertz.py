@@ -1,0 +1,187 @@
+"""Hertz-Mindlin contacts of the H-cell: eq. 1.7 with a stiffness per contact
+(``contact="hertz-mindlin"``, docs/mechanisms.md, "Hertz–Mindlin contacts").
+
+The normal law of two equal spheres is N = c δ^(3/2) (Hertz), of tangent stiffness
+kn(N) = 3/2 c δ^(1/2); the tangential stiffness is Mindlin's no-slip one, kt = m kn(N) with
+m = 2(1 - ν)/(2 - ν), taken at the force at the start of an increment as in the linear law
+(δT1 = kt d1 δα). The normal force follows the law exactly: a contact at the overlap its force
+implies, δ = (N/c)^(2/3), ends the increment at N' = c (δ - δd)^(3/2), so that eq. 1.7's third
+row depends on the solution through the secant stiffnesses (N' - N)/(-δd). Rows 1-2 give δd2
+and δα as affine functions of δd1; the third row is solved for δd1 by Newton's method, from the
+solution with the tangent stiffnesses at the start of the increment.
+
+The law is extended to negative overlaps as N = c δ |δ|^(1/2), a virtual tension, as the
+linear law's N - kn δd may fall below zero: a contact whose force would be negative opens, as
+in the published model (docs/model.md step 3), and the third row stays smooth where a contact
+starts from zero force.
+
+Plain scalar functions, inlined into the closed form's kernel
+(:mod:`hmodel.cell.closed_form`), which keeps the linear law's expressions where c = 0.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+#: Newton passes on δd1 at most, and the residual of the third row, relative to its terms, at
+#: which a point is the solution.
+NEWTON_PASSES = 60
+NEWTON_RTOL = 1e-12
+#: The residual's round-off: of the forces, relative to those at the start.
+FORCE_EPS = 1e-14
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def overlap_root(n, c, gap):
+    """δ^(1/2) of a contact whose normal force n ≥ 0 implies the overlap δ = (n/c)^(2/3), the
+    cube root of n/c. A contact loaded since it touched has the overlap gap = 2r - d to
+    round-off: from its square root, Halley's steps (cubic convergence: one from a relative
+    error of 1e-10, two from 1e-5) reach the cube root at a fraction of the library's cost; a
+    force-free cell's contact, whose gap says nothing of its force, takes the library's."""
+    y = n / c
+    if y == 0.0:
+        return 0.0
+    u = math.sqrt(abs(gap))
+    u3 = u * u * u
+    miss = abs(u3 - y)
+    if miss > 1e-4 * y:
+        return np.cbrt(y)
+    if miss > 3e-10 * y:
+        u = u * (u3 + 2.0 * y) / (2.0 * u3 + y)
+        u3 = u * u * u
+    return u * (u3 + 2.0 * y) / (2.0 * u3 + y)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def law(c, e):
+    """``(N, b)``: the normal force c e |e|^(1/2) at the overlap e (negative: a virtual tension)
+    and b = |e|^(1/2), whose 3/2 c b is the tangent stiffness there."""
+    b = math.sqrt(abs(e))
+    return c * e * b, b
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def extra_force(kn, c, gap):
+    """Normal force of an extra contact of docs/model.md step 3 (grains 1-4, 2-6, ... that
+    touch) at the overlap gap = 2r - l ≥ 0: kn gap (linear, c = 0), or Hertz's c gap^(3/2)."""
+    if c != 0.0:
+        return c * gap * math.sqrt(gap)
+    return kn * gap
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def extra_slope(kn, c, two_r, l):
+    """d/dl of :func:`extra_force` (kn, c, 2r - l) · l, the extra contact's V σ term: kn (2r - 2l),
+    or c (2r - l)^(1/2) (2r - l - 3/2 l)."""
+    if c != 0.0:
+        g = two_r - l
+        return c * math.sqrt(g) * (g - 1.5 * l)
+    return kn * (two_r - 2.0 * l)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def affine(a11, a13, a21, a23, dl1, dl2):
+    """Rows 1-2 of eq. 1.7 (compatibility, [[a11, 1, a13], [a21, 0, a23]]) solved for δα and
+    δd2 as affine functions of δd1: ``(q, δα0, w, δd20)`` of δα = δα0 + q δd1 and
+    δd2 = δd20 + w δd1."""
+    q = -a21 / a23
+    da0 = dl2 / a23
+    return q, da0, -a11 - a13 * q, dl1 - a13 * da0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _row3(x, c, u1, u2, n1, n2, da0, q, e0, w, coef, gt, flam):
+    """Eq. 1.7's third row at δd1 = x in forces (the linear row times -kn), its slope and the
+    sum of its terms' magnitudes: ``(r, dr/dx, size, δd2, δα, N1', N2', b1, b2)``
+    (:func:`solve`)."""
+    da = da0 + q * x
+    dd2 = e0 + w * x
+    f1, b1 = law(c, u1 * u1 - x)
+    f2, b2 = law(c, u2 * u2 - dd2)
+    t1 = coef * (f1 - n1)
+    t2 = f2 - n2
+    t3 = gt * da
+    r = t1 - t2 + t3 + flam
+    dr = -1.5 * c * (coef * b1 - b2 * w) + gt * q
+    return r, dr, abs(t1) + abs(t2) + abs(t3) + abs(flam), dd2, da, f1, f2, b1, b2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def solve(c, u1, u2, n1, n2, dl1, dl2, a11, a13, a21, a23, coef, gt, flam):
+    """Eq. 1.7 of Hertz-Mindlin contacts: ``(ok, δd1, δd2, δα, N1', N2', b1, b2)``, the
+    solution, the new normal forces and the square roots of the new overlaps (tangents
+    3/2 c b); ``ok`` is False where Newton found none.
+
+    The third row, grain 2's equilibrium (eq. 1.6) in forces:
+    coef (N1' - N1) - (N2' - N2) + gt δα + flam = 0, with the contacts at the overlaps u1², u2²
+    their forces N1, N2 imply (Nk' by :func:`law`). Sticking: coef = cos α,
+    gt = T1 cos α - N1 sin α + (g2 + sin α) kt d1, flam = 0; sliding: coef = cos α + ξ tan φ
+    (g2 + sin α), gt = T1 cos α - N1 sin α, flam = kn λ of eq. 1.10."""
+    q, da0, w, e0 = affine(a11, a13, a21, a23, dl1, dl2)
+    # the start: the row with the tangent stiffnesses at the start of the increment; an
+    # unloaded contact has none, and the row of two is homogeneous in them where both are
+    k1 = 1.5 * c * u1
+    k2 = 1.5 * c * u2
+    if k1 == 0.0:
+        k1 = k2 if k2 != 0.0 else 1.0
+    if k2 == 0.0:
+        k2 = k1
+    x = -(k2 * e0 + gt * da0 + flam) / (-coef * k1 + k2 * w + gt * q)
+    floor = FORCE_EPS * (n1 + n2)
+    for _ in range(NEWTON_PASSES):
+        r, dr, size, dd2, da, f1, f2, b1, b2 = _row3(x, c, u1, u2, n1, n2, da0, q, e0, w, coef,
+                                                      gt, flam)
+        tol = NEWTON_RTOL * size + floor
+        if abs(r) <= tol:
+            return True, x, dd2, da, f1, f2, b1, b2
+        inv_dr = 1.0 / dr
+        step = r * inv_dr
+        if not math.isfinite(step):
+            break
+        if b1 == 0.0 or b2 == 0.0:
+            x -= step
+            continue
+        # Chebyshev's step (cubic convergence) near the solution, with the second derivative
+        # r2 of the normal laws (±3/4 c / b at each overlap, their third r3: 3/8 c / b³); its
+        # error (2 A² - B) step³, A = r2/(2 r'), B = r3/(6 r'), bounded by the terms'
+        # magnitudes, leaves a residual below tol: the new point is the solution
+        inv_b = 1.0 / (b1 * b2)
+        i1 = b2 * inv_b
+        i2 = b1 * inv_b
+        hs = 0.375 * c * (coef * math.copysign(i1, u1 * u1 - x)
+                          - w * w * math.copysign(i2, u2 * u2 - dd2)) * inv_dr * step
+        if abs(hs) > 0.5:
+            x -= step
+            continue
+        x -= step * (1.0 + hs)
+        a_abs = 0.375 * c * (abs(coef) * i1 + w * w * i2)
+        b_abs = 0.0625 * c * (abs(coef) * i1 * i1 * i1 + abs(w * w * w) * i2 * i2 * i2)
+        if (2.0 * a_abs * a_abs * abs(inv_dr) + b_abs) * abs(step) ** 3 <= tol:
+            da = da0 + q * x
+            dd2 = e0 + w * x
+            f1, b1 = law(c, u1 * u1 - x)
+            f2, b2 = law(c, u2 * u2 - dd2)
+            return True, x, dd2, da, f1, f2, b1, b2
+    r, dr, size, dd2, da, f1, f2, b1, b2 = _row3(x, c, u1, u2, n1, n2, da0, q, e0, w, coef, gt,
+                                                  flam)
+    return False, x, dd2, da, f1, f2, b1, b2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def column(c, b1, b2, q, w, coef, gt, sliding, ktd1, xitan, pdd2, pda):
+    """Derivatives of the solution of :func:`solve` along a length increment that moves
+    (δd2, δα) at fixed δd1 by (pdd2, pda) (rows 1-2: (1, 0) along δl1, (-a13/a23, 1/a23) along
+    δl2): ``(dδd1, dδd2, dδα, dN1, dN2, dT1)``, by the implicit function theorem on the third
+    row at the solution, whose tangents are 3/2 c b1, 3/2 c b2. ``ktd1``: kt d1 (sticking,
+    δT1 = kt d1 δα); ``xitan``: ξ tan φ (``sliding``, T1' = ξ tan φ N1')."""
+    dr = -1.5 * c * (coef * b1 - b2 * w) + gt * q
+    dx = -(1.5 * c * b2 * pdd2 + gt * pda) / dr
+    ddd2 = pdd2 + w * dx
+    dda = pda + q * dx
+    dn1 = -1.5 * c * b1 * dx
+    dn2 = -1.5 * c * b2 * ddd2
+    dt1 = xitan * dn1 if sliding else ktd1 * dda
+    return dx, ddd2, dda, dn1, dn2, dt1
