@@ -17,6 +17,7 @@ from hmodel.cell import ClosedFormSolver
 from hmodel.cli.app import main
 from hmodel.errors import InputError
 from hmodel.loading import run_biaxial
+from hmodel.solvers import get_solver_3d
 
 #: A training domain as a family model stores it (Params units: angles in radians).
 DOMAIN = {"kt_kn": (0.2, 1.0), "phi_g": (math.radians(10.0), math.radians(45.0)),
@@ -123,7 +124,6 @@ def test_the_3d_model_is_bounded_by_the_family_stepping_its_hexagons():
     and the default bounds are the domain, so that a fit of kt_kn with them runs (the general
     range 0.05–2 used to take it outside the domain and stop the fit)."""
     from hmodel.cell.bihex import BiHexSolver
-    from hmodel.cli.run import _solver_3d
     from hmodel.loading import run_triaxial
     from hmodel.rev import Sphere
 
@@ -135,7 +135,7 @@ def test_the_3d_model_is_bounded_by_the_family_stepping_its_hexagons():
     c, s = res.stage("consolidation"), res.stage("shear")
     test = Test("triaxial-drained", 1e5, np.asarray(s["eps11"]) - c["eps11"][-1], np.asarray(s["q"]),
                 np.asarray(s["eps_v"]) - c["eps_v"][-1])
-    solver = _solver_3d("surrogate:family")
+    solver = get_solver_3d("surrogate:family")
     lo, hi = solver.hexagon.domain["kt_kn"]
     kw = dict(base=base, solver=solver, sphere=sphere, search_rule=(9, 1), starts=1, max_nfev=3)
     with pytest.raises(InputError, match=r"--bounds kt_kn=0.05:2 reaches outside the model's training domain"):

@@ -11,7 +11,7 @@ from hmodel.cell.state import CellState
 from hmodel.cli.app import main
 from hmodel.errors import InputError
 from hmodel.params import Params
-from hmodel.solvers import get_solver
+from hmodel.solvers import get_solver, get_solver_3d
 
 # The DEM keeps the grains in equilibrium: the closed form's `equilibrium` sliding closure.
 PARAMS = Params(sliding_rhs="equilibrium")
@@ -96,8 +96,8 @@ def test_bad_input_is_one_line(tmp_path, capsys):
         get_solver("dem:bihexagon:ratio=0.5")
     solver = get_solver("dem:bihexagon")
     assert solver.n_lengths == 3 and solver.field_names() == BIHEX_FIELDS
-    from hmodel.cli.run import _solver_3d  # hmodel run triaxial --solver dem:bihexagon takes it as is
-    assert _solver_3d("dem:bihexagon:substeps=500").options.substeps == 500
+    # hmodel run triaxial --solver dem:bihexagon takes it as is
+    assert get_solver_3d("dem:bihexagon:substeps=500").options.substeps == 500
     with pytest.raises(InputError, match="16"):
         solver.step(PARAMS, get_solver("closed-form").initial(PARAMS, (2,)), 0.0, 0.0, 0.0)
     with pytest.raises(InputError, match="volume"):

@@ -129,8 +129,17 @@ def test_refusals():
         form.augment(cols)
     with pytest.raises(InputError, match="--formulation meso"):
         make_formulation("compliance", PARAMS, "dem:hexagon-center")
-    with pytest.raises(InputError, match="H-cell or DEM data"):
-        MesoFormulation(PARAMS, "surrogate")
+    for cell in ("surrogate", "dem:bihexagon"):  # learned cells; the 3D model's (three lengths)
+        with pytest.raises(InputError, match="H-cell or DEM data"):
+            MesoFormulation(PARAMS, cell)
+
+
+def test_the_summary_takes_the_cells_from_their_solver():
+    """The data's cells as the registry resolves their spec: their geometry and unloaded state
+    (the closed form's exactly: the standard DEM cell's differs from it at round-off)."""
+    h, std, rich = (MesoFormulation(PARAMS, c) for c in ("closed-form", "dem:standard", "dem:hexagon-center"))
+    assert h.geometry.standard and std.geometry.standard and rich.geometry.mesostructure == "hexagon-center"
+    np.testing.assert_array_equal(h.initial(PARAMS, (1,)).values[0, :8], CellState.initial(PARAMS, (1,)).values[0])
 
 
 def test_richer_cells_learn_the_meso_stress_h_cells_take_eq_1_12():
@@ -350,17 +359,21 @@ def test_rollout_training_is_refused_where_it_does_not_apply(tiny_model):
         train_on_sample(tmp / "sample", TrainConfig(formulation="meso", rollout=4, epochs=1, device="cpu"))
 
 
-def test_a_richer_cells_geometry_comes_from_the_cell_layer_not_the_dem_package():
+def test_a_richer_cells_geometry_needs_no_yade():
     """The summary of an unloaded hexagon-center cell, its Love-Weber stress and its layout come
-    from :mod:`hmodel.cell.geometry`: nothing of hmodel.dem (YADE's client) is imported."""
+    from :mod:`hmodel.cell.geometry`, which the cells' solver (resolved by the registry) declares:
+    no YADE is looked for nor started, here where none can be found."""
+    import os
     import subprocess
     import sys
-    code = ("import sys; from hmodel import Params; from hmodel.surrogate.formulations.meso import MesoFormulation; "
+    code = ("from hmodel import Params; from hmodel.surrogate.formulations.meso import MesoFormulation; "
             "f = MesoFormulation(Params(), 'dem:hexagon-center'); "
             "z = f.summary(f.geometry.initial(Params(), (2,)).values); "
             "assert f.richer and z.shape == (2, 11) and f.geometry.n_fields == 8 + 14 + 21; "
-            "assert not [m for m in sys.modules if m.startswith('hmodel.dem')], 'hmodel.dem imported'")
-    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+            "assert type(f.geometry).__module__ == 'hmodel.cell.geometry'; "
+            "assert f.cell_solver._server is None, 'YADE started'")
+    env = {**os.environ, "HMODEL_YADE": os.path.join(os.sep, "nonexistent", "yade")}
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
     assert run.returncode == 0, run.stderr
 
 

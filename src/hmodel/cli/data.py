@@ -39,13 +39,22 @@ def _theta_range(text: str) -> tuple[float, float]:
 
 
 def _solver(solver: str, mesostructure: str | None) -> str:
-    if solver == "dem":
-        return f"dem:{mesostructure or 'standard'}"
+    """The spec of the cells a database is made of, as the registry resolves ``--solver`` (and
+    ``--mesostructure`` after it): a bare word as its solver records it (``dem`` is
+    ``dem:standard``), a spec with options as given, so that a manifest keeps its command's
+    spelling."""
+    from ..solvers import get_solver
+
+    cell = get_solver(solver)
     if mesostructure is not None:
-        raise InputError("--mesostructure needs --solver dem")
-    if solver != "closed-form" and not solver.startswith("dem:"):
-        raise InputError(f"--solver must be closed-form or dem, got {solver!r}")
-    return solver
+        # the mesostructure is the first option of a grain cell's spec: after a bare word only
+        if cell.geometry is None or ":" in solver:
+            raise InputError("--mesostructure needs --solver dem")
+        solver = f"{solver}:{mesostructure}"
+        cell = get_solver(solver)
+    if cell.learned:  # rows are a database's to learn from: a network's answers are not
+        raise InputError(f"--solver must be an exact cell solver (closed-form or dem), got the learned {solver!r}")
+    return solver if ":" in solver else cell.name
 
 
 @app.command("generate")
@@ -101,9 +110,6 @@ def generate(
     from ..data.kinds import option_defaults
 
     defaults = option_defaults(dim)  # refuses a dimension no kind of rows has
-    if dim == 3 and (solver != "closed-form" or mesostructure is not None):
-        raise InputError("--dim 3 rows are the closed-form bi-hexagon's; --solver and --mesostructure are "
-                         "2D cell solver options only")
     if dim == 3 and rev_paths:
         raise InputError("--rev-paths (dataset 3, a 2D REV's cells) is a 2D option; --dim 3 writes dataset 2")
     given = {"n_directions": directions, "theta": theta, "alpha0": alpha0, "max_strain": max_strain,

@@ -66,8 +66,6 @@ ProgramSolverOpt = Annotated[str, typer.Option(
                      "dem:MESOSTRUCTURE (YADE cells). In a 3D program, the cell of the hexagons of every "
                      "bi-hexagon, as run triaxial's --solver (surrogate: the network trained with the "
                      "equilibrium sliding_rhs), or dem:bihexagon.")]
-#: The 3D cell of a --solver spec, under the name tests of the learned and DEM 3D cells import.
-_solver_3d = get_solver_3d
 
 
 def _solver(spec: str, gate: float | None, fallback: str | None):

@@ -18,8 +18,7 @@ from ..cell import CellSolver
 from ..limits import check_rows
 from ..params import Params
 from ..rev import Rev
-# check_3d_params: the 3D model's refusal, imported from here by the stability probes too
-from ..rev.model3d import check_3d_param_sets, check_3d_params, params_3d  # noqa: F401
+from ..rev.model3d import check_3d_param_sets, params_3d
 from ..rev.rev3d import Rev3D
 from ..rev.sphere import Sphere
 from . import named_paths

@@ -12,6 +12,7 @@ import numpy as np
 from ..errors import InputError
 from ..params import Params
 from ..rev import RevState
+from ..rev.model3d import check_3d_params
 from ..rev.sphere import Sphere
 from .locate import PathStability, _located, _rule
 from .probes import _check, section_directions, strain_envelope, stress_envelope
@@ -63,7 +64,6 @@ def along_triaxial(params, p0: float, axial_strain: float, undrained: bool = Fal
     :meth:`hmodel.loading.Program.run` of a 3D program. The located points are axial strains
     since consolidation (negative in extension); ``controllability``: as :func:`along_program`
     (default ``"secant"``)."""
-    from ..loading.lab_tests import check_3d_params
     # the package's name, so that a rule put in its place there (a test's spy) is the one drawn
     from . import triaxial_directions
 

@@ -79,7 +79,7 @@ def distill(teacher: Surrogate, columns: dict[str, np.ndarray], config: DistillC
     torch = require_torch("distillation")
 
     form = teacher.formulation
-    if form.name != "meso":
+    if not form.distils:
         raise InputError(f"distillation needs a meso-formulation teacher, got {form.name!r}")
     arch = Architecture(config.width, config.depth, config.activation or teacher.architecture.activation)
     torch.manual_seed(config.seed)

@@ -151,6 +151,9 @@ class Formulation(ABC):
     material_inputs: tuple[str, ...] = ()
     #: Whether :meth:`step_cells_sets` steps cells of several materials in one network call.
     steps_sets: bool = False
+    #: Whether a narrower network can learn this one's increments (:mod:`hmodel.surrogate.distill`):
+    #: those of a structured head (:meth:`head`) with a secant weighting and rollouts.
+    distils: bool = False
 
     @abstractmethod
     def to_dict(self) -> dict:

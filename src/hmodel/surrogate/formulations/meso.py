@@ -42,6 +42,7 @@ from functools import cached_property
 
 import numpy as np
 
+from ...cell.base import STATE_H_CELL
 from ...cell.meso_kernel import advance_cells, pack_outputs, pack_responses
 from ...cell.meso_kernel import kernel_params as meso_kernel_params
 from ...cell.mesostress import contact_vsigma
@@ -75,6 +76,8 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
     name: str = "meso"
     #: One network call for the cells of several materials (:meth:`step_cells_sets`).
     steps_sets = True
+    #: A narrower student learns its head's increments (:mod:`hmodel.surrogate.distill`).
+    distils = True
     #: float32 inference: checked against float64 on every compared DEM-REV path.
     single_precision = True
     #: Two columns after one network's outputs, where :meth:`responses` puts cos and sin of alpha.
@@ -96,7 +99,9 @@ class MesoFormulation(MesoSummary, MesoHead, MesoRollout, Formulation):
         return OUTPUTS + ("Vs_nn_next", "Vs_tt_next")
 
     def __post_init__(self) -> None:
-        if not (self.cell == "closed-form" or self.cell.startswith("dem:")):
+        cell = self.cell_solver
+        # the summary reads an H-cell's eight fields, then a DEM geometry's extra ones
+        if cell.learned or cell.n_lengths != 2 or not (cell.state_kind == STATE_H_CELL or cell.geometry is not None):
             raise InputError(f"the meso formulation needs H-cell or DEM data, got cells of {self.cell!r}")
         if self.cell_step is not None and not (math.isfinite(self.cell_step) and self.cell_step > 0):
             raise InputError(f"cell_step must be a positive strain, got {self.cell_step}")

@@ -22,6 +22,7 @@ from functools import cached_property
 
 import numpy as np
 
+from ...cell.base import CellSolver
 from ...cell.geometry import CellGeometry
 from ...cell.mesostress import meso_vsigma
 from ...cell.state import FIELDS, CellState
@@ -45,9 +46,19 @@ class MesoSummary(MaterialScales):
     state_fields = STATE_FIELDS
 
     @cached_property
+    def cell_solver(self) -> CellSolver:
+        """The solver of the data's cells, as the one registry resolves ``self.cell``: what it
+        declares says what its cells are."""
+        from ...solvers import get_solver
+
+        return get_solver(self.cell)
+
+    @cached_property
     def geometry(self) -> CellGeometry:
-        """The cells' geometry: state layout and Love-Weber sum (H-cells: the standard cell's)."""
-        return CellGeometry.from_spec(self.cell if self.cell.startswith("dem:") else "dem:standard")[0]
+        """The cells' geometry: state layout and Love-Weber sum (a DEM cell's, as its solver
+        declares it; H-cells of a solver without one: the standard cell's)."""
+        geometry = self.cell_solver.geometry
+        return CellGeometry() if geometry is None else geometry
 
     @property
     def richer(self) -> bool:
@@ -86,9 +97,7 @@ class MesoSummary(MaterialScales):
     @cached_property
     def _unloaded(self) -> np.ndarray:
         """The summary (11,) of an unloaded cell."""
-        full = (CellState.initial(self.params, (1,)) if self.cell == "closed-form"
-                else self.geometry.initial(self.params, (1,))).values
-        return self.summary(full)[0]
+        return self.summary(self.cell_solver.initial(self.params, (1,)).values)[0]
 
     def meso(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(V sigma) (..., 3) and meso-volume (...) of summary states (..., 11), for the REV."""
