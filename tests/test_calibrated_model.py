@@ -41,7 +41,7 @@ def specimens():
 
 @pytest.fixture(scope="module")
 def calibrated(specimens):
-    return fit(specimens, ("alpha0",), base=BASE, starts=2, model="sand", **KW)
+    return fit(specimens, ("alpha0",), base=BASE, starts=2, model="density", **KW)
 
 
 def test_the_density_variant_finds_alpha0_at_the_mean_void_ratio(calibrated):
@@ -86,11 +86,11 @@ def test_the_cli_calibrates_the_sand_variant_and_refuses_a_test_without_e0(speci
         files.append(f"drained:{t.p0:g}:{f}:e0={t.e0}")
     common = ["calibrate", "--fit", "alpha0", "--starts", "1", "-p", "n_theta=36", "-p", "sliding_rhs=equilibrium",
               "-p", "phi_g=28", "-p", "kt_kn=0.5"]
-    assert main([*common, "--data", files[0], "--data", files[1], "--model", "sand", "--out", str(tmp_path / "o")]) == 0
+    assert main([*common, "--data", files[0], "--data", files[1], "--model", "density", "--out", str(tmp_path / "o")]) == 0
     fitted = json.loads((tmp_path / "o" / "calibration.json").read_text())["fitted"]["alpha0"]
     assert fitted == pytest.approx(50.0, abs=1e-3)
     bare = files[0].rpartition(":e0=")[0]
-    assert main([*common, "--data", bare, "--model", "sand", "--out", str(tmp_path / "n")]) == 1
+    assert main([*common, "--data", bare, "--model", "density", "--out", str(tmp_path / "n")]) == 1
     err = capsys.readouterr().err
     assert "has no e0" in err and err.count("\n") == 1 and not (tmp_path / "n").exists()
     assert main([*common, "--data", files[0], "--model", "clay", "--out", str(tmp_path / "m")]) == 1
@@ -100,7 +100,7 @@ def test_the_cli_calibrates_the_sand_variant_and_refuses_a_test_without_e0(speci
 @pytest.mark.slow
 def test_starts_on_a_dask_cluster_give_the_local_calibration(specimens):
     distributed = pytest.importorskip("distributed")
-    kw = dict(base=BASE, starts=2, model="sand", **KW)
+    kw = dict(base=BASE, starts=2, model="density", **KW)
     local = fit(specimens, ("alpha0", "phi_g"), **kw)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
                                   dashboard_address=None) as cluster:

@@ -60,14 +60,14 @@ def test_the_map_refuses_a_specimen_looser_than_any_cell():
 
 
 def test_variants_and_their_names():
-    assert get_variant(None).name == "published" and get_variant("sand") is get_variant("density")
-    with pytest.raises(InputError, match="no model 'clay'.*sand \\(= density\\)"):
+    assert get_variant(None).name == "published" and get_variant("sand") is get_variant("hertz")
+    with pytest.raises(InputError, match="no model 'clay'.*sand \\(= hertz\\)"):
         get_variant("clay")
     p = Params(alpha0=math.radians(50))
     assert get_variant("published").initial_params(p, 3, e0=0.7, e_ref=0.8) is p
-    assert get_variant("sand").initial_params(p, 3, e0=0.8, e_ref=0.8).alpha0 == pytest.approx(p.alpha0)
+    assert get_variant("density").initial_params(p, 3, e0=0.8, e_ref=0.8).alpha0 == pytest.approx(p.alpha0)
     with pytest.raises(InputError, match="reference void ratio"):
-        get_variant("sand").initial_params(p, 3, e0=0.7)
+        get_variant("density").initial_params(p, 3, e0=0.7)
 
 
 def _test(e0, p0=1e5):
@@ -80,8 +80,8 @@ def test_a_calibration_model_runs_each_test_at_its_own_alpha0():
     curves of the published model run at the two mapped α0 (an independent run each)."""
     base = Params(n_theta=12, alpha0=math.radians(50))
     tests = (_test(0.8), _test(0.9))
-    dens = Model(tests, variant=get_variant("sand")).predict([base])
-    assert Model(tests, variant=get_variant("sand")).e_ref == pytest.approx(0.85)
+    dens = Model(tests, variant=get_variant("density")).predict([base])
+    assert Model(tests, variant=get_variant("density")).e_ref == pytest.approx(0.85)
     for t, q in zip(tests, dens.q):
         a0 = alpha0_for_void_ratio(base, 2, t.e0, 0.85)
         alone = Model((t,)).predict([replace(base, alpha0=a0)])
@@ -93,8 +93,8 @@ def test_a_calibration_model_runs_each_test_at_its_own_alpha0():
 
 def test_the_density_variant_needs_every_tests_e0_and_fails_sets_it_cannot_map():
     with pytest.raises(InputError, match="has no e0"):
-        Model((_test(0.8), _test(None)), variant=get_variant("sand"))
+        Model((_test(0.8), _test(None)), variant=get_variant("density"))
     # alpha0 59 deg at e_ref 0.85: the 2D hexagon cannot carry e0 = 0.99
-    pred = Model((_test(0.71), _test(0.99)), variant=get_variant("sand")).predict(
+    pred = Model((_test(0.71), _test(0.99)), variant=get_variant("density")).predict(
         [Params(n_theta=12, alpha0=math.radians(59)), Params(n_theta=12, alpha0=math.radians(40))])
     assert "looser than the loosest" in pred.failed[0] and pred.failed[1] == ""

@@ -1,12 +1,18 @@
-"""The critical-state and π-plane figures of the 3D H-model with each cell mechanism on and off,
-as one table in docs/mechanisms.md, generated from the JSON files of
-``benchmarks.model3d.critical_state`` and ``benchmarks.model3d.pi_plane`` run with
-``--mechanisms ... --tag TAG`` (no tag: the published model).
+"""The tables of docs/mechanisms.md, generated from benchmark JSON files:
 
-Usage: ``python -m benchmarks.model3d.mechanisms_table`` rewrites the block between the markers
-``<!-- mechanisms-table -->`` and ``<!-- /mechanisms-table -->`` of docs/mechanisms.md;
-``--check`` exits 1 when the page's block differs from what the JSON files give (the test
-suite runs it, so the page cannot keep a stale number).
+- ``mechanisms-table``: the critical-state and π-plane figures of the 3D H-model with each cell
+  mechanism on and off (``benchmarks.model3d.critical_state`` and ``benchmarks.model3d.pi_plane``
+  run with ``--mechanisms ... --tag TAG``; no tag: the published model);
+- ``mechanisms-kfs``: Karlsruhe fine sand, each variant calibrated on TMD12/TMD14 and predicting
+  the 25 tests (``benchmarks.calibration.kfs --model NAME --tag TAG``), and the peer
+  (``benchmarks.calibration.kfs_peer``);
+- ``mechanisms-dem``: the small-strain stiffness of DEM sphere assemblies against pressure
+  (``benchmarks.dem.granular``).
+
+Usage: ``python -m benchmarks.model3d.mechanisms_table`` rewrites each block between its markers
+``<!-- NAME -->`` and ``<!-- /NAME -->`` in docs/mechanisms.md; ``--check`` exits 1 when a block
+of the page differs from what the JSON files give (the test suite runs it, so the page cannot
+keep a stale number).
 """
 
 from __future__ import annotations
@@ -19,10 +25,10 @@ from pathlib import Path
 
 HERE = Path(__file__).parent
 PAGE = HERE.parents[1] / "docs" / "mechanisms.md"
-BEGIN, END = "<!-- mechanisms-table -->", "<!-- /mechanisms-table -->"
 #: (tag, what is on), in the table's order.
 VARIANTS = (("", "published (none)"), ("hertz", "Hertz–Mindlin contacts"), ("rebirth", "rebirth"),
-            ("hertz_rebirth", "Hertz–Mindlin + rebirth"))
+            ("hertz_rebirth", "Hertz–Mindlin + rebirth"),
+            ("kt0889", "control: linear, kt/kn = 0.889 (Mindlin's ratio at ν = 0.2)"))
 #: The issue's measure of a critical state: q/p within ±3 % of one M, |dε_v/dε₁| ≤ 0.05.
 QP_BAND, RATE_MAX = 0.03, 0.05
 
@@ -41,8 +47,12 @@ def _result(rec: dict, start: str) -> float:
 
 def row(tag: str, label: str) -> str | None:
     cs, pi = _load("critical_state", tag), _load("pi_plane", tag)
-    if cs is None:
+    if cs is None and pi is None:
         return None
+    ratio = _result(pi, "strength ratio") if pi else math.nan
+    mc = _result(pi, "M_c") if pi else math.nan
+    if cs is None:
+        return f"| {label} | — | — | — | — | — | — | {mc:.3f} | {ratio:.3f} |"
     table = cs["table"]
     reached = [r for r in table if not r["newton_failed"]]
     qp = [r["q_p_end"] for r in reached]
@@ -52,20 +62,80 @@ def row(tag: str, label: str) -> str | None:
     steady = sum(abs(r["deps_v_deps11_end"]) <= RATE_MAX for r in drained if not r["newton_failed"])
     loose_u = [r for r in table if r["test"] == "undrained" and r["state"] == "loose"]
     liq = min((r["p_end"] / r["p0"] for r in loose_u), default=math.nan)
-    ratio = _result(pi, "strength ratio") if pi else math.nan
-    mc = _result(pi, "M_c") if pi else math.nan
     return (f"| {label} | {len(reached)} of {len(table)} | {min(qp):.3f}–{max(qp):.3f} | {within} of {len(reached)} "
             f"| {max(abs(r['deps_v_deps11_end']) for r in drained):.3f} | {steady} of {len(drained)} "
             f"| {liq:.2f} | {mc:.3f} | {ratio:.3f} |")
 
 
-def block() -> str:
+def _median(values) -> float:
+    v = sorted(x for x in values if x is not None)
+    n = len(v)
+    return math.nan if not n else (v[n // 2] if n % 2 else 0.5 * (v[n // 2 - 1] + v[n // 2]))
+
+
+#: (JSON file, label) of the KFS block, in its order.
+KFS = (("kfs.json", "H-model, density (linear contacts)"), ("kfs_hertz.json", "H-model, hertz"),
+       ("kfs_rebirth.json", "H-model, rebirth (Hertz–Mindlin + rebirth)"),
+       ("kfs_peer.json", "Manzari–Dafalias (OpenSees), the peer"))
+
+
+def kfs_block() -> str:
+    rows = []
+    for name, label in KFS:
+        path = HERE.parent / "calibration" / name
+        if not path.exists():
+            continue
+        tests = json.loads(path.read_text())["tests"]
+        dq = [t["rms_dq"] for t in tests]
+        dv = [t["rms_dev"] for t in tests]
+        full = [t for t in tests if t["rms_dq"] is not None and t.get("reached", 0.2) >= 0.199]
+        both = sum(t["rms_dq"] <= 0.10 and t["rms_dev"] <= 0.005 for t in full)
+        within = sum(t["rms_dq"] <= 0.10 for t in full)
+        fin = [x for x in dq if x is not None]
+        rows.append(f"| {label} | {100 * _median(dq):.1f} | {100 * min(fin):.1f}–{100 * max(fin):.1f} "
+                    f"| {within} of {len(tests)} | {100 * _median(dv):.2f} | {both} of {len(tests)} "
+                    f"| {len(tests) - len(full)} |")
+    return ("| model | median RMS \\|Δq\\|/peak q [%] | range [%] | within 10 % (to 20 %) | "
+            "median RMS Δε_v [% strain] | within both targets | tests ended early |\n"
+            "|---|---|---|---|---|---|---|\n" + "\n".join(rows))
+
+
+def dem_block() -> str:
+    path = HERE.parent / "dem" / "granular.json"
+    if not path.exists():
+        return "(benchmarks/dem/granular.json not written yet)"
+    rec = json.loads(path.read_text())
+    rows = []
+    for law, label in (("linear", "linear (kn, kt)"), ("hertz", "Hertz–Mindlin")):
+        st = rec.get("stiffness", {}).get(law)
+        if st:
+            rows.append(f"| DEM spheres, {label} | {st['n_secant_0.0001']:.3f} "
+                        f"| {st['E_400_over_E_100_secant_1e-4']:.3f} |")
+    rows += ["| H-model, linear contacts (fixed fabric, by construction) | 0 | 1 |",
+             f"| H-model, Hertz–Mindlin (fixed fabric, by construction) | {1 / 3:.3f} | {4 ** (1 / 3):.3f} |"]
+    return ("| assembly / model | n in E₀ ∝ p^n (50–400 kPa) | E₀(400 kPa)/E₀(100 kPa) |\n"
+            "|---|---|---|\n" + "\n".join(rows))
+
+
+def table_block() -> str:
     head = ("| mechanisms on | tests to 30 % | q/p at the end | within ±3 % of their mean | "
             "largest drained \\|dε_v/dε₁\\| at the end | drained with \\|dε_v/dε₁\\| ≤ 0.05 | "
             "loose undrained p_end/p₀ (lowest) | M_c (π-plane) | M_e/M_c |\n"
             "|---|---|---|---|---|---|---|---|---|")
     rows = [r for r in (row(tag, label) for tag, label in VARIANTS) if r is not None]
-    return "\n".join([BEGIN, head, *rows, END])
+    return "\n".join([head, *rows])
+
+
+BLOCKS = {"mechanisms-table": table_block, "mechanisms-kfs": kfs_block, "mechanisms-dem": dem_block}
+
+
+def render(text: str) -> str:
+    """``text`` with every block between its markers generated again."""
+    for name, make in BLOCKS.items():
+        begin, end = f"<!-- {name} -->", f"<!-- /{name} -->"
+        i, j = text.index(begin), text.index(end) + len(end)
+        text = text[:i] + "\n".join([begin, make(), end]) + text[j:]
+    return text
 
 
 def main() -> int:
@@ -73,8 +143,7 @@ def main() -> int:
     ap.add_argument("--check", action="store_true", help="compare the page with the JSON files")
     args = ap.parse_args()
     text = PAGE.read_text()
-    i, j = text.index(BEGIN), text.index(END) + len(END)
-    new = text[:i] + block() + text[j:]
+    new = render(text)
     if args.check:
         if new != text:
             print("docs/mechanisms.md: the mechanisms table differs from the benchmarks' JSON files; "
@@ -82,7 +151,6 @@ def main() -> int:
             return 1
         return 0
     PAGE.write_text(new)
-    print(block())
     return 0
 
 

@@ -6,7 +6,7 @@ A variant says how a test's initial state follows from what was measured of the 
 again, as it was fitted, at another density and pressure.
 
 >>> get_variant("sand").name
-'density'
+'hertz'
 >>> get_variant("published").uses_e0
 False
 """
@@ -92,8 +92,10 @@ VARIANTS = MappingProxyType({
                             options=MappingProxyType({"contact": "hertz-mindlin", "renewal": "rebirth"}),
                             fitted=_HERTZ),
 })
-#: Other names of variants: the one the docs recommend for sands.
-ALIASES = MappingProxyType({"sand": "density"})
+#: Other names of variants: the one the docs recommend for sands (docs/mechanisms.md, "Which
+#: variant for sands": stiffness that follows pressure as a DEM assembly's, a sand's strength
+#: ratio in extension; on Karlsruhe fine sand no better than ``density``).
+ALIASES = MappingProxyType({"sand": "hertz"})
 
 
 def get_variant(name: str | None) -> ModelVariant:
