@@ -109,7 +109,7 @@ def _regime(d1, a, n1, t1, dl1, dl2, p):
     return a11, a13, a21, a23, ca, a33, 0.0, sliding, xi
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")  # a call, not inlined: keeps the linear path lean
 def _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p):
     """Eq. 1.7 of Hertz-Mindlin contacts (docs/mechanisms.md) in the regime the increment
     (dl1, dl2) takes, as :func:`_regime` (trial without sliding, Coulomb check, sliding):
@@ -243,7 +243,7 @@ def _vsigma_slope(x1, x2, xa, dn1, dn2, dt1, e1, e2, carries, d1n, d2n, an, n1n,
     return jnn, jtt
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")  # a call, not inlined: keeps the linear path lean
 def _hertz_jacobian(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p):
     """:func:`cell_jacobian` of Hertz-Mindlin contacts: the columns of the solution's
     derivatives along dl1 and dl2 by :func:`hmodel.cell.hertz.column` (the third row of eq. 1.7
@@ -361,12 +361,12 @@ def finish_update(d1, d2, a, l1, l2, dl1, dl2, dd1, dd2, da, n1_new, n2_new, t1_
         n2_new = 0.0
         t1_new = 0.0
         sliding = False
-    # renewal >>>
-    if p[P_RENEW] == RENEW_CELL and (open1 or open2):  # docs/mechanisms.md, "Renewal"
-        reborn, rd1, rd2, ra, rl1, rl2 = reborn_cell(d1_new, d2_new, a_new, two_r)
-        if reborn:
-            d1_new, d2_new, a_new, l1_new, l2_new = rd1, rd2, ra, rl1, rl2
-    # renewal <<<
+        # renewal >>> (inside the opening branch: a cell that carries pays nothing for it)
+        if p[P_RENEW] == RENEW_CELL:  # docs/mechanisms.md, "Renewal"
+            reborn, rd1, rd2, ra, rl1, rl2 = reborn_cell(d1_new, d2_new, a_new, two_r)
+            if reborn:
+                d1_new, d2_new, a_new, l1_new, l2_new = rd1, rd2, ra, rl1, rl2
+        # renewal <<<
     ok = math.isfinite(d1_new) and math.isfinite(d2_new) and math.isfinite(a_new)
     ok = ok and math.isfinite(n1_new) and math.isfinite(n2_new) and math.isfinite(t1_new)
     return (ok, d1_new, d2_new, a_new, n1_new, n2_new, t1_new, l1_new, l2_new, sliding, open1,

@@ -74,7 +74,7 @@ def rebirth_angle(volume, two_r, dim):
     return 0.5 * (lo + hi)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")  # a call, not inlined: keeps the linear path lean
 def reborn_cell(d1, d2, a, two_r):
     """The 2D rebirth of a cell that opened at (d1, d2, α): ``(reborn, d1, d2, α, l1, l2)`` of the
     new cell at contact (eq. 1.2 with d1 = d2 = 2r), or ``reborn`` False when its space holds no
@@ -85,7 +85,7 @@ def reborn_cell(d1, d2, a, two_r):
     return True, two_r, two_r, ar, two_r * (1.0 + 2.0 * math.cos(ar)), 2.0 * two_r * math.sin(ar)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")  # a call, not inlined: keeps the linear path lean
 def renew_bihex(out, flags, i, two_r):
     """Rebirth of bi-hexagon ``out[i]`` (16 fields, just advanced) when both hexagons are open
     (``flags[i]``: open1, open2 at 1, 2 and 6, 7), so that no force is lost: both hexagons at
