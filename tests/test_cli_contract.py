@@ -330,6 +330,25 @@ CASES = [
      "is a DEM cell solver (YADE): the 3D model's DEM cell is the bi-hexagon of spheres, dem:bihexagon"),
     ("3D program gated", ["run", "program", "iso_3d.toml", "--solver", "surrogate", "--gate", "0.99", "--out", "o"],
      1, "--gate and --fallback gate a 2D learned cell: a 3D program's learned bi-hexagon runs ungated"),
+    # the cells of a database: --solver resolved by the solver registry, decided by its declarations
+    ("data generate, learned cells", ["data", "generate", "2", "--solver", "surrogate", "--out", "o"], 1,
+     "--solver must be an exact cell solver (closed-form or dem), got the learned 'surrogate'"),
+    ("data generate, unknown solver", ["data", "generate", "2", "--solver", "foo", "--out", "o"], 1,
+     "unknown cell solver 'foo'"),
+    ("data generate, mesostructure of the closed form", ["data", "generate", "2", "--mesostructure",
+                                                         "hexagon-center", "--out", "o"], 1,
+     "--mesostructure needs --solver dem"),
+    ("data generate, mesostructure twice", ["data", "generate", "2", "--solver", "dem:standard",
+                                            "--mesostructure", "hexagon-center", "--out", "o"], 1,
+     "--mesostructure needs --solver dem"),
+    ("data generate, DEM cells in 3D", ["data", "generate", "2", "--dim", "3", "--solver", "dem", "--out", "o"], 1,
+     "--dim 3 rows are the closed-form bi-hexagon's; --solver dem:standard is a 2D cell solver option only"),
+    # hertz-mindlin
+    ("hertz-mindlin with learned cells", ["run", "biaxial", "--solver", "surrogate", "-p", "contact=hertz-mindlin",
+                                          "--out", "o"], 1,
+     "contact=hertz-mindlin is not implemented by the surrogate cells"),
+    ("rebirth with learned 3D cells", ["run", "triaxial", "--solver", "surrogate", "-p", "renewal=rebirth",
+                                       "--out", "o"], 1, "renewal=rebirth is not implemented by the surrogate cells"),
 ]
 
 

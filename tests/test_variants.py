@@ -54,3 +54,10 @@ def test_cli_run_with_a_mechanism_variant(cli, tmp_path):
         csv[key] = (tmp_path / key / "result.csv").read_text()
     assert csv["variant"] == csv["params"]
     assert csv["variant"] != csv["published"]
+
+
+def test_variants_travel_to_worker_processes():
+    import pickle
+
+    for v in VARIANTS.values():
+        assert pickle.loads(pickle.dumps(v)) == v

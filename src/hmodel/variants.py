@@ -14,8 +14,8 @@ False
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from types import MappingProxyType
 
 from .errors import InputError
@@ -36,9 +36,10 @@ class ModelVariant:
         Whether a test's void ratio sets its initial state: α0 follows e0 through the REV's
         initial volume (:func:`hmodel.rev.density.alpha0_for_void_ratio`), from the α0 the
         parameters give at the reference void ratio e_ref.
-    options : Mapping
+    options : tuple of (str, str)
         The cell's mechanisms this variant switches on (:class:`~hmodel.params.Params` fields
-        and values, docs/mechanisms.md), applied to every parameter set it runs.
+        and values, docs/mechanisms.md), applied to every parameter set it runs (pairs, not a
+        mapping: a variant travels to worker processes, pickled).
     fitted : tuple of str
         The parameters a calibration of this variant fits unless told otherwise (``--fit``).
     """
@@ -46,13 +47,13 @@ class ModelVariant:
     name: str
     description: str
     uses_e0: bool = False
-    options: Mapping = field(default_factory=lambda: MappingProxyType({}))
+    options: tuple[tuple[str, str], ...] = ()
     fitted: tuple[str, ...] = ("kn", "kt_kn", "phi_g", "alpha0")
 
     def apply(self, params: Params) -> Params:
         """``params`` with this variant's mechanisms on (a mechanism has two values, off and
         the variant's: a variant cannot contradict a parameter set, only switch it on)."""
-        return replace(params, **self.options) if self.options else params
+        return replace(params, **dict(self.options)) if self.options else params
 
     def initial_params(self, params: Params, dim: int, e0: float | None = None,
                        e_ref: float | None = None) -> Params:
@@ -86,10 +87,10 @@ VARIANTS = MappingProxyType({
     "hertz": ModelVariant("hertz", "The density model with Hertz-Mindlin contacts between the grains (shear "
                                    "modulus and Poisson ratio of the grains in place of kn and kt/kn): "
                                    "stiffness that grows with pressure.", uses_e0=True,
-                          options=MappingProxyType({"contact": "hertz-mindlin"}), fitted=_HERTZ),
+                          options=(("contact", "hertz-mindlin"),), fitted=_HERTZ),
     "rebirth": ModelVariant("rebirth", "The hertz model whose cells are reborn, at contact and force-free, "
                                        "in the space a cell held when its contacts opened.", uses_e0=True,
-                            options=MappingProxyType({"contact": "hertz-mindlin", "renewal": "rebirth"}),
+                            options=(("contact", "hertz-mindlin"), ("renewal", "rebirth")),
                             fitted=_HERTZ),
 })
 #: Other names of variants: the one the docs recommend for sands (docs/mechanisms.md, "Which

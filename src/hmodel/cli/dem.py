@@ -191,8 +191,16 @@ def sample_cmd(
     distribution: Annotated[str, typer.Option(help="Radii: uniform (in [r_min, r_max]), equal-area (disks: "
                                                    "every radius interval holds the same solid area) or "
                                                    "equal-volume (spheres: the same solid volume).")] = "uniform",
-    kn: Annotated[float, typer.Option(help="Normal contact stiffness [N/m].")] = 2.0e8,
-    kt_kn: Annotated[float, typer.Option(help="kt / kn.")] = 0.5,
+    contact: Annotated[str, typer.Option(help="Contact law: linear (springs --kn, --kt-kn) or "
+                                              "hertz-mindlin (stiffnesses growing with the normal "
+                                              "force, from --shear-modulus and --poisson).")] = "linear",
+    kn: Annotated[Optional[float], typer.Option(help="Normal contact stiffness of the linear law "
+                                                     "[N/m] (default 2e8).")] = None,
+    kt_kn: Annotated[Optional[float], typer.Option(help="kt / kn of the linear law (default 0.5).")] = None,
+    shear_modulus: Annotated[Optional[str], typer.Option(
+        help="Hertz-Mindlin: the grains' shear modulus G, with its unit (29GPa) or in Pa.")] = None,
+    poisson: Annotated[Optional[float], typer.Option(
+        help="Hertz-Mindlin: the grains' Poisson ratio ν, in (-1, 0.5); E = 2G(1 + ν).")] = None,
     phi_g: Annotated[float, typer.Option(help="Contact friction angle φg during the test [deg].")] = 30.0,
     compaction_friction: Annotated[Optional[float], typer.Option(
         help="Contact friction angle during the consolidation [deg] (the lower, the denser); "
@@ -217,9 +225,10 @@ def sample_cmd(
     spheres (drained or undrained triaxial compression, drained triaxial extension); writes
     KIND_P0kPa.csv (eps11,q,eps_v,p; for spheres eps_a,q,eps_v,p, coordination, sliding
     fraction, the stress tensor) and .npz per test, sample.json and sample.png. A test whose CSV
-    exists in the folder is not run again."""
+    exists in the folder is not run again. Contacts: linear springs, or Hertz-Mindlin with
+    --contact hertz-mindlin --shear-modulus G --poisson ν."""
     from ..dem.sample import SampleSettings, run_sample
-    from ..units import parse_pressures
+    from ..units import parse_pressure, parse_pressures
 
     pressures = parse_pressures(p0, "--p0")
     if inertial_number is not None and strain_rate is not None:
@@ -231,10 +240,20 @@ def sample_cmd(
         raise InputError("--undrained --extension: a sphere sample runs drained and undrained "
                          "compression and drained extension")
     extra = {} if inertial_number is None else {"inertial_number": inertial_number}
+    if contact == "hertz-mindlin" and (kn is not None or kt_kn is not None):
+        raise InputError("--kn and --kt-kn set the linear law; Hertz-Mindlin's stiffnesses follow "
+                         "from --shear-modulus and --poisson")
+    extra.update({k: v for k, v in (("kn", kn), ("kt_kn", kt_kn)) if v is not None})
+    if shear_modulus is not None:
+        try:
+            extra["shear_modulus"] = parse_pressure(shear_modulus)
+        except InputError:
+            raise InputError(f"--shear-modulus must be a positive modulus with its unit (29GPa) or "
+                             f"in Pa, got {shear_modulus!r}") from None
     settings = SampleSettings(
         disks=disks if disks is not None else 2000 if dim == 2 else 1500, radius=radius,
-        radius_ratio=radius_ratio, distribution=distribution, kn=kn,
-        kt_kn=kt_kn, phi_g=phi_g, compaction_friction=compaction_friction, porosity=porosity,
+        radius_ratio=radius_ratio, distribution=distribution, contact=contact, poisson=poisson,
+        phi_g=phi_g, compaction_friction=compaction_friction, porosity=porosity,
         density=density, axial_strain=axial_strain, rows=rows, strain_rate=strain_rate, seed=seed,
         damping=damping, timeout=timeout, dim=dim, **extra)
     kind = "undrained" if undrained else "drained"

@@ -18,7 +18,7 @@ def models() -> None:
     for name, v in VARIANTS.items():
         also = ", ".join(a for a, target in ALIASES.items() if target == name)
         table.add_row(name + (" (default)" if name == DEFAULT else ""), also, "yes" if v.uses_e0 else "no",
-                      ", ".join(f"{k}={val}" for k, val in v.options.items()) or "-", ",".join(v.fitted),
+                      ", ".join(f"{k}={val}" for k, val in v.options) or "-", ",".join(v.fitted),
                       v.description)
     Console().print(table)
     typer.echo("The docs recommend sand for sands: calibrate it on tests whose --data give e0, then run "

@@ -14,6 +14,7 @@ import math
 import os
 import time
 from pathlib import Path
+from types import MappingProxyType
 from typing import Callable
 
 import numpy as np
@@ -28,6 +29,9 @@ from .state import SampleState
 
 #: Settings that may differ between the runs that fill one folder.
 RESUME_FREE = ("timeout",)
+#: Settings added after folders had been written, with the value every such folder had: a
+#: sample.json without them is compared as if it held these.
+ADDED_SETTINGS = MappingProxyType({"dim": 2, "contact": "linear", "shear_modulus": None, "poisson": None})
 
 
 def _check_kind(settings: SampleSettings, kind: str) -> None:
@@ -69,6 +73,8 @@ def run_test(settings: SampleSettings, kind: str, p0: float) -> SampleTest:
         "tol_stress": settings.tol_stress, "tol_unbalanced": settings.tol_unbalanced,
         "max_steps": settings.max_steps,
     }
+    if settings.contact != "linear":  # the linear law's request stays as it was
+        spec.update(contact=settings.contact, young=settings.young, poisson=settings.poisson)
     t0 = time.perf_counter()
     try:
         out = run(settings.grains.task, spec, timeout=settings.timeout)
@@ -111,7 +117,7 @@ def _open_folder(out: Path, settings: SampleSettings, names: list[str]) -> dict:
     wanted = settings.to_dict()
     meta = _read_json(out / "sample.json")
     if meta is not None:
-        old = {"dim": 2, **meta.get("settings", {})}  # folders written before --dim: disks
+        old = {**ADDED_SETTINGS, **meta.get("settings", {})}
         diff = sorted(k for k in set(old) | set(wanted)
                       if k not in RESUME_FREE and old.get(k) != wanted.get(k))
         if diff:

@@ -2,7 +2,7 @@
 strain rate and inertial number they set.
 
 Units: lengths in m, kn in N/m, pressures in N/m for disks (Pa for unit thickness) and Pa for
-spheres, angles in degrees.
+spheres, the grains' shear modulus in Pa, angles in degrees.
 """
 
 from __future__ import annotations
@@ -26,6 +26,9 @@ from .geometry import (  # noqa: F401 (KINDS...DENSEST_3D: importers of their fi
 #: A sample's cell edge must hold this many of its largest diameters, so that no grain reaches
 #: its own periodic image and the cell is more than a few grains.
 MIN_DIAMETERS_3D = 3.0
+#: Contact laws of a sample: linear springs kn, kt (the H-model's), or Hertz-Mindlin (stiffnesses
+#: growing with the normal force, from the grains' shear modulus and Poisson ratio).
+CONTACTS = ("linear", "hertz-mindlin")
 #: Memory of one grain of a test [bytes], an upper estimate: YADE holds about 7 KiB per sphere
 #: with its contacts (measured: 40,000 spheres touching 6 others each, 282 MB over YADE's own
 #: 245 MB); the request and the two states answered (radii, centres, contact rows), as lists and
@@ -58,9 +61,18 @@ class SampleSettings:
         to r^-2: every radius interval holds the same solid area); with spheres ``uniform`` or
         ``equal-volume`` (density proportional to r^-3: the same solid volume).
     kn : float
-        Normal contact stiffness [N/m].
+        Normal contact stiffness [N/m] of the linear law (unused by Hertz-Mindlin).
     kt_kn : float
-        kt / kn.
+        kt / kn of the linear law (unused by Hertz-Mindlin).
+    contact : str
+        The contact law (:data:`CONTACTS`): ``linear`` (springs kn, kt_kn kn, Coulomb friction)
+        or ``hertz-mindlin`` (YADE's Hertz-Mindlin law from ``shear_modulus`` and ``poisson``,
+        Coulomb friction).
+    shear_modulus : float or None
+        The grains' shear modulus G [Pa] (Hertz-Mindlin only; their Young's modulus is
+        E = 2 G (1 + poisson)).
+    poisson : float or None
+        The grains' Poisson ratio, in (-1, 0.5) (Hertz-Mindlin only).
     phi_g : float
         Contact friction angle during the test [deg].
     compaction_friction : float or None
@@ -136,6 +148,9 @@ class SampleSettings:
     max_steps: int = 5_000_000
     timeout: float = 3600.0
     dim: int = 2
+    contact: str = "linear"
+    shear_modulus: float | None = None
+    poisson: float | None = None
 
     def __post_init__(self) -> None:
         def finite(name):
@@ -174,9 +189,41 @@ class SampleSettings:
             raise InputError(f"--rows must be a positive integer, got {self.rows}")
         if self.strain_rate is not None and not (finite("strain_rate") and self.strain_rate > 0):
             raise InputError(f"--strain-rate must be a positive number, got {self.strain_rate}")
+        self._check_contact()
         if not (0 <= self.damping < 1 and 0 < self.dt_safety <= 1 and 0 < self.gain_i
                 and self.period >= 1 and self.check >= 1 and self.max_steps >= 1):
             raise InputError(f"invalid numerical settings of the DEM sample: {self}")
+
+    def _check_contact(self) -> None:
+        """The contact law and its grain constants: G and nu with Hertz-Mindlin, neither with
+        the linear law (whose kn, kt_kn would silently replace them)."""
+        if self.contact not in CONTACTS:
+            raise InputError(f"--contact must be one of {', '.join(CONTACTS)}, got {self.contact!r}")
+        hertz = ("shear_modulus", "poisson")
+        if self.contact == "linear":
+            given = [option_name(n) for n in hertz if getattr(self, n) is not None]
+            if given:
+                verb = "set" if len(given) > 1 else "sets"
+                raise InputError(f"{' and '.join(given)} {verb} the Hertz-Mindlin law: add --contact "
+                                 f"hertz-mindlin (the linear law's stiffness is --kn, --kt-kn)")
+            return
+        missing = [option_name(n) for n in hertz if getattr(self, n) is None]
+        if missing:
+            raise InputError(f"--contact hertz-mindlin needs the grains' {' and '.join(missing)} "
+                             f"(quartz: --shear-modulus 29GPa --poisson 0.2)")
+        g, nu = self.shear_modulus, self.poisson
+        if not (isinstance(g, (int, float)) and math.isfinite(g) and g > 0):
+            raise InputError(f"--shear-modulus must be a positive number [Pa], got {g}")
+        if not (isinstance(nu, (int, float)) and math.isfinite(nu) and -1 < nu < 0.5):
+            raise InputError(f"--poisson must lie in (-1, 0.5), got {nu}")
+
+    @property
+    def young(self) -> float | None:
+        """The grains' Young's modulus E = 2 G (1 + nu) [Pa] (Hertz-Mindlin; None with the
+        linear law)."""
+        if self.contact != "hertz-mindlin":
+            return None
+        return 2.0 * self.shear_modulus * (1.0 + self.poisson)
 
     def _check_periodic(self) -> None:
         """A sample's cell at its densest (solid fraction :data:`DENSEST_3D`, or

@@ -11,7 +11,8 @@ text into one folder and YADE executes ``serve.py`` there).
 - ``triaxial``: task ``triaxial``, a periodic sphere sample consolidated and sheared;
 - ``bihex_cells``: task ``bihex``, bi-hexagons of ten spheres (the 3D model's cell) from their
   states under their increments (material and engines of ``cell_scene``);
-- ``common``: what every scene shares (the linear contact stiffnesses, stepping).
+- ``common``: what every scene shares (the linear contact stiffnesses, a sample's contact law
+  and the stiffness of its time step, stepping).
 
 Each runs in YADE's own Python: standard library only, YADE imported inside the functions that
 need it, and the other scripts imported by their plain names from the working directory (by

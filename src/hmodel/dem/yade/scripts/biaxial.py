@@ -7,7 +7,12 @@ so they move in the plane and spin about z; Lz = 8 r_max, so a disk never meets 
 along z and the cell's z size never changes. Mass per unit thickness ``density`` pi r^2
 (a disk of unit thickness), rotational inertia m r^2 / 2. Contacts: linear springs kn,
 ks = kt_kn kn for every pair (:func:`~hmodel.dem.yade.scripts.common.stiffness`), Coulomb friction
-(Law2_ScGeom_FrictPhys_CundallStrack), Cundall's non-viscous damping ``damping``.
+(Law2_ScGeom_FrictPhys_CundallStrack), Cundall's non-viscous damping ``damping``; or, with
+``contact`` ``hertz-mindlin``, YADE's Hertz-Mindlin law from the grains' ``young`` and
+``poisson`` (:func:`~hmodel.dem.yade.scripts.common.contact_law`; between disks, the law of the
+spheres they are). Time step ``dt_safety`` sqrt(m_min / kn), kn the linear one or the Hertz
+stiffness at a few times the largest grains' contact force at p0
+(:func:`~hmodel.dem.yade.scripts.common.time_step_stiffness`).
 
 Stress. 2D Love-Weber stress per unit area of the cell, compression positive:
 sigma = (1/A) sum_c f (x) l, f the force on j by i and l the branch vector from i to j (across the
@@ -49,9 +54,9 @@ import math
 import time
 
 try:  # pytest collecting the package's doctests
-    from .common import steps, stiffness
+    from .common import contact_law, steps, time_step_stiffness
 except ImportError:  # in YADE: the scripts lie side by side in the working directory
-    from common import steps, stiffness
+    from common import contact_law, steps, time_step_stiffness
 
 
 #: The Coulomb limit is reached when |ft| is at least this fraction of tan(phi) fn: the law
@@ -113,17 +118,17 @@ class _Test:
         O.reset()
         radii = spec["radii"]
         r_max, r_min = max(radii), min(radii)
-        kn = spec["kn"]
         O.periodic = True
         O.cell.hSize = self.cell(spec["cell"], r_max)
-        mat = O.materials.append(w.FrictMat(young=kn / r_max, poisson=spec["kt_kn"],
+        young, poisson, ip2, law2 = contact_law(w, spec, r_max)
+        mat = O.materials.append(w.FrictMat(young=young, poisson=poisson,
                                             density=spec["density"], frictionAngle=spec["phi_compact"]))
         self.ids = [O.bodies.append(self.grain(utils, x, r, mat)) for x, r in zip(spec["pos"], radii)]
         O.engines = [w.ForceResetter(),
                      w.InsertionSortCollider([w.Bo1_Sphere_Aabb()], verletDist=0.1 * r_min),
-                     w.InteractionLoop([w.Ig2_Sphere_Sphere_ScGeom()], [stiffness(w, kn, spec["kt_kn"])],
-                                       [w.Law2_ScGeom_FrictPhys_CundallStrack()]),
+                     w.InteractionLoop([w.Ig2_Sphere_Sphere_ScGeom()], [ip2], [law2]),
                      w.NewtonIntegrator(damping=spec["damping"], gravity=(0, 0, 0))]
+        kn = time_step_stiffness(spec, r_max, self.force_scale(spec["p0"], r_max))
         O.dt = spec["dt_safety"] * math.sqrt(self.mass(r_min) / kn)
         self.dt = O.dt
         self.solid = sum(self.size(r) for r in radii)
@@ -131,6 +136,11 @@ class _Test:
     def cell(self, size, r_max):
         """The cell's hSize: Lx x Ly, and Lz = 8 r_max so that a disk never meets its image."""
         return self.Matrix3(size[0], 0, 0, 0, size[1], 0, 0, 0, 8.0 * r_max)
+
+    def force_scale(self, p0, r_max):
+        """p0 d_max: a contact force [N] between the largest disks at p0 [N/m], up to a factor
+        of order one."""
+        return p0 * 2.0 * r_max
 
     def mass(self, r):
         """A disk of unit thickness."""

@@ -7,7 +7,8 @@ records.
 
 Scene. A periodic cell (``O.periodic``) Lx x Ly x Lz of free spheres (6 degrees of freedom),
 mass ``density`` 4/3 pi r^3, rotational inertia 2/5 m r^2 (YADE's own for a sphere). Contacts as
-in the disk sample: linear springs kn, ks = kt_kn kn, Coulomb friction, Cundall's damping.
+in the disk sample: linear springs kn, ks = kt_kn kn, or Hertz-Mindlin; Coulomb friction,
+Cundall's damping.
 
 Stress. The 3D Love-Weber stress, compression positive: sigma = (1/V) sum_c f (x) l, V = Lx Ly Lz,
 computed as -utils.getStressAndTangent(V)[0]. Strains: logarithmic, compression positive, since
@@ -64,6 +65,11 @@ class _Triaxial(_Test):
 
     def cell(self, size, r_max):
         return self.Matrix3(size[0], 0, 0, 0, size[1], 0, 0, 0, size[2])
+
+    def force_scale(self, p0, r_max):
+        """p0 d_max^2: a contact force [N] between the largest spheres at p0 [Pa], up to a factor
+        of order one."""
+        return p0 * (2.0 * r_max) ** 2
 
     def mass(self, r):
         return self.spec["density"] * self.size(r)
