@@ -349,6 +349,8 @@ CASES = [
      "contact=hertz-mindlin is not implemented by the surrogate cells"),
     ("rebirth with learned 3D cells", ["run", "triaxial", "--solver", "surrogate", "-p", "renewal=rebirth",
                                        "--out", "o"], 1, "renewal=rebirth is not implemented by the surrogate cells"),
+    ("hertz-mindlin rows of DEM cells", ["data", "generate", "1", "--solver", "dem", "-p", "contact=hertz-mindlin",
+                                         "--out", "o"], 1, "contact=hertz-mindlin is not implemented by the dem:standard cells"),
 ]
 
 

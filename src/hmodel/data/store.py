@@ -26,10 +26,12 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from .. import __version__
+from ..cell.base import check_mechanisms
 from ..errors import HModelError, InputError
 from ..io import check_output_folder
 from ..limits import check_disk
 from ..params import Params
+from ..solvers import get_solver
 from .generator import DatasetSpec, compute_shard
 from .schema import (
     EXTRA_COLUMNS,
@@ -118,6 +120,8 @@ def generate(spec: DatasetSpec, params: Params, out: "str | os.PathLike", *, wor
     ``workers`` local processes (1: in this process), or the Dask cluster at ``scheduler``.
     An existing folder made with other options or parameters is refused unless ``overwrite``.
     """
+    # the rows are the cells' own: a DEM cell cannot make Hertz-Mindlin or reborn cells' rows
+    check_mechanisms(get_solver(spec.solver), [params])
     folder = Path(out)
     check_disk(spec.n_rows * BYTES_PER_ROW, folder, f"a dataset of {spec.n_rows:.3g} rows")
     header = _header(spec, params)
