@@ -158,3 +158,45 @@ def own_tests():
     """``own_tests(dim)``: the :class:`OwnTests` of that dimension, one per session (its
     noise-free tests are made once)."""
     return cache(OwnTests)
+
+
+def _check_cell_jacobian(state, dl, regime: str, p, two_r: float, vsigma, scale: float, atol: float):
+    """The exact tangent of a cell (closed_form.cell_jacobian) against central differences of its
+    update, in the regime the case names: ``dl`` None takes the first of a few increments of
+    size ``scale`` that pushes T1 past the cone in the direction of ``regime`` ("sliding +",
+    "sliding -"); ``vsigma(r)`` is (V σnn, V σtt) of an update's result ``r``."""
+    from hmodel.cell.closed_form import cell_jacobian, cell_update
+
+    if dl is None:
+        sign = 1.0 if regime.endswith("+") else -1.0
+        dl = next(x for x in scale * np.array([(-4, 1), (4, -1), (1, 4), (-1, -4)])
+                  if cell_update(*state, *x, p)[9] and np.sign(cell_update(*state, *x, p)[6]) == sign)
+    dl = np.asarray(dl, float)
+    r0 = cell_update(*state, *dl, p)
+    # the update took the regime the case names (else the case tests something else)
+    assert r0[0]
+    assert r0[9] == regime.startswith("sliding")
+    assert (r0[10] or r0[11]) == (regime == "open")
+    assert (r0[7] <= two_r) == (regime == "over-compressed")
+    ok, *jac = cell_jacobian(*state, *dl, p)
+    assert ok
+    J = np.array(jac).reshape(2, 2)  # rows (V σnn, V σtt), columns (dl1, dl2)
+    h = 1e-4 * np.abs(dl).max()  # far below the distance to the regime's kinks
+    for k in range(2):
+        e = np.zeros(2)
+        e[k] = h
+        plus = cell_update(*state, *(dl + e), p)
+        minus = cell_update(*state, *(dl - e), p)
+        assert plus[9:] == r0[9:] and minus[9:] == r0[9:]  # the same regime either side
+        slope = (vsigma(plus) - vsigma(minus)) / (2 * h)
+        np.testing.assert_allclose(J[:, k], slope, rtol=1e-6, atol=atol * np.abs(J).max())
+    if regime == "open":
+        assert np.all(J == 0)  # no contact force, no extra contact (l1, l2 > 2r)
+    else:
+        assert np.abs(J).max() > 0
+
+
+@pytest.fixture
+def jacobian_check():
+    """:func:`_check_cell_jacobian`: a cell's exact tangent against central differences."""
+    return _check_cell_jacobian

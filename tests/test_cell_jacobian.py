@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from hmodel import Params
-from hmodel.cell.closed_form import cell_jacobian, cell_update, kernel_params
+from hmodel.cell.closed_form import kernel_params
 from hmodel.cell.mesostress import contact_vsigma
 
 
@@ -42,35 +42,9 @@ def _cells(params):
 
 @pytest.mark.parametrize("volume", ["hexagon", "hexagon-consistent"])
 @pytest.mark.parametrize("regime", ["sticking", "sliding +", "sliding -", "open", "over-compressed"])
-def test_cell_jacobian_equals_central_differences_of_the_update(volume, regime):
+def test_cell_jacobian_equals_central_differences_of_the_update(volume, regime, jacobian_check):
     params = Params(volume=volume, sliding_rhs="equilibrium")  # "report" opens a cell sliding with T1 < 0
-    p = kernel_params(params)
     state, dl = _cells(params)[regime]
     two_r = 2 * params.radius
-    if dl is None:  # sliding: the first of a few increments that pushes T1 past the cone
-        sign = 1.0 if regime.endswith("+") else -1.0
-        dl = next(x for x in params.radius * 1e-5 * np.array([(-4, 1), (4, -1), (1, 4), (-1, -4)])
-                  if cell_update(*state, *x, p)[9] and np.sign(cell_update(*state, *x, p)[6]) == sign)
-    dl1, dl2 = dl
-    r0 = cell_update(*state, dl1, dl2, p)
-    # the update took the regime the case names (else the case tests something else)
-    assert r0[0]
-    assert r0[9] == regime.startswith("sliding")
-    assert (r0[10] or r0[11]) == (regime == "open")
-    assert (r0[7] <= two_r) == (regime == "over-compressed")
-    ok, *jac = cell_jacobian(*state, dl1, dl2, p)
-    assert ok
-    J = np.array(jac).reshape(2, 2)  # rows (V σnn, V σtt), columns (dl1, dl2)
-    h = 1e-4 * max(abs(dl1), abs(dl2))  # far below the distance to the regime's kinks
-    for k in range(2):
-        e = np.zeros(2)
-        e[k] = h
-        plus = cell_update(*state, dl1 + e[0], dl2 + e[1], p)
-        minus = cell_update(*state, dl1 - e[0], dl2 - e[1], p)
-        assert plus[9:] == r0[9:] and minus[9:] == r0[9:]  # the same regime either side
-        slope = (_vsigma(plus, params.kn, two_r) - _vsigma(minus, params.kn, two_r)) / (2 * h)
-        np.testing.assert_allclose(J[:, k], slope, rtol=1e-6, atol=1e-5 * np.abs(J).max())
-    if regime == "open":
-        assert np.all(J == 0)  # no contact force, no extra contact (l1, l2 > 2r)
-    else:
-        assert np.abs(J).max() > 0
+    jacobian_check(state, dl, regime, kernel_params(params), two_r, lambda r: _vsigma(r, params.kn, two_r),
+                   params.radius * 1e-5, 1e-5)

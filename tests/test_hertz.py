@@ -14,7 +14,6 @@ from hmodel.cell.bihex import BiHexSolver
 from hmodel.cell.closed_form import (
     P_HERTZ,
     P_MINDLIN,
-    cell_jacobian,
     cell_update,
     hertz_constants,
     kernel_params,
@@ -142,33 +141,11 @@ def _cases(params):
 
 @pytest.mark.parametrize("volume", ["hexagon", "hexagon-consistent"])
 @pytest.mark.parametrize("regime", ["sticking", "sliding +", "sliding -", "open", "over-compressed"])
-def test_cell_jacobian_of_hertz_contacts_is_the_central_difference(volume, regime):
+def test_cell_jacobian_of_hertz_contacts_is_the_central_difference(volume, regime, jacobian_check):
     params = HERTZ.with_(volume=volume)
-    p = kernel_params(params)
     state, dl = _cases(params)[regime]
-    two_r = 2 * params.radius
-    if dl is None:  # sliding: the first of a few increments that pushes T1 past the cone
-        sign = 1.0 if regime.endswith("+") else -1.0
-        dl = next(x for x in params.radius * 1e-4 * np.array([(-4, 1), (4, -1), (1, 4), (-1, -4)])
-                  if cell_update(*state, *x, p)[9] and np.sign(cell_update(*state, *x, p)[6]) == sign)
-    r0 = cell_update(*state, *dl, p)
-    assert r0[0]
-    assert r0[9] == regime.startswith("sliding")
-    assert (r0[10] or r0[11]) == (regime == "open")
-    assert (r0[7] <= two_r) == (regime == "over-compressed")
-    ok, *jac = cell_jacobian(*state, *dl, p)
-    assert ok
-    J = np.array(jac).reshape(2, 2)  # rows (V σnn, V σtt), columns (dl1, dl2)
-    h = 1e-4 * np.abs(dl).max()
-    for k in range(2):
-        e = np.zeros(2)
-        e[k] = h
-        plus = cell_update(*state, *(np.asarray(dl) + e), p)
-        minus = cell_update(*state, *(np.asarray(dl) - e), p)
-        assert plus[9:] == r0[9:] and minus[9:] == r0[9:]  # the same regime either side
-        slope = (_vsigma(plus, params) - _vsigma(minus, params)) / (2 * h)
-        np.testing.assert_allclose(J[:, k], slope, rtol=1e-6, atol=1e-6 * np.abs(J).max())
-    assert np.all(J == 0) if regime == "open" else np.abs(J).max() > 0
+    jacobian_check(state, dl, regime, kernel_params(params), 2 * params.radius, lambda r: _vsigma(r, params),
+                   params.radius * 1e-4, 1e-6)
 
 
 def test_the_closed_form_cells_of_hertz_contacts_keep_the_solver_contract(dim):
