@@ -61,3 +61,15 @@ def test_variants_travel_to_worker_processes():
 
     for v in VARIANTS.values():
         assert pickle.loads(pickle.dumps(v)) == v
+
+
+def test_failure_surface_takes_a_variant(cli, tmp_path):
+    """``failure-surface --model sand`` is the surface of the variant's mechanisms (as -p names them)."""
+    common = ("failure-surface", "--lode", "0", "--order", "5", "--azimuths", "1", "--max-strain", "0.05")
+    tables = {}
+    for key, extra in (("variant", ("--model", "sand")), ("params", ("-p", "contact=hertz-mindlin")),
+                       ("published", ())):
+        code, _, err = cli(*common, *extra, "--out", tmp_path / key)
+        assert code == 0, err
+        tables[key] = (tmp_path / key / "failure_surface.csv").read_text()
+    assert tables["variant"] == tables["params"] != tables["published"]

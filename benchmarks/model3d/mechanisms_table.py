@@ -120,7 +120,7 @@ def dem_block() -> str:
 def table_block() -> str:
     head = ("| mechanisms on | tests to 30 % | q/p at the end | within ±3 % of their mean | "
             "largest drained \\|dε_v/dε₁\\| at the end | drained with \\|dε_v/dε₁\\| ≤ 0.05 | "
-            "loose undrained p_end/p₀ (lowest) | M_c (π-plane) | M_e/M_c |\n"
+            "loose undrained p_end/p₀ (lowest) | M_c (π-plane) | M_e/M_c (M_e: largest q_eq/p in extension) |\n"
             "|---|---|---|---|---|---|---|---|---|")
     rows = [r for r in (row(tag, label) for tag, label in VARIANTS) if r is not None]
     return "\n".join([head, *rows])

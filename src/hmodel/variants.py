@@ -94,8 +94,8 @@ VARIANTS = MappingProxyType({
                             fitted=_HERTZ),
 })
 #: Other names of variants: the one the docs recommend for sands (docs/mechanisms.md, "Which
-#: variant for sands": stiffness that follows pressure as a DEM assembly's, a sand's strength
-#: ratio in extension; on Karlsruhe fine sand no better than ``density``).
+#: variant for sands": stiffness that follows pressure as a DEM assembly's; on Karlsruhe fine
+#: sand no better than ``density``).
 ALIASES = MappingProxyType({"sand": "hertz"})
 
 

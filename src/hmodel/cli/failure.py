@@ -18,7 +18,7 @@ from ..failure_report import report_lines, write_failure_surface
 from ..failure_surface import BEYOND, MAX_LODE_ANGLES, MAX_STRAIN, PAST_PEAK, STEP, failure_surface
 from ..units import parse_pressures
 from .common3d import AzimuthsOpt, FabricOpt, OrderOpt, Param3DOpt, points_3d, sphere as sphere_of
-from .options import out_folder, strain_help
+from .options import CalibrationOpt, E0Opt, ERefOpt, ModelOpt, out_folder, specimen, strain_help
 
 
 def _angles(text: str) -> list[float]:
@@ -43,17 +43,23 @@ def failure(p: Annotated[str, typer.Option("--p", help="Mean stress of every pat
             step: Annotated[float, typer.Option(help=strain_help("Increment of the deviatoric strain along the ray."))] = STEP,
             max_strain: Annotated[float, typer.Option(help=strain_help("Largest deviatoric strain of a path."))] = MAX_STRAIN,
             out: out_folder("Output folder (failure_surface.csv/.json/.png, paths.csv).") = Path("results/failure-surface"),
+            model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None,
             ) -> None:
     """The failure surface in the π-plane: drained constant-p paths at each Lode angle to the
     peak of q_eq, beside Mohr–Coulomb, Matsuoka–Nakai and Lade–Duncan fitted at compression."""
     pressures = parse_pressures(p, "--p")
     if len(pressures) != 1:
         raise InputError(f"--p takes one mean stress, got {len(pressures)}")
-    params = points_3d(param, 1)
+    spec = specimen(model, calibration, e0, e_ref, 3)
+    if spec is not None and len(spec.e0) > 1:
+        raise InputError("--e0 of a failure surface is one void ratio (it runs one material point)")
+    params = points_3d(param, 1, model=spec)
     if isinstance(params, list):
         raise InputError("failure-surface runs one parameter set: give -p NAME=VALUE without comma lists")
     angles = _angles(lode)
     sphere = sphere_of(order, azimuths, fabric)
+    if spec is not None and spec.sphere is not None and order is None and azimuths is None:
+        sphere = spec.sphere  # a calibration's directions, unless the options name others
     fs = failure_surface(params, pressures[0], angles, sphere=sphere, step=step, max_strain=max_strain,
                          past_peak=PAST_PEAK, beyond=BEYOND)
     info = write_failure_surface(fs, out, params, sphere)
