@@ -99,3 +99,17 @@ def test_report_pieces_read_as_text():
     assert "0.11–0.25" in rp._speed_text(rows) and "without a closed form" in rp._speed_text(rows)
     cap = rp._compare_caption(next(s for s in standard_paths() if s.name == "isotropic"))
     assert "peak mean stress" in cap and not cap.endswith(".png")
+
+
+def test_a_figure_title_names_the_contact_law_it_ran_with():
+    from hmodel.plotting import _subtitle
+
+    def title(**params):
+        return _subtitle(PathResult({"step": np.zeros(1)}, {"params": Params(**params).to_dict()}))
+
+    linear, hertz = title(), title(contact="hertz-mindlin", renewal="rebirth")
+    assert "kn=" in linear and "shear_modulus" not in linear and "Hertz" not in linear
+    # kn and kt/kn are not read with Hertz-Mindlin contacts: G and nu are, and the mechanisms are named
+    assert "kn=" not in hertz and "kt_kn" not in hertz
+    assert "shear_modulus=2.9e+10" in hertz and "poisson=0.2" in hertz
+    assert "Hertz–Mindlin contacts" in hertz and "cells reborn" in hertz

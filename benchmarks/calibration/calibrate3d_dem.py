@@ -13,7 +13,12 @@ azimuths: the default rule's batched calls would take hours), its posterior's 90
 Writes ``calibrate3d_dem.json`` (the calibration record, the DEM's settings, the errors) and the
 figure ``docs/figures/dem3d-calibration.png`` (every test, DEM against model).
 
-Usage: ``python -m benchmarks.calibration.calibrate3d_dem [SAMPLE_DIR] [--fit-on
+With ``--model NAME`` a variant of the H-model (``hmodel models``) is fitted (its own fitted
+parameters); with several sample folders one parameter set is fitted over all of them (tests
+named FOLDER/STEM; a variant that uses e0 starts each test from the e0 of its CSV's ``e``
+column): docs/mechanisms.md's DEM judge.
+
+Usage: ``python -m benchmarks.calibration.calibrate3d_dem [SAMPLE_DIR ...] [--model NAME] [--fit-on
 triaxial-drained_100kPa,triaxial-drained_400kPa] [--starts 8] [--bayes-steps 0] [--out PATH]``
 (SAMPLE_DIR default: ``benchmarks/dem/dem_sample3d_series``, the five tests of a 1,000-sphere
 sample that ``benchmarks/dem/dem_sample3d.py`` kept for the calibration, docs/dem.md).
@@ -25,6 +30,7 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -35,18 +41,28 @@ from hmodel.calibrate import Kind, Test, fit
 from hmodel.calibrate.fitting import SEARCH_RULE
 from hmodel.calibrate.model import Model, has_eps_v
 from hmodel.rev import Sphere
+from hmodel.variants import get_variant
 
 FITTED = ("kn", "kt_kn", "phi_g", "alpha0")
 AXIS = (1.0, 0.0, 0.0)  # the command line's axial axis
 
 
-def read_tests(folder: Path) -> dict[str, Test]:
-    """Every ``KIND_P0kPa.csv`` of a sample folder whose KIND is a triaxial kind."""
+def read_tests(folder: Path, prefix: str = "") -> dict[str, Test]:
+    """Every ``KIND_P0kPa.csv`` of a sample folder whose KIND is a triaxial kind, named
+    ``prefix + stem``; its e0 is the first row of the CSV's void-ratio column ``e`` where it has
+    one (``hmodel dem sample`` writes it), for the variants that start each test from its e0."""
     tests = {}
     for f in sorted(folder.glob("*_*kPa.csv")):
         kind, p0 = f.stem.split("_")
         if kind in tuple(Kind) and Kind(kind).dim == 3:
-            tests[f.stem] = Test.from_csv(f, kind, float(p0.removesuffix("kPa")) * 1e3, f.stem)
+            name = prefix + f.stem
+            test = Test.from_csv(f, kind, float(p0.removesuffix("kPa")) * 1e3, name)
+            with f.open(encoding="utf-8") as fh:
+                header = fh.readline().strip().split(",")
+                first = fh.readline().strip().split(",")
+            if "e" in header:
+                test = replace(test, e0=float(first[header.index("e")]))
+            tests[name] = test
     return tests
 
 
@@ -69,7 +85,11 @@ def errors(test: Test, q: np.ndarray, ev: np.ndarray) -> dict[str, float]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("sample", type=Path, nargs="?", default=ROOT / "benchmarks" / "dem" / "dem_sample3d_series")
+    ap.add_argument("sample", type=Path, nargs="*",
+                    default=[ROOT / "benchmarks" / "dem" / "dem_sample3d_series"],
+                    help="sample folders; with several, tests are named FOLDER/STEM (one parameter set "
+                         "over all of them: a variant that uses e0 starts each test from its own)")
+    ap.add_argument("--model", default=None, help="the H-model variant (hmodel models; default published)")
     ap.add_argument("--fit-on", default="", help="comma list of test stems (default: the drained "
                                                   "tests at the lowest and highest pressure)")
     ap.add_argument("--starts", type=int, default=8)
@@ -80,20 +100,26 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("calibrate3d_dem.json"))
     ap.add_argument("--figure", type=Path, default=FIGURES / "dem3d-calibration.png")
     args = ap.parse_args()
-    tests = read_tests(args.sample)
+    variant = get_variant(args.model)
+    several = len(args.sample) > 1
+    tests = {}
+    for folder in args.sample:
+        tests |= read_tests(folder, f"{folder.name}/" if several else "")
     drained = sorted((t for t in tests.values() if t.kind is Kind.TRIAXIAL_DRAINED), key=lambda t: t.p0)
     chosen = args.fit_on.split(",") if args.fit_on else [t.name for t in (drained[:1] + drained[-1:])]
     chosen = list(dict.fromkeys(chosen))
     missing = [n for n in chosen if n not in tests]
     if missing or not chosen:
-        sys.exit(f"no test {', '.join(missing) or '(none drained)'} in {args.sample}")
+        sys.exit(f"no test {', '.join(missing) or '(none drained)'} in {', '.join(map(str, args.sample))}")
     kw = {k: v for k, v in (("order", args.order), ("n_azimuth", args.azimuths)) if v is not None}
     sphere = Sphere(**kw, axis=AXIS)
     t0 = time.perf_counter()
-    cal = fit([tests[n] for n in chosen], FITTED, starts=args.starts, sphere=sphere)
+    fitted = FITTED if variant.name == "published" else variant.fitted
+    cal = fit([tests[n] for n in chosen], fitted, starts=args.starts, sphere=sphere, model=variant)
     wall = time.perf_counter() - t0
     others = [t for n, t in tests.items() if n not in chosen]
-    pred = Model(tuple(others), sphere=sphere).predict([cal.params]) if others else None
+    pred = (Model(tuple(others), sphere=sphere, variant=variant, e_ref=cal.e_ref).predict([cal.params])
+            if others else None)
     rows = [(f"fitted {k}", v, f"± {cal.stderr[k]:.3g}") for k, v in cal.fitted.items()]
     rows += [("objective (scaled residuals)", cal.cost, "-"),
              (f"least squares, {args.starts} starts [s]", wall, "-"),
@@ -117,17 +143,21 @@ def main() -> None:
     if args.bayes_steps:
         coarse = Sphere(order=SEARCH_RULE[0], n_azimuth=SEARCH_RULE[1], axis=AXIS)
         t0 = time.perf_counter()
-        bay = fit([tests[n] for n in chosen], FITTED, method="bayes", starts=args.starts, sphere=coarse,
+        bay = fit([tests[n] for n in chosen], fitted, model=variant, method="bayes", starts=args.starts, sphere=coarse,
                   search_rule=None, walkers=args.walkers, steps=args.bayes_steps)
         rows.append(((f"emcee {args.walkers} x {args.bayes_steps} at order {coarse.order}, "
                       f"m = {coarse.n_azimuth} (with its least squares) [s]"), time.perf_counter() - t0, "-"))
         for k, s in bay.posterior.summary.items():
             rows.append((f"posterior {k}: mean (90 % interval)", s["mean"], f"{s['q05']:.4g} to {s['q95']:.4g}"))
         extra["bayes"] = {**bay.posterior.to_dict(), "least_squares": bay.fitted}
-    info = json.loads((args.sample / "sample.json").read_text()) if (args.sample / "sample.json").exists() else {}
-    csvs = input_files({"tests": [str(args.sample / f"{n}.csv") for n in tests]})  # their SHA-256
-    rec = record(__file__, args, 1, rows, sample=str(args.sample), test_files=csvs,
-                 dem_settings=info.get("settings"),
+    infos = {str(f): json.loads((f / "sample.json").read_text()) for f in args.sample
+             if (f / "sample.json").exists()}
+    files = [str(f / f"{n.rpartition('/')[2]}.csv") for f in args.sample for n in tests
+             if n.startswith(f"{f.name}/" if several else "")]
+    csvs = input_files({"tests": files})  # their SHA-256
+    rec = record(__file__, args, 1, rows, sample=[str(f) for f in args.sample], test_files=csvs,
+                 dem_settings={k: v.get("settings") for k, v in infos.items()}, model=variant.name,
+                 e0={n: t.e0 for n, t in tests.items()},
                  fit_on=chosen, calibration=cal.to_dict(), errors=errs, **extra)
     write_table(rows, args.out, rec)
     if pred is not None:

@@ -7,7 +7,9 @@
   the 25 tests (``benchmarks.calibration.kfs --model NAME --tag TAG``), and the peer
   (``benchmarks.calibration.kfs_peer``);
 - ``mechanisms-dem``: the small-strain stiffness of DEM sphere assemblies against pressure
-  (``benchmarks.dem.granular``).
+  (``benchmarks.dem.granular``);
+- ``mechanisms-dem-judge``: each variant calibrated on two drained tests of DEM sphere samples and
+  predicting the others (``benchmarks.calibration.calibrate3d_dem ... --model NAME``).
 
 Usage: ``python -m benchmarks.model3d.mechanisms_table`` rewrites each block between its markers
 ``<!-- NAME -->`` and ``<!-- /NAME -->`` in docs/mechanisms.md; ``--check`` exits 1 when a block
@@ -117,6 +119,46 @@ def dem_block() -> str:
             "|---|---|---|\n" + "\n".join(rows))
 
 
+#: (JSON file, label) of the DEM judge's block, in its order: the Hertz-Mindlin sphere samples
+#: (dense and loose, one parameter set), and the linear sample of the 3D calibration page.
+DEM_JUDGE = (("dem_judge_density.json", "density (linear contacts)"), ("dem_judge_hertz.json", "hertz"),
+             ("dem_judge_rebirth.json", "rebirth (Hertz–Mindlin + rebirth)"),
+             ("calibrate3d_dem.json", "published, on the linear 1,000-sphere sample"))
+#: The issue's targets of a prediction: RMS |Δq| / peak q of drained tests, of the others.
+DRAINED_TARGET, OTHER_TARGET = 0.10, 0.15
+
+
+def _pct(values) -> str:
+    return ", ".join(f"{100 * v:.0f}" for v in values) if values else "—"
+
+
+def dem_judge_block() -> str:
+    rows = []
+    for name, label in DEM_JUDGE:
+        path = HERE.parent / "calibration" / name
+        if not path.exists():
+            continue
+        rec = json.loads(path.read_text())
+        errs = rec["errors"]
+        failed = [r["measure"] for r in rec["results"] if "the model's test failed" in r["measure"]]
+        fit = [e["rms_dq"] for e in errs.values() if e["how"] == "calibrated on"]
+        pred = {n: e for n, e in errs.items() if e["how"] == "predicted"}
+        kinds = {k: [e["rms_dq"] for n, e in pred.items() if k in n.rpartition("/")[2]]
+                 for k in ("drained", "undrained", "extension")}
+        kinds["drained"] = [e["rms_dq"] for n, e in pred.items()
+                            if "triaxial-drained" in n.rpartition("/")[2]]
+        within = (sum(v <= DRAINED_TARGET for v in kinds["drained"])
+                  + sum(v <= OTHER_TARGET for v in kinds["undrained"] + kinds["extension"]))
+        dv = [e["rms_deps_v"] for e in errs.values() if "rms_deps_v" in e]
+        rows.append(f"| {label} | {_pct(fit)} | {_pct(kinds['drained'])} | {_pct(kinds['undrained'])} "
+                    f"| {_pct(kinds['extension'])} | {within} of {len(pred) + len(failed)} "
+                    f"| {100 * max(dv):.1f} |")
+    return ("| variant | RMS \\|Δq\\|/peak q [%]: calibrated on (2 drained) | predicted drained | "
+            "predicted undrained | predicted extension | predictions within target (10 %; 15 % undrained "
+            "and extension) | largest RMS Δε_v [% strain] |\n"
+            "|---|---|---|---|---|---|---|\n" + "\n".join(rows))
+
+
 def table_block() -> str:
     head = ("| mechanisms on | tests to 30 % | q/p at the end | within ±3 % of their mean | "
             "largest drained \\|dε_v/dε₁\\| at the end | drained with \\|dε_v/dε₁\\| ≤ 0.05 | "
@@ -126,7 +168,8 @@ def table_block() -> str:
     return "\n".join([head, *rows])
 
 
-BLOCKS = {"mechanisms-table": table_block, "mechanisms-kfs": kfs_block, "mechanisms-dem": dem_block}
+BLOCKS = {"mechanisms-table": table_block, "mechanisms-kfs": kfs_block, "mechanisms-dem": dem_block,
+          "mechanisms-dem-judge": dem_judge_block}
 
 
 def render(text: str) -> str:

@@ -29,9 +29,16 @@ def _subtitle(result: PathResult) -> str:
     keys = ("kn", "kt_kn", "phi_g", "alpha0", "alpha_omega", "n_theta", "volume", "g2")
     if sphere is not None:  # 3D: the sphere's directions and fabric, not the 2D ones
         keys = ("kn", "kt_kn", "phi_g", "alpha0", "volume", "g2", "sliding_rhs")
+    if p.get("contact") == "hertz-mindlin":  # kn and kt/kn are not read (docs/mechanisms.md)
+        keys = ("shear_modulus", "poisson", *(k for k in keys if k not in ("kn", "kt_kn")))
     units = {"phi_g": "°", "alpha0": "°"}
     text = ", ".join(f"{k}={p[k]:g}{units.get(k, '')}" if isinstance(p[k], float) else f"{k}={p[k]}"
                      for k in keys if k in p)
+    on = [name for key, value, name in (("contact", "hertz-mindlin", "Hertz–Mindlin contacts"),
+                                        ("renewal", "rebirth", "cells reborn"))
+          if p.get(key) == value]
+    if on:
+        text += ", " + ", ".join(on)
     if sphere is not None:
         text += (f", Lebedev order {sphere['order']} × {sphere['n_azimuth']} azimuths, "
                  f"fabric α_ω={sphere['alpha_omega']:g}")
