@@ -23,6 +23,9 @@ CONTACTS = ("linear", "hertz-mindlin")
 #: What becomes of a cell whose contact opened: nothing (published: it stays force-free until
 #: its grains meet again) or a new cell at contact in the space the old one held.
 RENEWALS = ("none", "rebirth")
+#: Contacts between the lateral grains of a bi-hexagon's two hexagons (3D only): ignored
+#: (published closure) or frictionless normal contacts of the cell's law (docs/mechanisms.md).
+CROSS_CONTACTS = ("none", "frictionless")
 ANGLE_PARAMS = ("phi_g", "alpha0", "beta_omega")
 
 #: Units shown in tables, figures and ``--help``.
@@ -30,7 +33,7 @@ UNITS = {
     "kn": "N/m", "kt_kn": "-", "phi_g": "deg", "alpha0": "deg", "alpha_omega": "-",
     "beta_omega": "deg", "n_theta": "-", "radius": "m", "volume": "-", "g2": "-",
     "sliding_rhs": "-", "alpha0_spread": "-", "contact": "-", "shear_modulus": "Pa",
-    "poisson": "-", "renewal": "-",
+    "poisson": "-", "renewal": "-", "cross_contacts": "-",
 }
 
 
@@ -79,6 +82,11 @@ class Params:
     renewal : str
         Fate of a cell whose contact opened (:data:`RENEWALS`): ``none`` (published) or
         ``rebirth`` (reborn at contact, force-free, in the space it held).
+    cross_contacts : str
+        Contacts between the lateral grains of hexagon A and hexagon B of the 3D model's
+        bi-hexagon (:data:`CROSS_CONTACTS`): ``none`` (published closure: ignored) or
+        ``frictionless`` (normal force of the cell's contact law, coupling the two hexagons);
+        no meaning in 2D.
     """
 
     kn: float = 2.0e8
@@ -97,6 +105,7 @@ class Params:
     shear_modulus: float = 29.0e9
     poisson: float = 0.2
     renewal: str = "none"
+    cross_contacts: str = "none"
 
     def __post_init__(self) -> None:
         self.validate()
@@ -163,6 +172,9 @@ class Params:
             raise InputError(f"parameter poisson must lie in [0, 0.5), got {self.poisson}")
         if self.renewal not in RENEWALS:
             raise InputError(f"parameter renewal must be one of {', '.join(RENEWALS)}, got {self.renewal!r}")
+        if self.cross_contacts not in CROSS_CONTACTS:
+            raise InputError(f"parameter cross_contacts must be one of {', '.join(CROSS_CONTACTS)}, "
+                             f"got {self.cross_contacts!r}")
 
     # -- conversions --------------------------------------------------------------------
     def with_(self, **changes) -> "Params":

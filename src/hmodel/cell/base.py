@@ -29,9 +29,9 @@ from .state import FIELDS, CellFlags, CellState
 if TYPE_CHECKING:
     from .geometry import CellGeometry
 
-#: Index, in a learned kernel's packed parameters (after the closed form's ten), of the law
+#: Index, in a learned kernel's packed parameters (after the closed form's eleven), of the law
 #: its trials apply to the response rows: :data:`LAW_MESO` or :data:`LAW_COMPLIANCE`.
-P_LAW = 10  # closed_form.N_CELL_PARAMS
+P_LAW = 11  # closed_form.N_CELL_PARAMS
 #: A ``meso`` response (:func:`hmodel.cell.meso_kernel.meso_increment`), whose trials also
 #: give their exact stress slope.
 LAW_MESO = 1.0
@@ -50,12 +50,13 @@ STATE_KINDS = (STATE_H_CELL, STATE_BIHEXAGON, STATE_OWN)
 #: The cell mechanisms a parameter set may switch on (docs/mechanisms.md): Params fields whose
 #: default is the published H-model; a solver declares which other values its cells implement
 #: (:attr:`CellSolver.mechanisms`).
-MECHANISM_PARAMS = ("contact", "renewal")
+MECHANISM_PARAMS = ("contact", "renewal", "cross_contacts")
 
 
 def mechanisms_of(params: Params) -> frozenset[str]:
     """The mechanisms ``params`` switches on: ``NAME=VALUE`` of each :data:`MECHANISM_PARAMS`
-    field away from its default (``contact=hertz-mindlin``, ``renewal=rebirth``)."""
+    field away from its default (``contact=hertz-mindlin``, ``renewal=rebirth``,
+    ``cross_contacts=frictionless``)."""
     default = Params()
     return frozenset(f"{name}={getattr(params, name)}" for name in MECHANISM_PARAMS
                      if getattr(params, name) != getattr(default, name))
@@ -67,6 +68,9 @@ def check_mechanisms(solver: "CellSolver", sets: Sequence[Params]) -> None:
     or meso kernel) learned the published model's linear contacts without renewal."""
     for params in sets:
         missing = sorted(mechanisms_of(params) - solver.mechanisms)
+        if missing and missing[0].startswith("cross_contacts=") and solver.n_lengths == 2:
+            raise InputError(f"{missing[0]} has no meaning for a 2D H-cell: its contacts join the "
+                             "two hexagons of the 3D model's bi-hexagon (--dim 3)")
         if missing:
             raise InputError(f"{missing[0]} is not implemented by the {solver.name} cells (their "
                              "law is the published one: linear contacts, no renewal); the "

@@ -41,7 +41,16 @@ from numba import njit
 from ..errors import InputError, SolverError
 from ..params import Params
 from .base import STATE_BIHEXAGON, STATE_H_CELL, CellKernel, CellSolver
-from .closed_form import P_HERTZ, P_R, P_RENEW, ClosedFormSolver, cell_increment, kernel_params as cell_kernel_params
+from .closed_form import (
+    P_CROSS,
+    P_HERTZ,
+    P_R,
+    P_RENEW,
+    ClosedFormSolver,
+    cell_increment,
+    kernel_params as cell_kernel_params,
+)
+from .cross import cross_increment, cross_vsigma
 from .hertz import extra_force
 from .mesostress import contact_vsigma
 from .renewal import RENEW_BIHEX, renew_bihex
@@ -70,6 +79,13 @@ def check_params(params: Params) -> None:
         raise InputError(f"parameter volume must be one of {', '.join(VOLUMES_3D)} for the 3D "
                          f"H-model, got {params.volume!r} (eq. 1.21's virtual l1* is not shared by "
                          "the two hexagons of a bi-hexagon)")
+    if params.cross_contacts != "none":
+        low = params.alpha0 - params.alpha0_spread * min(params.alpha0 - math.pi / 6.0,
+                                                         math.pi / 2.0 - params.alpha0)
+        if low < math.pi / 4.0 - 1e-12:
+            raise InputError(f"cross_contacts={params.cross_contacts} needs opening angles of at least "
+                             f"45 deg (alpha0 - spread), got {math.degrees(low):.4g}: below, an "
+                             "unloaded bi-hexagon's two hexagons overlap")
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -83,9 +99,16 @@ def cross_contact(dn, l2, l3, two_r):
 def bihex_increment(values, i, dl1, dl2, dl3, p, out, flags):
     """Advance bi-hexagon ``values[i]`` (16 fields) by (δl1, δl2, δl3) into ``out[i]`` and
     ``flags[i]`` (11), indexed in place (no row views, see closed_form.cell_update): each
-    hexagon is the 2D increment of eq. 1.7 (closed_form.cell_increment) with the shared δl1. Returns False when either hexagon's increment failed."""
-    ok_a = cell_increment(values, i, dl1, dl2, p, out, flags, 0, 0)
-    ok_b = cell_increment(values, i, dl1, dl3, p, out, flags, 8, 5)
+    hexagon is the 2D increment of eq. 1.7 (closed_form.cell_increment) with the shared δl1,
+    or, with contacts between the hexagons (``P_CROSS``), the coupled increment of
+    :func:`hmodel.cell.cross.cross_increment`. Returns False when either hexagon's increment
+    failed."""
+    if p[P_CROSS] != 0.0:  # docs/mechanisms.md, "Contacts between the two hexagons"
+        ok_a = cross_increment(values, i, dl1, dl2, dl3, p, out, flags)
+        ok_b = True
+    else:
+        ok_a = cell_increment(values, i, dl1, dl2, p, out, flags, 0, 0)
+        ok_b = cell_increment(values, i, dl1, dl3, p, out, flags, 8, 5)
     if p[P_RENEW] == RENEW_BIHEX:  # docs/mechanisms.md, "Renewal"
         renew_bihex(out, flags, i, 2.0 * p[P_R])
     flags[i, 10] = cross_contact(0.5 * (out[i, 1] - out[i, 9]), out[i, 7], out[i, 15],
@@ -94,15 +117,16 @@ def bihex_increment(values, i, dl1, dl2, dl3, p, out, flags):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def bihex_vsigma(v, i, kn, hertz, two_r):
+def bihex_vsigma(v, i, kn, hertz, two_r, cross):
     """V σ in the cell frame, (nn, t1t1, t2t2), of bi-hexagon state ``v[i]`` (16 fields).
 
     Love-Weber (eq. 1.11) over the twelve contacts: each hexagon contributes eq. 1.12 in its own
     plane (its nn term to σ_nn, its tt term to σ_t1t1 for A, σ_t2t2 for B); the extra contacts
     of docs/model.md step 3 (Fig. 1.6): grains 1-4 once (shared) when l1 <= 2r, grains 2-6/3-5
     when l2 <= 2r, 7-10/8-9 when l3 <= 2r, each of force kn (2r - l), or c (2r - l)^(3/2) of
-    Hertz-Mindlin contacts (``hertz`` = c; :func:`hmodel.cell.hertz.extra_force`).
-    Off-diagonal terms vanish by the mirror symmetries.
+    Hertz-Mindlin contacts (``hertz`` = c; :func:`hmodel.cell.hertz.extra_force`); with
+    ``cross`` nonzero, the eight contacts between the hexagons
+    (:func:`hmodel.cell.cross.cross_vsigma`). Off-diagonal terms vanish by the mirror symmetries.
     """
     ann, att = contact_vsigma(v[i, 0], v[i, 1], math.cos(v[i, 2]), math.sin(v[i, 2]), v[i, 3],
                               v[i, 4], v[i, 5])
@@ -116,6 +140,11 @@ def bihex_vsigma(v, i, kn, hertz, two_r):
         att += 2.0 * extra_force(kn, hertz, two_r - l2) * l2
     if l3 <= two_r:
         btt += 2.0 * extra_force(kn, hertz, two_r - l3) * l3
+    if cross != 0.0:
+        cnn, ctt1, ctt2 = cross_vsigma(kn, hertz, two_r, v[i, 1] - v[i, 9], l2, l3)
+        nn += cnn
+        att += ctt1
+        btt += ctt2
     return nn, att, btt
 
 
@@ -133,11 +162,11 @@ def bihex_step_kernel(values, dl, p, out, flags):
 
 
 @njit(cache=True, error_model="numpy")
-def bihex_vsigma_kernel(values, kn, hertz, two_r, out):
+def bihex_vsigma_kernel(values, kn, hertz, two_r, cross, out):
     """V σ in the cell frame, (nn, t1t1, t2t2) (n, 3), of bi-hexagon states (n, 16)
     (:func:`bihex_vsigma`)."""
     for i in range(values.shape[0]):
-        out[i, 0], out[i, 1], out[i, 2] = bihex_vsigma(values, i, kn, hertz, two_r)
+        out[i, 0], out[i, 1], out[i, 2] = bihex_vsigma(values, i, kn, hertz, two_r, cross)
 
 
 def bihex_volume(params: Params, values: np.ndarray) -> np.ndarray:
@@ -227,10 +256,12 @@ class BiHexSolver(CellSolver):
         self.hexagon = ClosedFormSolver() if hexagon is None else hexagon
         #: learned where the hexagons are
         self.learned = self.hexagon.learned
-        #: the hexagons' (the closed form's: Hertz-Mindlin contacts, and bi-hexagons reborn)
-        self.mechanisms = self.hexagon.mechanisms
         #: whether both hexagons are the compiled closed form (:func:`bihex_step_kernel`)
         self.closed_form = type(self.hexagon) is ClosedFormSolver
+        #: the hexagons' (the closed form's: Hertz-Mindlin contacts, and bi-hexagons reborn),
+        #: and, in closed form, contacts between the hexagons (:mod:`hmodel.cell.cross`)
+        self.mechanisms = (self.hexagon.mechanisms | {"cross_contacts=frictionless"}
+                           if self.closed_form else self.hexagon.mechanisms)
         #: the hexagon solver's name: ``closed-form``, ``surrogate``, ...
         self.name = self.hexagon.name
         #: exact to round-off in closed form; the hexagon solver's tolerance otherwise
@@ -278,8 +309,8 @@ class BiHexSolver(CellSolver):
         """
         values = np.ascontiguousarray(np.asarray(state.values, float).reshape(-1, len(BIHEX_FIELDS)))
         diag = np.empty((values.shape[0], 3))
-        bihex_vsigma_kernel(values, params.kn, kernel_params(params)[P_HERTZ], 2.0 * params.radius,
-                            diag)
+        p = kernel_params(params)
+        bihex_vsigma_kernel(values, params.kn, p[P_HERTZ], 2.0 * params.radius, p[P_CROSS], diag)
         out = np.zeros((values.shape[0], 6))
         out[:, :3] = diag
         shape = state.values.shape[:-1]
@@ -334,6 +365,9 @@ class BiHexSolver(CellSolver):
         for k, d in enumerate((dl1, dl2, dl3)):
             dl[:, k] = np.broadcast_to(d, shape).reshape(-1)
         if not self.closed_form:
+            if params.cross_contacts != "none":
+                raise InputError(f"cross_contacts={params.cross_contacts} is implemented by the "
+                                 f"closed-form bi-hexagon only, not by {self.name!r} hexagons")
             out, flags = self.compose(params, flat, dl)
             return (CellState(out.reshape(*shape, len(BIHEX_FIELDS))),
                     CellFlags(flags.reshape(*shape, len(BIHEX_FLAGS))))

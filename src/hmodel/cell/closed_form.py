@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import literally, njit
 
 from ..errors import InputError, SolverError
 from ..params import Params
@@ -28,11 +28,18 @@ from .state import FIELDS, FLAGS, CellFlags, CellState, initial_cells
 
 # Positions in the packed parameter vector handed to the kernel. P_HERTZ: 0 for linear
 # contacts, else the Hertz constant c of N = c δ^(3/2); P_MINDLIN: kt/kn of Mindlin's no-slip
-# tangential stiffness; P_RENEW: 1 when an opened cell is reborn (docs/mechanisms.md).
+# tangential stiffness; P_RENEW: 1 when an opened cell is reborn; P_CROSS: 1 when a
+# bi-hexagon's two hexagons touch (hmodel.cell.cross; no 2D kernel reads it) (docs/mechanisms.md).
 (P_KN, P_KT, P_TAN, P_G2, P_R, P_CONSISTENT, P_EQ_RHS, P_HERTZ, P_MINDLIN,
- P_RENEW) = range(10)
+ P_RENEW, P_CROSS) = range(11)
 #: Length of the closed form's packed parameters (a learned law's constants follow).
-N_CELL_PARAMS = 10
+N_CELL_PARAMS = 11
+#: Which cell a compiled loop over cells updates, a constant of the loop (a literal argument:
+#: each value compiles a loop of its own, so that the published cell's loop holds none of the
+#: mechanisms' code, whose mere presence slows it): the published cell (linear contacts, every
+#: mechanism off), Hertz-Mindlin contacts (other mechanisms read from the parameters), or the
+#: cell the packed parameters say, cell by cell (:func:`cell_mechanisms`).
+MECH_NONE, MECH_HERTZ, MECH_ANY = 0, 1, 2
 
 
 def hertz_constants(params: Params) -> tuple[float, float]:
@@ -52,7 +59,18 @@ def kernel_params(params: Params) -> np.ndarray:
         1.0 if params.volume == "hexagon-consistent" else 0.0,
         1.0 if params.sliding_rhs == "equilibrium" else 0.0,
         c, ratio, 1.0 if params.renewal == "rebirth" else 0.0,
+        1.0 if params.cross_contacts == "frictionless" else 0.0,
     ])
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def cell_mechanisms(p):
+    """The :data:`MECH_NONE`, :data:`MECH_HERTZ` or :data:`MECH_ANY` of packed parameters ``p``."""
+    if p[P_HERTZ] != 0.0:
+        return MECH_HERTZ
+    if p[P_RENEW] == 0.0 and p[P_CROSS] == 0.0:
+        return MECH_NONE
+    return MECH_ANY
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -109,7 +127,7 @@ def _regime(d1, a, n1, t1, dl1, dl2, p):
     return a11, a13, a21, a23, ca, a33, 0.0, sliding, xi
 
 
-@njit(cache=True, error_model="numpy")  # a call, not inlined: keeps the linear path lean
+@njit(cache=True, error_model="numpy")  # a call, not inlined: compiled once for every loop
 def _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p):
     """Eq. 1.7 of Hertz-Mindlin contacts (docs/mechanisms.md) in the regime the increment
     (dl1, dl2) takes, as :func:`_regime` (trial without sliding, Coulomb check, sliding):
@@ -150,6 +168,12 @@ def _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def cell_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p):
+    """:func:`cell_update_mech` of the cell the packed parameters ``p`` say (:data:`MECH_ANY`)."""
+    return cell_update_mech(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, MECH_ANY)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def cell_update_mech(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, mech):
     """One cell's increment by (dl1, dl2) on scalars: the state's eight fields (d1, d2, α, N1,
     N2, T1, l1, l2) in, ``(ok, *eight new fields, *five flags)`` out (:func:`finish_update`).
 
@@ -157,19 +181,20 @@ def cell_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p):
     scalars in and out, so that a loop over cells makes no array views, each of which costs an
     atomic reference count (the bi-hexagon's REV trial makes two such updates per cell).
     ``ok`` is False when the system of eq. 1.7 is singular or the result is not finite (or,
-    with Hertz-Mindlin contacts, :func:`hmodel.cell.hertz.solve` found no solution).
+    with Hertz-Mindlin contacts, :func:`hmodel.cell.hertz.solve` found no solution). ``mech``
+    (:data:`MECH_NONE`, ...): the cell the caller's loop updates, a constant there.
     """
-    if p[P_HERTZ] != 0.0:
+    if mech == MECH_HERTZ or (mech == MECH_ANY and p[P_HERTZ] != 0.0):
         h = _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p)
-        r = finish_update(d1, d2, a, l1, l2, dl1, dl2, h[1], h[2], h[3], h[4], h[5], h[6], h[7],
-                          h[8], p)
+        r = finish_update_mech(d1, d2, a, l1, l2, dl1, dl2, h[1], h[2], h[3], h[4], h[5], h[6],
+                               h[7], h[8], p, mech)
         return ((h[0] and r[0]), r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], r[10],
                 r[11], r[12], r[13])
     a11, a13, a21, a23, a31, a33, rhs3, sliding, xi = _regime(d1, a, n1, t1, dl1, dl2, p)
     dd1, dd2, da, det = _solve3(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33, dl1, dl2, rhs3)
     n1_new, n2_new, t1_new = linear_forces(d1, n1, n2, t1, dd1, dd2, da, p)
-    r = finish_update(d1, d2, a, l1, l2, dl1, dl2, dd1, dd2, da, n1_new, n2_new, t1_new, sliding,
-                      xi, p)
+    r = finish_update_mech(d1, d2, a, l1, l2, dl1, dl2, dd1, dd2, da, n1_new, n2_new, t1_new,
+                           sliding, xi, p, mech)
     return ((det != 0.0 and r[0]), r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], r[10],
             r[11], r[12], r[13])
 
@@ -298,9 +323,15 @@ def cell_increment(values, i, dl1, dl2, p, out, flags, k, f):
 
     Returns False when the system of eq. 1.7 is singular or the result is not finite.
     """
-    r = cell_update(values[i, k], values[i, k + 1], values[i, k + 2], values[i, k + 3],
-                    values[i, k + 4], values[i, k + 5], values[i, k + 6], values[i, k + 7], dl1,
-                    dl2, p)
+    return cell_increment_mech(values, i, dl1, dl2, p, out, flags, k, f, MECH_ANY)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def cell_increment_mech(values, i, dl1, dl2, p, out, flags, k, f, mech):
+    """:func:`cell_increment` by :func:`cell_update_mech` of ``mech``."""
+    r = cell_update_mech(values[i, k], values[i, k + 1], values[i, k + 2], values[i, k + 3],
+                         values[i, k + 4], values[i, k + 5], values[i, k + 6], values[i, k + 7],
+                         dl1, dl2, p, mech)
     return write_update(r, out, flags, i, k, f)
 
 
@@ -332,6 +363,14 @@ def linear_forces(d1, n1, n2, t1, dd1, dd2, da, p):
 @njit(cache=True, inline="always", error_model="numpy")
 def finish_update(d1, d2, a, l1, l2, dl1, dl2, dd1, dd2, da, n1_new, n2_new, t1_new, sliding, xi,
                   p):
+    """:func:`finish_update_mech` of the cell the packed parameters ``p`` say."""
+    return finish_update_mech(d1, d2, a, l1, l2, dl1, dl2, dd1, dd2, da, n1_new, n2_new, t1_new,
+                              sliding, xi, p, MECH_ANY)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def finish_update_mech(d1, d2, a, l1, l2, dl1, dl2, dd1, dd2, da, n1_new, n2_new, t1_new,
+                       sliding, xi, p, mech):
     """New state of a cell (its eight fields, scalars) from the solution (δd1, δd2, δα) of eq.
     1.7 in its regime and the contact law's new forces (:func:`linear_forces`, or those of
     Hertz-Mindlin contacts): ``(ok, d1, d2, α, N1, N2, T1, l1, l2, sliding, open1, open2,
@@ -362,7 +401,7 @@ def finish_update(d1, d2, a, l1, l2, dl1, dl2, dd1, dd2, da, n1_new, n2_new, t1_
         t1_new = 0.0
         sliding = False
         # renewal >>> (inside the opening branch: a cell that carries pays nothing for it)
-        if p[P_RENEW] == RENEW_CELL:  # docs/mechanisms.md, "Renewal"
+        if mech != MECH_NONE and p[P_RENEW] == RENEW_CELL:  # docs/mechanisms.md, "Renewal"
             reborn, rd1, rd2, ra, rl1, rl2 = reborn_cell(d1_new, d2_new, a_new, two_r)
             if reborn:
                 d1_new, d2_new, a_new, l1_new, l2_new = rd1, rd2, ra, rl1, rl2
@@ -390,9 +429,22 @@ def step_kernel(values, dl, p, out, flags):
 
     Returns the index of the first failed cell, or -1.
     """
+    mech = cell_mechanisms(p)
+    if mech == MECH_NONE:
+        return _step_loop(values, dl, p, out, flags, MECH_NONE)
+    if mech == MECH_HERTZ:
+        return _step_loop(values, dl, p, out, flags, MECH_HERTZ)
+    return _step_loop(values, dl, p, out, flags, MECH_ANY)
+
+
+@njit(cache=True, error_model="numpy")
+def _step_loop(values, dl, p, out, flags, mech):
+    """:func:`step_kernel`'s loop of the cell ``mech`` (a literal)."""
+    literally(mech)
     bad = -1
     for i in range(values.shape[0]):
-        if not cell_increment(values, i, dl[i, 0], dl[i, 1], p, out, flags, 0, 0) and bad < 0:
+        ok = cell_increment_mech(values, i, dl[i, 0], dl[i, 1], p, out, flags, 0, 0, mech)
+        if not ok and bad < 0:
             bad = i
     return bad
 

@@ -13,10 +13,20 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import literally, njit
 
 from ..cell.base import LAW_COMPLIANCE, LAW_MESO, P_LAW
-from ..cell.closed_form import P_HERTZ, P_KN, P_R, cell_increment, cell_jacobian
+from ..cell.closed_form import (
+    MECH_ANY,
+    MECH_HERTZ,
+    MECH_NONE,
+    P_HERTZ,
+    P_KN,
+    P_R,
+    cell_increment_mech,
+    cell_jacobian,
+    cell_mechanisms,
+)
 from ..cell.compliance_kernel import compliance_increment
 from ..cell.meso_kernel import meso_increment
 from ..cell.mesostress import vsigma_local
@@ -99,8 +109,15 @@ def trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
     compliances (``compliance_kernel.compliance_increment``). Returns False when a cell increment
     failed.
     """
+    mech = cell_mechanisms(p) if resp.shape[1] == 0 else MECH_ANY
+    if mech == MECH_NONE:  # the published cell's loop: none of the mechanisms' code in it
+        return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
+                           False, deps, sig, MECH_NONE)
+    if mech == MECH_HERTZ:
+        return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
+                           False, deps, sig, MECH_HERTZ)
     return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, False,
-                       deps, sig)
+                       deps, sig, MECH_ANY)
 
 
 @njit(cache=True, error_model="numpy")
@@ -108,14 +125,16 @@ def trial_tangent(values, eps, deps, geo, p, mode, volume0, out, flags, sig, res
     """:func:`trial` of a meso surrogate that also gives ``dsig``, the derivative of the stress
     along the strain direction ``u`` (3,): exact within every cell's regime."""
     return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, True, u,
-                       dsig)
+                       dsig, MECH_ANY)
 
 
 @njit(cache=True, error_model="numpy")
-def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, tangent, u, dsig):
+def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, tangent, u, dsig,
+                mech):
+    literally(mech)  # a loop of its own per cell (closed_form.MECH_NONE, ...)
     two_r = 2.0 * p[P_R]
     kn = p[P_KN]
-    hertz = p[P_HERTZ]
+    hertz = 0.0 if mech == MECH_NONE else p[P_HERTZ]
     e11, e22, e12 = deps[0], deps[1], deps[2]
     s11 = 0.0
     s22 = 0.0
@@ -145,7 +164,7 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
             if law == LAW_COMPLIANCE:
                 ok &= compliance_increment(values, i, dl1, dl2, resp, p, out, flags)
             else:
-                ok &= cell_increment(values, i, dl1, dl2, p, out, flags, 0, 0)
+                ok &= cell_increment_mech(values, i, dl1, dl2, p, out, flags, 0, 0, mech)
             vnn, vtt = vsigma_local(out, i, kn, hertz, two_r)
         a11, a22, a12 = weighted_global(vnn, vtt, geo[i, 3], geo[i, 4], geo[i, 5])
         s11 += a11

@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from ..cell.bihex import bihex_increment, bihex_vsigma
-from ..cell.closed_form import P_HERTZ, P_KN, P_R
+from ..cell.closed_form import P_CROSS, P_HERTZ, P_KN, P_R
 from .kernels import LOC_BOX
 
 #: Per-cell kernel inputs (:func:`geometry`): the projector's 3 x 6 rows, then the weighted
@@ -50,6 +50,7 @@ def bihex_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig):
     two_r = 2.0 * p[P_R]
     kn = p[P_KN]
     hertz = p[P_HERTZ]
+    cross = p[P_CROSS]
     add = two_r if mode == LOC_BOX else 0.0
     d0, d1, d2, d3, d4, d5 = deps[0], deps[1], deps[2], deps[3], deps[4], deps[5]
     s0 = s1 = s2 = s3 = s4 = s5 = 0.0
@@ -64,7 +65,7 @@ def bihex_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig):
               + geo[i, 16] * d4 + geo[i, 17] * d5)
         ok &= bihex_increment(values, i, -(values[i, 6] + add) * e0, -(values[i, 7] + add) * e1,
                               -(values[i, 15] + add) * e2, p, out, flags)
-        nn, t1, t2 = bihex_vsigma(out, i, kn, hertz, two_r)
+        nn, t1, t2 = bihex_vsigma(out, i, kn, hertz, two_r, cross)
         s0 += nn * geo[i, 18] + t1 * geo[i, 24] + t2 * geo[i, 30]
         s1 += nn * geo[i, 19] + t1 * geo[i, 25] + t2 * geo[i, 31]
         s2 += nn * geo[i, 20] + t1 * geo[i, 26] + t2 * geo[i, 32]
