@@ -271,6 +271,25 @@ def test_refusals_are_one_line():
     assert "cross_contacts=frictionless" not in ClosedFormSolver.mechanisms
 
 
+def test_the_cross_variant_runs_in_3d_and_is_refused_in_2d(cli, tmp_path):
+    from hmodel.variants import get_variant
+
+    assert get_variant("cross").apply(Params()).cross_contacts == "frictionless"
+    args = ("--p0", "100e3", "--axial-strain", "0.004", "--order", "9", "--azimuths", "2")
+    q = {}
+    for model in ("hertz", "cross"):
+        out = tmp_path / model
+        code, _, err = cli("run", "triaxial", "--model", model, *args, "--out", out)
+        assert code == 0, err
+        rows = np.genfromtxt(out / "result.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
+        q[model] = rows["q"][rows["stage"] == "shear"][-1]
+    # the hexagons touch at the default alpha0 = 45 deg as soon as the cells are compressed:
+    # the same path with them is another path
+    assert q["cross"] != pytest.approx(q["hertz"], rel=1e-4)
+    cli.refuses(("run", "biaxial", "--model", "cross", "--out", tmp_path / "2d"), "cross_contacts",
+                tmp_path / "2d")
+
+
 @pytest.mark.yade
 def test_dem_bihexagon_with_cross_contacts():
     # The DEM bi-hexagon of spheres with its lateral grains free to touch (friction 30 deg on

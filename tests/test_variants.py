@@ -14,12 +14,13 @@ def test_published_and_density_change_nothing():
     assert get_variant("published").apply(p) is p and get_variant("density").apply(p) is p
 
 
-@pytest.mark.parametrize("name, contact, renewal", [("hertz", "hertz-mindlin", "none"),
-                                                     ("rebirth", "hertz-mindlin", "rebirth")])
-def test_mechanism_variants_switch_their_options_on(name, contact, renewal):
+@pytest.mark.parametrize("name, contact, renewal, cross", [("hertz", "hertz-mindlin", "none", "none"),
+                                                            ("rebirth", "hertz-mindlin", "rebirth", "none"),
+                                                            ("cross", "hertz-mindlin", "none", "frictionless")])
+def test_mechanism_variants_switch_their_options_on(name, contact, renewal, cross):
     v = get_variant(name)
     p = v.initial_params(Params(), 3, e0=0.8, e_ref=0.8)
-    assert (p.contact, p.renewal) == (contact, renewal)
+    assert (p.contact, p.renewal, p.cross_contacts) == (contact, renewal, cross)
     assert p.alpha0 == pytest.approx(Params().alpha0)  # α0 at e_ref
     assert v.fitted == ("shear_modulus", "poisson", "phi_g", "alpha0")
 
@@ -73,3 +74,38 @@ def test_failure_surface_takes_a_variant(cli, tmp_path):
         assert code == 0, err
         tables[key] = (tmp_path / key / "failure_surface.csv").read_text()
     assert tables["variant"] == tables["params"] != tables["published"]
+
+
+@pytest.mark.parametrize("spread", [0.0, 0.3])
+def test_the_cross_variant_searches_only_where_the_densest_hexagons_do_not_overlap(spread):
+    """Its α0 range at e_ref starts where the densest test's lowest opening angle is 45°
+    (below, an unloaded bi-hexagon's hexagons overlap, and the cell refuses the option)."""
+    import math
+
+    from hmodel.cell.bihex import check_params
+    from hmodel.rev.density import alpha0_for_void_ratio
+
+    base = Params(alpha0_spread=spread)
+    e0s, e_ref = (0.60, 0.75, 0.80), 0.72
+    low, top = get_variant("cross").default_bounds(base, 3, e0s, e_ref)["alpha0"]
+    assert low > get_variant("hertz").default_bounds(base, 3, e0s, e_ref)["alpha0"][0] and low < top
+
+    def lowest_angle(a0_ref):
+        a = alpha0_for_void_ratio(base.with_(alpha0=math.radians(a0_ref)), 3, min(e0s), e_ref)
+        return math.degrees(a - spread * min(a - math.pi / 6, math.pi / 2 - a))
+
+    # at the bound the densest cells open at 45 deg (to the bound's rounding to 0.1 deg), and the
+    # bi-hexagon takes the option there; 0.2 deg below it refuses it
+    assert lowest_angle(low) == pytest.approx(45.0, abs=0.2) and lowest_angle(low) >= 45.0 - 1e-9
+    dense = get_variant("cross").initial_params(base.with_(alpha0=math.radians(low)), 3, e0=min(e0s), e_ref=e_ref)
+    check_params(dense)
+    with pytest.raises(InputError, match="45 deg"):
+        check_params(get_variant("cross").initial_params(base.with_(alpha0=math.radians(low - 0.2)), 3,
+                                                         e0=min(e0s), e_ref=e_ref))
+
+
+def test_the_cross_variant_refuses_densities_it_cannot_span():
+    with pytest.raises(InputError, match="cannot span void ratios"):
+        get_variant("cross").default_bounds(Params(), 3, (0.30, 1.2), 0.8)
+    with pytest.raises(InputError, match="cannot span void ratios"):  # 45 deg is not in the cells' range
+        get_variant("cross").default_bounds(Params(alpha0_spread=0.7), 3, (0.60, 0.75), 0.72)

@@ -72,8 +72,31 @@ class ModelVariant:
         ``e0s``: α0 (at ``e_ref``) low enough that the loosest test is within the loosest cell."""
         if not self.uses_e0 or e_ref is None:
             return {}
-        top = math.degrees(largest_alpha0(params, dim, max(e0s), e_ref))
-        return {"alpha0": (31.0, math.floor(10 * top) / 10)}
+        top = math.floor(10 * math.degrees(largest_alpha0(params, dim, max(e0s), e_ref))) / 10
+        low = 31.0
+        if ("cross_contacts", "frictionless") in self.options and dim == 3:
+            # The densest test's cells must open at 45 deg or more (below, the two hexagons of an
+            # unloaded bi-hexagon overlap): the alpha0 at e_ref that maps the densest e0 there.
+            densest = replace(params, alpha0=_lowest_touching_alpha0(params.alpha0_spread))
+            try:
+                low = math.ceil(10 * math.degrees(alpha0_for_void_ratio(densest, dim, e_ref, min(e0s)))) / 10
+            except InputError:  # the touching angle itself lies beyond the loosest cell
+                low = math.inf
+            if low >= top:
+                raise InputError(f"model {self.name} cannot span void ratios {min(e0s):g} to {max(e0s):g} "
+                                 f"(alpha0_spread {params.alpha0_spread:g}): the densest needs alpha0 >= "
+                                 f"{low:g} deg at e_ref = {e_ref:g} for its hexagons not to overlap, the "
+                                 f"loosest <= {top:g}")
+        return {"alpha0": (low, top)}
+
+
+def _lowest_touching_alpha0(spread: float) -> float:
+    """The α0 [rad] whose lowest opening angle, α0 - spread·min(α0 - 30°, 90° - α0)
+    (:func:`hmodel.cell.bihex.check_params`), is 45°: where an unloaded bi-hexagon's two
+    hexagons just touch."""
+    if spread <= 0.5:
+        return math.radians((45.0 - 30.0 * spread) / (1.0 - spread))
+    return math.radians((45.0 + 90.0 * spread) / (1.0 + spread))
 
 
 _HERTZ = ("shear_modulus", "poisson", "phi_g", "alpha0")
@@ -92,6 +115,10 @@ VARIANTS = MappingProxyType({
                                        "in the space a cell held when its contacts opened.", uses_e0=True,
                             options=(("contact", "hertz-mindlin"), ("renewal", "rebirth")),
                             fitted=_HERTZ),
+    "cross": ModelVariant("cross", "The hertz model whose bi-hexagons' two hexagons touch: frictionless "
+                                   "contacts between their lateral grains (3D only).", uses_e0=True,
+                          options=(("contact", "hertz-mindlin"), ("cross_contacts", "frictionless")),
+                          fitted=_HERTZ),
 })
 #: Other names of variants: the one the docs recommend for sands (docs/mechanisms.md, "Which
 #: variant for sands": stiffness that follows pressure as a DEM assembly's; on Karlsruhe fine
