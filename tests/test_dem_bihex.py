@@ -137,6 +137,21 @@ def test_validate_dim3_writes_its_table_paths_and_figure(tmp_path, capsys):
     assert "max |ΔF| / max |F|" in capsys.readouterr().out
 
 
+@pytest.mark.yade
+def test_validate_dim3_with_frictionless_cross_contacts_from_the_command_line(tmp_path):
+    """``--frictionless-cross`` with ``-p cross_contacts=frictionless``: the closed form's cross
+    contacts against their DEM twin on the path that couples the hexagons (D != 0)."""
+    import csv
+
+    assert main(["dem", "validate", "--dim", "3", "--paths", "unequal", "--steps", "6", "--strain", "0.03",
+                 "-p", "cross_contacts=frictionless", "-p", "sliding_rhs=equilibrium",
+                 "--frictionless-cross", "--out", str(tmp_path / "v")]) == 0
+    rows = {r["cross"]: r for r in csv.DictReader(open(tmp_path / "v" / "deviations.csv"))}
+    touching = rows["True"]
+    assert int(touching["cross_steps"]) > 0
+    assert float(touching["dev_force"]) < 2e-3 and float(touching["dev_stress"]) < 2e-3
+
+
 def test_validation_counts_paths_runs_and_increments_before_building(monkeypatch):
     """The bi-hexagon validation's estimate is one cell per path and run (twice with cross
     contacts) over its increments (:func:`hmodel.dem.scene.scene_bytes`): at the budget YADE is

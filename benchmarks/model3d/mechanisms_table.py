@@ -8,6 +8,9 @@
   (``benchmarks.calibration.kfs_peer``);
 - ``mechanisms-dem``: the small-strain stiffness of DEM sphere assemblies against pressure
   (``benchmarks.dem.granular``);
+- ``mechanisms-dem-bihex``: the bi-hexagon with and without contacts between its hexagons
+  against the DEM bi-hexagon whose hexagons touch, frictionless and frictional
+  (``benchmarks.dem.dem_bihex_cross``);
 - ``mechanisms-dem-judge``: each variant calibrated on two drained tests of DEM sphere samples and
   predicting the others (``benchmarks.calibration.calibrate3d_dem ... --model NAME``).
 
@@ -121,6 +124,35 @@ def dem_block() -> str:
             "|---|---|---|\n" + "\n".join(rows))
 
 
+def _sci(x: float) -> str:
+    """x with two significant digits, as 1.3·10⁻⁴ below 10⁻², else 0.061."""
+    if x >= 1e-2:
+        return f"{x:.2g}" if x < 1 else f"{x:.2f}"
+    m, e = f"{x:.1e}".split("e")
+    sup = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+    return f"{m}·10{str(int(e)).translate(sup)}"
+
+
+def dem_bihex_block() -> str:
+    path = HERE.parent / "dem" / "dem_bihex_cross.json"
+    if not path.exists():
+        return "(benchmarks/dem/dem_bihex_cross.json not written yet)"
+    runs = json.loads(path.read_text())["paths"]
+    rows = []
+    for friction, label in ((False, "frictionless"), (True, "friction 30°")):
+        for name in dict.fromkeys(r["path"] for r in runs):
+            got = {r["closed_form_cross_contacts"]: r for r in runs
+                   if r["path"] == name and r["dem_cross_friction"] == friction}
+            if not got["frictionless"]["cross_steps"]:
+                continue
+            rows.append(f"| {name} | {label} | {_sci(got['frictionless']['dev_force'])} | "
+                        f"{_sci(got['none']['dev_force'])} | {_sci(got['frictionless']['dev_stress'])} | "
+                        f"{_sci(got['none']['dev_stress'])} |")
+    return ("| path (cross contacts touch) | DEM's cross contacts | max \\|ΔF\\|/max \\|F\\|, closed form "
+            "with cross contacts | without | max \\|ΔVσ\\|/max \\|Vσ\\|, with | without |\n"
+            "|---|---|---|---|---|---|\n" + "\n".join(rows))
+
+
 #: (JSON file, label) of the DEM judge's block, in its order: the Hertz-Mindlin sphere samples
 #: (dense and loose, one parameter set), and the linear sample of the 3D calibration page.
 DEM_JUDGE = (("dem_judge_density.json", "density (linear contacts)"), ("dem_judge_hertz.json", "hertz"),
@@ -172,7 +204,7 @@ def table_block() -> str:
 
 
 BLOCKS = {"mechanisms-table": table_block, "mechanisms-kfs": kfs_block, "mechanisms-dem": dem_block,
-          "mechanisms-dem-judge": dem_judge_block}
+          "mechanisms-dem-judge": dem_judge_block, "mechanisms-dem-bihex": dem_bihex_block}
 
 
 def render(text: str) -> str:

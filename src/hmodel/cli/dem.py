@@ -51,6 +51,10 @@ def validate_cmd(
     cross: Annotated[bool, typer.Option(
         "--cross/--no-cross", help="3D: also run every path with the two hexagons' lateral grains "
                                    "free to touch (contacts the closure ignores).")] = True,
+    cross_friction: Annotated[bool, typer.Option(
+        "--cross-friction/--frictionless-cross", help="3D, with --cross: the DEM's contacts between "
+        "the two hexagons with the grains' friction, or frictionless (like for like with -p "
+        "cross_contacts=frictionless).")] = True,
     param: ParamOpt = None,
     out: out_folder("Folder for the CSV table and PNG figures.") = Path("results/dem-validate"),
 ) -> None:
@@ -63,7 +67,7 @@ def validate_cmd(
     if dim == 3:
         if directions is not None or probes is not None:
             raise InputError("--directions and --probes are the 2D cell's; the bi-hexagon's paths are --paths")
-        return _validate_bihex(params, strain, steps, paths, cross, out)
+        return _validate_bihex(params, strain, steps, paths, cross, out, cross_friction)
     if dim != 2:
         raise InputError(f"--dim must be 2 or 3, got {dim}")
     if paths is not None:
@@ -107,7 +111,7 @@ def validate_cmd(
 
 
 def _validate_bihex(params: Params, strain: float, steps: int, paths: str | None, cross: bool,
-                    out: Path) -> None:
+                    out: Path, cross_friction: bool = True) -> None:
     """``hmodel dem validate --dim 3``: the DEM bi-hexagon against the closed form."""
     from ..dem.validate3d import PATHS, path_rows, plot_bihex_validation, validate_bihex
 
@@ -125,7 +129,8 @@ def _validate_bihex(params: Params, strain: float, steps: int, paths: str | None
         elif item:
             chosen.append(item)
     with LazyProgress("DEM bi-hexagon vs closed form") as progress:
-        v = validate_bihex(params, strain=strain, steps=steps, paths=chosen, cross=cross, progress=progress)
+        v = validate_bihex(params, strain=strain, steps=steps, paths=chosen, cross=cross, progress=progress,
+                           cross_friction=cross_friction)
     write_outputs(out, {"deviations.csv": lambda p: write_rows(v.rows, p),
                         "paths.csv": lambda p: write_rows(path_rows(v), p),
                         "validation.png": lambda p: plot_bihex_validation(v, p)})

@@ -144,22 +144,26 @@ def state_of(params: Params, positions: np.ndarray, contacts: list) -> tuple[np.
 
 
 def request(params: Params, values: np.ndarray, increments: np.ndarray, options: DEMOptions,
-            cross: bool = False) -> dict:
+            cross: bool = False, cross_friction: bool = True) -> dict:
     """The YADE request (task ``bihex``) of bi-hexagons (n, 16) under increments (n, S, 3)."""
     pos, shear = lift(params, values)
     req = scene_settings(params, params.radius, options)
     req["cells"] = [{"radii": [params.radius] * 10, "pos": pos[k].tolist(), "drive": list(DRIVE),
                      "l": [float(values[k, 6]), float(values[k, 7]), float(values[k, 15])],
-                     "shear": shear[k], "increments": increments[k].tolist(), "cross": bool(cross)}
+                     "shear": shear[k], "increments": increments[k].tolist(), "cross": bool(cross),
+                     "cross_friction": bool(cross_friction)}
                     for k in range(len(values))]
     return req
 
 
 def simulate(params: Params, values: np.ndarray, increments: np.ndarray,
-             options: DEMOptions | None = None, cross: bool = False, yade=None) -> BiHexRuns:
+             options: DEMOptions | None = None, cross: bool = False, yade=None,
+             cross_friction: bool = True) -> BiHexRuns:
     """Bi-hexagons of states ``values`` (n, 16) under their increments (n, S, 3) of
     (l1, l2, l3) [m] in one YADE scene, one increment after the other without rebuilding
-    (so with ``cross`` the contacts between the hexagons keep their tangential forces).
+    (so with ``cross`` the contacts between the hexagons keep their tangential forces);
+    ``cross_friction`` False makes those contacts frictionless (``cross_contacts=frictionless``'s
+    assumption), True gives them the scene's friction.
 
     ``yade``: a :class:`~hmodel.dem.yade.YadeServer` to ask (default: a process of its own).
     """
@@ -171,7 +175,7 @@ def simulate(params: Params, values: np.ndarray, increments: np.ndarray,
         raise InputError("no DEM bi-hexagon increment to run")
     if not np.all(np.isfinite(inc)):
         raise InputError("DEM increments must be finite")
-    payload = request(params, values, inc, options, cross)
+    payload = request(params, values, inc, options, cross, cross_friction)
     answer = (yade.request("bihex", payload, timeout=options.timeout) if yade is not None
               else run("bihex", payload, timeout=options.timeout))
     recs = answer["cells"]

@@ -115,7 +115,7 @@ def _deviations(dem: np.ndarray, cf: np.ndarray) -> tuple[float, float]:
 
 def validate_bihex(params: Params, strain: float = 0.03, steps: int = 30, paths=tuple(PATHS),
                    refine: int = 10, cross: bool = True, options: DEMOptions | None = None,
-                   progress=None) -> Validation3D:
+                   progress=None, cross_friction: bool = True) -> Validation3D:
     """Run the DEM bi-hexagon and the closed form on the same paths.
 
     Parameters
@@ -137,6 +137,9 @@ def validate_bihex(params: Params, strain: float = 0.03, steps: int = 30, paths=
         DEM numerics (default :data:`VALIDATION_OPTIONS`).
     progress : callable, optional
         Receives the completed fraction.
+    cross_friction : bool
+        Whether the cross contacts of that run have the scene's friction (True) or none (False:
+        like for like with ``cross_contacts=frictionless``).
     """
     if not (np.isfinite(strain) and 0 < strain <= 0.5):
         raise InputError(f"strain must lie in (0, 0.5], got {strain}")
@@ -172,7 +175,7 @@ def validate_bihex(params: Params, strain: float = 0.03, steps: int = 30, paths=
     runs = [simulate(params, v0, inc, options)]
     report(0.5 if cross else 0.8)
     if cross:
-        runs.append(simulate(params, v0, inc, options, cross=True))
+        runs.append(simulate(params, v0, inc, options, cross=True, cross_friction=cross_friction))
     wall = time.perf_counter() - t0
     report(0.85)
     cf = closed_form_path(params, dl, steps, 1)

@@ -15,13 +15,16 @@ and held in its hexagon's plane, where the mirror symmetry t2 -> -t2 (t1 -> -t1 
 free, a grain pressed by its two neighbours in the plane would buckle out of it at the first
 round-off (its contacts push it further out, nothing pulls it back). With ``cross`` false, A's and B's lateral grains never interact (collision masks:
 A 1, B 2, grains 1 and 4 both): the cell of the closure, whose twelve contacts the state holds;
-with ``cross`` true they touch where they meet (the closure ignores those contacts).
+with ``cross`` true they touch where they meet (the closure ignores those contacts), with the
+scene's friction, or none where the cell's ``cross_friction`` is false (A's lateral grains, B's
+and grains 1 and 4 then have three materials alike but for a MatchMaker that sets the friction
+of A-B pairs to zero: the frictionless cross contacts of ``cross_contacts=frictionless``).
 
 Request: the scene's settings (:func:`hmodel.dem.scene.scene_settings`) and ``cells``, each
 with ``radii``, ``pos`` (10 rows (n, t1, t2), cell frame), ``drive`` (``"n"``, ``"t1"``,
 ``"t2"`` per grain), ``l`` = (l1, l2, l3), ``shear`` rows [i, j, fx, fy, fz] (tangential force
 on grain j by grain i, i < j, of a closed contact), ``increments`` (S rows (dl1, dl2, dl3), S
-the same for every cell) and ``cross``.
+the same for every cell), ``cross`` and ``cross_friction``.
 
 1. grains at their centres, every degree of freedom blocked; one time step creates the contacts
    of touching grains with their normal forces, then the tangential forces are restored;
@@ -78,12 +81,20 @@ def _build(O, utils, w, req):
     """The grains of every cell, all blocked; engines, time step and the first step. Returns
     ``owner`` (body id -> (cell, local grain))."""
     mat = material(O, w, req)
+    # the lateral grains of A and of B, materials of their own where a cell's cross contacts
+    # are frictionless (identical to mat but for the A-B pairs' friction)
+    lateral = {"n": mat, "t1": mat, "t2": mat}
+    if any(c["cross"] and not c.get("cross_friction", True) for c in req["cells"]):
+        lateral = {"n": mat, "t1": material(O, w, req), "t2": material(O, w, req)}
+        req["frictionless"] = [(lateral["t1"], lateral["t2"])]
     owner = {}
     for c, (cell, o) in enumerate(zip(req["cells"], _origins(req))):
         cell["_origin"] = o
         cell["ids"] = []
         for p, r, drive in zip(cell["pos"], cell["radii"], cell["drive"]):
-            b = utils.sphere((o[0] + p[0], o[1] + p[1], o[2] + p[2]), r, material=mat,
+            own = cell["cross"] and not cell.get("cross_friction", True)
+            b = utils.sphere((o[0] + p[0], o[1] + p[1], o[2] + p[2]), r,
+                             material=lateral[drive] if own else mat,
                              mask=3 if cell["cross"] else MASK[drive])
             b.state.blockedDOFs = "xyzXYZ"
             b.state.mass = req["mass"]  # mass scaling: one mass for all grains

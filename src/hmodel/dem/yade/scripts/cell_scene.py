@@ -71,7 +71,9 @@ def material(O, w, spec):
 
 def start(O, utils, w, spec):
     """Engines and time step of a scene whose grains are placed, then the first time step, which
-    creates the contacts of touching grains (detection margin ``detect_margin``, that step only)."""
+    creates the contacts of touching grains (detection margin ``detect_margin``, that step only).
+    ``spec["frictionless"]``, where present: pairs of material ids whose contacts have no
+    friction (:func:`~hmodel.dem.yade.scripts.common.stiffness`)."""
     enlarge = 1.0 + spec["detect_margin"]
     collider = w.InsertionSortCollider([w.Bo1_Sphere_Aabb(aabbEnlargeFactor=enlarge)])
     # avoidGranularRatcheting=False: shear increment = tangential part of (v2 - v1) dt, i.e.
@@ -82,7 +84,8 @@ def start(O, utils, w, spec):
     # as absent); a touching contact created at the detection margin is therefore never lost.
     law = w.Law2_ScGeom_FrictPhys_CundallStrack(neverErase=True)
     O.engines = [w.ForceResetter(), collider,
-                 w.InteractionLoop([ig2], [stiffness(w, spec["kn"], spec["kt_kn"])], [law]),
+                 w.InteractionLoop([ig2], [stiffness(w, spec["kn"], spec["kt_kn"],
+                                                     spec.get("frictionless", ()))], [law]),
                  w.NewtonIntegrator(damping=spec["damping"], gravity=(0, 0, 0))]
     O.dt = spec["dt_safety"] * utils.PWaveTimeStep()
     O.step()

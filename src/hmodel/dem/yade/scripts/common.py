@@ -8,14 +8,19 @@ import math
 HERTZ_FORCE_MARGIN = 4.0
 
 
-def stiffness(w, kn, kt_kn):
-    """The contact physics: kn and ks = kt_kn kn for every pair (``w`` is ``yade.wrapper``).
+def stiffness(w, kn, kt_kn, frictionless=()):
+    """The contact physics: kn and ks = kt_kn kn for every pair (``w`` is ``yade.wrapper``);
+    the pairs of material ids in ``frictionless`` without friction, the others with the smaller
+    friction angle of their two materials (YADE's default).
 
     MatchMakers, because YADE's default, the harmonic mean 2 E Ra Rb / (Ra + Rb), gives kn = E r
     only for equal radii r, while the H-model's kn is a contact constant.
     """
+    extra = {}
+    if frictionless:
+        extra["frictAngle"] = w.MatchMaker(matches=[(a, b, 0.0) for a, b in frictionless], algo="min")
     return w.Ip2_FrictMat_FrictMat_FrictPhys(kn=w.MatchMaker(algo="val", val=kn),
-                                             ks=w.MatchMaker(algo="val", val=kt_kn * kn))
+                                             ks=w.MatchMaker(algo="val", val=kt_kn * kn), **extra)
 
 
 def steps(O, n):
