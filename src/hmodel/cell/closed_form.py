@@ -37,9 +37,10 @@ N_CELL_PARAMS = 11
 #: Which cell a compiled loop over cells updates, a constant of the loop (a literal argument:
 #: each value compiles a loop of its own, so that the published cell's loop holds none of the
 #: mechanisms' code, whose mere presence slows it): the published cell (linear contacts, every
-#: mechanism off), Hertz-Mindlin contacts (other mechanisms read from the parameters), or the
-#: cell the packed parameters say, cell by cell (:func:`cell_mechanisms`).
-MECH_NONE, MECH_HERTZ, MECH_ANY = 0, 1, 2
+#: mechanism off) or the cell the packed parameters say, cell by cell (:func:`cell_mechanisms`).
+#: Two loops, not one per set of mechanisms: every loop is compiled, and a third for
+#: Hertz-Mindlin contacts alone ran no faster (benchmarks/engine/engine.json).
+MECH_NONE, MECH_ANY = 0, 1
 
 
 def hertz_constants(params: Params) -> tuple[float, float]:
@@ -65,10 +66,8 @@ def kernel_params(params: Params) -> np.ndarray:
 
 @njit(cache=True, inline="always", error_model="numpy")
 def cell_mechanisms(p):
-    """The :data:`MECH_NONE`, :data:`MECH_HERTZ` or :data:`MECH_ANY` of packed parameters ``p``."""
-    if p[P_HERTZ] != 0.0:
-        return MECH_HERTZ
-    if p[P_RENEW] == 0.0 and p[P_CROSS] == 0.0:
+    """The :data:`MECH_NONE` or :data:`MECH_ANY` of packed parameters ``p``."""
+    if p[P_HERTZ] == 0.0 and p[P_RENEW] == 0.0 and p[P_CROSS] == 0.0:
         return MECH_NONE
     return MECH_ANY
 
@@ -184,7 +183,7 @@ def cell_update_mech(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, mech):
     with Hertz-Mindlin contacts, :func:`hmodel.cell.hertz.solve` found no solution). ``mech``
     (:data:`MECH_NONE`, ...): the cell the caller's loop updates, a constant there.
     """
-    if mech == MECH_HERTZ or (mech == MECH_ANY and p[P_HERTZ] != 0.0):
+    if mech == MECH_ANY and p[P_HERTZ] != 0.0:
         h = _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p)
         r = finish_update_mech(d1, d2, a, l1, l2, dl1, dl2, h[1], h[2], h[3], h[4], h[5], h[6],
                                h[7], h[8], p, mech)
@@ -432,8 +431,6 @@ def step_kernel(values, dl, p, out, flags):
     mech = cell_mechanisms(p)
     if mech == MECH_NONE:
         return _step_loop(values, dl, p, out, flags, MECH_NONE)
-    if mech == MECH_HERTZ:
-        return _step_loop(values, dl, p, out, flags, MECH_HERTZ)
     return _step_loop(values, dl, p, out, flags, MECH_ANY)
 
 

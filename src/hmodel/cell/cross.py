@@ -100,7 +100,7 @@ def cross_vsigma(kn, c, two_r, dd2, l2, l3):
     return w * dd2 * dd2, w * l2 * l2, w * l3 * l3
 
 
-@njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, error_model="numpy")  # a call, not inlined: ten call sites would compile ten copies
 def _hexagon_solve(d1, d2, a, n1, n2, t1, dl1, dl2, sliding, xi, shift, p):
     """Eq. 1.7 of one hexagon in a given regime with the force ``shift`` added to its third row
     in forces (coef δN1 - δN2 + gt δα + kn λ + shift = 0; the rows of

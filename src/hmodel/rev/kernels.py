@@ -18,7 +18,6 @@ from numba import literally, njit
 from ..cell.base import LAW_COMPLIANCE, LAW_MESO, P_LAW
 from ..cell.closed_form import (
     MECH_ANY,
-    MECH_HERTZ,
     MECH_NONE,
     P_HERTZ,
     P_KN,
@@ -113,9 +112,6 @@ def trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
     if mech == MECH_NONE:  # the published cell's loop: none of the mechanisms' code in it
         return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
                            False, deps, sig, MECH_NONE)
-    if mech == MECH_HERTZ:
-        return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
-                           False, deps, sig, MECH_HERTZ)
     return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, False,
                        deps, sig, MECH_ANY)
 
