@@ -104,16 +104,15 @@ def bihex_increment(values, i, dl1, dl2, dl3, p, out, flags):
     :func:`hmodel.cell.cross.cross_increment`. Returns False when either hexagon's increment
     failed."""
     if p[P_CROSS] != 0.0:  # docs/mechanisms.md, "Contacts between the two hexagons"
-        ok_a = cross_increment(values, i, dl1, dl2, dl3, p, out, flags)
-        ok_b = True
+        ok = cross_increment(values, i, dl1, dl2, dl3, p, out, flags)
     else:
         ok_a = cell_increment(values, i, dl1, dl2, p, out, flags, 0, 0)
-        ok_b = cell_increment(values, i, dl1, dl3, p, out, flags, 8, 5)
+        ok = cell_increment(values, i, dl1, dl3, p, out, flags, 8, 5) and ok_a
     if p[P_RENEW] == RENEW_BIHEX:  # docs/mechanisms.md, "Renewal"
         renew_bihex(out, flags, i, 2.0 * p[P_R])
     flags[i, 10] = cross_contact(0.5 * (out[i, 1] - out[i, 9]), out[i, 7], out[i, 15],
                                  2.0 * p[P_R])
-    return ok_a and ok_b
+    return ok
 
 
 @njit(cache=True, inline="always", error_model="numpy")

@@ -99,6 +99,27 @@ def _compatibility(d1, ca, sa, p):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def angle_rows(d1, a, p):
+    """What every form of eq. 1.7 at (d1, α) starts from: ``(cos α, sin α, g2 + sin α, a11,
+    a13, a21, a23)``, the last four the compatibility rows (:func:`_compatibility`)."""
+    ca = math.cos(a)
+    sa = math.sin(a)
+    a11, a13, a21, a23 = _compatibility(d1, ca, sa, p)
+    return ca, sa, p[P_G2] + sa, a11, a13, a21, a23
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def hertz_overlaps(d1, d2, n1, n2, p):
+    """``(u1, u2, kt)`` of Hertz-Mindlin contacts: the square roots of the two contacts'
+    overlaps from their forces (:func:`hmodel.cell.hertz.overlap_root`) and Mindlin's tangential
+    stiffness kt = m kn(N1) = m 1.5 c u1."""
+    c = p[P_HERTZ]
+    two_r = 2.0 * p[P_R]
+    u1 = hertz.overlap_root(n1, c, two_r - d1)
+    return u1, hertz.overlap_root(n2, c, two_r - d2), p[P_MINDLIN] * 1.5 * c * u1
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _regime(d1, a, n1, t1, dl1, dl2, p):
     """The system of eq. 1.7 in the regime the increment (dl1, dl2) takes: ``(a11, a13, a21,
     a23, a31, a33, rhs3, sliding, xi)``, the matrix [[a11, 1, a13], [a21, 0, a23], [a31, -1,
@@ -109,10 +130,7 @@ def _regime(d1, a, n1, t1, dl1, dl2, p):
     kn = p[P_KN]
     kt = p[P_KT]
     tanphi = p[P_TAN]
-    ca = math.cos(a)
-    sa = math.sin(a)
-    gs = p[P_G2] + sa
-    a11, a13, a21, a23 = _compatibility(d1, ca, sa, p)
+    ca, sa, gs, a11, a13, a21, a23 = angle_rows(d1, a, p)
     # Row 3, no sliding (eqs. 1.8-1.9): equilibrium of grain 2 with dT1 = kt d1 dalpha.
     a33 = (n1 * sa - t1 * ca - kt * d1 * gs) / kn
     dd1, dd2, da, det = _solve3(a11, 1.0, a13, a21, 0.0, a23, ca, -1.0, a33, dl1, dl2, 0.0)
@@ -141,14 +159,8 @@ def _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p):
     (:func:`sliding_force`)."""
     c = p[P_HERTZ]
     tanphi = p[P_TAN]
-    ca = math.cos(a)
-    sa = math.sin(a)
-    gs = p[P_G2] + sa
-    a11, a13, a21, a23 = _compatibility(d1, ca, sa, p)
-    two_r = 2.0 * p[P_R]
-    u1 = hertz.overlap_root(n1, c, two_r - d1)
-    u2 = hertz.overlap_root(n2, c, two_r - d2)
-    kt = p[P_MINDLIN] * 1.5 * c * u1
+    ca, sa, gs, a11, a13, a21, a23 = angle_rows(d1, a, p)
+    u1, u2, kt = hertz_overlaps(d1, d2, n1, n2, p)
     g = t1 * ca - n1 * sa
     coef = ca
     gt = g + gs * kt * d1

@@ -36,16 +36,15 @@ from numba import njit
 
 from . import hertz
 from .closed_form import (
-    P_G2,
     P_HERTZ,
     P_KN,
     P_KT,
-    P_MINDLIN,
     P_R,
     P_TAN,
-    _compatibility,
+    angle_rows,
     cell_update,
     finish_update,
+    hertz_overlaps,
     sliding_force,
     write_update,
 )
@@ -110,16 +109,10 @@ def _hexagon_solve(d1, d2, a, n1, n2, t1, dl1, dl2, sliding, xi, shift, p):
     kn = p[P_KN]
     c = p[P_HERTZ]
     tanphi = p[P_TAN]
-    ca = math.cos(a)
-    sa = math.sin(a)
-    gs = p[P_G2] + sa
-    a11, a13, a21, a23 = _compatibility(d1, ca, sa, p)
+    ca, sa, gs, a11, a13, a21, a23 = angle_rows(d1, a, p)
     g = t1 * ca - n1 * sa
     if c != 0.0:
-        two_r = 2.0 * p[P_R]
-        u1 = hertz.overlap_root(n1, c, two_r - d1)
-        u2 = hertz.overlap_root(n2, c, two_r - d2)
-        kt = p[P_MINDLIN] * 1.5 * c * u1
+        u1, u2, kt = hertz_overlaps(d1, d2, n1, n2, p)
     else:
         kt = p[P_KT]
     if sliding:
