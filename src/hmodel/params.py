@@ -125,6 +125,12 @@ class Params:
         return math.degrees(self.alpha0)
 
     @property
+    def alpha0_half_width(self) -> float:
+        """Half-width h [rad] of the cells' initial opening angles, α0 ± h: h = alpha0_spread ·
+        min(α0 − 30°, 90° − α0), so that every cell stays in the H-cell's (30°, 90°)."""
+        return self.alpha0_spread * min(self.alpha0 - math.pi / 6, math.pi / 2 - self.alpha0)
+
+    @property
     def l10(self) -> float:
         """Initial cell length l1 = d2 + 2 d1 cos(alpha0) with d1 = d2 = 2r (eq. 1.2)."""
         return 2 * self.radius * (1 + 2 * math.cos(self.alpha0))

@@ -91,9 +91,9 @@ class ModelVariant:
 
 
 def _lowest_touching_alpha0(spread: float) -> float:
-    """The α0 [rad] whose lowest opening angle, α0 - spread·min(α0 - 30°, 90° - α0)
+    """The α0 [rad] whose lowest opening angle, α0 - :attr:`~hmodel.params.Params.alpha0_half_width`
     (:func:`hmodel.cell.bihex.check_params`), is 45°: where an unloaded bi-hexagon's two
-    hexagons just touch."""
+    hexagons just touch (that half-width inverted)."""
     if spread <= 0.5:
         return math.radians((45.0 - 30.0 * spread) / (1.0 - spread))
     return math.radians((45.0 + 90.0 * spread) / (1.0 + spread))

@@ -80,8 +80,7 @@ def check_params(params: Params) -> None:
                          f"H-model, got {params.volume!r} (eq. 1.21's virtual l1* is not shared by "
                          "the two hexagons of a bi-hexagon)")
     if params.cross_contacts != "none":
-        low = params.alpha0 - params.alpha0_spread * min(params.alpha0 - math.pi / 6.0,
-                                                         math.pi / 2.0 - params.alpha0)
+        low = params.alpha0 - params.alpha0_half_width
         if low < math.pi / 4.0 - 1e-12:
             raise InputError(f"cross_contacts={params.cross_contacts} needs opening angles of at least "
                              f"45 deg (alpha0 - spread), got {math.degrees(low):.4g}: below, an "

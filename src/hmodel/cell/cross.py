@@ -65,14 +65,12 @@ def cross_distance(dd2, l2, l3):
 @njit(cache=True, inline="always", error_model="numpy")
 def cross_force(kn, c, two_r, dc):
     """``(F, dF/d dc)``: the normal force of one cross pair at distance dc (zero apart), linear
-    kn (2r - dc) or Hertz c (2r - dc)^(3/2) (``c`` nonzero)."""
+    kn (2r - dc) or Hertz c (2r - dc)^(3/2) (``c`` nonzero): the law of the extra contacts
+    (:func:`hmodel.cell.hertz.extra_force`)."""
     gap = two_r - dc
     if gap <= 0.0:
         return 0.0, 0.0
-    if c != 0.0:
-        s = math.sqrt(gap)
-        return c * gap * s, -1.5 * c * s
-    return kn * gap, -kn
+    return hertz.extra_force(kn, c, gap), (-1.5 * c * math.sqrt(gap) if c != 0.0 else -kn)
 
 
 @njit(cache=True, inline="always", error_model="numpy")

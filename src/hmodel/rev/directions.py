@@ -65,7 +65,7 @@ def opening_angles(params: Params) -> np.ndarray:
     a0 = params.alpha0
     if params.alpha0_spread == 0:
         return np.full(n, a0)
-    h = params.alpha0_spread * min(a0 - math.pi / 6, math.pi / 2 - a0)
+    h = params.alpha0_half_width
     rank = np.empty(n, np.int64)
     rank[np.argsort(np.mod(np.arange(n) * GOLDEN, 1.0), kind="stable")] = np.arange(n)
     return a0 + h * (2.0 * (rank + 0.5) / n - 1.0)
