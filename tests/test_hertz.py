@@ -184,3 +184,77 @@ def test_a_drained_triaxial_test_of_hertz_contacts_runs_from_the_command_line(cl
     assert shear["eps11"][-1] - shear["eps11"][0] > 0.0019
     np.testing.assert_allclose(shear["sig22"], 1e5, rtol=1e-6)
     assert shear["q"][-1] > 0
+
+
+def test_a_force_free_cells_increment_is_the_root_of_its_third_row():
+    """A force-free cell (open, or reborn at contact) solves eq. 1.7 in closed form
+    (:func:`hmodel.cell.hertz.free_solution`); it must be the root of the third row
+    coef f(-δd1) - f(-δd2) = 0, f(e) = c e |e|^(1/2), found here independently by bracketing
+    (scipy's brentq), on random angles, increments and both regimes' coefficients; and the
+    Newton iteration, started off the force-free shortcut (an overlap of 10^-400 m, whose
+    square root is not zero), must reach the same δd1."""
+    from scipy.optimize import brentq
+
+    from hmodel.cell.closed_form import angle_rows
+    from hmodel.cell.hertz import affine, law, solve
+
+    rng = np.random.default_rng(3)
+    p = kernel_params(HERTZ)
+    c = p[P_HERTZ]
+    for _ in range(200):
+        a = rng.uniform(math.radians(32), math.radians(80))
+        _, _, _, a11, a13, a21, a23 = angle_rows(2 * HERTZ.radius, a, p)
+        dl = rng.normal(size=2) * 1e-6 * 10 ** rng.uniform(-3, 1)
+        coef = math.cos(a) + rng.choice([0.0, HERTZ.tan_phi * (0.5 + math.sin(a))])
+        ok, x, dd2, *_ = solve(c, 0.0, 0.0, 0.0, 0.0, *dl, a11, a13, a21, a23, coef, 0.0, 0.0)
+        assert ok
+        q, da0, w, e0 = affine(a11, a13, a21, a23, *dl)
+        row = lambda y: coef * law(c, -y)[0] - law(c, -(e0 + w * y))[0]  # noqa: E731
+        span = 10 * (abs(e0) + abs(x)) + 1e-30
+        root = brentq(row, -span, span, xtol=1e-300, rtol=1e-14)
+        assert x == pytest.approx(root, rel=1e-12, abs=0)
+        assert dd2 == pytest.approx(e0 + w * x, rel=1e-14)
+        newton = solve(c, 1e-200, 0.0, 0.0, 0.0, *dl, a11, a13, a21, a23, coef, 0.0, 0.0)
+        assert newton[0] and newton[1] == pytest.approx(x, rel=1e-10)
+
+
+def test_a_force_free_cells_regime_is_the_trials_and_coulombs():
+    """The force-free cell's regime without Newton (:func:`hmodel.cell.hertz.free_regime`, the
+    Coulomb check by the sign of δd1 without its cube root) against the published rule done
+    by hand: the trial without sliding is the root of coef f(-δd1) - f(-δd2) = 0 with coef =
+    cos α (brentq); the cell slides iff that trial leaves N1' ≤ 0 (T1' = 0), and then δd1 is
+    the root with coef = cos α + tan φ (g2 + sin α). Both regimes must occur."""
+    from scipy.optimize import brentq
+
+    from hmodel.cell.closed_form import P_G2, P_TAN, _hertz_regime, angle_rows
+    from hmodel.cell.hertz import affine, law
+
+    rng = np.random.default_rng(5)
+    p = kernel_params(HERTZ)
+    c = p[P_HERTZ]
+    two_r = 2 * HERTZ.radius
+    seen = set()
+    for _ in range(300):
+        a = rng.uniform(math.radians(32), math.radians(80))
+        d1, d2 = two_r + rng.uniform(0, 1e-5, 2) * rng.integers(0, 2)  # at contact or open
+        dl = rng.normal(size=2) * 1e-6 * 10 ** rng.uniform(-3, 1)
+        r = _hertz_regime(d1, d2, a, 0.0, 0.0, 0.0, *dl, p)
+        assert r[0]
+        _, _, _, a11, a13, a21, a23 = angle_rows(d1, a, p)
+        q, da0, w, e0 = affine(a11, a13, a21, a23, *dl)
+
+        def root(coef):
+            row = lambda y: coef * law(c, -y)[0] - law(c, -(e0 + w * y))[0]  # noqa: E731
+            span = 100 * abs(e0) + 1e-30
+            return brentq(row, -span, span, xtol=1e-300, rtol=1e-14)
+
+        x = root(math.cos(a))
+        sliding = law(c, -x)[0] <= 0.0
+        if sliding:
+            x = root(math.cos(a) + p[P_TAN] * (p[P_G2] + math.sin(a)))
+        assert r[7] == sliding
+        assert r[1] == pytest.approx(x, rel=1e-12, abs=0)
+        assert r[3] == pytest.approx(da0 + q * x, rel=1e-10, abs=1e-300)
+        assert r[6] == 0.0 and r[4] == pytest.approx(law(c, -x)[0], rel=1e-10)
+        seen.add(sliding)
+    assert seen == {False, True}

@@ -166,6 +166,11 @@ def _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p):
     tanphi = p[P_TAN]
     ca, sa, gs, a11, a13, a21, a23 = angle_rows(d1, a, p)
     u1, u2, kt = hertz_overlaps(d1, d2, n1, n2, p)
+    if u1 == 0.0 and u2 == 0.0 and t1 == 0.0:  # force-free (open or reborn): no Newton needed
+        ok, dd1, dd2, da, f1, f2, b1, b2, sliding, coef = hertz.free_regime(
+            c, dl1, dl2, a11, a13, a21, a23, ca, tanphi * gs)
+        if ok:
+            return ok, dd1, dd2, da, f1, f2, 0.0, sliding, 1.0, b1, b2, coef, 0.0, kt
     g = t1 * ca - n1 * sa
     coef = ca
     gt = g + gs * kt * d1

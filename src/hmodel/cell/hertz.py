@@ -110,6 +110,42 @@ def _row3(x, c, u1, u2, n1, n2, da0, q, e0, w, coef, gt, flam):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def free_solution(e0, w, coef):
+    """δd1 of a force-free cell (an open or reborn one: no force, hence no overlap, and no
+    tangential stiffness, so gt = 0, and no sliding force), in closed form (docs/mechanisms.md,
+    "Force-free cells"): the third row is coef f(-δd1) = f(-δd2) with the odd, homogeneous law
+    f(e) = c e |e|^(1/2), f(λe) = λ^(3/2) f(e), hence for coef > 0 f(-coef^(2/3) δd1) = f(-δd2),
+    and f is one-to-one: δd2 = coef^(2/3) δd1, with δd2 = e0 + w δd1 from rows 1-2
+    (:func:`affine`)."""
+    return e0 / (np.cbrt(coef * coef) - w)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def free_regime(c, dl1, dl2, a11, a13, a21, a23, ca, slide):
+    """Eq. 1.7 of a force-free cell in the regime its increment takes, as :func:`solve` twice
+    (trial without sliding, Coulomb check, sliding) but with one cube root:
+    ``(ok, δd1, δd2, δα, N1', N2', b1, b2, sliding, coef)``; ``ok`` False where the closed form
+    does not apply (cos α ≤ 0, or the trial's denominator vanishes), for the caller's iteration.
+
+    Without sliding (coef = cos α, :func:`free_solution`) T1' = 0, so the cell is on the Coulomb
+    cone iff N1' ≤ 0, iff δd1 = e0/(cos^(2/3) α - w) ≥ 0: the sign of δd1 follows from
+    cos² α against w³ without the root. Sliding then goes the way ξ = +1 of T1' = 0, coef =
+    cos α + ``slide`` (tan φ (g2 + sin α)), with no sliding force (N1 = T1 = 0 in eq. 1.10)."""
+    q, da0, w, e0 = affine(a11, a13, a21, a23, dl1, dl2)
+    c2 = ca * ca
+    w3 = w * w * w
+    if not ca > 0.0 or c2 == w3:
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, False, ca
+    sliding = e0 >= 0.0 if c2 > w3 else e0 <= 0.0
+    coef = ca + slide if sliding else ca
+    x = free_solution(e0, w, coef)
+    dd2 = e0 + w * x
+    f1, b1 = law(c, -x)
+    f2, b2 = law(c, -dd2)
+    return math.isfinite(x), x, dd2, da0 + q * x, f1, f2, b1, b2, sliding, coef
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def solve(c, u1, u2, n1, n2, dl1, dl2, a11, a13, a21, a23, coef, gt, flam):
     """Eq. 1.7 of Hertz-Mindlin contacts: ``(ok, δd1, δd2, δα, N1', N2', b1, b2)``, the
     solution, the new normal forces and the square roots of the new overlaps (tangents
@@ -119,8 +155,17 @@ def solve(c, u1, u2, n1, n2, dl1, dl2, a11, a13, a21, a23, coef, gt, flam):
     coef (N1' - N1) - (N2' - N2) + gt δα + flam = 0, with the contacts at the overlaps u1², u2²
     their forces N1, N2 imply (Nk' by :func:`law`). Sticking: coef = cos α,
     gt = T1 cos α - N1 sin α + (g2 + sin α) kt d1, flam = 0; sliding: coef = cos α + ξ tan φ
-    (g2 + sin α), gt = T1 cos α - N1 sin α, flam = kn λ of eq. 1.10."""
+    (g2 + sin α), gt = T1 cos α - N1 sin α, flam = kn λ of eq. 1.10. A force-free cell (no
+    overlap, gt = flam = 0, the open cells that are most of a sheared REV's) takes the closed
+    form :func:`free_solution` instead of the iteration."""
     q, da0, w, e0 = affine(a11, a13, a21, a23, dl1, dl2)
+    if u1 == 0.0 and u2 == 0.0 and gt == 0.0 and flam == 0.0 and coef > 0.0:
+        x = free_solution(e0, w, coef)
+        if math.isfinite(x):
+            dd2 = e0 + w * x
+            f1, b1 = law(c, -x)
+            f2, b2 = law(c, -dd2)
+            return True, x, dd2, da0 + q * x, f1, f2, b1, b2
     # the start: the row with the tangent stiffnesses at the start of the increment; an
     # unloaded contact has none, and the row of two is homogeneous in them where both are
     k1 = 1.5 * c * u1
