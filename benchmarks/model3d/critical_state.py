@@ -89,7 +89,7 @@ def summary(path: dict, v_ref: float, window: float) -> dict:
             "newton_failed": path["failed"] is not None}
 
 
-def figure(paths, labels, out: Path) -> None:
+def figure(paths, labels, out: Path, nu_label: str = "specific volume ν = V/V0(45°)") -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -108,7 +108,7 @@ def figure(paths, labels, out: Path) -> None:
             a.plot(x, y, "o" if lab["test"] == "drained" else "s", color=c, ms=4)
     ax[0].set(xlabel="axial strain ε11 [%]", ylabel="q/p", title="stress ratio")
     ax[1].set(xlabel="p [kPa]", ylabel="q [kPa]", title="q–p (end states: markers)")
-    ax[2].set(xlabel="p [kPa] (log)", ylabel="specific volume ν = V/V0(45°)", title="ν–ln p")
+    ax[2].set(xlabel="p [kPa] (log)", ylabel=nu_label, title="ν–ln p")
     from matplotlib.lines import Line2D
     ax[0].legend([Line2D([], [], color="tab:blue"), Line2D([], [], color="tab:red"),
                   Line2D([], [], color="k"), Line2D([], [], color="k", ls="--")],

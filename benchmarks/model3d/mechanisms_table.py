@@ -11,6 +11,8 @@
 - ``mechanisms-dem-bihex``: the bi-hexagon with and without contacts between its hexagons
   against the DEM bi-hexagon whose hexagons touch, frictionless and frictional
   (``benchmarks.dem.dem_bihex_cross``);
+- ``mechanisms-critical-2d``: the 2D REV's critical state with and without ``renewal=mix``
+  (``benchmarks.mechanisms.critical_state_2d``);
 - ``mechanisms-dem-judge``: each variant calibrated on two drained tests of DEM sphere samples and
   predicting the others (``benchmarks.calibration.calibrate3d_dem ... --model NAME``).
 
@@ -194,6 +196,29 @@ def dem_judge_block() -> str:
             "|---|---|---|---|---|---|---|\n" + "\n".join(rows))
 
 
+def critical_2d_block() -> str:
+    path = HERE.parent / "mechanisms" / "critical_state_2d.json"
+    if not path.exists():
+        return "(benchmarks/mechanisms/critical_state_2d.json not written yet)"
+    rec = json.loads(path.read_text())
+    rows = []
+    for name, v in rec["verdicts"].items():
+        renewal, _, strain = name.partition(" to ")
+        qp = [r["q_p_end"] for r in rec["table"]
+              if r["renewal"] == renewal and r["strain"] == float(strain) and not r["newton_failed"]]
+        drop = [f"{100 * p:.0f}" for p in v["loose_undrained_p_min_over_p0"]]
+        rows.append(f"| {renewal} | {100 * float(strain):.0f} % | {v['tests_at_end']} of {v['tests']} | "
+                    f"{min(qp):.2f}–{max(qp):.2f} | {v['M']:.3f} | {100 * v['q_p_end_max_off_M']:.1f} % | "
+                    f"{v['deps_v_deps11_max']:.3f} | {v['line_box']:.4f} | {v['line_macro']:.3f} | "
+                    f"{', '.join(drop)} % | "
+                    f"{'yes' if all(v['loose_undrained_p_rises_after_min']) else 'no'} |")
+    return ("| renewal | axial strain | tests to the end | q/p at the end | M (their mean) | largest "
+            f"\|q/p / M − 1\| (target {100 * QP_BAND:.0f} %) | largest drained \|dε_v/dε₁\| "
+            f"(target {RATE_MAX}) | ends off one line in (ln p, ν), box measure (target 0.01) | "
+            "the same, macro volume | loose undrained: lowest p / p₀ | p rises again |\n"
+            "|---|---|---|---|---|---|---|---|---|---|---|\n" + "\n".join(rows))
+
+
 def table_block() -> str:
     head = ("| mechanisms on | tests to 30 % | q/p at the end | within ±3 % of their mean | "
             "largest drained \\|dε_v/dε₁\\| at the end | drained with \\|dε_v/dε₁\\| ≤ 0.05 | "
@@ -204,7 +229,8 @@ def table_block() -> str:
 
 
 BLOCKS = {"mechanisms-table": table_block, "mechanisms-kfs": kfs_block, "mechanisms-dem": dem_block,
-          "mechanisms-dem-judge": dem_judge_block, "mechanisms-dem-bihex": dem_bihex_block}
+          "mechanisms-dem-judge": dem_judge_block, "mechanisms-dem-bihex": dem_bihex_block,
+          "mechanisms-critical-2d": critical_2d_block}
 
 
 def render(text: str) -> str:

@@ -22,7 +22,7 @@ SLIDING_RHS = ("report", "equilibrium")
 CONTACTS = ("linear", "hertz-mindlin")
 #: What becomes of a cell whose contact opened: nothing (published: it stays force-free until
 #: its grains meet again) or a new cell at contact in the space the old one held.
-RENEWALS = ("none", "rebirth")
+RENEWALS = ("none", "rebirth", "mix")
 #: Contacts between the lateral grains of a bi-hexagon's two hexagons (3D only): ignored
 #: (published closure) or frictionless normal contacts of the cell's law (docs/mechanisms.md).
 CROSS_CONTACTS = ("none", "frictionless")
@@ -81,7 +81,8 @@ class Params:
         Grains' Poisson ratio ν [-] of the Hertz-Mindlin law, in [0, 0.5).
     renewal : str
         Fate of a cell whose contact opened (:data:`RENEWALS`): ``none`` (published) or
-        ``rebirth`` (reborn at contact, force-free, in the space it held).
+        ``rebirth`` (reborn at contact, force-free, in the space it held) or ``mix`` (2D,
+        ``volume="hexagon"``: reborn at contact, force-free, at the REV's mean box area l1·l2).
     cross_contacts : str
         Contacts between the lateral grains of hexagon A and hexagon B of the 3D model's
         bi-hexagon (:data:`CROSS_CONTACTS`): ``none`` (published closure: ignored) or
@@ -178,6 +179,9 @@ class Params:
             raise InputError(f"parameter poisson must lie in [0, 0.5), got {self.poisson}")
         if self.renewal not in RENEWALS:
             raise InputError(f"parameter renewal must be one of {', '.join(RENEWALS)}, got {self.renewal!r}")
+        if self.renewal == "mix" and self.volume != "hexagon":
+            raise InputError(f"renewal=mix is derived for volume=hexagon (the cells' box area l1*l2 "
+                             f"follows exp(-tr eps) there), got volume={self.volume!r}")
         if self.cross_contacts not in CROSS_CONTACTS:
             raise InputError(f"parameter cross_contacts must be one of {', '.join(CROSS_CONTACTS)}, "
                              f"got {self.cross_contacts!r}")

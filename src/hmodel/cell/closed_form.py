@@ -23,7 +23,7 @@ from ..errors import InputError, SolverError
 from ..params import Params
 from . import hertz
 from .base import STATE_H_CELL, CellKernel, CellSolver
-from .renewal import RENEW_CELL, reborn_cell
+from .renewal import RENEW_CELL, RENEW_CODES, reborn_cell
 from .state import FIELDS, FLAGS, CellFlags, CellState, initial_cells
 
 # Positions in the packed parameter vector handed to the kernel. P_HERTZ: 0 for linear
@@ -59,7 +59,7 @@ def kernel_params(params: Params) -> np.ndarray:
         params.kn, params.kt, params.tan_phi, float(params.g2), params.radius,
         1.0 if params.volume == "hexagon-consistent" else 0.0,
         1.0 if params.sliding_rhs == "equilibrium" else 0.0,
-        c, ratio, 1.0 if params.renewal == "rebirth" else 0.0,
+        c, ratio, RENEW_CODES[params.renewal],
         1.0 if params.cross_contacts == "frictionless" else 0.0,
     ])
 
@@ -480,8 +480,9 @@ class ClosedFormSolver(CellSolver):
     state_kind = STATE_H_CELL
     #: a cell's α0 is its state's alpha before any increment: cells may start apart
     spread_alpha0 = True
-    #: eq. 1.7 of Hertz-Mindlin contacts, and cells reborn (docs/mechanisms.md)
-    mechanisms = frozenset({"contact=hertz-mindlin", "renewal=rebirth"})
+    #: eq. 1.7 of Hertz-Mindlin contacts, and cells reborn (docs/mechanisms.md; ``mix`` by the
+    #: REV, which knows the mean box area: hmodel.rev.kernels)
+    mechanisms = frozenset({"contact=hertz-mindlin", "renewal=rebirth", "renewal=mix"})
 
     @classmethod
     def from_spec(cls, spec: str = "closed-form") -> "ClosedFormSolver":

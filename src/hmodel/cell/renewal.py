@@ -21,6 +21,10 @@ the REV's stress continuous (the broken cell carried nothing); the rebirth conse
 volume, so the REV's volume is that of its strain, as before. In 3D the bi-hexagon is reborn as
 a whole (its two hexagons share grains 1 and 4, and their common l1) once both hexagons are
 open: a hexagon that still carries keeps its forces.
+
+``renewal="mix"`` (2D) reborn an opened H-cell at the REV's mean box area instead
+(:func:`mix_angle`, :func:`mix_rebirth`): a REV quantity, so the REV applies it
+(:mod:`hmodel.rev.kernels`), not the cell's own increment.
 """
 
 from __future__ import annotations
@@ -29,8 +33,14 @@ import math
 
 from numba import njit
 
-#: Values of the packed ``P_RENEW`` entry: no renewal, the 2D H-cell's rebirth, the bi-hexagon's.
-RENEW_NONE, RENEW_CELL, RENEW_BIHEX = 0.0, 1.0, 2.0
+#: Values of the packed ``P_RENEW`` entry: no renewal, the 2D H-cell's rebirth, the bi-hexagon's,
+#: the 2D rebirth at the REV's mean box area (applied by the REV: :mod:`hmodel.rev.kernels`).
+RENEW_NONE, RENEW_CELL, RENEW_BIHEX, RENEW_MIX = 0.0, 1.0, 2.0, 3.0
+#: ``Params.renewal`` -> packed value of a 2D cell (the bi-hexagon's kernel_params turns
+#: ``rebirth`` into :data:`RENEW_BIHEX`).
+RENEW_CODES = {"none": RENEW_NONE, "rebirth": RENEW_CELL, "mix": RENEW_MIX}
+#: The neutral angle α_n, cos α_n = (√33 - 1)/8: where an unloaded cell's box area is largest.
+NEUTRAL = math.acos((math.sqrt(33.0) - 1.0) / 8.0)
 #: The branch of unloaded cells a reborn cell's opening angle lies on, (densest, loosest) [rad].
 BRANCH_2D = (math.pi / 6.0, math.pi / 3.0)
 BRANCH_3D = (math.pi / 4.0, math.acos(1.0 / 3.0))
@@ -115,3 +125,52 @@ def renew_bihex(out, flags, i, two_r):
         flags[i, f] = False
         flags[i, f + 3] = l1 <= two_r
         flags[i, f + 4] = l2 <= two_r
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def box_at_contact(a, two_r):
+    """Box area l1·l2 of an unloaded H-cell (d1 = d2 = 2r) at opening angle α:
+    2r(1 + 2 cos α)·2·2r sin α (eq. 1.2)."""
+    return two_r * (1.0 + 2.0 * math.cos(a)) * 2.0 * two_r * math.sin(a)
+
+
+@njit(cache=True, error_model="numpy")
+def mix_angle(area, compressed, two_r):
+    """Opening angle of the unloaded H-cell whose box area is ``area`` (``renewal="mix"``), on
+    the branch where a cell carries: below the neutral angle α_n (:data:`NEUTRAL`, the largest
+    box) for a cell whose axis is being shortened (``compressed``), above it otherwise, within
+    the unloaded cells' 30°-60° (:data:`BRANCH_2D`); α_n where the area exceeds every cell's."""
+    top = box_at_contact(NEUTRAL, two_r)
+    if area >= top:
+        return NEUTRAL
+    lo, hi = (BRANCH_2D[0], NEUTRAL) if compressed else (NEUTRAL, BRANCH_2D[1])
+    end = lo if compressed else hi  # the branch's end away from α_n
+    if area <= box_at_contact(end, two_r):
+        return end
+    for _ in range(60):  # bisection: the area rises towards α_n on either branch
+        mid = 0.5 * (lo + hi)
+        if (box_at_contact(mid, two_r) < area) == compressed:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+@njit(cache=True, error_model="numpy")  # a call, not inlined: keeps the trial's loop lean
+def mix_rebirth(out, flags, i, area, compressed, two_r):
+    """Rebirth of H-cell ``out[i]`` (8 fields), which opened in the increment (``renewal="mix"``,
+    docs/mechanisms.md): at contact, force-free, at :func:`mix_angle` of the REV's mean box area
+    ``area``. Its open flags stay (the event happened in this increment); it neither slides nor
+    touches beyond its hexagon."""
+    a = mix_angle(area, compressed, two_r)
+    out[i, 0] = two_r
+    out[i, 1] = two_r
+    out[i, 2] = a
+    out[i, 3] = 0.0
+    out[i, 4] = 0.0
+    out[i, 5] = 0.0
+    out[i, 6] = two_r * (1.0 + 2.0 * math.cos(a))
+    out[i, 7] = 2.0 * two_r * math.sin(a)
+    flags[i, 0] = False
+    flags[i, 3] = out[i, 6] <= two_r
+    flags[i, 4] = out[i, 7] <= two_r

@@ -149,9 +149,14 @@ class RevBatch:
                                                   *(dl[..., k] for k in range(self.solver.n_lengths)))
         else:
             values, flags = self._by_set(state.set_index, cell_step)
+        self._renew(state, values, flags, dl)
         cells = CellState(values)
         eps = state.eps + deps
         return RevState(cells, CellFlags(flags), eps, self.stress(cells, eps, state.sets), state.sets)
+
+    def _renew(self, state: RevState, values: np.ndarray, flags: np.ndarray, dl: np.ndarray) -> None:
+        """The REV's own part of a cell mechanism, on the cells ``values`` and ``flags`` just
+        stepped from ``state`` by the length increments ``dl``, in place: none here."""
 
     def _by_set(self, idx: np.ndarray, call):
         """``call(set, rows)`` for each parameter set present in idx (B,), its outputs (arrays

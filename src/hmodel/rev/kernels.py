@@ -22,6 +22,7 @@ from ..cell.closed_form import (
     P_HERTZ,
     P_KN,
     P_R,
+    P_RENEW,
     cell_increment_mech,
     cell_jacobian,
     cell_mechanisms,
@@ -29,6 +30,7 @@ from ..cell.closed_form import (
 from ..cell.compliance_kernel import compliance_increment
 from ..cell.meso_kernel import meso_increment
 from ..cell.mesostress import vsigma_local
+from ..cell.renewal import RENEW_MIX, mix_rebirth
 
 # Localization modes: on which lengths the strain acts (docs/model.md, step 5).
 LOC_CELL, LOC_BOX, LOC_VIRTUAL = 0, 1, 2
@@ -70,6 +72,35 @@ def localize(values, deps, cos2, sin2, sincos, mode, radius, dl):
 def weighted_global(vnn, vtt, wc2, ws2, wsc):
     """A cell's (V sigma_nn, V sigma_tt) rotated to (11, 22, 12) and weighted (eqs. 1.15-1.16)."""
     return vnn * wc2 + vtt * ws2, vnn * ws2 + vtt * wc2, (vnn - vtt) * wsc
+
+
+@njit(cache=True, error_model="numpy")
+def mean_box_area(values, geo):
+    """The REV's mean box area Σ w l1·l2 / Σ w of one point's cells ``values`` (n, 8), w the
+    directions' weights (``geo[:, 3] + geo[:, 4]`` = w cos² + w sin², :data:`GEO_WIDTH`): the
+    volume on the cells' own measure, which ``volume="hexagon"`` carries as exp(-tr ε)
+    (docs/mechanisms.md, "Rebirth at the mean box area")."""
+    num = 0.0
+    den = 0.0
+    for i in range(values.shape[0]):
+        w = geo[i, 3] + geo[i, 4]
+        num += w * values[i, 6] * values[i, 7]
+        den += w
+    return num / den
+
+
+@njit(cache=True, error_model="numpy")
+def renew_mix(values, out, flags, geo, dl1, two_r):
+    """``renewal="mix"`` on cells stepped outside the fused trial (the generic path,
+    :meth:`hmodel.rev.Rev.step`): every cell of point b that opened in the increment
+    (``flags[b, i]``: open1 or open2) reborn by :func:`hmodel.cell.renewal.mix_rebirth` at the
+    mean box area of the point's cells at the start of the increment ``values[b]``, on the
+    branch its axis takes (``dl1[b, i]`` < 0: shortened). Arrays (B, n, ...), ``geo`` (n, 6)."""
+    for b in range(values.shape[0]):
+        area = mean_box_area(values[b], geo)
+        for i in range(values.shape[1]):
+            if flags[b, i, 1] or flags[b, i, 2]:
+                mix_rebirth(out[b], flags[b], i, area, dl1[b, i] < 0.0, two_r)
 
 
 @njit(cache=True)
@@ -142,6 +173,9 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
     ok = True
     law = p[P_LAW] if resp.shape[1] > 0 else 0.0
     meso = law == LAW_MESO
+    # renewal=mix: a REV quantity, the mean box area at the start of the increment
+    mix = mech != MECH_NONE and law == 0.0 and p[P_RENEW] == RENEW_MIX
+    area = mean_box_area(values, geo) if mix else 0.0
     for i in range(values.shape[0]):
         dl1, dl2 = cell_dl(values, i, e11, e22, e12, geo[i, 0], geo[i, 1], geo[i, 2], mode, p[P_R])
         if meso:
@@ -161,6 +195,8 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
                 ok &= compliance_increment(values, i, dl1, dl2, resp, p, out, flags)
             else:
                 ok &= cell_increment_mech(values, i, dl1, dl2, p, out, flags, 0, 0, mech)
+                if mix and (flags[i, 1] or flags[i, 2]):  # docs/mechanisms.md, "Renewal"
+                    mix_rebirth(out, flags, i, area, dl1 < 0.0, two_r)
             vnn, vtt = vsigma_local(out, i, kn, hertz, two_r)
         a11, a22, a12 = weighted_global(vnn, vtt, geo[i, 3], geo[i, 4], geo[i, 5])
         s11 += a11

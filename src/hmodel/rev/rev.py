@@ -27,7 +27,7 @@ from ..errors import InputError
 from ..params import Params, check_batch
 from .batch import RevBatch
 from .directions import Directions, opening_angles
-from .kernels import LOC_BOX, LOC_CELL, LOC_VIRTUAL, average, localize
+from .kernels import LOC_BOX, LOC_CELL, LOC_VIRTUAL, average, localize, renew_mix
 from .state import (  # noqa: F401
     RevState,
     deviatoric_stress,
@@ -144,6 +144,20 @@ class Rev(RevBatch):
         d = self.directions
         return np.stack([np.stack([d.cos2, d.sin2, d.sincos, w * d.cos2, w * d.sin2, w * d.sincos],
                                   axis=-1) for w in self.weights])
+
+    def _renew(self, state: RevState, values: np.ndarray, flags: np.ndarray, dl: np.ndarray) -> None:
+        """``renewal="mix"``: the opened cells of each set that asks for it reborn at the mean box
+        area of their point's cells (:func:`hmodel.rev.kernels.renew_mix`, as the fused trial)."""
+        geo = None
+        for k, s in enumerate(self.sets):
+            if s.renewal != "mix":
+                continue
+            geo = self._kernel_geometry() if geo is None else geo
+            rows = np.flatnonzero(state.set_index == k)
+            if len(rows):
+                v, f = values[rows], flags[rows]
+                renew_mix(state.cells.values[rows], v, f, geo[k], dl[rows, :, 0], 2.0 * s.radius)
+                values[rows], flags[rows] = v, f
 
     def localize(self, cells: CellState, deps: np.ndarray) -> np.ndarray:
         """Length increments (B, n_theta, 2) of every cell for macro strain increments (B, 3)."""
