@@ -349,9 +349,7 @@ CASES = [
      "contact=hertz-mindlin is not implemented by the surrogate cells"),
     ("rebirth with learned 3D cells", ["run", "triaxial", "--solver", "surrogate", "-p", "renewal=rebirth",
                                        "--out", "o"], 1, "renewal=rebirth is not implemented by the surrogate cells"),
-    # renewal=mix: the 2D H-cell of the hexagon volume only
-    ("mix in 3D", ["run", "triaxial", "-p", "renewal=mix", "--out", "o"], 1,
-     "renewal=mix is derived for the 2D H-cell"),
+    # renewal=mix: the hexagon volume only
     ("mix with the box volume", ["run", "biaxial", "-p", "renewal=mix", "-p", "volume=box", "--out", "o"], 1,
      "renewal=mix is derived for volume=hexagon"),
     ("mix with learned cells", ["run", "biaxial", "--solver", "surrogate", "-p", "renewal=mix", "--out", "o"], 1,

@@ -34,7 +34,8 @@ HERE = Path(__file__).parent
 PAGE = HERE.parents[1] / "docs" / "mechanisms.md"
 #: (tag, what is on), in the table's order.
 VARIANTS = (("", "published (none)"), ("hertz", "Hertz–Mindlin contacts"), ("rebirth", "rebirth"),
-            ("hertz_rebirth", "Hertz–Mindlin + rebirth"), ("cross", "contacts between the hexagons"),
+            ("hertz_rebirth", "Hertz–Mindlin + rebirth"), ("mix", "rebirth at the mean box (renewal=mix)"),
+            ("cross", "contacts between the hexagons"),
             ("hertz_cross", "Hertz–Mindlin + contacts between the hexagons"),
             ("kt0889", "control: linear, kt/kn = 0.889 (Mindlin's ratio at ν = 0.2)"))
 #: The issue's measure of a critical state: q/p within ±3 % of one M, |dε_v/dε₁| ≤ 0.05.

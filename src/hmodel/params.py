@@ -81,8 +81,9 @@ class Params:
         Grains' Poisson ratio ν [-] of the Hertz-Mindlin law, in [0, 0.5).
     renewal : str
         Fate of a cell whose contact opened (:data:`RENEWALS`): ``none`` (published) or
-        ``rebirth`` (reborn at contact, force-free, in the space it held) or ``mix`` (2D,
-        ``volume="hexagon"``: reborn at contact, force-free, at the REV's mean box area l1·l2).
+        ``rebirth`` (reborn at contact, force-free, in the space it held) or ``mix``
+        (``volume="hexagon"``: reborn at contact, force-free, at the REV's mean box l1·l2, 3D
+        l1·l2·l3).
     cross_contacts : str
         Contacts between the lateral grains of hexagon A and hexagon B of the 3D model's
         bi-hexagon (:data:`CROSS_CONTACTS`): ``none`` (published closure: ignored) or

@@ -68,7 +68,7 @@ def kernel_params(params: Params):
     """The closed form's packed parameters (:func:`hmodel.cell.closed_form.kernel_params`), with
     renewal at the bi-hexagon's scale: both hexagons reborn together, not each as a 2D cell."""
     p = cell_kernel_params(params)
-    if p[P_RENEW] != 0.0:
+    if params.renewal == "rebirth":
         p[P_RENEW] = RENEW_BIHEX
     return p
 
@@ -79,10 +79,6 @@ def check_params(params: Params) -> None:
         raise InputError(f"parameter volume must be one of {', '.join(VOLUMES_3D)} for the 3D "
                          f"H-model, got {params.volume!r} (eq. 1.21's virtual l1* is not shared by "
                          "the two hexagons of a bi-hexagon)")
-    if params.renewal == "mix":
-        raise InputError("renewal=mix is derived for the 2D H-cell; the bi-hexagon's (which axis a "
-                         "reborn cell takes, the invariant l1*l2*l3) is not built: use renewal=rebirth "
-                         "in 3D")
     if params.cross_contacts != "none":
         low = params.alpha0 - params.alpha0_half_width
         if low < math.pi / 4.0 - 1e-12:

@@ -22,9 +22,10 @@ volume, so the REV's volume is that of its strain, as before. In 3D the bi-hexag
 a whole (its two hexagons share grains 1 and 4, and their common l1) once both hexagons are
 open: a hexagon that still carries keeps its forces.
 
-``renewal="mix"`` (2D) reborn an opened H-cell at the REV's mean box area instead
-(:func:`mix_angle`, :func:`mix_rebirth`): a REV quantity, so the REV applies it
-(:mod:`hmodel.rev.kernels`), not the cell's own increment.
+``renewal="mix"`` reborn an opened H-cell (a bi-hexagon both of whose hexagons opened) at the
+REV's mean box instead (:func:`mix_angle`, :func:`mix_rebirth`, :func:`mix_rebirth_bihex`): a REV
+quantity, so the REV applies it (:mod:`hmodel.rev.kernels`, :mod:`hmodel.rev.kernels3d`), not
+the cell's own increment.
 """
 
 from __future__ import annotations
@@ -39,8 +40,10 @@ RENEW_NONE, RENEW_CELL, RENEW_BIHEX, RENEW_MIX = 0.0, 1.0, 2.0, 3.0
 #: ``Params.renewal`` -> packed value of a 2D cell (the bi-hexagon's kernel_params turns
 #: ``rebirth`` into :data:`RENEW_BIHEX`).
 RENEW_CODES = {"none": RENEW_NONE, "rebirth": RENEW_CELL, "mix": RENEW_MIX}
-#: The neutral angle α_n, cos α_n = (√33 - 1)/8: where an unloaded cell's box area is largest.
-NEUTRAL = math.acos((math.sqrt(33.0) - 1.0) / 8.0)
+#: The neutral angles α_n where an unloaded cell's box is largest: 2D cos α_n = (√33 - 1)/8
+#: (53.6°, the box l1·l2), 3D cos α_n = (√13 - 1)/6 (64.3°, the bi-hexagon's l1·l2·l3).
+NEUTRAL_2D = math.acos((math.sqrt(33.0) - 1.0) / 8.0)
+NEUTRAL_3D = math.acos((math.sqrt(13.0) - 1.0) / 6.0)
 #: The branch of unloaded cells a reborn cell's opening angle lies on, (densest, loosest) [rad].
 BRANCH_2D = (math.pi / 6.0, math.pi / 3.0)
 BRANCH_3D = (math.pi / 4.0, math.acos(1.0 / 3.0))
@@ -95,21 +98,42 @@ def reborn_cell(d1, d2, a, two_r):
     return True, two_r, two_r, ar, two_r * (1.0 + 2.0 * math.cos(ar)), 2.0 * two_r * math.sin(ar)
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def bihex_open(flags, i):
+    """Whether both hexagons of bi-hexagon ``i`` are open (``flags[i]``: open1, open2 at 1, 2
+    and 6, 7): a rebirth then loses no force."""
+    return (flags[i, 1] or flags[i, 2]) and (flags[i, 6] or flags[i, 7])
+
+
 @njit(cache=True, error_model="numpy")  # a call, not inlined: keeps the linear path lean
 def renew_bihex(out, flags, i, two_r):
     """Rebirth of bi-hexagon ``out[i]`` (16 fields, just advanced) when both hexagons are open
-    (``flags[i]``: open1, open2 at 1, 2 and 6, 7), so that no force is lost: both hexagons at
-    contact, force-free, at the
+    (:func:`bihex_open`), so that no force is lost: both hexagons at contact, force-free, at the
     angle whose unloaded bi-hexagon has the broken one's volume l1*·l2*·l3*
     (:func:`hmodel.cell.bihex.bihex_volume`, ``hexagon``); left as it is when no cell fits."""
-    if not ((flags[i, 1] or flags[i, 2]) and (flags[i, 6] or flags[i, 7])):
+    if not bihex_open(flags, i):
         return
     l1s = 0.5 * (out[i, 1] + out[i, 0] * math.cos(out[i, 2]) + out[i, 9]
                  + out[i, 8] * math.cos(out[i, 10]))
     volume = l1s * 2.0 * out[i, 0] * math.sin(out[i, 2]) * 2.0 * out[i, 8] * math.sin(out[i, 10])
     ar = rebirth_angle(volume, two_r, 3)
-    if ar < 0.0:
-        return
+    if ar >= 0.0:
+        reborn_bihex(out, flags, i, ar, two_r)
+
+
+@njit(cache=True, error_model="numpy")  # a call, not inlined: keeps the trial's loop lean
+def mix_rebirth_bihex(out, flags, i, area, compressed, two_r):
+    """``renewal="mix"`` of bi-hexagon ``out[i]`` when both hexagons are open
+    (:func:`bihex_open`): both at contact, force-free, at :func:`mix_angle` of the REV's mean
+    box l1·l2·l3 ``area`` on the branch its axis takes (``compressed``: l1 shortened)."""
+    if bihex_open(flags, i):
+        reborn_bihex(out, flags, i, mix_angle(area, compressed, two_r, 3), two_r)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def reborn_bihex(out, flags, i, ar, two_r):
+    """Bi-hexagon ``out[i]``'s two hexagons at contact, force-free, at opening angle ``ar``; its
+    open flags stay (the event happened in this increment)."""
     l1 = two_r * (1.0 + 2.0 * math.cos(ar))
     l2 = 2.0 * two_r * math.sin(ar)
     for k in (0, 8):
@@ -126,30 +150,33 @@ def renew_bihex(out, flags, i, two_r):
         flags[i, f + 3] = l1 <= two_r
         flags[i, f + 4] = l2 <= two_r
 
-
 @njit(cache=True, inline="always", error_model="numpy")
-def box_at_contact(a, two_r):
-    """Box area l1·l2 of an unloaded H-cell (d1 = d2 = 2r) at opening angle α:
-    2r(1 + 2 cos α)·2·2r sin α (eq. 1.2)."""
-    return two_r * (1.0 + 2.0 * math.cos(a)) * 2.0 * two_r * math.sin(a)
+def box_at_contact(a, two_r, dim):
+    """Box of an unloaded cell (d1 = d2 = 2r) at opening angle α (eq. 1.2): 2D the H-cell's
+    l1·l2 = 2r(1 + 2 cos α)·2·2r sin α, 3D the bi-hexagon's l1·l2·l3 = 2r(1 + 2 cos α)·(2·2r sin α)²."""
+    l2 = 2.0 * two_r * math.sin(a)
+    box = two_r * (1.0 + 2.0 * math.cos(a)) * l2
+    return box if dim == 2 else box * l2
 
 
 @njit(cache=True, error_model="numpy")
-def mix_angle(area, compressed, two_r):
-    """Opening angle of the unloaded H-cell whose box area is ``area`` (``renewal="mix"``), on
-    the branch where a cell carries: below the neutral angle α_n (:data:`NEUTRAL`, the largest
-    box) for a cell whose axis is being shortened (``compressed``), above it otherwise, within
-    the unloaded cells' 30°-60° (:data:`BRANCH_2D`); α_n where the area exceeds every cell's."""
-    top = box_at_contact(NEUTRAL, two_r)
-    if area >= top:
-        return NEUTRAL
-    lo, hi = (BRANCH_2D[0], NEUTRAL) if compressed else (NEUTRAL, BRANCH_2D[1])
-    end = lo if compressed else hi  # the branch's end away from α_n
-    if area <= box_at_contact(end, two_r):
+def mix_angle(area, compressed, two_r, dim):
+    """Opening angle of the unloaded cell whose box is ``area`` (:func:`box_at_contact`,
+    ``renewal="mix"``), on the branch where a cell carries: below the neutral angle (the largest
+    box: :data:`NEUTRAL_2D`, :data:`NEUTRAL_3D`) for a cell whose axis is being shortened
+    (``compressed``), above it otherwise, within the unloaded cells' branch (:data:`BRANCH_2D`,
+    :data:`BRANCH_3D`); the neutral angle where the area exceeds every cell's."""
+    neutral = NEUTRAL_2D if dim == 2 else NEUTRAL_3D
+    first, last = BRANCH_2D if dim == 2 else BRANCH_3D
+    if area >= box_at_contact(neutral, two_r, dim):
+        return neutral
+    lo, hi = (first, neutral) if compressed else (neutral, last)
+    end = lo if compressed else hi  # the branch's end away from the neutral angle
+    if area <= box_at_contact(end, two_r, dim):
         return end
-    for _ in range(60):  # bisection: the area rises towards α_n on either branch
+    for _ in range(60):  # bisection: the box grows towards the neutral angle on either branch
         mid = 0.5 * (lo + hi)
-        if (box_at_contact(mid, two_r) < area) == compressed:
+        if (box_at_contact(mid, two_r, dim) < area) == compressed:
             lo = mid
         else:
             hi = mid
@@ -162,7 +189,7 @@ def mix_rebirth(out, flags, i, area, compressed, two_r):
     docs/mechanisms.md): at contact, force-free, at :func:`mix_angle` of the REV's mean box area
     ``area``. Its open flags stay (the event happened in this increment); it neither slides nor
     touches beyond its hexagon."""
-    a = mix_angle(area, compressed, two_r)
+    a = mix_angle(area, compressed, two_r, 2)
     out[i, 0] = two_r
     out[i, 1] = two_r
     out[i, 2] = a

@@ -17,7 +17,8 @@ import numpy as np
 from numba import njit
 
 from ..cell.bihex import bihex_increment, bihex_vsigma
-from ..cell.closed_form import P_CROSS, P_HERTZ, P_KN, P_R
+from ..cell.closed_form import P_CROSS, P_HERTZ, P_KN, P_R, P_RENEW
+from ..cell.renewal import RENEW_MIX, mix_rebirth_bihex
 from .kernels import LOC_BOX
 
 #: Per-cell kernel inputs (:func:`geometry`): the projector's 3 x 6 rows, then the weighted
@@ -41,6 +42,29 @@ def det_i_minus(t):
 
 
 @njit(cache=True, error_model="numpy")
+def mean_box_volume(values, geo):
+    """The REV's mean box Σ w l1·l2·l3 / Σ w of one point's bi-hexagons ``values`` (C, 16), w
+    the cells' weights (the trace of the weighted dyad e1 ⊗ e1: ``geo[:, 18:21]``)."""
+    num = 0.0
+    den = 0.0
+    for i in range(values.shape[0]):
+        w = geo[i, 18] + geo[i, 19] + geo[i, 20]
+        num += w * values[i, 6] * values[i, 7] * values[i, 15]
+        den += w
+    return num / den
+
+
+@njit(cache=True, error_model="numpy")
+def renew_mix3d(values, out, flags, geo, dl1, two_r):
+    """``renewal="mix"`` on bi-hexagons stepped outside the fused trial (the generic path,
+    ``Rev3D.step``), as :func:`bihex_trial` does: arrays (B, C, ...), ``geo`` (C, 36)."""
+    for b in range(values.shape[0]):
+        area = mean_box_volume(values[b], geo)
+        for i in range(values.shape[1]):
+            mix_rebirth_bihex(out[b], flags[b], i, area, dl1[b, i] < 0.0, two_r)
+
+
+@njit(cache=True, error_model="numpy")
 def bihex_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig):
     """:meth:`Rev3D.step` of one material point: cells ``values`` (C, 16) at strain ``eps`` (6,)
     by the strain increment ``deps`` (6,) -> cells ``out``, flags ``flags`` (C, 11), stress
@@ -52,6 +76,9 @@ def bihex_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig):
     hertz = p[P_HERTZ]
     cross = p[P_CROSS]
     add = two_r if mode == LOC_BOX else 0.0
+    # renewal=mix: a REV quantity, the mean box l1·l2·l3 at the start of the increment
+    mix = p[P_RENEW] == RENEW_MIX
+    area = mean_box_volume(values, geo) if mix else 0.0
     d0, d1, d2, d3, d4, d5 = deps[0], deps[1], deps[2], deps[3], deps[4], deps[5]
     s0 = s1 = s2 = s3 = s4 = s5 = 0.0
     ok = True
@@ -63,8 +90,11 @@ def bihex_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig):
               + geo[i, 11] * d5)
         e2 = (geo[i, 12] * d0 + geo[i, 13] * d1 + geo[i, 14] * d2 + geo[i, 15] * d3
               + geo[i, 16] * d4 + geo[i, 17] * d5)
-        ok &= bihex_increment(values, i, -(values[i, 6] + add) * e0, -(values[i, 7] + add) * e1,
+        dl1 = -(values[i, 6] + add) * e0
+        ok &= bihex_increment(values, i, dl1, -(values[i, 7] + add) * e1,
                               -(values[i, 15] + add) * e2, p, out, flags)
+        if mix:  # docs/mechanisms.md, "Rebirth at the mean box area"
+            mix_rebirth_bihex(out, flags, i, area, dl1 < 0.0, two_r)
         nn, t1, t2 = bihex_vsigma(out, i, kn, hertz, two_r, cross)
         s0 += nn * geo[i, 18] + t1 * geo[i, 24] + t2 * geo[i, 30]
         s1 += nn * geo[i, 19] + t1 * geo[i, 25] + t2 * geo[i, 31]

@@ -20,7 +20,7 @@ from ..errors import InputError
 from ..params import Params, check_batch
 from .batch import RevBatch
 from .kernels import LOC_BOX, LOC_CELL
-from .kernels3d import geometry
+from .kernels3d import geometry, renew_mix3d
 from .model3d import cell_solver_3d
 from .sphere import Sphere
 from .state import RevState
@@ -179,6 +179,17 @@ class Rev3D(RevBatch):
         contacts (:meth:`RevState.fractions`), and of bi-hexagons whose hexagons' grains cross,
         name -> (B,)."""
         return {**state.fractions(), "frac_cross": state.flags.flags[..., 10].mean(axis=1)}
+
+    def _renew(self, state: RevState, values: np.ndarray, flags: np.ndarray, dl: np.ndarray) -> None:
+        """``renewal="mix"``: the bi-hexagons of each set that asks for it whose two hexagons
+        opened, reborn at the mean box of their point's cells (as the fused trial)."""
+        for k, s in enumerate(self.sets):
+            rows = np.flatnonzero(state.set_index == k)
+            if s.renewal == "mix" and len(rows):
+                v, f = values[rows], flags[rows]
+                renew_mix3d(state.cells.values[rows], v, f, self.geometry(), dl[rows, :, 0],
+                            2.0 * s.radius)
+                values[rows], flags[rows] = v, f
 
     def step(self, state: RevState, deps: np.ndarray) -> RevState:
         """Apply macro strain increments ``deps`` (B, 6) in one cell increment."""
