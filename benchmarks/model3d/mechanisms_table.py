@@ -214,7 +214,7 @@ def critical_2d_block() -> str:
                     f"{', '.join(drop)} % | "
                     f"{'yes' if all(v['loose_undrained_p_rises_after_min']) else 'no'} |")
     return ("| renewal | axial strain | tests to the end | q/p at the end | M (their mean) | largest "
-            f"\|q/p / M − 1\| (target {100 * QP_BAND:.0f} %) | largest drained \|dε_v/dε₁\| "
+            f"\\|q/p / M − 1\\| (target {100 * QP_BAND:.0f} %) | largest drained \\|dε_v/dε₁\\| "
             f"(target {RATE_MAX}) | ends off one line in (ln p, ν), box measure (target 0.01) | "
             "the same, macro volume | loose undrained: lowest p / p₀ | p rises again |\n"
             "|---|---|---|---|---|---|---|---|---|---|---|\n" + "\n".join(rows))
