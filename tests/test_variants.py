@@ -16,6 +16,7 @@ def test_published_and_density_change_nothing():
 
 @pytest.mark.parametrize("name, contact, renewal, cross", [("hertz", "hertz-mindlin", "none", "none"),
                                                             ("rebirth", "hertz-mindlin", "rebirth", "none"),
+                                                            ("mix", "hertz-mindlin", "mix", "none"),
                                                             ("cross", "hertz-mindlin", "none", "frictionless")])
 def test_mechanism_variants_switch_their_options_on(name, contact, renewal, cross):
     v = get_variant(name)
@@ -68,7 +69,7 @@ def test_failure_surface_takes_a_variant(cli, tmp_path):
     """``failure-surface --model sand`` is the surface of the variant's mechanisms (as -p names them)."""
     common = ("failure-surface", "--lode", "0", "--order", "5", "--azimuths", "1", "--max-strain", "0.05")
     tables = {}
-    for key, extra in (("variant", ("--model", "sand")), ("params", ("-p", "contact=hertz-mindlin")),
+    for key, extra in (("variant", ("--model", "sand")), ("params", ("-p", "contact=hertz-mindlin", "-p", "renewal=mix")),
                        ("published", ())):
         code, _, err = cli(*common, *extra, "--out", tmp_path / key)
         assert code == 0, err

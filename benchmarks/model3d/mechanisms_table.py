@@ -85,6 +85,7 @@ def _median(values) -> float:
 #: (JSON file, label) of the KFS block, in its order.
 KFS = (("kfs.json", "H-model, density (linear contacts)"), ("kfs_hertz.json", "H-model, hertz"),
        ("kfs_rebirth.json", "H-model, rebirth (Hertz–Mindlin + rebirth)"),
+       ("kfs_mix.json", "H-model, mix (Hertz–Mindlin + rebirth at the mean box)"),
        ("kfs_cross.json", "H-model, cross (Hertz–Mindlin + contacts between the hexagons)"),
        ("kfs_peer.json", "Manzari–Dafalias (OpenSees), the peer"))
 
@@ -160,6 +161,7 @@ def dem_bihex_block() -> str:
 #: (dense and loose, one parameter set), and the linear sample of the 3D calibration page.
 DEM_JUDGE = (("dem_judge_density.json", "density (linear contacts)"), ("dem_judge_hertz.json", "hertz"),
              ("dem_judge_rebirth.json", "rebirth (Hertz–Mindlin + rebirth)"),
+             ("dem_judge_mix.json", "mix (Hertz–Mindlin + rebirth at the mean box)"),
              ("dem_judge_cross.json", "cross (Hertz–Mindlin + contacts between the hexagons)"),
              ("calibrate3d_dem.json", "published, on the linear 1,000-sphere sample"))
 #: The issue's targets of a prediction: RMS |Δq| / peak q of drained tests, of the others.
