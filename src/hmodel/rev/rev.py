@@ -148,11 +148,10 @@ class Rev(RevBatch):
     def _renew(self, state: RevState, values: np.ndarray, flags: np.ndarray, dl: np.ndarray) -> None:
         """``renewal="mix"``: the opened cells of each set that asks for it reborn at the mean box
         area of their point's cells (:func:`hmodel.rev.kernels.renew_mix`, as the fused trial)."""
-        geo = None
         for k, s in enumerate(self.sets):
             if s.renewal != "mix":
                 continue
-            geo = self._kernel_geometry() if geo is None else geo
+            geo = self.kernel_inputs()[0]  # built once
             rows = np.flatnonzero(state.set_index == k)
             if len(rows):
                 v, f = values[rows], flags[rows]

@@ -187,8 +187,8 @@ class Rev3D(RevBatch):
             rows = np.flatnonzero(state.set_index == k)
             if s.renewal == "mix" and len(rows):
                 v, f = values[rows], flags[rows]
-                renew_mix3d(state.cells.values[rows], v, f, self.geometry(), dl[rows, :, 0],
-                            2.0 * s.radius)
+                renew_mix3d(state.cells.values[rows], v, f, self.kernel_inputs()[0][0],
+                            dl[rows, :, 0], 2.0 * s.radius)
                 values[rows], flags[rows] = v, f
 
     def step(self, state: RevState, deps: np.ndarray) -> RevState:
