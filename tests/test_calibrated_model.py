@@ -132,3 +132,19 @@ def test_run_commands_take_the_calibrated_model_at_a_void_ratio(calibrated, tmp_
                  "--out", str(tmp_path / "c")]) == 0
     assert main(["fem", "biaxial", "--mesh", "1x2", "--steps", "2", "--axial-strain", "0.002",
                  "--calibration", str(tmp_path / "cal"), "--e0", "0.78", "--out", str(tmp_path / "f")]) == 0
+
+
+def test_a_calibration_records_the_variant_an_alias_named(tmp_path):
+    """A calibration keeps the variant it fitted, not the alias it was asked by: ``sand`` is
+    recorded as ``mix`` (what it names now), and a record of ``hertz`` (what ``sand`` named
+    before) still loads as hertz, with the contacts its parameters recorded."""
+    from hmodel import Params
+
+    assert get_variant("sand").name == "mix"
+    params = Params(contact="hertz-mindlin", alpha0=0.9)
+    record = {"model": {"variant": "hertz", "e_ref": 0.8, "dim": 3,
+                        "params_rad": params.to_dict(degrees=False)}}
+    (tmp_path / "calibration.json").write_text(json.dumps(record))
+    model = CalibratedModel.load(tmp_path)
+    assert model.variant is get_variant("hertz")
+    assert model.params_at(0.8).renewal == "none" and model.params_at(0.8).contact == "hertz-mindlin"
