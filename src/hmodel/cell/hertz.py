@@ -121,6 +121,18 @@ def free_solution(e0, w, coef):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def free_state(c, e0, w, da0, q, coef):
+    """A force-free cell's solution of the row with ``coef`` (:func:`free_solution`) and rows
+    1-2 (:func:`affine`), as :func:`solve` returns it: ``(ok, δd1, δd2, δα, N1', N2', b1, b2)``
+    (the overlaps start at zero); ``ok`` False where it is not finite."""
+    x = free_solution(e0, w, coef)
+    dd2 = e0 + w * x
+    f1, b1 = law(c, -x)
+    f2, b2 = law(c, -dd2)
+    return math.isfinite(x), x, dd2, da0 + q * x, f1, f2, b1, b2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def free_regime(c, dl1, dl2, a11, a13, a21, a23, ca, slide):
     """Eq. 1.7 of a force-free cell in the regime its increment takes, as :func:`solve` twice
     (trial without sliding, Coulomb check, sliding) but with one cube root:
@@ -138,11 +150,8 @@ def free_regime(c, dl1, dl2, a11, a13, a21, a23, ca, slide):
         return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, False, ca
     sliding = e0 >= 0.0 if c2 > w3 else e0 <= 0.0
     coef = ca + slide if sliding else ca
-    x = free_solution(e0, w, coef)
-    dd2 = e0 + w * x
-    f1, b1 = law(c, -x)
-    f2, b2 = law(c, -dd2)
-    return math.isfinite(x), x, dd2, da0 + q * x, f1, f2, b1, b2, sliding, coef
+    ok, x, dd2, da, f1, f2, b1, b2 = free_state(c, e0, w, da0, q, coef)
+    return ok, x, dd2, da, f1, f2, b1, b2, sliding, coef
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -160,12 +169,9 @@ def solve(c, u1, u2, n1, n2, dl1, dl2, a11, a13, a21, a23, coef, gt, flam):
     form :func:`free_solution` instead of the iteration."""
     q, da0, w, e0 = affine(a11, a13, a21, a23, dl1, dl2)
     if u1 == 0.0 and u2 == 0.0 and gt == 0.0 and flam == 0.0 and coef > 0.0:
-        x = free_solution(e0, w, coef)
-        if math.isfinite(x):
-            dd2 = e0 + w * x
-            f1, b1 = law(c, -x)
-            f2, b2 = law(c, -dd2)
-            return True, x, dd2, da0 + q * x, f1, f2, b1, b2
+        free = free_state(c, e0, w, da0, q, coef)
+        if free[0]:
+            return free
     # the start: the row with the tangent stiffnesses at the start of the increment; an
     # unloaded contact has none, and the row of two is homogeneous in them where both are
     k1 = 1.5 * c * u1

@@ -132,23 +132,31 @@ def mix_rebirth_bihex(out, flags, i, area, compressed, two_r):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def reborn_bihex(out, flags, i, ar, two_r):
-    """Bi-hexagon ``out[i]``'s two hexagons at contact, force-free, at opening angle ``ar``; its
-    open flags stay (the event happened in this increment)."""
+    """Bi-hexagon ``out[i]``'s two hexagons at contact, force-free, at opening angle ``ar``
+    (:func:`reborn_hexagon`, A's fields and flags at 0, B's at 8 and 5)."""
+    reborn_hexagon(out, flags, i, 0, 0, ar, two_r)
+    reborn_hexagon(out, flags, i, 8, 5, ar, two_r)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def reborn_hexagon(out, flags, i, k, f, ar, two_r):
+    """The hexagon of fields ``out[i, k:k + 8]`` and flags ``flags[i, f:f + 5]`` at contact,
+    force-free, at opening angle ``ar`` (eq. 1.2); its open flags stay (the event happened in
+    this increment), and it neither slides nor touches beyond its hexagon."""
     l1 = two_r * (1.0 + 2.0 * math.cos(ar))
     l2 = 2.0 * two_r * math.sin(ar)
-    for k in (0, 8):
-        out[i, k] = two_r
-        out[i, k + 1] = two_r
-        out[i, k + 2] = ar
-        out[i, k + 3] = 0.0
-        out[i, k + 4] = 0.0
-        out[i, k + 5] = 0.0
-        out[i, k + 6] = l1
-        out[i, k + 7] = l2
-    for f in (0, 5):  # a reborn cell neither slides nor touches beyond its hexagon
-        flags[i, f] = False
-        flags[i, f + 3] = l1 <= two_r
-        flags[i, f + 4] = l2 <= two_r
+    out[i, k] = two_r
+    out[i, k + 1] = two_r
+    out[i, k + 2] = ar
+    out[i, k + 3] = 0.0
+    out[i, k + 4] = 0.0
+    out[i, k + 5] = 0.0
+    out[i, k + 6] = l1
+    out[i, k + 7] = l2
+    flags[i, f] = False
+    flags[i, f + 3] = l1 <= two_r
+    flags[i, f + 4] = l2 <= two_r
+
 
 @njit(cache=True, inline="always", error_model="numpy")
 def box_at_contact(a, two_r, dim):
@@ -186,18 +194,6 @@ def mix_angle(area, compressed, two_r, dim):
 @njit(cache=True, error_model="numpy")  # a call, not inlined: keeps the trial's loop lean
 def mix_rebirth(out, flags, i, area, compressed, two_r):
     """Rebirth of H-cell ``out[i]`` (8 fields), which opened in the increment (``renewal="mix"``,
-    docs/mechanisms.md): at contact, force-free, at :func:`mix_angle` of the REV's mean box area
-    ``area``. Its open flags stay (the event happened in this increment); it neither slides nor
-    touches beyond its hexagon."""
-    a = mix_angle(area, compressed, two_r, 2)
-    out[i, 0] = two_r
-    out[i, 1] = two_r
-    out[i, 2] = a
-    out[i, 3] = 0.0
-    out[i, 4] = 0.0
-    out[i, 5] = 0.0
-    out[i, 6] = two_r * (1.0 + 2.0 * math.cos(a))
-    out[i, 7] = 2.0 * two_r * math.sin(a)
-    flags[i, 0] = False
-    flags[i, 3] = out[i, 6] <= two_r
-    flags[i, 4] = out[i, 7] <= two_r
+    docs/mechanisms.md): at contact, force-free (:func:`reborn_hexagon`), at :func:`mix_angle`
+    of the REV's mean box area ``area``."""
+    reborn_hexagon(out, flags, i, 0, 0, mix_angle(area, compressed, two_r, 2), two_r)

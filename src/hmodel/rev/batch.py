@@ -154,9 +154,24 @@ class RevBatch:
         eps = state.eps + deps
         return RevState(cells, CellFlags(flags), eps, self.stress(cells, eps, state.sets), state.sets)
 
+    #: ``renewal="mix"`` of the generic path, on the points of one set: the REV's compiled
+    #: rebirths (``kernels.renew_mix``, ``kernels3d.renew_mix3d``), called with the cells at the
+    #: start, the stepped cells and flags, the set's geometry rows, δl1 and 2r
+    _mix_kernel = None
+
     def _renew(self, state: RevState, values: np.ndarray, flags: np.ndarray, dl: np.ndarray) -> None:
-        """The REV's own part of a cell mechanism, on the cells ``values`` and ``flags`` just
-        stepped from ``state`` by the length increments ``dl``, in place: none here."""
+        """The REV's own part of a cell mechanism, in place on the cells ``values`` and ``flags``
+        just stepped from ``state`` by the length increments ``dl``: ``renewal="mix"`` reborn the
+        opened cells of each set that asks for it at the mean box of their point's cells, as the
+        fused trial does (it needs a REV quantity, so the cell solver cannot)."""
+        for k, s in enumerate(self.sets):
+            rows = np.flatnonzero(state.set_index == k)
+            if s.renewal == "mix" and len(rows):
+                geo = self.kernel_inputs()[0]  # built once; one block for all sets, or one each
+                v, f = values[rows], flags[rows]
+                self._mix_kernel(state.cells.values[rows], v, f, geo[k if len(geo) > 1 else 0],
+                                 dl[rows, :, 0], 2.0 * s.radius)
+                values[rows], flags[rows] = v, f
 
     def _by_set(self, idx: np.ndarray, call):
         """``call(set, rows)`` for each parameter set present in idx (B,), its outputs (arrays

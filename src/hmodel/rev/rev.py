@@ -138,25 +138,14 @@ class Rev(RevBatch):
     def _no_flags(self, shape: tuple[int, ...]) -> CellFlags:
         return CellFlags.none(shape)
 
+    _mix_kernel = staticmethod(renew_mix)  # RevBatch._renew
+
     def _kernel_geometry(self) -> np.ndarray:
         """Each set's direction factors (K, n_theta, 6) of the 2D trial
         (:func:`hmodel.rev.kernels.trial`): cos², sin², sin·cos and each times the set's weight."""
         d = self.directions
         return np.stack([np.stack([d.cos2, d.sin2, d.sincos, w * d.cos2, w * d.sin2, w * d.sincos],
                                   axis=-1) for w in self.weights])
-
-    def _renew(self, state: RevState, values: np.ndarray, flags: np.ndarray, dl: np.ndarray) -> None:
-        """``renewal="mix"``: the opened cells of each set that asks for it reborn at the mean box
-        area of their point's cells (:func:`hmodel.rev.kernels.renew_mix`, as the fused trial)."""
-        for k, s in enumerate(self.sets):
-            if s.renewal != "mix":
-                continue
-            geo = self.kernel_inputs()[0]  # built once
-            rows = np.flatnonzero(state.set_index == k)
-            if len(rows):
-                v, f = values[rows], flags[rows]
-                renew_mix(state.cells.values[rows], v, f, geo[k], dl[rows, :, 0], 2.0 * s.radius)
-                values[rows], flags[rows] = v, f
 
     def localize(self, cells: CellState, deps: np.ndarray) -> np.ndarray:
         """Length increments (B, n_theta, 2) of every cell for macro strain increments (B, 3)."""

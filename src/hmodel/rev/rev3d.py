@@ -180,23 +180,14 @@ class Rev3D(RevBatch):
         name -> (B,)."""
         return {**state.fractions(), "frac_cross": state.flags.flags[..., 10].mean(axis=1)}
 
-    def _renew(self, state: RevState, values: np.ndarray, flags: np.ndarray, dl: np.ndarray) -> None:
-        """``renewal="mix"``: the bi-hexagons of each set that asks for it whose two hexagons
-        opened, reborn at the mean box of their point's cells (as the fused trial)."""
-        for k, s in enumerate(self.sets):
-            rows = np.flatnonzero(state.set_index == k)
-            if s.renewal == "mix" and len(rows):
-                v, f = values[rows], flags[rows]
-                renew_mix3d(state.cells.values[rows], v, f, self.kernel_inputs()[0][0],
-                            dl[rows, :, 0], 2.0 * s.radius)
-                values[rows], flags[rows] = v, f
-
     def step(self, state: RevState, deps: np.ndarray) -> RevState:
         """Apply macro strain increments ``deps`` (B, 6) in one cell increment."""
         deps = np.asarray(deps, dtype=float)
         if deps.shape != state.eps.shape:
             raise InputError(f"a 3D strain increment has shape {state.eps.shape}, got {deps.shape}")
         return super().step(state, deps)
+
+    _mix_kernel = staticmethod(renew_mix3d)  # RevBatch._renew
 
     def _kernel_geometry(self) -> np.ndarray:
         """The cells' projector rows and weighted dyads (1, C, 36), one block for every set
