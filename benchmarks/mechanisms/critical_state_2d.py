@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.model3d.critical_state import figure, summary
-from benchmarks.timing import FIGURES, record
+from benchmarks.timing import FIGURES, record, write_table
 from hmodel import Params
 from hmodel.loading import Recorder, Segment, consolidate, run_segment
 from hmodel.rev import Rev
@@ -163,7 +163,7 @@ def main() -> None:
     wall = time.perf_counter() - t
     results = []
     for name, v in verdict.items():
-        results += [(f"{name}: tests that reached the end", f"{v['tests_at_end']} of {v['tests']}", "all"),
+        results += [(f"{name}: tests that reached the end (of {v['tests']})", v["tests_at_end"], str(v["tests"])),
                     (f"{name}: largest |q/p / M - 1| at the end", v["q_p_end_max_off_M"], "<= 0.03"),
                     (f"{name}: largest |dev/de11|, drained", v["deps_v_deps11_max"], "<= 0.05"),
                     (f"{name}: ends off one line in (ln p, nu), macro volume", v["line_macro"], "<= 0.01"),
@@ -171,10 +171,7 @@ def main() -> None:
     results.append(("wall time of every run [s]", wall, "-"))
     rec = record(__file__, args, 1, results, verdicts=verdict, table=table, base=BASE, v_ref=v_ref,
                  box_ref=box_ref)
-    args.out.write_text(json.dumps(rec, indent=2) + "\n")
-    for name, value, target in results:
-        print(f"{name}: {value if isinstance(value, str) else f'{value:.4g}'} ({target})")
-    print(f"written {args.out}")
+    write_table(results, args.out, rec)
 
 
 if __name__ == "__main__":

@@ -42,6 +42,13 @@ VARIANTS = (("", "published (none)"), ("hertz", "Hertz–Mindlin contacts"), ("r
 QP_BAND, RATE_MAX = 0.03, 0.05
 
 
+def _table(head: str, rows) -> str:
+    """A Markdown table: the header row ``head`` (``| a | b |``, escaped pipes ``\\|`` inside
+    cells), its separator and the ``rows``."""
+    columns = head.count("|") - head.count("\\|") - 1
+    return "\n".join([head, "|---" * columns + "|", *rows])
+
+
 def _load(name: str, tag: str) -> dict | None:
     path = HERE / (f"{name}_{tag}.json" if tag else f"{name}.json")
     return json.loads(path.read_text()) if path.exists() else None
@@ -106,9 +113,9 @@ def kfs_block() -> str:
         rows.append(f"| {label} | {100 * _median(dq):.1f} | {100 * min(fin):.1f}–{100 * max(fin):.1f} "
                     f"| {within} of {len(tests)} | {100 * _median(dv):.2f} | {both} of {len(tests)} "
                     f"| {len(tests) - len(full)} |")
-    return ("| model | median RMS \\|Δq\\|/peak q [%] | range [%] | within 10 % (to 20 %) | "
-            "median RMS Δε_v [% strain] | within both targets | tests ended early |\n"
-            "|---|---|---|---|---|---|---|\n" + "\n".join(rows))
+    return _table("| model | median RMS \\|Δq\\|/peak q [%] | range [%] | within 10 % (to 20 %) | "
+                  "median RMS Δε_v [% strain] | within both targets | tests ended early |",
+                  rows)
 
 
 def dem_block() -> str:
@@ -124,8 +131,8 @@ def dem_block() -> str:
                         f"| {st['E_400_over_E_100_secant_1e-4']:.3f} |")
     rows += ["| H-model, linear contacts (fixed fabric, by construction) | 0 | 1 |",
              f"| H-model, Hertz–Mindlin (fixed fabric, by construction) | {1 / 3:.3f} | {4 ** (1 / 3):.3f} |"]
-    return ("| assembly / model | n in E₀ ∝ p^n (50–400 kPa) | E₀(400 kPa)/E₀(100 kPa) |\n"
-            "|---|---|---|\n" + "\n".join(rows))
+    return _table("| assembly / model | n in E₀ ∝ p^n (50–400 kPa) | E₀(400 kPa)/E₀(100 kPa) |",
+                  rows)
 
 
 def _sci(x: float) -> str:
@@ -152,9 +159,9 @@ def dem_bihex_block() -> str:
             rows.append(f"| {name} | {label} | {_sci(got['frictionless']['dev_force'])} | "
                         f"{_sci(got['none']['dev_force'])} | {_sci(got['frictionless']['dev_stress'])} | "
                         f"{_sci(got['none']['dev_stress'])} |")
-    return ("| path (cross contacts touch) | DEM's cross contacts | max \\|ΔF\\|/max \\|F\\|, closed form "
-            "with cross contacts | without | max \\|ΔVσ\\|/max \\|Vσ\\|, with | without |\n"
-            "|---|---|---|---|---|---|\n" + "\n".join(rows))
+    return _table("| path (cross contacts touch) | DEM's cross contacts | max \\|ΔF\\|/max \\|F\\|, closed form "
+                  "with cross contacts | without | max \\|ΔVσ\\|/max \\|Vσ\\|, with | without |",
+                  rows)
 
 
 #: (JSON file, label) of the DEM judge's block, in its order: the Hertz-Mindlin sphere samples
@@ -193,10 +200,10 @@ def dem_judge_block() -> str:
         rows.append(f"| {label} | {_pct(fit)} | {_pct(kinds['drained'])} | {_pct(kinds['undrained'])} "
                     f"| {_pct(kinds['extension'])} | {within} of {len(pred) + len(failed)} "
                     f"| {100 * max(dv):.1f} |")
-    return ("| variant | RMS \\|Δq\\|/peak q [%]: calibrated on (2 drained) | predicted drained | "
-            "predicted undrained | predicted extension | predictions within target (10 %; 15 % undrained "
-            "and extension) | largest RMS Δε_v [% strain] |\n"
-            "|---|---|---|---|---|---|---|\n" + "\n".join(rows))
+    return _table("| variant | RMS \\|Δq\\|/peak q [%]: calibrated on (2 drained) | predicted drained | "
+                  "predicted undrained | predicted extension | predictions within target (10 %; 15 % undrained "
+                  "and extension) | largest RMS Δε_v [% strain] |",
+                  rows)
 
 
 def critical_2d_block() -> str:
@@ -215,20 +222,18 @@ def critical_2d_block() -> str:
                     f"{v['deps_v_deps11_max']:.3f} | {v['line_box']:.4f} | {v['line_macro']:.3f} | "
                     f"{', '.join(drop)} % | "
                     f"{'yes' if all(v['loose_undrained_p_rises_after_min']) else 'no'} |")
-    return ("| renewal | axial strain | tests to the end | q/p at the end | M (their mean) | largest "
-            f"\\|q/p / M − 1\\| (target {100 * QP_BAND:.0f} %) | largest drained \\|dε_v/dε₁\\| "
-            f"(target {RATE_MAX}) | ends off one line in (ln p, ν), box measure (target 0.01) | "
-            "the same, macro volume | loose undrained: lowest p / p₀ | p rises again |\n"
-            "|---|---|---|---|---|---|---|---|---|---|---|\n" + "\n".join(rows))
+    return _table("| renewal | axial strain | tests to the end | q/p at the end | M (their mean) | largest "
+                  f"\\|q/p / M − 1\\| (target {100 * QP_BAND:.0f} %) | largest drained \\|dε_v/dε₁\\| "
+                  f"(target {RATE_MAX}) | ends off one line in (ln p, ν), box measure (target 0.01) | "
+                  "the same, macro volume | loose undrained: lowest p / p₀ | p rises again |",
+                  rows)
 
 
 def table_block() -> str:
     head = ("| mechanisms on | tests to 30 % | q/p at the end | within ±3 % of their mean | "
             "largest drained \\|dε_v/dε₁\\| at the end | drained with \\|dε_v/dε₁\\| ≤ 0.05 | "
-            "loose undrained p_end/p₀ (lowest) | M_c (π-plane) | M_e/M_c (M_e: largest q_eq/p in extension) |\n"
-            "|---|---|---|---|---|---|---|---|---|")
-    rows = [r for r in (row(tag, label) for tag, label in VARIANTS) if r is not None]
-    return "\n".join([head, *rows])
+            "loose undrained p_end/p₀ (lowest) | M_c (π-plane) | M_e/M_c (M_e: largest q_eq/p in extension) |")
+    return _table(head, [r for r in (row(tag, label) for tag, label in VARIANTS) if r is not None])
 
 
 BLOCKS = {"mechanisms-table": table_block, "mechanisms-kfs": kfs_block, "mechanisms-dem": dem_block,
