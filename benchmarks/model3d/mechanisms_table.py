@@ -6,6 +6,8 @@
 - ``mechanisms-kfs``: Karlsruhe fine sand, each variant calibrated on TMD12/TMD14 and predicting
   the 25 tests (``benchmarks.calibration.kfs --model NAME --tag TAG``), and the peer
   (``benchmarks.calibration.kfs_peer``);
+- ``mechanisms-kfs-long``: each variant's KFS calibration run again at a ten times finer step and
+  on to 50 % axial strain (``benchmarks.calibration.kfs_long``);
 - ``mechanisms-dem``: the small-strain stiffness of DEM sphere assemblies against pressure
   (``benchmarks.dem.granular``);
 - ``mechanisms-dem-bihex``: the bi-hexagon with and without contacts between its hexagons
@@ -118,6 +120,33 @@ def kfs_block() -> str:
                   rows)
 
 
+def kfs_long_block() -> str:
+    path = HERE.parent / "calibration" / "kfs_long.json"
+    if not path.exists():
+        return "(benchmarks/calibration/kfs_long.json not written yet)"
+    rec = json.loads(path.read_text())
+    strain = rec["options"]["strain"]
+    rows = []
+    for name, v in rec["variants"].items():
+        a, b = v["at_step"], v["at_step_over_10"]
+        through = [r for r in v["long"] if r["reached"] >= strain - 1e-9]
+        rate = [abs(r["deps_v_deps11_end"]) for r in through]
+        qp = [r["q_p_end"] for r in through]
+        e = [r["e_end"] for r in through]
+        rows.append(f"| {name} | {100 * a['median_rms_dq']:.1f} / {100 * b['median_rms_dq']:.1f} "
+                    f"| {a['within_10']} / {b['within_10']} | {a['ended_early']} / {b['ended_early']} "
+                    f"| {100 * v['largest_change_rms_dq']:.1f} | {len(through)} of {len(v['long'])} "
+                    f"| {min(rate):.2f}–{max(rate):.2f} | {min(qp):.2f}–{max(qp):.2f} | {min(e):.2f}–{max(e):.2f} |")
+    sand = rec["variants"][next(iter(rec["variants"]))]["long"]
+    rows.append(f"| the sand, at 20 % (its tests end there) | | | | | | | {min(r['sand_q_p_end'] for r in sand):.2f}–"
+                f"{max(r['sand_q_p_end'] for r in sand):.2f} | {min(r['sand_e_end'] for r in sand):.2f}–"
+                f"{max(r['sand_e_end'] for r in sand):.2f} |")
+    return _table("| variant | median RMS \\|Δq\\|/peak q [%], step / step ÷ 10 | within 10 % | ended early "
+                  "| largest change of one test [points] "
+                  f"| tests to {100 * strain:.0f} % | \\|dε_v/dε₁\\| at the end | q/p at the end | e at the end |",
+                  rows)
+
+
 def dem_block() -> str:
     path = HERE.parent / "dem" / "granular.json"
     if not path.exists():
@@ -210,21 +239,30 @@ def critical_2d_block() -> str:
     path = HERE.parent / "mechanisms" / "critical_state_2d.json"
     if not path.exists():
         return "(benchmarks/mechanisms/critical_state_2d.json not written yet)"
+    from hmodel import Params
+    from hmodel.cell.renewal import NEUTRAL_2D, box_at_contact
+
     rec = json.loads(path.read_text())
+    # the box measure against the largest unloaded cell's (at the neutral angle)
+    neutral = box_at_contact(NEUTRAL_2D, 2.0 * rec["base"].get("radius", Params().radius), 2) / rec["box_ref"]
     rows = []
     for name, v in rec["verdicts"].items():
         renewal, _, strain = name.partition(" to ")
-        qp = [r["q_p_end"] for r in rec["table"]
-              if r["renewal"] == renewal and r["strain"] == float(strain) and not r["newton_failed"]]
+        mine = [r for r in rec["table"]
+                if r["renewal"] == renewal and r["strain"] == float(strain) and not r["newton_failed"]]
+        qp = [r["q_p_end"] for r in mine]
+        box = [r["nu_box_end"] / neutral for r in mine]
         drop = [f"{100 * p:.0f}" for p in v["loose_undrained_p_min_over_p0"]]
         rows.append(f"| {renewal} | {100 * float(strain):.0f} % | {v['tests_at_end']} of {v['tests']} | "
                     f"{min(qp):.2f}–{max(qp):.2f} | {v['M']:.3f} | {100 * v['q_p_end_max_off_M']:.1f} % | "
-                    f"{v['deps_v_deps11_max']:.3f} | {v['line_box']:.4f} | {v['line_macro']:.3f} | "
+                    f"{v['deps_v_deps11_max']:.3f} | {v['line_box']:.4f} | {min(box):.3f}–{max(box):.3f} | "
+                    f"{v['line_macro']:.3f} | "
                     f"{', '.join(drop)} % | "
                     f"{'yes' if all(v['loose_undrained_p_rises_after_min']) else 'no'} |")
     return _table("| renewal | axial strain | tests to the end | q/p at the end | M (their mean) | largest "
                   f"\\|q/p / M − 1\\| (target {100 * QP_BAND:.0f} %) | largest drained \\|dε_v/dε₁\\| "
                   f"(target {RATE_MAX}) | ends off one line in (ln p, ν), box measure (target 0.01) | "
+                  "box measure at the end / the neutral cell's | "
                   "the same, macro volume | loose undrained: lowest p / p₀ | p rises again |",
                   rows)
 
@@ -236,7 +274,7 @@ def table_block() -> str:
     return _table(head, [r for r in (row(tag, label) for tag, label in VARIANTS) if r is not None])
 
 
-BLOCKS = {"mechanisms-table": table_block, "mechanisms-kfs": kfs_block, "mechanisms-dem": dem_block,
+BLOCKS = {"mechanisms-table": table_block, "mechanisms-kfs": kfs_block, "mechanisms-kfs-long": kfs_long_block, "mechanisms-dem": dem_block,
           "mechanisms-dem-judge": dem_judge_block, "mechanisms-dem-bihex": dem_bihex_block,
           "mechanisms-critical-2d": critical_2d_block}
 
