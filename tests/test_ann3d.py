@@ -1,4 +1,4 @@
-"""The learned 3D cell (issue 34): a bi-hexagon whose hexagons a 2D H-cell solver steps.
+"""The learned 3D cell: a bi-hexagon whose hexagons a 2D H-cell solver steps.
 
 With l1, l2, l3 prescribed the bi-hexagon's closure is exactly two 2D H-cell increments sharing
 δl1 (docs/model3d.md), so ``BiHexSolver(hexagon=<2D solver>)`` is the 3D cell of that solver:

@@ -1,5 +1,5 @@
 """The bi-hexagonal 3D cell (docs/model3d.md) against hand algebra, the 2D H-cell, finite
-differences of its own equations and the Coulomb bound (issue 34)."""
+differences of its own equations and the Coulomb bound."""
 
 import math
 

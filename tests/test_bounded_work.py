@@ -24,7 +24,7 @@ SMALL = Params(n_theta=12)
 def test_surrogate_refuses_a_huge_cell_increment_before_any_work():
     solver = SurrogateSolver(load_shipped("increment"))
     cells = solver.initial(SMALL, (3,))
-    huge = -4e13 * SMALL.l10  # the increment of the hang this guards against (issue 19)
+    huge = -4e13 * SMALL.l10  # an increment of this size once ran for hours (docs/notes/2026-12-01-engine-shape.md)
     with pytest.raises(SolverError, match=r"times the surrogate's largest trained increment") as err:
         solver.step(SMALL, cells, np.full(3, huge), np.zeros(3))
     assert "\n" not in str(err.value) and f"{solver.max_increment:.3g}" in str(err.value)

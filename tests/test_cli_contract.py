@@ -1,6 +1,6 @@
 """The command line's error contract on bad input (docs/cli.md, "Output and error contract"):
 one line ``hmodel: error: ...``, exit status 1 (2 for a malformed command line), and nothing
-written — for every case a new user was seen to hit (issue 31), and for random program files and
+written — for every case a new user was seen to hit, and for random program files and
 calibration data (Hypothesis)."""
 
 import math
@@ -141,7 +141,7 @@ CASES = [
      "of memory, over the limit"),
     ("judgement: fem steps 1e20", ["fem", "biaxial", "--steps", "100000000000000000000", "--out", "o"], 1,
      "exceeds the limit"),
-    # 3D tests (issue 34)
+    # 3D tests
     ("3D unknown rule order", ["run", "triaxial", "--order", "13", "--out", "o"], 1, "Lebedev rule order must be one of"),
     ("3D unknown rule order, program", ["run", "program", "order_13.toml", "--out", "o"], 1, "Lebedev rule order"),
     ("3D b above 1", ["run", "true-triaxial", "--b", "1.5", "--out", "o"], 2, "'--b'"),

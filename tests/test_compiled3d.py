@@ -1,4 +1,4 @@
-"""The compiled 3D path (issue 34) against the generic driver: the same Newton on six
+"""The compiled 3D path against the generic driver: the same Newton on six
 components, its trials the fused bi-hexagon kernel (hmodel.rev.kernels3d) instead of Rev3D.step;
 results agree to Newton's tolerance."""
 

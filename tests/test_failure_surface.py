@@ -1,4 +1,4 @@
-"""The failure surface in the π-plane (issue 34): the Mohr–Coulomb, Matsuoka–Nakai and
+"""The failure surface in the π-plane: the Mohr–Coulomb, Matsuoka–Nakai and
 Lade–Duncan envelopes against independent checks, and the constant-p driver along rays of
 fixed Lode angle."""
 

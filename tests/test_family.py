@@ -1,4 +1,4 @@
-"""Cell networks over a range of materials (family networks, issue 36): the training domain
+"""Cell networks over a range of materials (family networks): the training domain
 stored in the model file and checked at run time, kn and r scaled out, materials drawn per path."""
 
 from __future__ import annotations

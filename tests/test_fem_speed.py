@@ -1,4 +1,4 @@
-"""The finite elements' fast paths against the paths they replace (issue 37, speed): the
+"""The finite elements' fast paths against the paths they replace: the
 sparse-product assembly against scikit-fem's forms, and the fused compiled Gauss-point trials
 against batched ``Rev.step`` calls with their finite-difference tangent."""
 

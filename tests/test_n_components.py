@@ -1,4 +1,4 @@
-"""The loading layer on n components (issue 33): a REV whose states have 6 components (3D)
+"""The loading layer on n components: a REV whose states have 6 components (3D)
 plugs into the one Newton, the generic driver, the segment runner and the result tables.
 
 The REV here is an isotropic linear-elastic material point, whose answers are hand algebra:

@@ -177,7 +177,7 @@ def test_shipped_examples_run(name):
     assert prog.n_increments > 1
     if prog.dim == 2:
         assert prog.with_params(["n_theta=36"]).n_theta == 36
-    else:  # a 3D program (issue 34): the 2D directions are refused, naming the sphere's order
+    else:  # a 3D program: the 2D directions are refused, naming the sphere's order
         with pytest.raises(InputError, match=r"\[sphere\] order"):
             prog.with_params(["n_theta=36"])
     res = prog.run(prog.with_params([]))  # as shipped (the drained cycles need the nθ they set)

@@ -254,7 +254,7 @@ def test_rev_state_selection_works_on_3d_states():
 
 
 def test_rev3d_runs_in_the_generic_loading_layer():
-    # The other half of issue 34: Rev3D plugs into the loading layer on six components
+    # Rev3D plugs into the loading layer on six components
     # (consolidation, a drained triaxial segment by Newton on the generic driver) and agrees
     # with the strain-driven secant loop above to the rule's axisymmetry error.
     from hmodel.loading import Recorder, Segment, consolidate, run_segment

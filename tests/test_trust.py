@@ -1,4 +1,4 @@
-"""The trust score of learned cells and the uncertainty gate (issue 22, item 3)."""
+"""The trust score of learned cells and the uncertainty gate."""
 
 import math
 from dataclasses import replace
