@@ -200,12 +200,14 @@ def test_the_critical_state_measure_finds_one_line_and_one_m():
 def test_the_docs_tables_are_generated_from_the_benchmark_json():
     """docs/dem.md's Hertz-Mindlin tables are the benchmark's rendering of its JSON (no number
     copied by hand), and its kept CSVs are tests that ``hmodel calibrate --data`` reads."""
-    from benchmarks.dem.granular import BEGIN, DOCS, END, HERE, render
+    from benchmarks.dem.granular import DOCS, HERE, MARKERS, render
     from hmodel.calibrate import parse_data_spec
 
-    rec = json.loads((HERE / "granular.json").read_text())
-    block = DOCS.read_text().split(BEGIN, 1)[1].split(END, 1)[0]
-    assert block == "\n" + render(rec)
-    for t in rec["tests"].values():
-        test = parse_data_spec(t["data"])
-        assert test.e0 == pytest.approx(t["e0"], rel=1e-5) and len(test.q) > 10
+    for name, block_name in (("granular.json", "granular"), ("granular_linear.json", "granular-linear")):
+        rec = json.loads((HERE / name).read_text())
+        begin, end = (m.format(block_name) for m in MARKERS)
+        block = DOCS.read_text().split(begin, 1)[1].split(end, 1)[0]
+        assert block == "\n" + render(rec)
+        for t in rec["tests"].values():
+            test = parse_data_spec(t["data"])
+            assert test.e0 == pytest.approx(t["e0"], rel=1e-5) and len(test.q) > 10

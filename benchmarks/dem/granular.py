@@ -23,6 +23,10 @@ whose CSV is there is not run again):
 - ``disks``: the ``critical`` part with disks (``--dim 2``, biaxial tests).
 - ``critical-large``: the ``critical`` part with ``--large-spheres`` spheres (how much of what
   the ends scatter is the sample's size).
+- ``critical-linear``: the ``critical`` and ``extension`` parts' tests with linear contacts (the
+  published H-model's law: ``--kn``, kt/kn 0.5), so that the variants with linear contacts are
+  judged on an assembly with their own contact law. Its samples are kept apart from the others
+  (run it with its own ``--folder``, ``--out`` and ``--block``: the collection reads one folder).
 
 Writes ``--out`` (``granular.json``: per test the settings, YADE's wall and CPU time, the load
 average when it ended, the end values; the fitted n; the critical-state measures), keeps every
@@ -52,8 +56,9 @@ from hmodel.dem.sample.result import read_table
 
 HERE = Path(__file__).resolve().parent
 DOCS = ROOT / "docs" / "dem.md"
-BEGIN, END = "<!-- granular: begin -->", "<!-- granular: end -->"
-PARTS = ("stiffness", "quasi-static", "critical", "extension", "disks", "critical-large")
+#: The markers of a block of docs/dem.md (``--block``: its name).
+MARKERS = "<!-- {}: begin -->", "<!-- {}: end -->"
+PARTS = ("stiffness", "quasi-static", "critical", "extension", "disks", "critical-large", "critical-linear")
 #: Pressures of the stiffness series [Pa].
 STIFFNESS_P0 = (5e4, 1e5, 2e5, 4e5)
 #: Axial strains [-] of the two secant moduli of the stiffness series.
@@ -96,6 +101,10 @@ def samples(args) -> dict[str, tuple[str, SampleSettings, list[tuple[str, float]
     out["dense-hertz-large"] = ("critical-large", SampleSettings(**big, **long, **hertz), drained)
     out["loose-hertz-large"] = ("critical-large", SampleSettings(**big, **long, **hertz, **loose),
                                 drained + [("triaxial-undrained", 2e5)])
+    linear = dict(base3, **long, kn=args.kn)
+    out["dense-linear"] = ("critical-linear", SampleSettings(**linear), drained + [("triaxial-extension", 1e5)])
+    out["loose-linear"] = ("critical-linear", SampleSettings(**linear, **loose),
+                           drained + [("triaxial-undrained", 2e5), ("triaxial-extension", 1e5)])
     base2 = dict(dim=2, disks=args.disks, seed=args.seed, **long, **hertz)
     out["disks-dense-hertz"] = ("disks", SampleSettings(**base2), [("drained", 1e5), ("drained", 4e5)])
     out["disks-loose-hertz"] = ("disks", SampleSettings(**base2, **loose),
@@ -267,7 +276,8 @@ def collect(args, defined) -> dict:
     rec["critical_state"] = {}
     for label, names in ((f"spheres ({args.spheres})", ("dense-hertz", "loose-hertz")),
                          (f"spheres ({args.large_spheres})", ("dense-hertz-large", "loose-hertz-large")),
-                         (f"disks ({args.disks})", ("disks-dense-hertz", "disks-loose-hertz"))):
+                         (f"disks ({args.disks})", ("disks-dense-hertz", "disks-loose-hertz")),
+                         (f"spheres ({args.spheres}), linear contacts", ("dense-linear", "loose-linear"))):
         chosen = {k: t for k, t in rec["tests"].items()
                   if t["sample"] in names and "extension" not in t["kind"]}
         if len(chosen) >= 3:
@@ -391,12 +401,13 @@ def render(rec: dict) -> str:
     return "\n".join(lines).rstrip() + "\n"
 
 
-def write_docs(rec: dict, path: Path = DOCS) -> None:
+def write_docs(rec: dict, block: str = "granular", path: Path = DOCS) -> None:
+    begin, end = (m.format(block) for m in MARKERS)
     text = path.read_text()
-    pattern = re.compile(re.escape(BEGIN) + r".*?" + re.escape(END), re.S)
+    pattern = re.compile(re.escape(begin) + r".*?" + re.escape(end), re.S)
     if not pattern.search(text):
-        raise SystemExit(f"{path}: no {BEGIN} ... {END} block")
-    path.write_text(pattern.sub(lambda m: f"{BEGIN}\n{render(rec)}{END}", text))
+        raise SystemExit(f"{path}: no {begin} ... {end} block")
+    path.write_text(pattern.sub(lambda m: f"{begin}\n{render(rec)}{end}", text))
 
 
 def main() -> None:
@@ -420,7 +431,10 @@ def main() -> None:
                     help="working folder (npz files included; not kept in the repository)")
     ap.add_argument("--keep", type=Path, default=HERE / "granular")
     ap.add_argument("--out", type=Path, default=HERE / "granular.json")
+    ap.add_argument("--kn", type=float, default=2e8, help="kn of the linear samples of part critical-linear [N/m]")
     ap.add_argument("--docs", action="store_true", help="rewrite docs/dem.md's tables from the JSON")
+    ap.add_argument("--block", default="granular", help="the docs/dem.md block --docs rewrites "
+                    "(<!-- BLOCK: begin --> ... <!-- BLOCK: end -->)")
     ap.add_argument("--docs-only", action="store_true", help="run and collect nothing: the tables "
                                                                "from --out as it is (with --docs)")
     args = ap.parse_args()
@@ -441,7 +455,7 @@ def main() -> None:
         print(f"written {args.out}")
     print(render(rec))
     if args.docs:
-        write_docs(rec)
+        write_docs(rec, args.block)
         print(f"rewrote {DOCS}'s tables")
 
 

@@ -10,6 +10,9 @@
   on to 50 % axial strain (``benchmarks.calibration.kfs_long``);
 - ``mechanisms-dem``: the small-strain stiffness of DEM sphere assemblies against pressure
   (``benchmarks.dem.granular``);
+- ``mechanisms-dem-fabric``: the coordination number and sliding fraction of the DEM samples'
+  drained tests, dense and loose, at the start and the end (``benchmarks.dem.granular``'s kept
+  CSVs);
 - ``mechanisms-dem-bihex``: the bi-hexagon with and without contacts between its hexagons
   against the DEM bi-hexagon whose hexagons touch, frictionless and frictional
   (``benchmarks.dem.dem_bihex_cross``);
@@ -147,6 +150,40 @@ def kfs_long_block() -> str:
                   rows)
 
 
+#: (label, dense sample, loose sample) of the fabric block: kept CSVs of benchmarks/dem/granular.
+FABRIC = (("Hertz–Mindlin, 600 spheres", "dense-hertz", "loose-hertz"),
+          ("Hertz–Mindlin, 1,200 spheres", "dense-hertz-large", "loose-hertz-large"),
+          ("linear, 600 spheres", "dense-linear", "loose-linear"))
+#: Axial strain over which a DEM test's end values are averaged (as benchmarks.dem.granular's).
+FABRIC_END = 0.05
+
+
+def _fabric_ends(path: Path) -> tuple[float, float, float]:
+    """(coordination at the start, its mean and the sliding fraction's over the last
+    :data:`FABRIC_END` of axial strain) of a kept DEM test."""
+    import numpy as np
+
+    t = np.genfromtxt(path, delimiter=",", names=True)
+    a = np.abs(t["eps_a"])
+    last = a >= a[-1] - FABRIC_END
+    return float(t["coordination"][0]), float(t["coordination"][last].mean()), float(t["sliding"][last].mean())
+
+
+def dem_fabric_block() -> str:
+    folder = HERE.parent / "dem" / "granular"
+    rows = []
+    for label, dense, loose in FABRIC:
+        for test in ("triaxial-drained_100kPa", "triaxial-drained_400kPa"):
+            d, lo = folder / dense / f"{test}.csv", folder / loose / f"{test}.csv"
+            if not (d.exists() and lo.exists()):
+                continue
+            (z0d, zd, sd), (z0l, zl, sl) = _fabric_ends(d), _fabric_ends(lo)
+            rows.append(f"| {label} | {test.rpartition('_')[2].replace('kPa', ' kPa')} | {z0d:.2f} → {zd:.2f} "
+                        f"| {z0l:.2f} → {zl:.2f} | {sd:.3f} / {sl:.3f} |")
+    return _table("| samples | drained at | dense: coordination z, start → end | loose: the same | "
+                  "sliding contacts at the end, dense / loose |", rows)
+
+
 def dem_block() -> str:
     path = HERE.parent / "dem" / "granular.json"
     if not path.exists():
@@ -194,8 +231,11 @@ def dem_bihex_block() -> str:
 
 
 #: (JSON file, label) of the DEM judge's block, in its order: the Hertz-Mindlin sphere samples
-#: (dense and loose, one parameter set), and the linear sample of the 3D calibration page.
-DEM_JUDGE = (("dem_judge_density.json", "density (linear contacts)"), ("dem_judge_hertz.json", "hertz"),
+#: (dense and loose, one parameter set), the linear-contact ones (benchmarks/dem/granular_linear.json),
+#: and the linear sample of the 3D calibration page.
+DEM_JUDGE = (("dem_judge_density.json", "density (linear contacts)"),
+             ("dem_judge_density_linear.json", "density, on the linear-contact samples"),
+             ("dem_judge_hertz.json", "hertz"),
              ("dem_judge_rebirth.json", "rebirth (Hertz–Mindlin + rebirth)"),
              ("dem_judge_mix.json", "mix (Hertz–Mindlin + rebirth at the mean box)"),
              ("dem_judge_cross.json", "cross (Hertz–Mindlin + contacts between the hexagons)"),
@@ -275,7 +315,8 @@ def table_block() -> str:
 
 
 BLOCKS = {"mechanisms-table": table_block, "mechanisms-kfs": kfs_block, "mechanisms-kfs-long": kfs_long_block, "mechanisms-dem": dem_block,
-          "mechanisms-dem-judge": dem_judge_block, "mechanisms-dem-bihex": dem_bihex_block,
+          "mechanisms-dem-judge": dem_judge_block, "mechanisms-dem-fabric": dem_fabric_block,
+          "mechanisms-dem-bihex": dem_bihex_block,
           "mechanisms-critical-2d": critical_2d_block}
 
 
