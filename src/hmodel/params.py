@@ -26,6 +26,10 @@ RENEWALS = ("none", "rebirth", "mix")
 #: Contacts between the lateral grains of a bi-hexagon's two hexagons (3D only): ignored
 #: (published closure) or frictionless normal contacts of the cell's law (docs/mechanisms.md).
 CROSS_CONTACTS = ("none", "frictionless")
+#: What lateral strain a bi-hexagon's two lateral lengths follow (3D only): each its own
+#: direction's (affine, published) or both the mean of the two (the strain's part that is
+#: axisymmetric about the cell's axis), docs/mechanisms.md.
+LATERALS = ("affine", "axisymmetric")
 ANGLE_PARAMS = ("phi_g", "alpha0", "beta_omega")
 
 #: Units shown in tables, figures and ``--help``.
@@ -33,7 +37,7 @@ UNITS = {
     "kn": "N/m", "kt_kn": "-", "phi_g": "deg", "alpha0": "deg", "alpha_omega": "-",
     "beta_omega": "deg", "n_theta": "-", "radius": "m", "volume": "-", "g2": "-",
     "sliding_rhs": "-", "alpha0_spread": "-", "contact": "-", "shear_modulus": "Pa",
-    "poisson": "-", "renewal": "-", "cross_contacts": "-",
+    "poisson": "-", "renewal": "-", "cross_contacts": "-", "lateral": "-",
 }
 
 
@@ -89,6 +93,11 @@ class Params:
         bi-hexagon (:data:`CROSS_CONTACTS`): ``none`` (published closure: ignored) or
         ``frictionless`` (normal force of the cell's contact law, coupling the two hexagons);
         no meaning in 2D.
+    lateral : str
+        What a bi-hexagon's lateral lengths l2 and l3 follow (:data:`LATERALS`): ``affine``
+        (published: each the strain along its own direction, eq. 1.1 lifted) or
+        ``axisymmetric`` (both the mean of the two: the cell's lateral grains turn about its
+        axis, so a cell at contact can follow any strain); 3D only, one value per batch.
     """
 
     kn: float = 2.0e8
@@ -108,6 +117,7 @@ class Params:
     poisson: float = 0.2
     renewal: str = "none"
     cross_contacts: str = "none"
+    lateral: str = "affine"
 
     def __post_init__(self) -> None:
         self.validate()
@@ -186,6 +196,8 @@ class Params:
         if self.cross_contacts not in CROSS_CONTACTS:
             raise InputError(f"parameter cross_contacts must be one of {', '.join(CROSS_CONTACTS)}, "
                              f"got {self.cross_contacts!r}")
+        if self.lateral not in LATERALS:
+            raise InputError(f"parameter lateral must be one of {', '.join(LATERALS)}, got {self.lateral!r}")
 
     # -- conversions --------------------------------------------------------------------
     def with_(self, **changes) -> "Params":
@@ -230,7 +242,7 @@ class Params:
 
 #: Parameters every material point of one batch shares (the REV's directions, lengths and
 #: localization); the others may differ from point to point (:func:`parse_point_assignments`).
-SHARED = ("n_theta", "radius", "volume")
+SHARED = ("n_theta", "radius", "volume", "lateral")
 
 
 def check_batch(sets) -> tuple[Params, ...]:

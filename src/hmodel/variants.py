@@ -123,6 +123,15 @@ VARIANTS = MappingProxyType({
                                    "contacts between their lateral grains (3D only).", uses_e0=True,
                           options=(("contact", "hertz-mindlin"), ("cross_contacts", "frictionless")),
                           fitted=_HERTZ),
+    "axisym": ModelVariant("axisym", "The hertz model whose bi-hexagons follow the lateral strain's mean "
+                                     "about their axis (lateral=axisymmetric): a closed cell can follow "
+                                     "any strain (3D only).", uses_e0=True,
+                           options=(("contact", "hertz-mindlin"), ("lateral", "axisymmetric")),
+                           fitted=_HERTZ),
+    "axisym-mix": ModelVariant("axisym-mix", "The axisym model whose cells are also reborn at the REV's "
+                                             "mean box (renewal=mix; 3D only).", uses_e0=True,
+                               options=(("contact", "hertz-mindlin"), ("renewal", "mix"),
+                                        ("lateral", "axisymmetric")), fitted=_HERTZ),
 })
 #: Other names of variants: the one the docs recommend for sands (docs/mechanisms.md, "Which
 #: variant for sands": stiffness that follows pressure as a DEM assembly's, and strength held

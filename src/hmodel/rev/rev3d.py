@@ -56,6 +56,19 @@ def projector(frames: np.ndarray) -> np.ndarray:
     return np.stack([e[..., i] * e[..., j] * (1.0 if i == j else 2.0) for i, j in VOIGT], axis=-1)
 
 
+def lateral_projector(proj: np.ndarray, lateral: str) -> np.ndarray:
+    """The projector ``proj`` (C, 3, 6) of :func:`projector` with the lateral rows a cell's
+    lengths follow (``Params.lateral``, docs/mechanisms.md, "Lateral strain about the cell's
+    axis"): as they are (``affine``) or both the mean of the two (``axisymmetric``: the part of
+    the strain that is axisymmetric about the cell's axis n, the trace of its restriction to
+    the plane across n, halved)."""
+    if lateral == "affine":
+        return proj
+    out = proj.copy()
+    out[:, 1] = out[:, 2] = 0.5 * (proj[:, 1] + proj[:, 2])
+    return out
+
+
 def dyads(frames: np.ndarray) -> np.ndarray:
     """Q (C, 3, 6): Voigt components of e_k ⊗ e_k, to rotate a cell-frame diagonal stress to
     the global frame (σ = Σ_k σ_kk e_k ⊗ e_k)."""
@@ -113,7 +126,7 @@ class Rev3D(RevBatch):
         self.check_size(len(self.sets), extra_bytes=float(self.n_cells) * GEOMETRY_BYTES_PER_CELL)
         #: cell frames (C, 3, 3), rows (n, t1, t2), and weights (C,) summing to 1
         self.frames, self.weights = self.sphere.frames()
-        self._proj = np.ascontiguousarray(projector(self.frames))
+        self._proj = np.ascontiguousarray(lateral_projector(projector(self.frames), self.params.lateral))
         self._wdyads = np.ascontiguousarray(self.weights[:, None, None] * dyads(self.frames))
         cell0 = [self.solver.initial(s, ()) for s in self.sets]
         # V0 = sum_i w_i V_meso,i (eq. 1.14 lifted) per set; all cells of a set start alike.
