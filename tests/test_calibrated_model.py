@@ -136,11 +136,11 @@ def test_run_commands_take_the_calibrated_model_at_a_void_ratio(calibrated, tmp_
 
 def test_a_calibration_records_the_variant_an_alias_named(tmp_path):
     """A calibration keeps the variant it fitted, not the alias it was asked by: ``sand`` is
-    recorded as ``mix`` (what it names now), and a record of ``hertz`` (what ``sand`` named
-    before) still loads as hertz, with the contacts its parameters recorded."""
+    recorded as ``axisym-mix`` (what it names now), and a record of ``hertz`` (what ``sand``
+    named before) still loads as hertz, with the contacts its parameters recorded."""
     from hmodel import Params
 
-    assert get_variant("sand").name == "mix"
+    assert get_variant("sand").name == "axisym-mix"
     params = Params(contact="hertz-mindlin", alpha0=0.9)
     record = {"model": {"variant": "hertz", "e_ref": 0.8, "dim": 3,
                         "params_rad": params.to_dict(degrees=False)}}

@@ -60,8 +60,8 @@ def test_the_map_refuses_a_specimen_looser_than_any_cell():
 
 
 def test_variants_and_their_names():
-    assert get_variant(None).name == "published" and get_variant("sand") is get_variant("mix")
-    with pytest.raises(InputError, match="no model 'clay'.*sand \\(= mix\\)"):
+    assert get_variant(None).name == "published" and get_variant("sand") is get_variant("axisym-mix")
+    with pytest.raises(InputError, match="no model 'clay'.*sand \\(= axisym-mix\\)"):
         get_variant("clay")
     p = Params(alpha0=math.radians(50))
     assert get_variant("published").initial_params(p, 3, e0=0.7, e_ref=0.8) is p

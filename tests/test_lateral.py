@@ -1,6 +1,6 @@
 """The bi-hexagon's lateral strain about its axis (``lateral="axisymmetric"``, docs/mechanisms.md,
 "Lateral strain about the cell's axis"): the localization it gives, the closed cell it keeps,
-the two drivers, and where it is refused."""
+the two drivers, the azimuths, the 2D cell and the batch."""
 
 import math
 
@@ -10,7 +10,7 @@ import pytest
 from hmodel import Params
 from hmodel.errors import InputError
 from hmodel.loading import Recorder, Segment, consolidate, run_segment, run_triaxial
-from hmodel.rev import Rev, Rev3D, Sphere
+from hmodel.rev import Rev3D, Sphere
 from hmodel.rev.rev3d import lateral_projector, projector
 
 SMALL = Sphere(order=11, n_azimuth=2)
@@ -65,10 +65,27 @@ def test_the_compiled_and_the_generic_drivers_agree():
     assert not np.allclose(a["q"], _triaxial("affine")["q"], rtol=1e-3)  # the option does change the path
 
 
-def test_it_is_refused_in_2d_and_shared_by_a_batch():
-    with pytest.raises(InputError, match="lateral=axisymmetric is the bi-hexagon's"):
-        Rev(Params(lateral="axisymmetric"))
+def test_the_2d_cell_has_one_lateral_length_and_a_batch_one_value():
+    """The 2D H-cell's one lateral length is its own mean: either value is the published 2D
+    model, bit for bit (so a variant that switches it on runs in 2D too)."""
+    from hmodel.loading import run_biaxial
+
+    a = run_biaxial(Params(n_theta=36, lateral="axisymmetric"), [2e5], 0.02)
+    b = run_biaxial(Params(n_theta=36), [2e5], 0.02)
+    assert all(np.array_equal(a[c], b[c], equal_nan=True) for c in ("q", "p", "eps_v"))
     with pytest.raises(InputError, match="lateral"):
         Rev3D([BASE, BASE.with_(lateral="axisymmetric")], SMALL)
     with pytest.raises(InputError, match="parameter lateral must be one of affine, axisymmetric"):
         Params(lateral="radial")
+
+
+def test_the_azimuths_of_a_direction_then_repeat_one_cell():
+    """The mean lateral strain is the trace of the strain across n halved, the same at every
+    azimuth about n; the cells of one direction are then one cell, whose stress s (I - n n)
+    the azimuths' dyads sum to whatever their number: the REV's answer does not depend on it
+    (with affine laterals it does)."""
+    def q(lateral, m):
+        params = BASE.with_(lateral=lateral)
+        return run_triaxial(params, [2e5], 0.02, sphere=Sphere(order=11, n_azimuth=m), step=1e-3)["q"]
+    assert np.allclose(q("axisymmetric", 1), q("axisymmetric", 3), rtol=1e-9, atol=1e-3)
+    assert not np.allclose(q("affine", 1), q("affine", 3), rtol=1e-3)

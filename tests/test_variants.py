@@ -69,7 +69,8 @@ def test_failure_surface_takes_a_variant(cli, tmp_path):
     """``failure-surface --model sand`` is the surface of the variant's mechanisms (as -p names them)."""
     common = ("failure-surface", "--lode", "0", "--order", "5", "--azimuths", "1", "--max-strain", "0.05")
     tables = {}
-    for key, extra in (("variant", ("--model", "sand")), ("params", ("-p", "contact=hertz-mindlin", "-p", "renewal=mix")),
+    for key, extra in (("variant", ("--model", "sand")), ("params", ("-p", "contact=hertz-mindlin", "-p", "renewal=mix",
+                                                                       "-p", "lateral=axisymmetric")),
                        ("published", ())):
         code, _, err = cli(*common, *extra, "--out", tmp_path / key)
         assert code == 0, err

@@ -16,7 +16,7 @@ The data: the KFS file of the Sand Triaxial Test Database (H. Wang, NGI; CC BY 4
 DOI 10.4121/086847a6-ba39-4d66-973b-6b93028c7ad8), tests of Wichtmann & Triantafyllidis (2016),
 Acta Geotechnica 11(4):739–761, shipped with hmodel as ``example:kfs``.
 
-Usage: ``python -m benchmarks.calibration.kfs_long [--tags ,hertz,rebirth,mix,cross]
+Usage: ``python -m benchmarks.calibration.kfs_long [--tags ,hertz,rebirth,mix,cross,axisym,axisym_mix]
 [--strain 0.5] [--window 0.03] [--out PATH]``. Prints a table and writes ``kfs_long.json``.
 """
 
@@ -92,7 +92,7 @@ def long_ends(tests, res, failed, window: float) -> list[dict]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--tags", default=",hertz,rebirth,mix,cross",
+    ap.add_argument("--tags", default=",hertz,rebirth,mix,cross,axisym,axisym_mix",
                     help="the records kfs[_TAG].json to run again (empty: kfs.json, the density variant)")
     ap.add_argument("--strain", type=float, default=0.5)
     ap.add_argument("--window", type=float, default=0.03)

@@ -42,6 +42,8 @@ VARIANTS = (("", "published (none)"), ("hertz", "Hertz–Mindlin contacts"), ("r
             ("hertz_rebirth", "Hertz–Mindlin + rebirth"), ("mix", "rebirth at the mean box (renewal=mix)"),
             ("cross", "contacts between the hexagons"),
             ("hertz_cross", "Hertz–Mindlin + contacts between the hexagons"),
+            ("axisym", "lateral strain about the axis (lateral=axisymmetric)"),
+            ("axisym_mix", "lateral=axisymmetric + rebirth at the mean box"),
             ("kt0889", "control: linear, kt/kn = 0.889 (Mindlin's ratio at ν = 0.2)"))
 #: The issue's measure of a critical state: q/p within ±3 % of one M, |dε_v/dε₁| ≤ 0.05.
 QP_BAND, RATE_MAX = 0.03, 0.05
@@ -99,6 +101,8 @@ KFS = (("kfs.json", "H-model, density (linear contacts)"), ("kfs_hertz.json", "H
        ("kfs_rebirth.json", "H-model, rebirth (Hertz–Mindlin + rebirth)"),
        ("kfs_mix.json", "H-model, mix (Hertz–Mindlin + rebirth at the mean box)"),
        ("kfs_cross.json", "H-model, cross (Hertz–Mindlin + contacts between the hexagons)"),
+       ("kfs_axisym.json", "H-model, axisym (Hertz–Mindlin + lateral strain about the axis)"),
+       ("kfs_axisym_mix.json", "H-model, axisym-mix (axisym + rebirth at the mean box)"),
        ("kfs_peer.json", "Manzari–Dafalias (OpenSees), the peer"))
 
 
@@ -239,6 +243,8 @@ DEM_JUDGE = (("dem_judge_density.json", "density (linear contacts)"),
              ("dem_judge_rebirth.json", "rebirth (Hertz–Mindlin + rebirth)"),
              ("dem_judge_mix.json", "mix (Hertz–Mindlin + rebirth at the mean box)"),
              ("dem_judge_cross.json", "cross (Hertz–Mindlin + contacts between the hexagons)"),
+             ("dem_judge_axisym.json", "axisym (Hertz–Mindlin + lateral strain about the axis)"),
+             ("dem_judge_axisym_mix.json", "axisym-mix (axisym + rebirth at the mean box)"),
              ("calibrate3d_dem.json", "published, on the linear 1,000-sphere sample"))
 #: The issue's targets of a prediction: RMS |Δq| / peak q of drained tests, of the others.
 DRAINED_TARGET, OTHER_TARGET = 0.10, 0.15

@@ -114,8 +114,8 @@ def main() -> None:
         print(f"θ {row['lode']:5.1f}  q_eq/p {row['q_p']:.4f}  φ {row['phi']:.2f}°  (MC {row['mohr_coulomb']:.4f}, "
               f"MN {row['matsuoka_nakai']:.4f}, LD {row['lade_duncan']:.4f})  θ reached {row['lode_reached']:.6f}  "
               f"{row['ended']}", flush=True)
-    # a 2D H-cell has no second hexagon: the 2D comparison runs without cross contacts
-    bi = run_biaxial(params.with_(cross_contacts="none"), [args.p], 0.2).stage("shear")
+    # a 2D H-cell has no second hexagon: the 2D comparison runs without cross contacts, affine
+    bi = run_biaxial(params.with_(cross_contacts="none", lateral="affine"), [args.p], 0.2).stage("shear")
     k = int(np.argmax(bi["q_p"]))
     phi2d = math.degrees(math.asin(bi["q_p"][k] / 2.0))
     ratios = fs.fit_strength_ratios()

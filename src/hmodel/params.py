@@ -26,9 +26,9 @@ RENEWALS = ("none", "rebirth", "mix")
 #: Contacts between the lateral grains of a bi-hexagon's two hexagons (3D only): ignored
 #: (published closure) or frictionless normal contacts of the cell's law (docs/mechanisms.md).
 CROSS_CONTACTS = ("none", "frictionless")
-#: What lateral strain a bi-hexagon's two lateral lengths follow (3D only): each its own
-#: direction's (affine, published) or both the mean of the two (the strain's part that is
-#: axisymmetric about the cell's axis), docs/mechanisms.md.
+#: What lateral strain a bi-hexagon's two lateral lengths follow: each its own direction's
+#: (affine, published) or both the mean of the two (the strain's part that is axisymmetric
+#: about the cell's axis), docs/mechanisms.md; the 2D H-cell's one lateral length is either.
 LATERALS = ("affine", "axisymmetric")
 ANGLE_PARAMS = ("phi_g", "alpha0", "beta_omega")
 
@@ -97,7 +97,8 @@ class Params:
         What a bi-hexagon's lateral lengths l2 and l3 follow (:data:`LATERALS`): ``affine``
         (published: each the strain along its own direction, eq. 1.1 lifted) or
         ``axisymmetric`` (both the mean of the two: the cell's lateral grains turn about its
-        axis, so a cell at contact can follow any strain); 3D only, one value per batch.
+        axis, so a cell at contact can follow any strain); one value per batch. The 2D H-cell
+        has one lateral length, the mean of itself: both values are the published 2D model.
     """
 
     kn: float = 2.0e8

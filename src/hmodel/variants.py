@@ -6,7 +6,7 @@ A variant says how a test's initial state follows from what was measured of the 
 again, as it was fitted, at another density and pressure.
 
 >>> get_variant("sand").name
-'mix'
+'axisym-mix'
 >>> get_variant("published").uses_e0
 False
 """
@@ -125,18 +125,18 @@ VARIANTS = MappingProxyType({
                           fitted=_HERTZ),
     "axisym": ModelVariant("axisym", "The hertz model whose bi-hexagons follow the lateral strain's mean "
                                      "about their axis (lateral=axisymmetric): a closed cell can follow "
-                                     "any strain (3D only).", uses_e0=True,
+                                     "any strain (in 2D the hertz model).", uses_e0=True,
                            options=(("contact", "hertz-mindlin"), ("lateral", "axisymmetric")),
                            fitted=_HERTZ),
     "axisym-mix": ModelVariant("axisym-mix", "The axisym model whose cells are also reborn at the REV's "
-                                             "mean box (renewal=mix; 3D only).", uses_e0=True,
+                                             "mean box (renewal=mix; in 2D the mix model).", uses_e0=True,
                                options=(("contact", "hertz-mindlin"), ("renewal", "mix"),
                                         ("lateral", "axisymmetric")), fitted=_HERTZ),
 })
 #: Other names of variants: the one the docs recommend for sands (docs/mechanisms.md, "Which
-#: variant for sands": stiffness that follows pressure as a DEM assembly's, and strength held
-#: where Karlsruhe fine sand holds it; its volumetric strains miss more than ``hertz``'s).
-ALIASES = MappingProxyType({"sand": "mix"})
+#: variant for sands": stiffness that follows pressure as a DEM assembly's, the closest on
+#: Karlsruhe fine sand and on the DEM samples, its volume change bounded in 3D).
+ALIASES = MappingProxyType({"sand": "axisym-mix"})
 
 
 def get_variant(name: str | None) -> ModelVariant:

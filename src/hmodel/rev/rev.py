@@ -77,9 +77,6 @@ class Rev(RevBatch):
         #: the parameter sets (K,), and the first, whose shared fields all sets have
         self.sets = check_batch(params)
         self.params = params = self.sets[0]
-        if params.lateral != "affine":
-            raise InputError(f"lateral={params.lateral} is the bi-hexagon's (the 3D REV's): an H-cell of "
-                             "the 2D REV has one lateral length")
         self.solver = solver
         self.check_mechanisms()
         self.check_size(len(self.sets))
