@@ -44,6 +44,7 @@ VARIANTS = (("", "published (none)"), ("hertz", "Hertz–Mindlin contacts"), ("r
             ("hertz_cross", "Hertz–Mindlin + contacts between the hexagons"),
             ("axisym", "lateral strain about the axis (lateral=axisymmetric)"),
             ("axisym_mix", "lateral=axisymmetric + rebirth at the mean box"),
+            ("hertz_axisym_mix", "Hertz–Mindlin + lateral=axisymmetric + rebirth at the mean box (sand)"),
             ("kt0889", "control: linear, kt/kn = 0.889 (Mindlin's ratio at ν = 0.2)"))
 #: The issue's measure of a critical state: q/p within ±3 % of one M, |dε_v/dε₁| ≤ 0.05.
 QP_BAND, RATE_MAX = 0.03, 0.05
