@@ -30,10 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.calibration.kfs import errors, load_tests, sand_ends
+from benchmarks.calibration.kfs import load_tests, predictions, sand_ends
 from benchmarks.timing import record, write_table
 from hmodel import Params
-from hmodel.calibrate.model import curves_at
 from hmodel.loading import run_triaxial
 from hmodel.rev import Sphere
 from hmodel.variants import get_variant
@@ -42,14 +41,14 @@ HERE = Path(__file__).parent
 FULL = 0.199  # a test "reached 20 %" (its last row is at 0.2)
 
 
-def stored(tag: str) -> tuple[dict, object, Params, float | None, Sphere, float]:
-    """A KFS record and what its predictions ran with: the variant, the calibrated parameters,
-    e_ref, the sphere and the step."""
+def stored(tag: str) -> tuple[object, Params, float | None, Sphere, float]:
+    """What a KFS record's predictions ran with: the variant, the calibrated parameters, e_ref,
+    the sphere and the step."""
     rec = json.loads((HERE / (f"kfs_{tag}.json" if tag else "kfs.json")).read_text())
     model = rec["calibration"]["model"]
     variant = get_variant(model["variant"])  # the name resolved when it ran (`sand` has moved)
     sphere = Sphere(order=rec["options"]["order"], n_azimuth=rec["options"]["azimuths"])
-    return rec, variant, Params(**model["params_rad"]), model["e_ref"], sphere, rec["options"]["step"]
+    return variant, Params(**model["params_rad"]), model["e_ref"], sphere, rec["options"]["step"]
 
 
 def predict(tests, variant, params, e_ref, sphere, step: float, strain: float):
@@ -58,10 +57,6 @@ def predict(tests, variant, params, e_ref, sphere, step: float, strain: float):
     sets = [variant.initial_params(params, 3, t.e0, e_ref) for t in tests]
     res = run_triaxial(sets, [t.p0 for t in tests], strain, sphere=sphere, step=step, drop_failed=True)
     return res, res.meta["failed"]
-
-
-def scores(tests, res, failed) -> list[dict]:
-    return [errors(t, *curves_at(res, b, t, dropped=b in failed)) for b, t in enumerate(tests)]
 
 
 def summary(rows: list[dict]) -> dict:
@@ -102,10 +97,10 @@ def main() -> None:
     results, variants = [], {}
     t0 = time.perf_counter()
     for tag in args.tags.split(","):
-        rec, variant, params, e_ref, sphere, step = stored(tag)
+        variant, params, e_ref, sphere, step = stored(tag)
         name = variant.name
-        coarse = scores(tests, *predict(tests, variant, params, e_ref, sphere, step, 0.2))
-        fine = scores(tests, *predict(tests, variant, params, e_ref, sphere, step / 10, 0.2))
+        coarse = predictions(tests, params, variant, e_ref, sphere, step)  # the benchmark's own rows
+        fine = predictions(tests, params, variant, e_ref, sphere, step / 10)
         moved = [abs(a["rms_dq"] - b["rms_dq"]) for a, b in zip(coarse, fine)
                  if a["rms_dq"] is not None and b["rms_dq"] is not None and min(a["reached"], b["reached"]) >= FULL]
         ends = long_ends(tests, *predict(tests, variant, params, e_ref, sphere, step, args.strain), args.window)

@@ -30,6 +30,7 @@ keep a stale number).
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import sys
@@ -60,6 +61,20 @@ def _table(head: str, rows) -> str:
 def _load(name: str, tag: str) -> dict | None:
     path = HERE / (f"{name}_{tag}.json" if tag else f"{name}.json")
     return json.loads(path.read_text()) if path.exists() else None
+
+
+def _from_record(rel: str):
+    """A block made from one benchmark record, ``benchmarks/REL``: the decorated function takes
+    the record; the block says so where it is not written yet."""
+    def wrap(make):
+        @functools.wraps(make)
+        def block() -> str:
+            path = HERE.parent / rel
+            if not path.exists():
+                return f"(benchmarks/{rel} not written yet)"
+            return make(json.loads(path.read_text()))
+        return block
+    return wrap
 
 
 def _result(rec: dict, start: str) -> float:
@@ -128,11 +143,8 @@ def kfs_block() -> str:
                   rows)
 
 
-def kfs_long_block() -> str:
-    path = HERE.parent / "calibration" / "kfs_long.json"
-    if not path.exists():
-        return "(benchmarks/calibration/kfs_long.json not written yet)"
-    rec = json.loads(path.read_text())
+@_from_record("calibration/kfs_long.json")
+def kfs_long_block(rec: dict) -> str:
     strain = rec["options"]["strain"]
     rows = []
     for name, v in rec["variants"].items():
@@ -189,11 +201,8 @@ def dem_fabric_block() -> str:
                   "sliding contacts at the end, dense / loose |", rows)
 
 
-def dem_block() -> str:
-    path = HERE.parent / "dem" / "granular.json"
-    if not path.exists():
-        return "(benchmarks/dem/granular.json not written yet)"
-    rec = json.loads(path.read_text())
+@_from_record("dem/granular.json")
+def dem_block(rec: dict) -> str:
     rows = []
     for law, label in (("linear", "linear (kn, kt)"), ("hertz", "Hertz–Mindlin")):
         st = rec.get("stiffness", {}).get(law)
@@ -215,11 +224,9 @@ def _sci(x: float) -> str:
     return f"{m}·10{str(int(e)).translate(sup)}"
 
 
-def dem_bihex_block() -> str:
-    path = HERE.parent / "dem" / "dem_bihex_cross.json"
-    if not path.exists():
-        return "(benchmarks/dem/dem_bihex_cross.json not written yet)"
-    runs = json.loads(path.read_text())["paths"]
+@_from_record("dem/dem_bihex_cross.json")
+def dem_bihex_block(rec: dict) -> str:
+    runs = rec["paths"]
     rows = []
     for friction, label in ((False, "frictionless"), (True, "friction 30°")):
         for name in dict.fromkeys(r["path"] for r in runs):
@@ -282,14 +289,11 @@ def dem_judge_block() -> str:
                   rows)
 
 
-def critical_2d_block() -> str:
-    path = HERE.parent / "mechanisms" / "critical_state_2d.json"
-    if not path.exists():
-        return "(benchmarks/mechanisms/critical_state_2d.json not written yet)"
+@_from_record("mechanisms/critical_state_2d.json")
+def critical_2d_block(rec: dict) -> str:
     from hmodel import Params
     from hmodel.cell.renewal import NEUTRAL_2D, box_at_contact
 
-    rec = json.loads(path.read_text())
     # the box measure against the largest unloaded cell's (at the neutral angle)
     neutral = box_at_contact(NEUTRAL_2D, 2.0 * rec["base"].get("radius", Params().radius), 2) / rec["box_ref"]
     rows = []

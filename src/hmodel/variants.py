@@ -135,7 +135,7 @@ VARIANTS = MappingProxyType({
 })
 #: Other names of variants: the one the docs recommend for sands (docs/mechanisms.md, "Which
 #: variant for sands": stiffness that follows pressure as a DEM assembly's, the closest on
-#: Karlsruhe fine sand and on the DEM samples, its volume change bounded in 3D).
+#: Karlsruhe fine sand and on the DEM samples, the smallest 3D dilatancy).
 ALIASES = MappingProxyType({"sand": "axisym-mix"})
 
 
