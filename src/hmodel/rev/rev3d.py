@@ -11,6 +11,7 @@ Strains and stresses are ``(B, 6)`` arrays in the order ``(11, 22, 33, 23, 13, 1
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -69,6 +70,20 @@ def lateral_projector(proj: np.ndarray, lateral: str) -> np.ndarray:
     return out
 
 
+def cell_sphere(sphere: Sphere, lateral: str, solver) -> Sphere:
+    """The sphere whose cells a REV holds: ``sphere``, or with ``lateral="axisymmetric"`` and a
+    bi-hexagon stepped as two hexagons (:class:`~hmodel.cell.bihex.BiHexSolver`) the same
+    directions with one azimuth each. The localization then gives every azimuth of a direction
+    the same lengths ((I - n n)/2 across n), the cell sees only its lengths, and its two hexagons
+    answer alike (σ_t1t1 = σ_t2t2), so the azimuths' dyads sum to the one cell's
+    σ_nn n n + σ_tt (I - n n) whatever their number: one azimuth is the same REV to round-off
+    (docs/mechanisms.md, "Lateral strain about the cell's axis"). A solver of three lengths
+    (the DEM bi-hexagon) keeps every azimuth: its two hexagons need not answer alike."""
+    if lateral != "axisymmetric" or not isinstance(solver, BiHexSolver) or sphere.n_azimuth == 1:
+        return sphere
+    return replace(sphere, n_azimuth=1)
+
+
 def dyads(frames: np.ndarray) -> np.ndarray:
     """Q (C, 3, 6): Voigt components of e_k ⊗ e_k, to rotate a cell-frame diagonal stress to
     the global frame (σ = Σ_k σ_kk e_k ⊗ e_k)."""
@@ -121,11 +136,15 @@ class Rev3D(RevBatch):
             check_params(s)
         self.check_mechanisms()
         self.params = self.sets[0]
+        #: the discretization asked for (recorded with results)
         self.sphere = Sphere() if sphere is None else sphere
+        #: the one whose cells the REV holds (:func:`cell_sphere`: one azimuth per direction
+        #: where the azimuths would repeat one cell)
+        self.cell_sphere = cell_sphere(self.sphere, self.params.lateral, self.solver)
         # the sphere's cells (directions × azimuths) are counted before their frames are built
         self.check_size(len(self.sets), extra_bytes=float(self.n_cells) * GEOMETRY_BYTES_PER_CELL)
         #: cell frames (C, 3, 3), rows (n, t1, t2), and weights (C,) summing to 1
-        self.frames, self.weights = self.sphere.frames()
+        self.frames, self.weights = self.cell_sphere.frames()
         self._proj = np.ascontiguousarray(lateral_projector(projector(self.frames), self.params.lateral))
         self._wdyads = np.ascontiguousarray(self.weights[:, None, None] * dyads(self.frames))
         cell0 = [self.solver.initial(s, ()) for s in self.sets]
@@ -142,8 +161,8 @@ class Rev3D(RevBatch):
 
     @property
     def n_cells(self) -> int:
-        """Bi-hexagons per material point (directions × azimuths)."""
-        return self.sphere.n_cells
+        """Bi-hexagons per material point (directions × azimuths of :attr:`cell_sphere`)."""
+        return self.cell_sphere.n_cells
 
     def _describe(self, n_points: int) -> str:
         cells = f"{self.n_cells:,}" if self.n_cells < 10**12 else f"{float(self.n_cells):.3g}"
