@@ -23,7 +23,8 @@ class CalibratedModel:
     Attributes: ``params`` (the fitted and fixed parameters, bit for bit as fitted),
     ``variant``, ``e_ref`` (the void ratio at which ``params.alpha0`` holds, for a variant that
     uses e0), ``dim`` (2 or 3), ``sphere`` (3D: the directions it was fitted with), ``solver``
-    (the cell solver's spec), ``source`` (the JSON file).
+    (the cell solver's spec), ``source`` (the JSON file), ``radial`` (3D: how its drained
+    triaxial tests held their sides, :func:`~hmodel.loading.run_triaxial`).
     """
 
     params: Params
@@ -33,6 +34,7 @@ class CalibratedModel:
     sphere: Sphere | None
     solver: str
     source: Path
+    radial: str = "free"
 
     @classmethod
     def load(cls, folder: "str | Path") -> CalibratedModel:
@@ -55,7 +57,7 @@ class CalibratedModel:
             sphere = Sphere(**{**record["sphere"], "axis": tuple(record["sphere"]["axis"])}) \
                 if record.get("sphere") else None
             return cls(params, get_variant(model["variant"]), model.get("e_ref"), int(model["dim"]), sphere,
-                       str(model.get("solver", "closed-form")), path)
+                       str(model.get("solver", "closed-form")), path, str(model.get("radial", "free")))
         except (KeyError, TypeError, ValueError) as e:
             raise InputError(f"calibration {str(path)!r}: malformed model record ({e})") from None
 
@@ -80,6 +82,8 @@ class Specimen:
     e0: tuple[float, ...]
     dim: int
     sphere: Sphere | None = None
+    #: how a calibration's drained triaxial tests held their sides (``free`` without one)
+    radial: str = "free"
 
     @classmethod
     def make(cls, model: str | None, calibration: "str | Path | None", e0: Sequence[float] | None,
@@ -105,7 +109,8 @@ class Specimen:
         e_ref = e_ref if e_ref is not None else (cal.e_ref if cal is not None else None)
         if e0s and e_ref is None:
             raise InputError("--e0 needs the void ratio at which alpha0 holds: --e-ref, or a --calibration")
-        return cls(cal.params if cal else None, variant, e_ref, e0s, dim, cal.sphere if cal else None)
+        return cls(cal.params if cal else None, variant, e_ref, e0s, dim, cal.sphere if cal else None,
+                   cal.radial if cal else "free")
 
     def at_e0(self, sets: list[Params], n_pressures: int) -> list[Params]:
         """Each point's parameters at its void ratio (broadcast: equal lengths, or one)."""

@@ -65,13 +65,15 @@ class Check:
 
 def check_at(tests: Sequence[Test], params: Params, calibrated: Prediction, solver: CellSolver,
              step: float = 1e-3, iso_step: float = ISO_STEP, sphere: Sphere | None = None,
-             variant: ModelVariant | None = None, e_ref: float | None = None) -> Check:
+             variant: ModelVariant | None = None, e_ref: float | None = None,
+             radial: str = "free") -> Check:
     """Run ``tests`` at ``params`` with ``solver`` (the same increments, directions and model
     variant as the calibration's model) and compare the curves with ``calibrated``, the
     calibrated model's prediction at ``params`` (one parameter set)."""
     tests = tuple(tests)
     t0 = time.perf_counter()
-    ref = Model(tests, solver, step, iso_step, sphere, variant or get_variant(None), e_ref).predict([params])
+    ref = Model(tests, solver, step, iso_step, sphere, variant or get_variant(None), e_ref,
+                radial).predict([params])
     seconds = time.perf_counter() - t0
     if not ref.ok[0]:
         return Check(solver.name, tests, [], [], [], seconds, failed=ref.failed[0])

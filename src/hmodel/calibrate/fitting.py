@@ -84,6 +84,8 @@ class Calibration:
     step: float = 1e-3
     iso_step: float = ISO_STEP
     solver: str | None = None
+    #: how the drained triaxial tests held their sides (:func:`~hmodel.loading.run_triaxial`)
+    radial: str = "free"
 
     @property
     def fitted(self) -> dict[str, float]:
@@ -136,7 +138,8 @@ class Calibration:
             # what hmodel.calibrate.CalibratedModel needs to run the fitted model again (angles in radians)
             "model": {"variant": self.variant.name, "e_ref": self.e_ref, "dim": self.tests[0].kind.dim,
                       "step": self.step, "iso_step": self.iso_step, "solver": self.solver or "closed-form",
-                      "params_rad": self.params.to_dict(degrees=False)},
+                      "params_rad": self.params.to_dict(degrees=False),
+                      **({"radial": self.radial} if self.radial != "free" else {})},
             **({"sphere": _sphere_record(self.sphere)} if self.sphere is not None else {}),
             **({"search": self.search} if self.search is not None else {}),
             **({"posterior": self.posterior.summary, "sampling": self.posterior.to_dict()}
@@ -211,7 +214,7 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
         noise: dict | None = None, sphere: Sphere | None = None,
         search_rule: tuple[int, int] | None = SEARCH_RULE, workers: int = 1,
         progress: Callable[[float], None] | None = None, model: str | ModelVariant | None = None,
-        scheduler: str | None = None) -> Calibration:
+        scheduler: str | None = None, radial: str = "free") -> Calibration:
     """Fit the parameters ``fit`` to ``tests``; the others are those of ``base``.
 
     ``least-squares``: :func:`scipy.optimize.least_squares` (trust-region reflective, within the
@@ -256,6 +259,10 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
     that one fails there); everything after (uncertainty, posterior, curves) is ``sphere``'s.
     ``search_rule=None``: the search runs at ``sphere``. Ignored by the 2D model.
 
+    ``radial``: how the 3D model's drained triaxial tests hold their sides
+    (:func:`~hmodel.loading.run_triaxial`: ``free``, each lateral stress held; ``equal``, one
+    radial strain), recorded with the model.
+
     ``workers``: the least-squares starts run in that many processes (each start is
     independent, so the result is the same as in one; the calibration's own batched calls
     then run on one thread each).
@@ -278,7 +285,7 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
         searcher = _search_sphere(sphere, search_rule)
     variant = model if isinstance(model, ModelVariant) else get_variant(model)
     _check_contact_params(fit, variant.apply(base or Params()).contact)
-    model = Model(tests, solver, step, iso_step, sphere, variant)
+    model = Model(tests, solver, step, iso_step, sphere, variant, radial=radial)
     needed = variant.default_bounds(base or Params(), model.dim, [t.e0 for t in tests], model.e_ref)
     bounds = {**{n: b for n, b in needed.items() if n in fit}, **(bounds or {})}
     # a family model's training domain bounds the search (None: any material)
@@ -328,7 +335,8 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
                 for z0, r in zip(design, runs)],
         evaluations=obj.evaluations, failures=obj.failures, wall_s=time.perf_counter() - t0,
         prediction=pred, posterior=posterior, band=band, sphere=sphere, search=search, variant=variant,
-        e_ref=model.e_ref, step=step, iso_step=iso_step, solver=None if solver is None else solver.name)
+        e_ref=model.e_ref, step=step, iso_step=iso_step, solver=None if solver is None else solver.name,
+        radial=radial)
 
 
 def _start(model: Model, space: Space, z0: np.ndarray, max_nfev: int):

@@ -57,7 +57,8 @@ class Kind(str, metaclass=_Kinds):
     same object each time: ``Kind("drained") is Kind.DRAINED``), ``Kind(kind)`` a kind itself.
 
     A subclass sets ``value`` (its name), ``dim``, ``loading`` and, for a test that holds the
-    volume or unloads axially, ``undrained`` or ``extension``, and implements :meth:`run`.
+    volume or unloads axially, ``undrained`` or ``extension``, and implements :meth:`run`
+    (which is given ``radial`` only where a calibration asks for equal sides).
     """
 
     #: the kind's name, as on the command line and in ``calibration.json``
@@ -112,9 +113,11 @@ class Kind(str, metaclass=_Kinds):
 
     def run(self, sets: Sequence[Params], p0: Sequence[float], strain: float, *,
             solver: CellSolver | None, sphere: Sphere | None, step: float,
-            iso_step: float) -> PathResult:
+            iso_step: float, radial: str = "free") -> PathResult:
         """This test of one material point per parameter set ``sets[b]`` at ``p0[b]``, sheared
-        to an axial strain of magnitude ``strain``, in one engine call; a point whose Newton
+        to an axial strain of magnitude ``strain``, in one engine call (``radial``: how a drained
+        triaxial test holds its sides, :func:`~hmodel.loading.run_triaxial`; 2D tests have one
+        lateral strain); a point whose Newton
         fails is dropped (``meta["failed"]``), the others go on. The result's rows are those
         of a loading path: stages ``consolidation`` then ``shear``, the columns eps11, q and
         eps_v among them."""
@@ -159,7 +162,7 @@ class _Biaxial(Kind):
 
     dim = 2
 
-    def run(self, sets, p0, strain, *, solver, sphere, step, iso_step) -> PathResult:
+    def run(self, sets, p0, strain, *, solver, sphere, step, iso_step, radial="free") -> PathResult:
         return run_biaxial(list(sets), list(p0), strain, undrained=self.undrained, solver=solver,
                            iso_step=iso_step, step=step, drop_failed=True)
 
@@ -169,9 +172,9 @@ class _Triaxial(Kind):
 
     dim = 3
 
-    def run(self, sets, p0, strain, *, solver, sphere, step, iso_step) -> PathResult:
+    def run(self, sets, p0, strain, *, solver, sphere, step, iso_step, radial="free") -> PathResult:
         return run_triaxial(list(sets), list(p0), strain, undrained=self.undrained,
-                            extension=self.extension, sphere=sphere, solver=solver,
+                            extension=self.extension, radial=radial, sphere=sphere, solver=solver,
                             iso_step=iso_step, step=step, drop_failed=True)
 
 

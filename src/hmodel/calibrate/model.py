@@ -10,6 +10,7 @@ import numpy as np
 
 from ..cell import CellSolver
 from ..errors import InputError, SolverError
+from ..loading.lab_tests import RADIAL
 from ..params import Params
 from ..rev import Sphere
 from ..variants import ModelVariant, get_variant
@@ -44,7 +45,8 @@ class Model:
     """Runs the tests' loadings with the H-model: each test's kind and p0, sheared to its
     largest axial strain in increments of ``step`` after consolidation in isotropic increments
     of ``iso_step``, with cell solver ``solver`` (None: the closed form) and, for the 3D
-    model's triaxial kinds, the directions of ``sphere`` (None: ``Sphere()``).
+    model's triaxial kinds, the directions of ``sphere`` (None: ``Sphere()``) and the sides of a
+    drained test held as ``radial`` says (:func:`~hmodel.loading.run_triaxial`).
 
     One call of :meth:`predict` makes one engine run per kind of test (drained, undrained, ...)
     for all K parameter sets and all tests of that kind: K × (number of tests) material points,
@@ -62,8 +64,11 @@ class Model:
     sphere: Sphere | None = None
     variant: ModelVariant = get_variant(None)
     e_ref: float | None = None
+    radial: str = "free"
 
     def __post_init__(self) -> None:
+        if self.radial not in RADIAL:
+            raise InputError(f"radial must be one of {', '.join(RADIAL)}, got {self.radial!r}")
         if self.variant.uses_e0:
             missing = [t.name for t in self.tests if t.e0 is None]
             if missing:
@@ -76,6 +81,9 @@ class Model:
             if unknown:
                 raise InputError(f"test {t.name}: kind {t.kind} observes {', '.join(unknown)}, which the model "
                                  f"does not predict (it predicts {', '.join(OBSERVABLES)})")
+        if self.dim == 2 and self.radial != "free":
+            raise InputError("--radial says how a drained triaxial test holds its sides: the tests are 2D "
+                             "biaxial ones (one lateral strain)")
         if self.dim == 2 and self.sphere is not None:
             raise InputError("a sphere of directions (--order, --azimuths, --fabric) is the 3D "
                              "model's: the tests are 2D biaxial ones")
@@ -115,7 +123,9 @@ class Model:
         strain = max(float(t.strain[-1]) for t in tests)
         try:
             res = kind.run(batch, p0, strain, solver=self.solver, sphere=self.sphere,
-                           step=self.step, iso_step=self.iso_step)
+                           step=self.step, iso_step=self.iso_step,
+                           # a kind of its own that predates the option need not take it
+                           **({"radial": self.radial} if self.radial != "free" else {}))
         except SolverError as e:  # the whole batch refused (a cell solver's error): bisect
             why = " ".join(str(e).split())[:300]
             if len(which) == 1:

@@ -20,7 +20,7 @@ from ..errors import InputError
 from ..params import Params
 from ..solvers import get_solver, get_solver_3d
 from ..variants import get_variant
-from .common3d import AzimuthsOpt, FabricOpt, OrderOpt, points_3d, sphere as sphere_of
+from .common3d import AzimuthsOpt, FabricOpt, OrderOpt, RadialOpt, points_3d, sphere as sphere_of
 from .options import FRACTION, out_folder, workers_opt
 from .progress import LazyProgress
 
@@ -69,6 +69,7 @@ def calibrate(
     iso_step: Annotated[float, typer.Option(help=f"Strain increment of the model's consolidation {FRACTION}.")] = ISO_STEP,
     solver: Annotated[str, typer.Option(help="Cell solver: closed-form, surrogate[:NAME|:FILE] (a family model fits any material of its training domain), dem:... (3D: of the hexagons of every bi-hexagon).")] = "closed-form",
     order: OrderOpt = None, azimuths: AzimuthsOpt = None, fabric: FabricOpt = 0.0,
+    radial: RadialOpt = None,
     search_rule: Annotated[str, typer.Option(help="3D: Lebedev order and azimuths ORDER:AZIMUTHS of the multi-start search, whose best point is then refined at the model's rule (--order, --azimuths); none: search at the model's rule.")] = _DEFAULT_SEARCH,
     check: Annotated[Optional[str], typer.Option("--check", metavar="SOLVER", help="Run the tests again at the optimum with this cell solver (the cell a surrogate learned: closed-form, dem:...) and report how far the calibrated model lies from it (check.csv, calibration.json, dashed in fit.png).")] = None,
     check_tol: Annotated[Optional[float], typer.Option(help="--check: warn where the calibrated model misses the check solver by more than this fraction of peak q (default 0.02).")] = None,
@@ -89,6 +90,9 @@ def calibrate(
         if given:
             raise InputError(f"{', '.join(given)} set the 3D model's directions: the tests are 2D "
                              "biaxial ones (give triaxial-... kinds to calibrate the 3D model)")
+        if radial is not None:
+            raise InputError("--radial says how a drained triaxial test holds its sides: the tests are 2D "
+                             "biaxial ones (one lateral strain)")
         base = Params.parse_assignments(param)
         cells = get_solver(solver)
     else:
@@ -117,11 +121,11 @@ def calibrate(
         cal = fit(tests, names, _bounds(bounds), base, method, cells, starts, seed, step,
                   iso_step, walkers=walkers, steps=steps, noise=Noise.parse(noise) if noise else None,
                   sphere=sphere, search_rule=_search_rule(search_rule), workers=workers,
-                  progress=progress, model=variant, scheduler=scheduler)
+                  progress=progress, model=variant, scheduler=scheduler, radial=radial or "free")
     checked = None
     if checker is not None:
         checked = check_at(cal.tests, cal.params, cal.prediction, checker, step, iso_step, cal.sphere,
-                           cal.variant, cal.e_ref)
+                           cal.variant, cal.e_ref, cal.radial)
     written = write(cal, out, checked)
     typer.echo(f"{_fitted_text(cal)}; objective {cal.cost:.3g} after {cal.evaluations} parameter sets "
                f"({len(cal.failures)} failed)")

@@ -38,6 +38,11 @@ AxialOpt = Annotated[float, typer.Option(help=strain_help("Axial strain after co
 StepOpt = Annotated[float, typer.Option(help=strain_help(
     "Axial strain increment (1e-4 here and in the 2D tests; calibrate's model runs at 1e-3)."))]
 IsoStepOpt = Annotated[float, typer.Option(help=strain_help("Strain increment of the consolidation."))]
+RadialOpt = Annotated[Optional[str], typer.Option(
+    "--radial", help="How a drained triaxial test holds its sides: free (sig22 and sig33 each held, "
+                     "the default) or equal (one radial strain, eps22 = eps33, and (sig22 + sig33)/2 "
+                     "held: a cylinder's; where the REV has no stiffness across the axis the free test "
+                     "may bifurcate). Default: a --calibration's, else free.")]
 Solver3DOpt = Annotated[str, typer.Option(
     "--solver", help="Cell solver of the hexagons of every bi-hexagon: closed-form (compiled), or a "
                      "surrogate of the 2D H-cell, surrogate[:MODEL] (the learned 3D cell, on the "

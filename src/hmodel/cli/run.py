@@ -35,6 +35,7 @@ from .common3d import (
     IsoStepOpt,
     OrderOpt,
     Param3DOpt,
+    RadialOpt,
     Solver3DOpt,
     StepOpt,
     setup_3d,
@@ -197,17 +198,22 @@ def triaxial(p0: P0Opt = "200kPa", axial_strain: AxialOpt = 0.1,
              undrained: Annotated[bool, typer.Option("--undrained", help="Undrained: eps_v = 0, eps22 = eps33.")] = False,
              extension: Annotated[bool, typer.Option(
                  "--extension", help="Axial unloading at constant radial stress (sig11 < sig22 = sig33).")] = False,
+             radial: RadialOpt = None,
              param: Param3DOpt = None, order: OrderOpt = None, azimuths: AzimuthsOpt = None,
              fabric: FabricOpt = 0.0, out: OutOpt = Path("results/triaxial"), step: StepOpt = AXIAL_STEP,
              iso_step: IsoStepOpt = ISO_STEP, solver: Solver3DOpt = "closed-form",
              model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None) -> None:
     """The 3D H-model's triaxial test: isotropic consolidation to p0, then drained (sig22 = sig33
-    = p0) or undrained axial compression, or extension, along axis 1."""
+    = p0, or with --radial equal one radial strain) or undrained axial compression, or
+    extension, along axis 1."""
+    spec = specimen(model, calibration, e0, e_ref, 3)
     pressures, params, sphere, cells = setup_3d(p0, param, axial_strain, order, azimuths, fabric,
-                                                 solver, specimen(model, calibration, e0, e_ref, 3))
+                                                 solver, spec)
+    if radial is None:
+        radial = spec.radial if spec is not None else "free"
     with LazyProgress("triaxial test") as progress:
         result = run_triaxial(params, pressures, axial_strain, undrained=undrained, extension=extension,
-                              progress=progress, **_steps_3d(sphere, cells, iso_step, step))
+                              radial=radial, progress=progress, **_steps_3d(sphere, cells, iso_step, step))
     _finish(result, out)
 
 

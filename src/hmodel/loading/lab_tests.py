@@ -15,6 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..cell import CellSolver
+from ..errors import InputError
 from ..limits import check_rows
 from ..params import Params
 from ..rev import Rev
@@ -158,18 +159,30 @@ def _run_3d(params, p0, test: str, rows, n_steps: int, *, sphere: Sphere | None,
 
 
 _SHEARS = {"eps23": 0.0, "eps13": 0.0, "eps12": 0.0}
+#: How a drained triaxial test holds its sides (:func:`run_triaxial`): each lateral stress
+#: (``free``, the preset ``drained``) or one radial strain and the radial stress (``equal``).
+RADIAL = ("free", "equal")
 
 
 def run_triaxial(params: Params | Sequence[Params] | None, p0, axial_strain: float, *,
-                 undrained: bool = False, extension: bool = False, sphere: Sphere | None = None,
-                 solver=None, iso_step: float = ISO_STEP, step: float = AXIAL_STEP,
-                 progress: Progress = None, drop_failed: bool = False,
+                 undrained: bool = False, extension: bool = False, radial: str = "free",
+                 sphere: Sphere | None = None, solver=None, iso_step: float = ISO_STEP,
+                 step: float = AXIAL_STEP, progress: Progress = None, drop_failed: bool = False,
                  compiled: bool | None = None) -> PathResult:
     """The triaxial test of the 3D H-model (axis 1 axial, the shear strains held): isotropic
     consolidation to each ``p0`` [Pa], then ``axial_strain`` (its magnitude) of axial
     compression, or with ``extension`` of axial unloading (σ11 < σ22 = σ33), drained (σ22 =
     σ33 = p0) or undrained (eps_v = 0, eps22 = eps33): the ``drained`` and ``undrained``
     stages of :data:`~hmodel.loading.stages.PRESETS_3D`.
+
+    ``radial`` (:data:`RADIAL`): how the drained test holds the sides. ``free`` (the preset):
+    σ22 and σ33 each held at p0, each lateral strain free. ``equal``: one radial strain, a
+    cylinder's (ε22 = ε33), and the radial stress (σ22 + σ33)/2 held at p0, as the undrained
+    test always has it. They are one test wherever the material answers an axisymmetric strain
+    with an axisymmetric stress and its lateral tangent is definite; where a REV's cells leave
+    it no stiffness across the axis (force-free lateral cells, docs/mechanisms.md, "One radial
+    strain"), the free test may bifurcate, σ22 = σ33 holding at unequal lateral strains that
+    round-off picks.
 
     ``params``: one Params for every material point, or one per point, used as given (their
     ``sliding_rhs`` included: ``Params()`` is the report's λ, with which this test stops near
@@ -183,16 +196,21 @@ def run_triaxial(params: Params | Sequence[Params] | None, p0, axial_strain: flo
     :func:`~hmodel.loading.result.columns_for` (q = σ11 - (σ22 + σ33)/2, negative in
     extension; the Lode angle and b)."""
     n = named_paths.strain_steps(axial_strain, step, "axial strain")  # refused before any work
+    if radial not in RADIAL:
+        raise InputError(f"radial must be one of {', '.join(RADIAL)}, got {radial!r}")
     d = -axial_strain if extension else axial_strain
 
     def rows(p0):
         if undrained:
             return {"eps11": d, "eps_v": 0.0, "eps22-eps33": 0.0, **_SHEARS}
+        if radial == "equal":
+            return {"eps11": d, "sig_r": p0, "eps22-eps33": 0.0, **_SHEARS}
         return {"eps11": d, "sig22": p0, "sig33": p0, **_SHEARS}
     test = f"{'undrained' if undrained else 'drained'} triaxial {'extension' if extension else 'compression'}"
     rec = _run_3d(params, p0, test, rows, n, sphere=sphere, solver=solver, iso_step=iso_step,
                      progress=progress, drop_failed=drop_failed, compiled=compiled,
-                     axial_strain=axial_strain, step=step)
+                     axial_strain=axial_strain, step=step,
+                     **({"radial": radial} if radial != "free" else {}))
     return rec.result()
 
 

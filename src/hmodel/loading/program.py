@@ -18,7 +18,8 @@ list of ``stages``) and end early on a criterion (``until = "p <= 0.05 * p0"``),
 A program with ``dim = 3`` (or a ``[sphere]`` table: ``order``, ``azimuths``, ``alpha_omega``,
 ``axis``) runs on the 3D H-model (:class:`~hmodel.rev.rev3d.Rev3D`, axis 1 axial): its stages
 name six rows (:data:`~hmodel.loading.stages.ROWS_3D`: also eps33, eps23, eps13, sig33, sig23,
-sig13, the lateral differences ``eps22-eps33`` and ``sig22-sig33``, and ``b``; p = tr σ/3,
+sig13, the lateral differences ``eps22-eps33`` and ``sig22-sig33``, the radial stress ``sig_r``
+= (σ22 + σ33)/2, and ``b``; p = tr σ/3,
 q = σ11 - (σ22 + σ33)/2, eps_v = tr ε) and take the presets of
 :data:`~hmodel.loading.stages.PRESETS_3D` (also ``true_triaxial``).
 

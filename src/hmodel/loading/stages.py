@@ -34,7 +34,7 @@ ROWS = {"eps11": (False, (1, 0, 0)), "eps22": (False, (0, 1, 0)), "eps12": (Fals
         "sig12": (True, (0, 0, 1)), "p": (True, (0.5, 0.5, 0)), "q": (True, (1, -1, 0))}
 #: Named rows of 3D stages: (a stress row?, coefficients on (11, 22, 33, 23, 13, 12), tensor
 #: shear; axis 1 axial): p = tr σ/3, q = σ11 - (σ22 + σ33)/2, eps_v = tr ε, the differences
-#: of the lateral components (axisymmetry), and ``b``, whose value b in [0, 1] makes the row
+#: of the lateral components (axisymmetry), the radial stress sig_r = (σ22 + σ33)/2, and ``b``, whose value b in [0, 1] makes the row
 #: (σ22 - σ33) - b (σ11 - σ33) = 0 (:func:`b_row`; principal stresses along 1, 2, 3).
 ROWS_3D = {"eps11": (False, (1, 0, 0, 0, 0, 0)), "eps22": (False, (0, 1, 0, 0, 0, 0)),
            "eps33": (False, (0, 0, 1, 0, 0, 0)), "eps23": (False, (0, 0, 0, 1, 0, 0)),
@@ -44,7 +44,8 @@ ROWS_3D = {"eps11": (False, (1, 0, 0, 0, 0, 0)), "eps22": (False, (0, 1, 0, 0, 0
            "sig33": (True, (0, 0, 1, 0, 0, 0)), "sig23": (True, (0, 0, 0, 1, 0, 0)),
            "sig13": (True, (0, 0, 0, 0, 1, 0)), "sig12": (True, (0, 0, 0, 0, 0, 1)),
            "p": (True, (1 / 3, 1 / 3, 1 / 3, 0, 0, 0)), "q": (True, (1, -0.5, -0.5, 0, 0, 0)),
-           "sig22-sig33": (True, (0, 1, -1, 0, 0, 0)), "b": (True, None)}
+           "sig22-sig33": (True, (0, 1, -1, 0, 0, 0)), "sig_r": (True, (0, 0.5, 0.5, 0, 0, 0)),
+           "b": (True, None)}
 #: Components named by the single-component rows (a component controlled twice is an error).
 _COMPONENT = {"eps11": "11", "sig11": "11", "eps22": "22", "sig22": "22", "eps12": "12", "sig12": "12"}
 _COMPONENT_3D = {**_COMPONENT, "eps33": "33", "sig33": "33", "eps23": "23", "sig23": "23",
