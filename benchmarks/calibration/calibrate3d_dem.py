@@ -95,6 +95,8 @@ def main() -> None:
     ap.add_argument("--starts", type=int, default=8)
     ap.add_argument("--order", type=int, default=None)
     ap.add_argument("--azimuths", type=int, default=None)
+    ap.add_argument("--radial", default="free", choices=("free", "equal"),
+                    help="how the drained tests hold their sides (run_triaxial's radial)")
     ap.add_argument("--bayes-steps", type=int, default=0)
     ap.add_argument("--walkers", type=int, default=32)
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("calibrate3d_dem.json"))
@@ -115,10 +117,12 @@ def main() -> None:
     sphere = Sphere(**kw, axis=AXIS)
     t0 = time.perf_counter()
     fitted = FITTED if variant.name == "published" else variant.fitted
-    cal = fit([tests[n] for n in chosen], fitted, starts=args.starts, sphere=sphere, model=variant)
+    cal = fit([tests[n] for n in chosen], fitted, starts=args.starts, sphere=sphere, model=variant,
+              radial=args.radial)
     wall = time.perf_counter() - t0
     others = [t for n, t in tests.items() if n not in chosen]
-    pred = (Model(tuple(others), sphere=sphere, variant=variant, e_ref=cal.e_ref).predict([cal.params])
+    pred = (Model(tuple(others), sphere=sphere, variant=variant, e_ref=cal.e_ref, radial=args.radial
+                  ).predict([cal.params])
             if others else None)
     rows = [(f"fitted {k}", v, f"± {cal.stderr[k]:.3g}") for k, v in cal.fitted.items()]
     rows += [("objective (scaled residuals)", cal.cost, "-"),
@@ -144,7 +148,7 @@ def main() -> None:
         coarse = Sphere(order=SEARCH_RULE[0], n_azimuth=SEARCH_RULE[1], axis=AXIS)
         t0 = time.perf_counter()
         bay = fit([tests[n] for n in chosen], fitted, model=variant, method="bayes", starts=args.starts, sphere=coarse,
-                  search_rule=None, walkers=args.walkers, steps=args.bayes_steps)
+                  search_rule=None, walkers=args.walkers, steps=args.bayes_steps, radial=args.radial)
         rows.append(((f"emcee {args.walkers} x {args.bayes_steps} at order {coarse.order}, "
                       f"m = {coarse.n_azimuth} (with its least squares) [s]"), time.perf_counter() - t0, "-"))
         for k, s in bay.posterior.summary.items():

@@ -87,12 +87,12 @@ def sand_ends(test: Test) -> dict:
     return {"e_end": test.e0 - ev * (1 + test.e0), "p_end_kPa": p / 1e3, "q_p_end": q / p}
 
 
-def predictions(tests, params, variant, e_ref, sphere, step) -> list[dict]:
+def predictions(tests, params, variant, e_ref, sphere, step, radial="free") -> list[dict]:
     """Every test at its own p0 and initial state, one batched run; a test whose Newton fails
     keeps its curve up to there (NaN beyond)."""
     sets = [variant.initial_params(params, 3, t.e0, e_ref) for t in tests]
     res = run_triaxial(sets, [t.p0 for t in tests], max(float(t.eps11[-1]) for t in tests), sphere=sphere,
-                       step=step, drop_failed=True)
+                       step=step, drop_failed=True, radial=radial)
     failed = res.meta["failed"]
     rows = []
     for b, t in enumerate(tests):
@@ -103,12 +103,12 @@ def predictions(tests, params, variant, e_ref, sphere, step) -> list[dict]:
     return rows
 
 
-def cell_fractions(tests, params, variant, e_ref, sphere, step) -> dict:
+def cell_fractions(tests, params, variant, e_ref, sphere, step, radial="free") -> dict:
     """The fractions of sliding and open cells at the end of some tests (one batched run)."""
     chosen = [t for t in tests if t.name in FRACTIONS_OF]
     sets = [variant.initial_params(params, 3, t.e0, e_ref) for t in chosen]
     res = run_triaxial(sets, [t.p0 for t in chosen], float(chosen[0].eps11[-1]), sphere=sphere, step=step,
-                       drop_failed=True)
+                       drop_failed=True, radial=radial)
     out = {}
     for b, t in enumerate(chosen):
         mine = res["point"] == b
@@ -191,6 +191,8 @@ def main() -> None:
     ap.add_argument("--order", type=int, default=17)
     ap.add_argument("--azimuths", type=int, default=2)
     ap.add_argument("--step", type=float, default=1e-3)
+    ap.add_argument("--radial", default="free", choices=("free", "equal"),
+                    help="how the drained tests hold their sides (run_triaxial's radial)")
     ap.add_argument("--out", type=Path, default=None, help="default: kfs[_TAG].json")
     ap.add_argument("--replot", action="store_true", help="only draw the figures again from --out (and the peer's JSON)")
     args = ap.parse_args()
@@ -213,23 +215,24 @@ def main() -> None:
     # bayes: the least-squares fit, then emcee from its optimum (one call, one fit)
     cal = fit(cal_tests, variant.fitted, base=Params(sliding_rhs="equilibrium"), starts=args.starts, sphere=sphere,
               search_rule=None, step=args.step, workers=args.workers, model=variant,
-              method="bayes" if args.steps > 0 else "least-squares", walkers=args.walkers, steps=max(args.steps, 1))
+              method="bayes" if args.steps > 0 else "least-squares", walkers=args.walkers, steps=max(args.steps, 1),
+              radial=args.radial)
     bayes = None
     if cal.posterior is not None:
         bayes = {"summary": cal.posterior.summary, "acceptance": cal.posterior.acceptance,
                  "warning": cal.posterior.warning}
     params, e_ref = cal.params, cal.e_ref
     t2 = time.perf_counter()
-    rows = predictions(tests, params, variant, e_ref, sphere, args.step)
+    rows = predictions(tests, params, variant, e_ref, sphere, args.step, args.radial)
     wall_pred = time.perf_counter() - t2
     # the same mechanisms with one alpha0 for every density (the published model for density)
     one_alpha0 = replace(variant, name=f"{variant.name}, one alpha0", uses_e0=False)
-    published = predictions(tests, params, one_alpha0, None, sphere, args.step)
+    published = predictions(tests, params, one_alpha0, None, sphere, args.step, args.radial)
     for r in rows:
         r["variant"] = variant.name
     for r, t in zip(rows, tests):
         r.update(sand_ends(t))
-    fractions = cell_fractions(tests, params, variant, e_ref, sphere, args.step)
+    fractions = cell_fractions(tests, params, variant, e_ref, sphere, args.step, args.radial)
     plot(tests, rows, published, peer, *figures)
     load1 = os.getloadavg()[0]
 

@@ -41,21 +41,23 @@ HERE = Path(__file__).parent
 FULL = 0.199  # a test "reached 20 %" (its last row is at 0.2)
 
 
-def stored(tag: str) -> tuple[object, Params, float | None, Sphere, float]:
+def stored(tag: str) -> tuple[object, Params, float | None, Sphere, float, str]:
     """What a KFS record's predictions ran with: the variant, the calibrated parameters, e_ref,
-    the sphere and the step."""
+    the sphere, the step and how the tests held their sides."""
     rec = json.loads((HERE / (f"kfs_{tag}.json" if tag else "kfs.json")).read_text())
     model = rec["calibration"]["model"]
     variant = get_variant(model["variant"])  # the name resolved when it ran (`sand` has moved)
     sphere = Sphere(order=rec["options"]["order"], n_azimuth=rec["options"]["azimuths"])
-    return variant, Params(**model["params_rad"]), model["e_ref"], sphere, rec["options"]["step"]
+    return (variant, Params(**model["params_rad"]), model["e_ref"], sphere, rec["options"]["step"],
+            model.get("radial", "free"))
 
 
-def predict(tests, variant, params, e_ref, sphere, step: float, strain: float):
+def predict(tests, variant, params, e_ref, sphere, step: float, strain: float, radial: str):
     """Every test at its own p0 and e0 (one batched run) to ``strain``: the engine result, the
     parameter sets and the points whose Newton failed."""
     sets = [variant.initial_params(params, 3, t.e0, e_ref) for t in tests]
-    res = run_triaxial(sets, [t.p0 for t in tests], strain, sphere=sphere, step=step, drop_failed=True)
+    res = run_triaxial(sets, [t.p0 for t in tests], strain, sphere=sphere, step=step, drop_failed=True,
+                       radial=radial)
     return res, res.meta["failed"]
 
 
@@ -97,17 +99,17 @@ def main() -> None:
     results, variants = [], {}
     t0 = time.perf_counter()
     for tag in args.tags.split(","):
-        variant, params, e_ref, sphere, step = stored(tag)
+        variant, params, e_ref, sphere, step, radial = stored(tag)
         name = variant.name
-        coarse = predictions(tests, params, variant, e_ref, sphere, step)  # the benchmark's own rows
-        fine = predictions(tests, params, variant, e_ref, sphere, step / 10)
+        coarse = predictions(tests, params, variant, e_ref, sphere, step, radial)  # the benchmark's own rows
+        fine = predictions(tests, params, variant, e_ref, sphere, step / 10, radial)
         moved = [abs(a["rms_dq"] - b["rms_dq"]) for a, b in zip(coarse, fine)
                  if a["rms_dq"] is not None and b["rms_dq"] is not None and min(a["reached"], b["reached"]) >= FULL]
-        ends = long_ends(tests, *predict(tests, variant, params, e_ref, sphere, step, args.strain), args.window)
+        ends = long_ends(tests, *predict(tests, variant, params, e_ref, sphere, step, args.strain, radial), args.window)
         through = [r for r in ends if r["reached"] >= args.strain - 1e-9]
         rates = [abs(r["deps_v_deps11_end"]) for r in through]
         s0, s1 = summary(coarse), summary(fine)
-        variants[name] = {"record": f"kfs_{tag}.json" if tag else "kfs.json", "step": step,
+        variants[name] = {"record": f"kfs_{tag}.json" if tag else "kfs.json", "step": step, "radial": radial,
                           "at_step": s0, "at_step_over_10": s1,
                           "largest_change_rms_dq": max(moved) if moved else math.nan, "long": ends}
         results += [(f"{name}: (a) median RMS |dq|/peak q [%], step {step:g}", 100 * s0["median_rms_dq"], "-"),

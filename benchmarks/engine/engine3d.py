@@ -14,7 +14,12 @@ to ``engine3d.json``.
     run (``benchmarks.engine.engine``);
 (d) test (a) compiled at several (order, azimuths) pairs, to choose the defaults;
 (e) test (a) compiled with Hertz-Mindlin contacts (``contact="hertz-mindlin"``, grains of the
-    default G = 29 GPa, ν = 0.2, docs/mechanisms.md), beside (a) in the same run.
+    default G = 29 GPa, ν = 0.2, docs/mechanisms.md), beside (a) in the same run; and with every
+    mechanism of the sand variant on (Hertz-Mindlin, ``lateral="axisymmetric"``,
+    ``renewal="mix"``: the REV then holds one bi-hexagon per direction, ``Rev3D.cell_sphere``),
+    its sides held equal (``run_triaxial(..., radial="equal")``, as its benchmarks run);
+(f) the batch (b) in the calibration setting with one radial strain (ε22 = ε33, (σ22 + σ33)/2
+    held): the points that free sides lose where the REV leaves axisymmetry.
 
 All tests use ``sliding_rhs="equilibrium"``: with the report's λ, Newton's event loop stops a
 3D drained triaxial test near 1 % axial strain (the same increment in both drivers). Points
@@ -45,6 +50,8 @@ from hmodel.loading.compiled3d import kernel_inputs3d
 from hmodel.rev import Rev3D, Sphere
 
 BASE = Params(sliding_rhs="equilibrium")
+#: every mechanism of the sand variant (``--model sand``), its α0 the published default
+SAND = BASE.with_(contact="hertz-mindlin", lateral="axisymmetric", renewal="mix")
 #: Ranges of the drawn materials (angles in degrees).
 RANGES = {"kn": (1e8, 4e8), "kt_kn": (0.3, 1.0), "phi_g": (20.0, 40.0), "alpha0": (40.0, 60.0)}
 PRESSURES = (1e5, 2e5, 4e5)
@@ -65,26 +72,34 @@ def drawn_sets(n: int, seed: int = 0) -> list[Params]:
 
 
 def triaxial(rev: Rev3D, p0, axial: float = 0.1, n_steps: int = 1000, compiled: bool | None = None,
-             failures: dict | None = None, iso_step: float = 1e-5):
+             failures: dict | None = None, iso_step: float = 1e-5, radial: str = "free"):
     """A drained triaxial test of every point: consolidation to p0 (B,), then ``axial`` in
-    ``n_steps`` with σ22 = σ33 = p0, all recorded; returns the result table."""
+    ``n_steps`` with σ22 = σ33 = p0 (``radial="equal"``: ε22 = ε33 and (σ22 + σ33)/2 = p0), all
+    recorded; returns the result table."""
     p0 = np.asarray(p0, float)
     rec = Recorder()
     state = consolidate(rev, p0, step=iso_step, recorder=rec, compiled=compiled, failures=failures)
     values = np.zeros((state.n_points, 6))
-    values[:, 0], values[:, 1], values[:, 2] = axial, state.sig[:, 1], state.sig[:, 2]
-    seg = Segment((False, True, True, False, False, False), np.eye(6), values, n_steps, "shear")
+    matrix, stress = np.eye(6), (False, True, True, False, False, False)
+    if radial == "equal":
+        matrix[1, :3], matrix[2, :3] = (0.0, 0.5, 0.5), (0.0, 1.0, -1.0)
+        stress = (False, True, False, False, False, False)
+        values[:, 0], values[:, 1] = axial, 0.5 * (state.sig[:, 1] + state.sig[:, 2])
+    else:
+        values[:, 0], values[:, 1], values[:, 2] = axial, state.sig[:, 1], state.sig[:, 2]
+    seg = Segment(stress, matrix, values, n_steps, "shear")
     run_segment(rev, state, seg, rec, compiled=compiled, failures=failures)
     return rec.result()
 
 
-def single(repeat: int, compiled: bool, sphere: Sphere = Sphere(), params: Params = BASE) -> float:
+def single(repeat: int, compiled: bool, sphere: Sphere = Sphere(), params: Params = BASE,
+           radial: str = "free") -> float:
     rev = Rev3D(params, sphere)
-    return best_of(lambda: triaxial(rev, [2e5], compiled=compiled), repeat)
+    return best_of(lambda: triaxial(rev, [2e5], compiled=compiled, radial=radial), repeat)
 
 
 def batched(repeat: int, sphere: Sphere = Sphere(), calibration: bool = True,
-            n_sets: int = 32) -> tuple[float, int]:
+            n_sets: int = 32, radial: str = "free") -> tuple[float, int]:
     """(seconds, points dropped) of n_sets x 3 tests in one call: in the calibration setting, or
     to 10 % in 1000 increments; ``repeat`` 0: one run, no warm-up."""
     sets = drawn_sets(n_sets)
@@ -93,7 +108,7 @@ def batched(repeat: int, sphere: Sphere = Sphere(), calibration: bool = True,
     failures: dict = {}
     axial, step, iso = CALIBRATION if calibration else (0.1, 1e-4, 1e-5)
     run = lambda: (failures.clear(), triaxial(rev, p0, axial, round(axial / step),  # noqa: E731
-                                              failures=failures, iso_step=iso))
+                                              failures=failures, iso_step=iso, radial=radial))
     if repeat:
         return best_of(run, repeat), len(failures)
     t = time.perf_counter()  # one run, the kernels compiled by the calls before
@@ -141,6 +156,8 @@ def main() -> None:
     rule = f"order {d.order}, m = {d.n_azimuth} ({d.n_cells} bi-hexagons)"
     t_cal, drop_cal = batched(r)
     t_cal17, drop_cal17 = batched(r, Sphere(order=17, n_azimuth=2))
+    t_equal, drop_equal = batched(r, radial="equal")
+    sand = Rev3D(SAND, d).n_cells
     t_long, drop_long = batched(0, calibration=False)
     rows = [
         (f"drained triaxial 200 kPa to 10 %, default rule: {rule}, compiled [s]", single(r, True), "<= 0.5"),
@@ -148,11 +165,17 @@ def main() -> None:
          single(max(1, r // 3), False), "-"),
         (f"drained triaxial 200 kPa to 10 %, default rule: {rule}, Hertz-Mindlin contacts, compiled [s]",
          single(r, True, params=BASE.with_(contact="hertz-mindlin")), "<= 0.5"),
+        (f"drained triaxial 200 kPa to 10 %, default rule, every mechanism of the sand variant (Hertz-Mindlin, "
+         f"lateral=axisymmetric, renewal=mix: {sand} bi-hexagons), one radial strain, compiled [s]",
+         single(r, True, params=SAND, radial="equal"), "<= 0.5"),
         ("32 parameter sets x 3 triaxial tests, calibration setting (5 %, steps 1e-3), "
          "default rule, one batched call [s]", t_cal, "<= 2"),
         ("  points dropped (Newton failed)", drop_cal, "0"),
         ("32 parameter sets x 3 triaxial tests, calibration setting, order 17, m = 2 [s]", t_cal17, "-"),
         ("  points dropped (Newton failed)", drop_cal17, "0"),
+        ("32 parameter sets x 3 triaxial tests, calibration setting, default rule, one radial strain [s]",
+         t_equal, "<= 2"),
+        ("  points dropped (Newton failed)", drop_equal, "0"),
         ("32 parameter sets x 3 triaxial tests to 10 % in 1000 increments, default rule (one run) [s]",
          t_long, "-"),
         ("  points dropped (Newton failed)", drop_long, "0"),

@@ -7,7 +7,8 @@ degrees: at 45° the drained test dilates and softens after its peak, at 65° it
 Every test is one material point of one batched run (one parameter set per point, one run per
 drainage condition):
 
-- drained: σ22 = σ33 = p0 each, ε11 in increments of ``--step``, shear strains held;
+- drained: σ22 = σ33 = p0 each, ε11 in increments of ``--step``, shear strains held (with
+  ``--radial equal``: ε22 = ε33 and (σ22 + σ33)/2 = p0, as ``run_triaxial(..., radial="equal")``);
 - undrained: ε11 increments, ε11 + ε22 + ε33 = 0, σ22 = σ33, shear strains held.
 
 The **specific volume** of the REV is defined from its macro volume, V = V0(α0) det(I - ε)
@@ -45,9 +46,14 @@ def parse_mechanisms(text: str) -> dict:
     return out
 
 
-def segment(undrained: bool, p0: np.ndarray, strain: float, steps: int) -> Segment:
+def segment(undrained: bool, p0: np.ndarray, strain: float, steps: int, radial: str = "free") -> Segment:
     M = np.eye(6)
-    if undrained:
+    if not undrained and radial == "equal":
+        M[1, :3] = (0.0, 0.5, 0.5)      # sig_r = p0
+        M[2, :3] = (0.0, 1.0, -1.0)     # eps22 - eps33 = 0
+        stress = (False, True, False, False, False, False)
+        values = np.column_stack([np.full(len(p0), strain), p0, np.zeros((len(p0), 4))])
+    elif undrained:
         M[1, :3] = (1.0, 1.0, 1.0)      # eps_v = 0
         M[2, :3] = (0.0, 1.0, -1.0)     # sig22 - sig33 = 0
         stress = (False, False, True, False, False, False)
@@ -58,12 +64,12 @@ def segment(undrained: bool, p0: np.ndarray, strain: float, steps: int) -> Segme
     return Segment(stress, M, values, steps, "shear")
 
 
-def run(sets, p0, sphere, undrained, strain, steps):
+def run(sets, p0, sphere, undrained, strain, steps, radial="free"):
     rev = Rev3D(sets, sphere)
     state = consolidate(rev, p0)
     rec = Recorder()
     failures: dict = {}
-    run_segment(rev, state, segment(undrained, p0, strain, steps), rec, failures=failures)
+    run_segment(rev, state, segment(undrained, p0, strain, steps, radial), rec, failures=failures)
     res = rec.result()
     out = []
     for b in range(len(sets)):
@@ -130,6 +136,8 @@ def main() -> None:
     ap.add_argument("--step", type=float, default=1e-4)
     ap.add_argument("--window", type=float, default=0.03, help="strain window of the end rates")
     ap.add_argument("--sliding-rhs", default="equilibrium")
+    ap.add_argument("--radial", default="free", choices=("free", "equal"),
+                    help="how the drained tests hold their sides (run_triaxial's radial)")
     ap.add_argument("--mechanisms", default="", help="the cell's mechanisms on, NAME=VALUE,... "
                     "(docs/mechanisms.md; e.g. contact=hertz-mindlin,renewal=rebirth); the outputs "
                     "then carry the tag --tag")
@@ -157,7 +165,7 @@ def main() -> None:
     table, paths, plabels = [], [], []
     t = time.perf_counter()
     for test in ("drained", "undrained"):
-        out, _ = run(sets, p0, sphere, test == "undrained", args.strain, steps)
+        out, _ = run(sets, p0, sphere, test == "undrained", args.strain, steps, args.radial)
         for path, lab in zip(out, labels):
             row = {"test": test, **{k: v for k, v in lab.items() if k != "k"},
                    **summary(path, v_ref, args.window)}

@@ -84,6 +84,12 @@ def _result(rec: dict, start: str) -> float:
     return math.nan
 
 
+def _sides(radial: str | None) -> str:
+    """What a row's label says of how its drained triaxial tests held their sides: nothing for
+    the preset (each lateral stress held), ", one radial strain" for ``radial="equal"``."""
+    return ", one radial strain" if radial == "equal" else ""
+
+
 def row(tag: str, label: str) -> str | None:
     cs, pi = _load("critical_state", tag), _load("pi_plane", tag)
     if cs is None and pi is None:
@@ -92,6 +98,7 @@ def row(tag: str, label: str) -> str | None:
     mc = _result(pi, "M_c") if pi else math.nan
     if cs is None:
         return f"| {label} | — | — | — | — | — | — | {mc:.3f} | {ratio:.3f} |"
+    label += _sides(cs["options"].get("radial"))
     table = cs["table"]
     reached = [r for r in table if not r["newton_failed"]]
     qp = [r["q_p_end"] for r in reached]
@@ -128,7 +135,9 @@ def kfs_block() -> str:
         path = HERE.parent / "calibration" / name
         if not path.exists():
             continue
-        tests = json.loads(path.read_text())["tests"]
+        rec = json.loads(path.read_text())
+        tests = rec["tests"]
+        label += _sides(rec.get("calibration", {}).get("model", {}).get("radial"))
         dq = [t["rms_dq"] for t in tests]
         dv = [t["rms_dev"] for t in tests]
         full = [t for t in tests if t["rms_dq"] is not None and t.get("reached", 0.2) >= 0.199]
@@ -153,7 +162,7 @@ def kfs_long_block(rec: dict) -> str:
         rate = [abs(r["deps_v_deps11_end"]) for r in through]
         qp = [r["q_p_end"] for r in through]
         e = [r["e_end"] for r in through]
-        rows.append(f"| {name} | {100 * a['median_rms_dq']:.1f} / {100 * b['median_rms_dq']:.1f} "
+        rows.append(f"| {name}{_sides(v.get('radial'))} | {100 * a['median_rms_dq']:.1f} / {100 * b['median_rms_dq']:.1f} "
                     f"| {a['within_10']} / {b['within_10']} | {a['ended_early']} / {b['ended_early']} "
                     f"| {100 * v['largest_change_rms_dq']:.1f} | {len(through)} of {len(v['long'])} "
                     f"| {min(rate):.2f}–{max(rate):.2f} | {min(qp):.2f}–{max(qp):.2f} | {min(e):.2f}–{max(e):.2f} |")
@@ -269,6 +278,7 @@ def dem_judge_block() -> str:
         if not path.exists():
             continue
         rec = json.loads(path.read_text())
+        label += _sides(rec["options"].get("radial"))
         errs = rec["errors"]
         failed = [r["measure"] for r in rec["results"] if "the model's test failed" in r["measure"]]
         fit = [e["rms_dq"] for e in errs.values() if e["how"] == "calibrated on"]
