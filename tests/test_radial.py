@@ -3,6 +3,7 @@ docs/loading.md, "3D tests and their stages"; docs/mechanisms.md, "One radial st
 lateral stress (``free``, the preset) or one radial strain and the radial stress (``equal``),
 in the engine, the calibration and the command line."""
 
+import dataclasses
 import json
 import math
 
@@ -15,6 +16,7 @@ from hmodel.calibrate.calibrated import CalibratedModel, Specimen
 from hmodel.calibrate.model import Model
 from hmodel.cli.app import main
 from hmodel.loading import run_triaxial
+from hmodel.loading.lab_tests import default_radial
 from hmodel.rev import Rev3D, Sphere, rev3d
 
 BASE = Params(sliding_rhs="equilibrium", alpha0=math.radians(50.0))
@@ -58,17 +60,22 @@ def test_free_sides_bifurcate_where_no_cell_holds_the_sides_apart_and_equal_ones
     σ22 = σ33, and round-off decides the lateral strains. Two summations of one REV then take
     different paths with free sides, and the same one with equal sides."""
     one, six = _both("free", monkeypatch)
+    assert "radial" not in one.meta
     parted = max(np.abs(r["eps22"] - r["eps33"]).max() for r in (one, six))
     assert parted > 1e-2
     assert np.abs(one["q"] - six["q"]).max() > 0.1 * np.abs(one["q"]).max()
     one, six = _both("equal", monkeypatch)
     assert np.allclose(one["q"], six["q"], rtol=1e-9, atol=1e-3)
+    # the sides these parameters get where none are named
+    assert np.array_equal(run_triaxial(SAND, [2e5], 0.02, sphere=Sphere(order=11, n_azimuth=6), step=1e-3)["q"],
+                          one["q"])
     assert np.allclose(one["eps_v"], six["eps_v"], rtol=0, atol=1e-12)
 
 
 def test_a_calibration_runs_and_records_the_sides_it_was_given(tmp_path):
     """Tests made with equal sides give their parameter back with equal sides, not exactly with
-    free ones; the record carries the choice to a later run (``--calibration``)."""
+    free ones; the record carries the choice to a later run (``--calibration``); where none is
+    given, the variant's parameters choose (equal for the sand variant's laterals)."""
     sphere = Sphere(order=9, n_azimuth=1)
     made = run_triaxial(BASE.with_(phi_g=math.radians(28.0)), [1e5], 0.03, sphere=sphere, step=1e-3,
                         radial="equal")
@@ -78,14 +85,19 @@ def test_a_calibration_runs_and_records_the_sides_it_was_given(tmp_path):
                   (made["eps_v"][shear] - made["eps_v"][~shear][-1])[9::10])]
     kw = dict(bounds={"phi_g": (20.0, 40.0)}, base=BASE, starts=1, sphere=sphere, search_rule=None)
     equal = fit(tests, ("phi_g",), radial="equal", **kw)
-    free = fit(tests, ("phi_g",), **kw)
+    free = fit(tests, ("phi_g",), radial="free", **kw)
     assert equal.fitted["phi_g"] == pytest.approx(28.0, rel=1e-6) and equal.cost < 1e-12
     assert free.cost > 1e3 * equal.cost
     record = equal.to_dict()
-    assert record["model"]["radial"] == "equal" and "radial" not in free.to_dict()["model"]
+    assert record["model"]["radial"] == "equal" and free.to_dict()["model"]["radial"] == "free"
     (tmp_path / "calibration.json").write_text(json.dumps(record))
     assert CalibratedModel.load(tmp_path).radial == "equal"
     assert Specimen.make(None, tmp_path, None, None, 3).radial == "equal"
+    assert default_radial(BASE) == "free" and default_radial([BASE, SAND]) == "equal"
+    assert default_radial(None) == "free"
+    with_e0 = [dataclasses.replace(t, e0=0.8) for t in tests]
+    auto = fit(with_e0, ("phi_g",), model="axisym", **{**kw, "base": None})
+    assert auto.to_dict()["model"]["radial"] == "equal"
 
 
 def test_the_sides_are_refused_in_one_line_where_they_mean_nothing(tmp_path, capsys):

@@ -82,8 +82,9 @@ class Specimen:
     e0: tuple[float, ...]
     dim: int
     sphere: Sphere | None = None
-    #: how a calibration's drained triaxial tests held their sides (``free`` without one)
-    radial: str = "free"
+    #: how a calibration's drained triaxial tests held their sides (None without one: by the
+    #: parameters)
+    radial: str | None = None
 
     @classmethod
     def make(cls, model: str | None, calibration: "str | Path | None", e0: Sequence[float] | None,
@@ -110,7 +111,7 @@ class Specimen:
         if e0s and e_ref is None:
             raise InputError("--e0 needs the void ratio at which alpha0 holds: --e-ref, or a --calibration")
         return cls(cal.params if cal else None, variant, e_ref, e0s, dim, cal.sphere if cal else None,
-                   cal.radial if cal else "free")
+                   cal.radial if cal else None)
 
     def at_e0(self, sets: list[Params], n_pressures: int) -> list[Params]:
         """Each point's parameters at its void ratio (broadcast: equal lengths, or one)."""

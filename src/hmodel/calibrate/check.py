@@ -66,7 +66,7 @@ class Check:
 def check_at(tests: Sequence[Test], params: Params, calibrated: Prediction, solver: CellSolver,
              step: float = 1e-3, iso_step: float = ISO_STEP, sphere: Sphere | None = None,
              variant: ModelVariant | None = None, e_ref: float | None = None,
-             radial: str = "free") -> Check:
+             radial: str | None = None) -> Check:
     """Run ``tests`` at ``params`` with ``solver`` (the same increments, directions and model
     variant as the calibration's model) and compare the curves with ``calibrated``, the
     calibrated model's prediction at ``params`` (one parameter set)."""

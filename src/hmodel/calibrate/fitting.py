@@ -16,6 +16,7 @@ from scipy.stats import qmc
 
 from ..cell import CellSolver
 from ..errors import InputError, SolverError
+from ..loading.lab_tests import default_radial
 from ..params import Params
 from ..rev import Sphere
 from ..rev.model3d import check_3d_params, params_3d
@@ -84,8 +85,9 @@ class Calibration:
     step: float = 1e-3
     iso_step: float = ISO_STEP
     solver: str | None = None
-    #: how the drained triaxial tests held their sides (:func:`~hmodel.loading.run_triaxial`)
-    radial: str = "free"
+    #: how the drained triaxial tests held their sides (:func:`~hmodel.loading.run_triaxial`;
+    #: None for 2D tests)
+    radial: str | None = None
 
     @property
     def fitted(self) -> dict[str, float]:
@@ -139,7 +141,7 @@ class Calibration:
             "model": {"variant": self.variant.name, "e_ref": self.e_ref, "dim": self.tests[0].kind.dim,
                       "step": self.step, "iso_step": self.iso_step, "solver": self.solver or "closed-form",
                       "params_rad": self.params.to_dict(degrees=False),
-                      **({"radial": self.radial} if self.radial != "free" else {})},
+                      **({"radial": self.radial} if self.radial is not None else {})},
             **({"sphere": _sphere_record(self.sphere)} if self.sphere is not None else {}),
             **({"search": self.search} if self.search is not None else {}),
             **({"posterior": self.posterior.summary, "sampling": self.posterior.to_dict()}
@@ -214,7 +216,7 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
         noise: dict | None = None, sphere: Sphere | None = None,
         search_rule: tuple[int, int] | None = SEARCH_RULE, workers: int = 1,
         progress: Callable[[float], None] | None = None, model: str | ModelVariant | None = None,
-        scheduler: str | None = None, radial: str = "free") -> Calibration:
+        scheduler: str | None = None, radial: str | None = None) -> Calibration:
     """Fit the parameters ``fit`` to ``tests``; the others are those of ``base``.
 
     ``least-squares``: :func:`scipy.optimize.least_squares` (trust-region reflective, within the
@@ -261,7 +263,8 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
 
     ``radial``: how the 3D model's drained triaxial tests hold their sides
     (:func:`~hmodel.loading.run_triaxial`: ``free``, each lateral stress held; ``equal``, one
-    radial strain), recorded with the model.
+    radial strain; None: by the variant's parameters,
+    :func:`~hmodel.loading.lab_tests.default_radial`), recorded with the model.
 
     ``workers``: the least-squares starts run in that many processes (each start is
     independent, so the result is the same as in one; the calibration's own batched calls
@@ -285,6 +288,8 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
         searcher = _search_sphere(sphere, search_rule)
     variant = model if isinstance(model, ModelVariant) else get_variant(model)
     _check_contact_params(fit, variant.apply(base or Params()).contact)
+    if radial is None and dimension([t.kind for t in tests]) == 3:
+        radial = default_radial(variant.apply(base))
     model = Model(tests, solver, step, iso_step, sphere, variant, radial=radial)
     needed = variant.default_bounds(base or Params(), model.dim, [t.e0 for t in tests], model.e_ref)
     bounds = {**{n: b for n, b in needed.items() if n in fit}, **(bounds or {})}

@@ -58,7 +58,7 @@ class Kind(str, metaclass=_Kinds):
 
     A subclass sets ``value`` (its name), ``dim``, ``loading`` and, for a test that holds the
     volume or unloads axially, ``undrained`` or ``extension``, and implements :meth:`run`
-    (which is given ``radial`` only where a calibration asks for equal sides).
+    (given ``radial``, how a drained triaxial test holds its sides, where it takes that keyword).
     """
 
     #: the kind's name, as on the command line and in ``calibration.json``
@@ -113,7 +113,7 @@ class Kind(str, metaclass=_Kinds):
 
     def run(self, sets: Sequence[Params], p0: Sequence[float], strain: float, *,
             solver: CellSolver | None, sphere: Sphere | None, step: float,
-            iso_step: float, radial: str = "free") -> PathResult:
+            iso_step: float, radial: str | None = None) -> PathResult:
         """This test of one material point per parameter set ``sets[b]`` at ``p0[b]``, sheared
         to an axial strain of magnitude ``strain``, in one engine call (``radial``: how a drained
         triaxial test holds its sides, :func:`~hmodel.loading.run_triaxial`; 2D tests have one
@@ -162,7 +162,7 @@ class _Biaxial(Kind):
 
     dim = 2
 
-    def run(self, sets, p0, strain, *, solver, sphere, step, iso_step, radial="free") -> PathResult:
+    def run(self, sets, p0, strain, *, solver, sphere, step, iso_step, radial=None) -> PathResult:
         return run_biaxial(list(sets), list(p0), strain, undrained=self.undrained, solver=solver,
                            iso_step=iso_step, step=step, drop_failed=True)
 
@@ -172,7 +172,7 @@ class _Triaxial(Kind):
 
     dim = 3
 
-    def run(self, sets, p0, strain, *, solver, sphere, step, iso_step, radial="free") -> PathResult:
+    def run(self, sets, p0, strain, *, solver, sphere, step, iso_step, radial=None) -> PathResult:
         return run_triaxial(list(sets), list(p0), strain, undrained=self.undrained,
                             extension=self.extension, radial=radial, sphere=sphere, solver=solver,
                             iso_step=iso_step, step=step, drop_failed=True)

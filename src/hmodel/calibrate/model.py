@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -46,7 +47,8 @@ class Model:
     largest axial strain in increments of ``step`` after consolidation in isotropic increments
     of ``iso_step``, with cell solver ``solver`` (None: the closed form) and, for the 3D
     model's triaxial kinds, the directions of ``sphere`` (None: ``Sphere()``) and the sides of a
-    drained test held as ``radial`` says (:func:`~hmodel.loading.run_triaxial`).
+    drained test held as ``radial`` says (:func:`~hmodel.loading.run_triaxial`; None: by the
+    parameters, :func:`~hmodel.loading.lab_tests.default_radial`).
 
     One call of :meth:`predict` makes one engine run per kind of test (drained, undrained, ...)
     for all K parameter sets and all tests of that kind: K × (number of tests) material points,
@@ -64,10 +66,10 @@ class Model:
     sphere: Sphere | None = None
     variant: ModelVariant = get_variant(None)
     e_ref: float | None = None
-    radial: str = "free"
+    radial: str | None = None
 
     def __post_init__(self) -> None:
-        if self.radial not in RADIAL:
+        if self.radial is not None and self.radial not in RADIAL:
             raise InputError(f"radial must be one of {', '.join(RADIAL)}, got {self.radial!r}")
         if self.variant.uses_e0:
             missing = [t.name for t in self.tests if t.e0 is None]
@@ -81,7 +83,7 @@ class Model:
             if unknown:
                 raise InputError(f"test {t.name}: kind {t.kind} observes {', '.join(unknown)}, which the model "
                                  f"does not predict (it predicts {', '.join(OBSERVABLES)})")
-        if self.dim == 2 and self.radial != "free":
+        if self.dim == 2 and self.radial not in (None, "free"):
             raise InputError("--radial says how a drained triaxial test holds its sides: the tests are 2D "
                              "biaxial ones (one lateral strain)")
         if self.dim == 2 and self.sphere is not None:
@@ -124,8 +126,9 @@ class Model:
         try:
             res = kind.run(batch, p0, strain, solver=self.solver, sphere=self.sphere,
                            step=self.step, iso_step=self.iso_step,
-                           # a kind of its own that predates the option need not take it
-                           **({"radial": self.radial} if self.radial != "free" else {}))
+                           # a kind of its own holds its sides as its run says
+                           **({"radial": self.radial} if self.radial is not None
+                              and "radial" in inspect.signature(kind.run).parameters else {}))
         except SolverError as e:  # the whole batch refused (a cell solver's error): bisect
             why = " ".join(str(e).split())[:300]
             if len(which) == 1:

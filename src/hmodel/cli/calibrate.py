@@ -121,7 +121,7 @@ def calibrate(
         cal = fit(tests, names, _bounds(bounds), base, method, cells, starts, seed, step,
                   iso_step, walkers=walkers, steps=steps, noise=Noise.parse(noise) if noise else None,
                   sphere=sphere, search_rule=_search_rule(search_rule), workers=workers,
-                  progress=progress, model=variant, scheduler=scheduler, radial=radial or "free")
+                  progress=progress, model=variant, scheduler=scheduler, radial=radial)
     checked = None
     if checker is not None:
         checked = check_at(cal.tests, cal.params, cal.prediction, checker, step, iso_step, cal.sphere,

@@ -42,7 +42,9 @@ RadialOpt = Annotated[Optional[str], typer.Option(
     "--radial", help="How a drained triaxial test holds its sides: free (sig22 and sig33 each held, "
                      "the default) or equal (one radial strain, eps22 = eps33, and (sig22 + sig33)/2 "
                      "held: a cylinder's; where the REV has no stiffness across the axis the free test "
-                     "may bifurcate). Default: a --calibration's, else free.")]
+                     "may bifurcate). Default: a --calibration's, else equal where the bi-hexagons "
+                     "follow the lateral strain about their axis (lateral=axisymmetric: --model sand, "
+                     "axisym), else free.")]
 Solver3DOpt = Annotated[str, typer.Option(
     "--solver", help="Cell solver of the hexagons of every bi-hexagon: closed-form (compiled), or a "
                      "surrogate of the 2D H-cell, surrogate[:MODEL] (the learned 3D cell, on the "

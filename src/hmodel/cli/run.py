@@ -209,8 +209,8 @@ def triaxial(p0: P0Opt = "200kPa", axial_strain: AxialOpt = 0.1,
     spec = specimen(model, calibration, e0, e_ref, 3)
     pressures, params, sphere, cells = setup_3d(p0, param, axial_strain, order, azimuths, fabric,
                                                  solver, spec)
-    if radial is None:
-        radial = spec.radial if spec is not None else "free"
+    if radial is None and spec is not None:
+        radial = spec.radial
     with LazyProgress("triaxial test") as progress:
         result = run_triaxial(params, pressures, axial_strain, undrained=undrained, extension=extension,
                               radial=radial, progress=progress, **_steps_3d(sphere, cells, iso_step, step))

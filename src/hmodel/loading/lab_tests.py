@@ -164,8 +164,18 @@ _SHEARS = {"eps23": 0.0, "eps13": 0.0, "eps12": 0.0}
 RADIAL = ("free", "equal")
 
 
+def default_radial(params: Params | Sequence[Params] | None) -> str:
+    """The sides of a drained triaxial test where none are named: ``equal`` (one radial strain)
+    where a parameter set makes the bi-hexagons follow the lateral strain about their axis
+    (``lateral="axisymmetric"``: their lateral cells open and leave the REV no stiffness across
+    the axis, so that free sides bifurcate, docs/mechanisms.md, "One radial strain"), ``free``
+    (the preset, the published model's) otherwise."""
+    sets = [params] if params is None or isinstance(params, Params) else list(params)
+    return "equal" if any(isinstance(p, Params) and p.lateral == "axisymmetric" for p in sets) else "free"
+
+
 def run_triaxial(params: Params | Sequence[Params] | None, p0, axial_strain: float, *,
-                 undrained: bool = False, extension: bool = False, radial: str = "free",
+                 undrained: bool = False, extension: bool = False, radial: str | None = None,
                  sphere: Sphere | None = None, solver=None, iso_step: float = ISO_STEP,
                  step: float = AXIAL_STEP, progress: Progress = None, drop_failed: bool = False,
                  compiled: bool | None = None) -> PathResult:
@@ -178,7 +188,8 @@ def run_triaxial(params: Params | Sequence[Params] | None, p0, axial_strain: flo
     ``radial`` (:data:`RADIAL`): how the drained test holds the sides. ``free`` (the preset):
     σ22 and σ33 each held at p0, each lateral strain free. ``equal``: one radial strain, a
     cylinder's (ε22 = ε33), and the radial stress (σ22 + σ33)/2 held at p0, as the undrained
-    test always has it. They are one test wherever the material answers an axisymmetric strain
+    test always has it. None: :func:`default_radial` of the parameters (``equal`` where they
+    set ``lateral="axisymmetric"``, else ``free``). They are one test wherever the material answers an axisymmetric strain
     with an axisymmetric stress and its lateral tangent is definite; where a REV's cells leave
     it no stiffness across the axis (force-free lateral cells, docs/mechanisms.md, "One radial
     strain"), the free test may bifurcate, σ22 = σ33 holding at unequal lateral strains that
@@ -196,6 +207,7 @@ def run_triaxial(params: Params | Sequence[Params] | None, p0, axial_strain: flo
     :func:`~hmodel.loading.result.columns_for` (q = σ11 - (σ22 + σ33)/2, negative in
     extension; the Lode angle and b)."""
     n = named_paths.strain_steps(axial_strain, step, "axial strain")  # refused before any work
+    radial = default_radial(params) if radial is None else radial
     if radial not in RADIAL:
         raise InputError(f"radial must be one of {', '.join(RADIAL)}, got {radial!r}")
     d = -axial_strain if extension else axial_strain
