@@ -16,7 +16,10 @@ figure ``docs/figures/dem3d-calibration.png`` (every test, DEM against model).
 With ``--model NAME`` a variant of the H-model (``hmodel models``) is fitted (its own fitted
 parameters); with several sample folders one parameter set is fitted over all of them (tests
 named FOLDER/STEM; a variant that uses e0 starts each test from the e0 of its CSV's ``e``
-column): docs/mechanisms.md's DEM judge.
+column): docs/mechanisms.md's DEM judge. ``--param NAME=VALUE`` fixes a parameter beyond the
+variant's (a mechanism on a variant that lacks it: ``-p lateral=axisymmetric`` on ``density``,
+the linear contacts of the linear-contact samples); ``--radial`` holds the drained tests' sides
+(``run_triaxial``'s ``radial``; default: by the parameters).
 
 Usage: ``python -m benchmarks.calibration.calibrate3d_dem [SAMPLE_DIR ...] [--model NAME] [--fit-on
 triaxial-drained_100kPa,triaxial-drained_400kPa] [--starts 8] [--bayes-steps 0] [--out PATH]``
@@ -40,7 +43,9 @@ from benchmarks.timing import FIGURES, ROOT, input_files, record, write_table
 from hmodel.calibrate import Kind, Test, fit
 from hmodel.calibrate.fitting import SEARCH_RULE
 from hmodel.calibrate.model import Model, has_eps_v
+from hmodel import Params
 from hmodel.rev import Sphere
+from hmodel.rev.model3d import params_3d
 from hmodel.variants import get_variant
 
 FITTED = ("kn", "kt_kn", "phi_g", "alpha0")
@@ -95,7 +100,10 @@ def main() -> None:
     ap.add_argument("--starts", type=int, default=8)
     ap.add_argument("--order", type=int, default=None)
     ap.add_argument("--azimuths", type=int, default=None)
-    ap.add_argument("--radial", default="free", choices=("free", "equal"),
+    ap.add_argument("--param", "-p", action="append", default=[], metavar="NAME=VALUE",
+                    help="a fixed parameter of the model beyond the variant's (a mechanism: "
+                         "lateral=axisymmetric, renewal=mix); repeatable")
+    ap.add_argument("--radial", default=None, choices=("free", "equal"),
                     help="how the drained tests hold their sides (run_triaxial's radial)")
     ap.add_argument("--bayes-steps", type=int, default=0)
     ap.add_argument("--walkers", type=int, default=32)
@@ -117,11 +125,12 @@ def main() -> None:
     sphere = Sphere(**kw, axis=AXIS)
     t0 = time.perf_counter()
     fitted = FITTED if variant.name == "published" else variant.fitted
+    base = Params.parse_assignments(args.param, params_3d()) if args.param else None
     cal = fit([tests[n] for n in chosen], fitted, starts=args.starts, sphere=sphere, model=variant,
-              radial=args.radial)
+              radial=args.radial, base=base)
     wall = time.perf_counter() - t0
     others = [t for n, t in tests.items() if n not in chosen]
-    pred = (Model(tuple(others), sphere=sphere, variant=variant, e_ref=cal.e_ref, radial=args.radial
+    pred = (Model(tuple(others), sphere=sphere, variant=variant, e_ref=cal.e_ref, radial=cal.radial
                   ).predict([cal.params])
             if others else None)
     rows = [(f"fitted {k}", v, f"± {cal.stderr[k]:.3g}") for k, v in cal.fitted.items()]

@@ -256,6 +256,10 @@ def dem_bihex_block(rec: dict) -> str:
 #: and the linear sample of the 3D calibration page.
 DEM_JUDGE = (("dem_judge_density.json", "density (linear contacts)"),
              ("dem_judge_density_linear.json", "density, on the linear-contact samples"),
+             ("dem_judge_density_axisym_linear.json",
+              "density + lateral strain about the axis, on the linear-contact samples"),
+             ("dem_judge_density_axisym_mix_linear.json",
+              "density + lateral strain about the axis + rebirth at the mean box, on the linear-contact samples"),
              ("dem_judge_hertz.json", "hertz"),
              ("dem_judge_rebirth.json", "rebirth (Hertz–Mindlin + rebirth)"),
              ("dem_judge_mix.json", "mix (Hertz–Mindlin + rebirth at the mean box)"),
@@ -278,7 +282,7 @@ def dem_judge_block() -> str:
         if not path.exists():
             continue
         rec = json.loads(path.read_text())
-        label += _sides(rec["options"].get("radial"))
+        label += _sides(rec.get("calibration", {}).get("model", {}).get("radial"))
         errs = rec["errors"]
         failed = [r["measure"] for r in rec["results"] if "the model's test failed" in r["measure"]]
         fit = [e["rms_dq"] for e in errs.values() if e["how"] == "calibrated on"]
