@@ -87,7 +87,7 @@ def sand_ends(test: Test) -> dict:
     return {"e_end": test.e0 - ev * (1 + test.e0), "p_end_kPa": p / 1e3, "q_p_end": q / p}
 
 
-def predictions(tests, params, variant, e_ref, sphere, step, radial="free") -> list[dict]:
+def predictions(tests, params, variant, e_ref, sphere, step, radial=None) -> list[dict]:
     """Every test at its own p0 and initial state, one batched run; a test whose Newton fails
     keeps its curve up to there (NaN beyond)."""
     sets = [variant.initial_params(params, 3, t.e0, e_ref) for t in tests]
@@ -103,7 +103,7 @@ def predictions(tests, params, variant, e_ref, sphere, step, radial="free") -> l
     return rows
 
 
-def cell_fractions(tests, params, variant, e_ref, sphere, step, radial="free") -> dict:
+def cell_fractions(tests, params, variant, e_ref, sphere, step, radial=None) -> dict:
     """The fractions of sliding and open cells at the end of some tests (one batched run)."""
     chosen = [t for t in tests if t.name in FRACTIONS_OF]
     sets = [variant.initial_params(params, 3, t.e0, e_ref) for t in chosen]
@@ -191,8 +191,9 @@ def main() -> None:
     ap.add_argument("--order", type=int, default=17)
     ap.add_argument("--azimuths", type=int, default=2)
     ap.add_argument("--step", type=float, default=1e-3)
-    ap.add_argument("--radial", default="free", choices=("free", "equal"),
-                    help="how the drained tests hold their sides (run_triaxial's radial)")
+    ap.add_argument("--radial", default=None, choices=("free", "equal"),
+                    help="how the drained tests hold their sides (run_triaxial's radial; default: by "
+                         "the variant's parameters)")
     ap.add_argument("--out", type=Path, default=None, help="default: kfs[_TAG].json")
     ap.add_argument("--replot", action="store_true", help="only draw the figures again from --out (and the peer's JSON)")
     args = ap.parse_args()
@@ -223,16 +224,16 @@ def main() -> None:
                  "warning": cal.posterior.warning}
     params, e_ref = cal.params, cal.e_ref
     t2 = time.perf_counter()
-    rows = predictions(tests, params, variant, e_ref, sphere, args.step, args.radial)
+    rows = predictions(tests, params, variant, e_ref, sphere, args.step, cal.radial)
     wall_pred = time.perf_counter() - t2
     # the same mechanisms with one alpha0 for every density (the published model for density)
     one_alpha0 = replace(variant, name=f"{variant.name}, one alpha0", uses_e0=False)
-    published = predictions(tests, params, one_alpha0, None, sphere, args.step, args.radial)
+    published = predictions(tests, params, one_alpha0, None, sphere, args.step, cal.radial)
     for r in rows:
         r["variant"] = variant.name
     for r, t in zip(rows, tests):
         r.update(sand_ends(t))
-    fractions = cell_fractions(tests, params, variant, e_ref, sphere, args.step, args.radial)
+    fractions = cell_fractions(tests, params, variant, e_ref, sphere, args.step, cal.radial)
     plot(tests, rows, published, peer, *figures)
     load1 = os.getloadavg()[0]
 

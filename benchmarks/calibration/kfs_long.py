@@ -49,7 +49,7 @@ def stored(tag: str) -> tuple[object, Params, float | None, Sphere, float, str]:
     variant = get_variant(model["variant"])  # the name resolved when it ran (`sand` has moved)
     sphere = Sphere(order=rec["options"]["order"], n_azimuth=rec["options"]["azimuths"])
     return (variant, Params(**model["params_rad"]), model["e_ref"], sphere, rec["options"]["step"],
-            model.get("radial", "free"))
+            model.get("radial"))
 
 
 def predict(tests, variant, params, e_ref, sphere, step: float, strain: float, radial: str):

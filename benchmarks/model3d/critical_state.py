@@ -34,6 +34,7 @@ import numpy as np
 from benchmarks.timing import FIGURES, record
 from hmodel import Params
 from hmodel.loading import Recorder, Segment, consolidate, run_segment
+from hmodel.loading.lab_tests import default_radial
 from hmodel.rev import Rev3D, Sphere
 
 
@@ -136,8 +137,9 @@ def main() -> None:
     ap.add_argument("--step", type=float, default=1e-4)
     ap.add_argument("--window", type=float, default=0.03, help="strain window of the end rates")
     ap.add_argument("--sliding-rhs", default="equilibrium")
-    ap.add_argument("--radial", default="free", choices=("free", "equal"),
-                    help="how the drained tests hold their sides (run_triaxial's radial)")
+    ap.add_argument("--radial", default=None, choices=("free", "equal"),
+                    help="how the drained tests hold their sides (run_triaxial's radial; default: by "
+                         "the parameters, default_radial)")
     ap.add_argument("--mechanisms", default="", help="the cell's mechanisms on, NAME=VALUE,... "
                     "(docs/mechanisms.md; e.g. contact=hertz-mindlin,renewal=rebirth); the outputs "
                     "then carry the tag --tag")
@@ -163,9 +165,10 @@ def main() -> None:
     v_ref = Rev3D(Params(alpha0=math.radians(45.0)), sphere).volume0
     steps = int(round(args.strain / args.step))
     table, paths, plabels = [], [], []
+    radial = args.radial or default_radial(sets)
     t = time.perf_counter()
     for test in ("drained", "undrained"):
-        out, _ = run(sets, p0, sphere, test == "undrained", args.strain, steps, args.radial)
+        out, _ = run(sets, p0, sphere, test == "undrained", args.strain, steps, radial)
         for path, lab in zip(out, labels):
             row = {"test": test, **{k: v for k, v in lab.items() if k != "k"},
                    **summary(path, v_ref, args.window)}
@@ -187,7 +190,7 @@ def main() -> None:
                 max(abs(r["deps_v_deps11_end"]) for r in drained), "-> 0 at a critical state"),
                ("wall time of the two batched runs [s]", wall, "-")]
     rec = record(__file__, args, 1, results, table=table, mechanisms=mechanisms,
-                 sphere={"order": sphere.order, "n_azimuth": sphere.n_azimuth}, v_ref=v_ref)
+                 sphere={"order": sphere.order, "n_azimuth": sphere.n_azimuth}, v_ref=v_ref, radial=radial)
     args.out.write_text(json.dumps(rec, indent=2) + "\n")
     for name, value, target in results:
         print(f"{name}: {value:.4g} ({target})")

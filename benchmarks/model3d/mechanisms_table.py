@@ -98,7 +98,7 @@ def row(tag: str, label: str) -> str | None:
     mc = _result(pi, "M_c") if pi else math.nan
     if cs is None:
         return f"| {label} | — | — | — | — | — | — | {mc:.3f} | {ratio:.3f} |"
-    label += _sides(cs["options"].get("radial"))
+    label += _sides(cs.get("radial") or cs["options"].get("radial"))
     table = cs["table"]
     reached = [r for r in table if not r["newton_failed"]]
     qp = [r["q_p_end"] for r in reached]

@@ -39,8 +39,8 @@ StepOpt = Annotated[float, typer.Option(help=strain_help(
     "Axial strain increment (1e-4 here and in the 2D tests; calibrate's model runs at 1e-3)."))]
 IsoStepOpt = Annotated[float, typer.Option(help=strain_help("Strain increment of the consolidation."))]
 RadialOpt = Annotated[Optional[str], typer.Option(
-    "--radial", help="How a drained triaxial test holds its sides: free (sig22 and sig33 each held, "
-                     "the default) or equal (one radial strain, eps22 = eps33, and (sig22 + sig33)/2 "
+    "--radial", help="How a drained triaxial test holds its sides: free (sig22 and sig33 each "
+                     "held) or equal (one radial strain, eps22 = eps33, and (sig22 + sig33)/2 "
                      "held: a cylinder's; where the REV has no stiffness across the axis the free test "
                      "may bifurcate). Default: a --calibration's, else equal where the bi-hexagons "
                      "follow the lateral strain about their axis (lateral=axisymmetric: --model sand, "
