@@ -113,3 +113,20 @@ def test_a_figure_title_names_the_contact_law_it_ran_with():
     assert "kn=" not in hertz and "kt_kn" not in hertz
     assert "shear_modulus=2.9e+10" in hertz and "poisson=0.2" in hertz
     assert "Hertz–Mindlin contacts" in hertz and "cells reborn" in hertz
+
+
+def test_a_3d_figure_title_names_the_sand_variants_mechanisms_and_its_sides():
+    from hmodel.plotting import _subtitle
+
+    sphere = {"order": 23, "n_azimuth": 6, "alpha_omega": 0.0}
+
+    def title(meta=None, **params):
+        return _subtitle(PathResult({"step": np.zeros(1)}, {"params": Params(**params).to_dict(), **(meta or {})}))
+
+    sand = title({"sphere": sphere, "radial": "equal"}, contact="hertz-mindlin", renewal="mix", lateral="axisymmetric")
+    assert "cells reborn at the mean box" in sand and "lateral strain about the cell's axis" in sand
+    assert "one radial strain" in sand
+    published = title({"sphere": sphere})
+    assert "reborn" not in published and "lateral" not in published and "radial" not in published
+    # in 2D the H-cell's one lateral length is either value: nothing to name
+    assert "lateral" not in title(lateral="axisymmetric")

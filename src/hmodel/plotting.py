@@ -35,8 +35,13 @@ def _subtitle(result: PathResult) -> str:
     text = ", ".join(f"{k}={p[k]:g}{units.get(k, '')}" if isinstance(p[k], float) else f"{k}={p[k]}"
                      for k in keys if k in p)
     on = [name for key, value, name in (("contact", "hertz-mindlin", "Hertz–Mindlin contacts"),
-                                        ("renewal", "rebirth", "cells reborn"))
-          if p.get(key) == value]
+                                        ("renewal", "rebirth", "cells reborn"),
+                                        ("renewal", "mix", "cells reborn at the mean box"),
+                                        ("cross_contacts", "frictionless", "contacts between the hexagons"),
+                                        ("lateral", "axisymmetric", "lateral strain about the cell's axis"))
+          if p.get(key) == value and (key != "lateral" or sphere is not None)]
+    if result.meta.get("radial") == "equal":
+        on.append("one radial strain")
     if on:
         text += ", " + ", ".join(on)
     if sphere is not None:
