@@ -47,6 +47,7 @@ from hmodel.cell.bihex import BiHexSolver
 from hmodel.loading import Recorder, Segment, consolidate, run_segment
 from hmodel.loading.compiled import any_trial
 from hmodel.loading.compiled3d import kernel_inputs3d
+from hmodel.loading.stages import ROWS_3D
 from hmodel.rev import Rev3D, Sphere
 
 BASE = Params(sliding_rhs="equilibrium")
@@ -82,7 +83,7 @@ def triaxial(rev: Rev3D, p0, axial: float = 0.1, n_steps: int = 1000, compiled: 
     values = np.zeros((state.n_points, 6))
     matrix, stress = np.eye(6), (False, True, True, False, False, False)
     if radial == "equal":
-        matrix[1, :3], matrix[2, :3] = (0.0, 0.5, 0.5), (0.0, 1.0, -1.0)
+        matrix[1], matrix[2] = ROWS_3D["sig_r"][1], ROWS_3D["eps22-eps33"][1]
         stress = (False, True, False, False, False, False)
         values[:, 0], values[:, 1] = axial, 0.5 * (state.sig[:, 1] + state.sig[:, 2])
     else:

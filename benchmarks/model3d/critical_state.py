@@ -35,6 +35,7 @@ from benchmarks.timing import FIGURES, record
 from hmodel import Params
 from hmodel.loading import Recorder, Segment, consolidate, run_segment
 from hmodel.loading.lab_tests import default_radial
+from hmodel.loading.stages import ROWS_3D
 from hmodel.rev import Rev3D, Sphere
 
 
@@ -50,8 +51,7 @@ def parse_mechanisms(text: str) -> dict:
 def segment(undrained: bool, p0: np.ndarray, strain: float, steps: int, radial: str = "free") -> Segment:
     M = np.eye(6)
     if not undrained and radial == "equal":
-        M[1, :3] = (0.0, 0.5, 0.5)      # sig_r = p0
-        M[2, :3] = (0.0, 1.0, -1.0)     # eps22 - eps33 = 0
+        M[1], M[2] = ROWS_3D["sig_r"][1], ROWS_3D["eps22-eps33"][1]   # = p0, = 0
         stress = (False, True, False, False, False, False)
         values = np.column_stack([np.full(len(p0), strain), p0, np.zeros((len(p0), 4))])
     elif undrained:

@@ -281,14 +281,15 @@ def fit(tests: Sequence[Test], fit: Sequence[str] = ("kn", "kt_kn", "phi_g", "al
         if not (math.isfinite(value) and value > 0):
             raise InputError(f"the model's {name} must be a positive finite strain, got {value}")
     searcher = None
-    if dimension([t.kind for t in tests]) == 3:
+    three_d = dimension([t.kind for t in tests]) == 3
+    if three_d:
         check_3d_params(fit, "--fit")
         base = params_3d(solver) if base is None else base
         sphere = Sphere() if sphere is None else sphere
         searcher = _search_sphere(sphere, search_rule)
     variant = model if isinstance(model, ModelVariant) else get_variant(model)
     _check_contact_params(fit, variant.apply(base or Params()).contact)
-    if radial is None and dimension([t.kind for t in tests]) == 3:
+    if radial is None and three_d:
         radial = default_radial(variant.apply(base))
     model = Model(tests, solver, step, iso_step, sphere, variant, radial=radial)
     needed = variant.default_bounds(base or Params(), model.dim, [t.e0 for t in tests], model.e_ref)

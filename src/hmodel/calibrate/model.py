@@ -11,7 +11,7 @@ import numpy as np
 
 from ..cell import CellSolver
 from ..errors import InputError, SolverError
-from ..loading.lab_tests import RADIAL
+from ..loading.lab_tests import check_radial
 from ..params import Params
 from ..rev import Sphere
 from ..variants import ModelVariant, get_variant
@@ -69,8 +69,8 @@ class Model:
     radial: str | None = None
 
     def __post_init__(self) -> None:
-        if self.radial is not None and self.radial not in RADIAL:
-            raise InputError(f"radial must be one of {', '.join(RADIAL)}, got {self.radial!r}")
+        if self.radial is not None:
+            check_radial(self.radial)
         if self.variant.uses_e0:
             missing = [t.name for t in self.tests if t.e0 is None]
             if missing:

@@ -90,9 +90,6 @@ def calibrate(
         if given:
             raise InputError(f"{', '.join(given)} set the 3D model's directions: the tests are 2D "
                              "biaxial ones (give triaxial-... kinds to calibrate the 3D model)")
-        if radial is not None:
-            raise InputError("--radial says how a drained triaxial test holds its sides: the tests are 2D "
-                             "biaxial ones (one lateral strain)")
         base = Params.parse_assignments(param)
         cells = get_solver(solver)
     else:

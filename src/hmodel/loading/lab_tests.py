@@ -164,6 +164,25 @@ _SHEARS = {"eps23": 0.0, "eps13": 0.0, "eps12": 0.0}
 RADIAL = ("free", "equal")
 
 
+def check_radial(radial: str) -> str:
+    """``radial`` if it is one of :data:`RADIAL`, else a one-line InputError."""
+    if radial not in RADIAL:
+        raise InputError(f"radial must be one of {', '.join(RADIAL)}, got {radial!r}")
+    return radial
+
+
+def triaxial_rows(axial: float, p0, undrained: bool = False, radial: str = "free") -> dict:
+    """The rows of a triaxial test's shear stage along axis 1 (:data:`~hmodel.loading.stages.ROWS_3D`),
+    the shear strains held: ``axial`` of ε11 (negative in extension), then ε_v = ε22 − ε33 = 0
+    (``undrained``), σ22 = σ33 = ``p0`` (drained, ``radial="free"``) or ε22 = ε33 with the radial
+    stress (σ22 + σ33)/2 = ``p0`` (``radial="equal"``)."""
+    if undrained:
+        return {"eps11": axial, "eps_v": 0.0, "eps22-eps33": 0.0, **_SHEARS}
+    if radial == "equal":
+        return {"eps11": axial, "sig_r": p0, "eps22-eps33": 0.0, **_SHEARS}
+    return {"eps11": axial, "sig22": p0, "sig33": p0, **_SHEARS}
+
+
 def default_radial(params: Params | Sequence[Params] | None) -> str:
     """The sides of a drained triaxial test where none are named: ``equal`` (one radial strain)
     where a parameter set makes the bi-hexagons follow the lateral strain about their axis
@@ -189,11 +208,11 @@ def run_triaxial(params: Params | Sequence[Params] | None, p0, axial_strain: flo
     σ22 and σ33 each held at p0, each lateral strain free. ``equal``: one radial strain, a
     cylinder's (ε22 = ε33), and the radial stress (σ22 + σ33)/2 held at p0, as the undrained
     test always has it. None: :func:`default_radial` of the parameters (``equal`` where they
-    set ``lateral="axisymmetric"``, else ``free``). They are one test wherever the material answers an axisymmetric strain
-    with an axisymmetric stress and its lateral tangent is definite; where a REV's cells leave
-    it no stiffness across the axis (force-free lateral cells, docs/mechanisms.md, "One radial
-    strain"), the free test may bifurcate, σ22 = σ33 holding at unequal lateral strains that
-    round-off picks.
+    set ``lateral="axisymmetric"``, else ``free``). They are one test wherever the material
+    answers an axisymmetric strain with an axisymmetric stress and its lateral tangent is
+    definite; where a REV's cells leave it no stiffness across the axis (force-free lateral
+    cells, docs/mechanisms.md, "One radial strain"), the free test may bifurcate, σ22 = σ33
+    holding at unequal lateral strains that round-off picks.
 
     ``params``: one Params for every material point, or one per point, used as given (their
     ``sliding_rhs`` included: ``Params()`` is the report's λ, with which this test stops near
@@ -207,17 +226,11 @@ def run_triaxial(params: Params | Sequence[Params] | None, p0, axial_strain: flo
     :func:`~hmodel.loading.result.columns_for` (q = σ11 - (σ22 + σ33)/2, negative in
     extension; the Lode angle and b)."""
     n = named_paths.strain_steps(axial_strain, step, "axial strain")  # refused before any work
-    radial = default_radial(params) if radial is None else radial
-    if radial not in RADIAL:
-        raise InputError(f"radial must be one of {', '.join(RADIAL)}, got {radial!r}")
+    radial = check_radial(default_radial(params) if radial is None else radial)
     d = -axial_strain if extension else axial_strain
 
     def rows(p0):
-        if undrained:
-            return {"eps11": d, "eps_v": 0.0, "eps22-eps33": 0.0, **_SHEARS}
-        if radial == "equal":
-            return {"eps11": d, "sig_r": p0, "eps22-eps33": 0.0, **_SHEARS}
-        return {"eps11": d, "sig22": p0, "sig33": p0, **_SHEARS}
+        return triaxial_rows(d, p0, undrained, radial)
     test = f"{'undrained' if undrained else 'drained'} triaxial {'extension' if extension else 'compression'}"
     rec = _run_3d(params, p0, test, rows, n, sphere=sphere, solver=solver, iso_step=iso_step,
                      progress=progress, drop_failed=drop_failed, compiled=compiled,
