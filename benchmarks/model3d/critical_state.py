@@ -15,7 +15,13 @@ The **specific volume** of the REV is defined from its macro volume, V = V0(α0)
 (docs/model3d.md, "The REV"), against the initial volume of the α0 = 45° REV of the same
 grains: ν = V / V0(45°). The grains (radius, number of cells) are the same for every α0, so
 ν is the volume per unit solid up to one constant factor, and a critical-state line in
-(ln p, ν) is one in (ln p, e) for any choice of the solid volume (e = c ν - 1).
+(ln p, ν) is one in (ln p, e) for any choice of the solid volume (e = c ν - 1). Two more
+measures of the ends' volume (docs/mechanisms.md, "Three measures of the REV's volume"): the
+cells' own, V0 exp(-ε_v) with ε_v the sum of the volumetric increments (every cell length
+integrates δl = -l δε, so this is the volume those lengths describe, and an undrained test
+keeps it exactly), and the box measure, ν at the start times the REV's mean box l1·l2·l3 at
+the end over that at the start. Each gets the issue's criterion: the largest distance of the
+ends of the tests that reached the end from one least-squares line ν = Γ - λ ln p.
 
 Usage: ``python -m benchmarks.model3d.critical_state [--order 17] [--n-azimuth 2]
 [--strain 0.3] [--step 1e-4] [--out PATH] [--figure PATH]``.
@@ -37,6 +43,7 @@ from hmodel.loading import Recorder, Segment, consolidate, run_segment
 from hmodel.loading.lab_tests import default_radial
 from hmodel.loading.stages import ROWS_3D
 from hmodel.rev import Rev3D, Sphere
+from hmodel.rev.kernels3d import mean_box_volume
 
 
 def parse_mechanisms(text: str) -> dict:
@@ -70,15 +77,18 @@ def run(sets, p0, sphere, undrained, strain, steps, radial="free"):
     state = consolidate(rev, p0)
     rec = Recorder()
     failures: dict = {}
-    run_segment(rev, state, segment(undrained, p0, strain, steps, radial), rec, failures=failures)
+    end = run_segment(rev, state, segment(undrained, p0, strain, steps, radial), rec, failures=failures).state
     res = rec.result()
+    geo = rev.geometry()
     out = []
     for b in range(len(sets)):
         r = res.point(b).columns
         eps = np.column_stack([r[f"eps{c}"] for c in ("11", "22", "33", "23", "13", "12")])
         nu = rev.macro_volume(eps, np.full(len(eps), b))
+        box = mean_box_volume(end.cells.values[b], geo) / mean_box_volume(state.cells.values[b], geo)
         out.append({"eps11": r["eps11"], "p": r["p"], "q": r["q"], "eps_v": r["eps_v"],
-                    "volume": nu, "failed": failures.get(b)})
+                    "volume": nu, "volume0": float(rev.volumes0[b]), "box_ratio": float(box),
+                    "failed": failures.get(b)})
     return out, rev
 
 
@@ -91,9 +101,27 @@ def summary(path: dict, v_ref: float, window: float) -> dict:
     k = int(np.argmax(q / np.where(p > 0, p, np.inf)))
     return {"axial_strain_end": float(e[-1]), "p_end": float(p[-1]), "q_end": float(q[-1]),
             "q_p_end": float(q[-1] / p[-1]), "nu_end": float(nu[-1]), "nu_start": float(nu[0]),
+            "nu_cells_end": float(path["volume0"] * math.exp(-path["eps_v"][-1]) / v_ref),
+            "nu_box_end": float(nu[0] * path["box_ratio"]),
             "peak_q_p": float(q[k] / p[k]), "axial_strain_at_peak_q_p": float(e[k]),
             "deps_v_deps11_end": rate, "dq_p_deps11_end": qp_rate,
             "newton_failed": path["failed"] is not None}
+
+
+#: The ends' volume measures (``summary``'s keys) and their names in the results.
+MEASURES = (("nu_end", "macro volume V0 det(I - eps)"), ("nu_cells_end", "the cells' volume V0 exp(-eps_v)"),
+            ("nu_box_end", "box measure"))
+
+
+def line_offset(rows: list, key: str) -> float:
+    """Largest distance in ν of the ends ``rows[i][key]`` from the least-squares line
+    ν = Γ - λ ln p through them (the issue's criterion: within 0.01 of one line)."""
+    if len(rows) < 3:
+        return math.nan
+    lnp = np.log([r["p_end"] for r in rows])
+    nu = np.array([r[key] for r in rows])
+    coef = np.polyfit(lnp, nu, 1)
+    return float(np.abs(nu - np.polyval(coef, lnp)).max())
 
 
 def figure(paths, labels, out: Path, nu_label: str = "specific volume ν = V/V0(45°)") -> None:
@@ -183,11 +211,14 @@ def main() -> None:
     wall = time.perf_counter() - t
     figure(paths, plabels, args.figure)
     drained = [r for r in table if r["test"] == "drained"]
-    qp = [r["q_p_end"] for r in table if not r["newton_failed"]]
+    reached = [r for r in table if not r["newton_failed"]]
+    qp = [r["q_p_end"] for r in reached]
     results = [("spread of q/p at the end of the tests that reached the end (max - min)",
                 max(qp) - min(qp) if qp else math.nan, "-> 0 at a critical state"),
                ("largest |deps_v/deps11| at the end of the drained tests",
                 max(abs(r["deps_v_deps11_end"]) for r in drained), "-> 0 at a critical state"),
+               *((f"ends off one line in (ln p, nu), {name}", line_offset(reached, key), "<= 0.01")
+                 for key, name in MEASURES),
                ("wall time of the two batched runs [s]", wall, "-")]
     rec = record(__file__, args, 1, results, table=table, mechanisms=mechanisms,
                  sphere={"order": sphere.order, "n_azimuth": sphere.n_azimuth}, v_ref=v_ref, radial=radial)

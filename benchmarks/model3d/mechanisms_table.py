@@ -97,7 +97,7 @@ def row(tag: str, label: str) -> str | None:
     ratio = _result(pi, "strength ratio") if pi else math.nan
     mc = _result(pi, "M_c") if pi else math.nan
     if cs is None:
-        return f"| {label} | — | — | — | — | — | — | {mc:.3f} | {ratio:.3f} |"
+        return f"| {label} | — | — | — | — | — | — | — | {mc:.3f} | {ratio:.3f} |"
     label += _sides(cs.get("radial") or cs["options"].get("radial"))
     table = cs["table"]
     reached = [r for r in table if not r["newton_failed"]]
@@ -110,6 +110,9 @@ def row(tag: str, label: str) -> str | None:
     liq = min((r["p_end"] / r["p0"] for r in loose_u), default=math.nan)
     return (f"| {label} | {len(reached)} of {len(table)} | {min(qp):.3f}–{max(qp):.3f} | {within} of {len(reached)} "
             f"| {max(abs(r['deps_v_deps11_end']) for r in drained):.3f} | {steady} of {len(drained)} "
+            f"| {_result(cs, 'ends off one line in (ln p, nu), macro'):.3f} / "
+            f"{_result(cs, 'ends off one line in (ln p, nu), the cells'):.3f}"
+            f"{'' if len(reached) == len(table) else f' (the {len(reached)} that reached it)'} "
             f"| {liq:.2f} | {mc:.3f} | {ratio:.3f} |")
 
 
@@ -335,6 +338,7 @@ def critical_2d_block(rec: dict) -> str:
 def table_block() -> str:
     head = ("| mechanisms on | tests to 30 % | q/p at the end | within ±3 % of their mean | "
             "largest drained \\|dε_v/dε₁\\| at the end | drained with \\|dε_v/dε₁\\| ≤ 0.05 | "
+            "ends off one line in (ln p, ν), macro volume / the cells' (target 0.01) | "
             "loose undrained p_end/p₀ (lowest) | M_c (π-plane) | M_e/M_c (M_e: largest q_eq/p in extension) |")
     return _table(head, [r for r in (row(tag, label) for tag, label in VARIANTS) if r is not None])
 

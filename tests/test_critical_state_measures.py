@@ -1,0 +1,57 @@
+"""The 3D critical-state benchmark's volume measures and its one-line criterion
+(benchmarks/model3d/critical_state.py; docs/mechanisms.md, "Three measures of the REV's volume")."""
+
+import math
+
+import numpy as np
+import pytest
+
+from benchmarks.model3d.critical_state import line_offset, run, summary
+from hmodel import Params
+from hmodel.rev import Rev3D, Sphere
+
+SPHERE = Sphere(order=11, n_azimuth=2)
+
+
+def test_the_line_offset_is_zero_on_a_line_and_the_hand_value_off_it():
+    on = [{"p_end": math.exp(x), "nu": 2.0 - 0.1 * x} for x in (0.0, 1.0, 2.0, 3.0)]
+    assert line_offset(on, "nu") == pytest.approx(0.0, abs=1e-12)
+    # least squares through (0, 0), (1, 0), (2, 0), (3, 1): nu = 0.3 x - 0.2, residuals
+    # 0.2, -0.1, -0.4, 0.3 (by hand)
+    off = [{"p_end": math.exp(x), "nu": y} for x, y in ((0.0, 0.0), (1.0, 0.0), (2.0, 0.0), (3.0, 1.0))]
+    assert line_offset(off, "nu") == pytest.approx(0.4, abs=1e-12)
+    assert math.isnan(line_offset(off[:2], "nu"))
+
+
+@pytest.fixture(scope="module")
+def ends():
+    sets = [Params(alpha0=math.radians(50.0), sliding_rhs="equilibrium")]
+    v_ref = Rev3D(sets[0], SPHERE).volume0
+    out = {}
+    for test in ("drained", "undrained"):
+        paths, _ = run(sets, np.array([2e5]), SPHERE, test == "undrained", 0.06, 60, "equal")
+        out[test] = (paths[0], summary(paths[0], v_ref, 0.02))
+    return out
+
+
+def test_the_undrained_test_keeps_the_cells_volume_and_not_the_macro_one(ends):
+    path, row = ends["undrained"]
+    eps = path["eps11"][-1] - path["eps11"][0]
+    start = path["volume0"] * math.exp(-path["eps_v"][0]) / (path["volume"][0] / row["nu_start"])
+    assert row["nu_cells_end"] == pytest.approx(start, rel=1e-12)
+    # det(I - eps) of an isochoric (in increments) axisymmetric strain, by hand: eps22 = eps33 =
+    # -eps/2 (up to the consolidation's strain, of order 1e-3 times eps)
+    assert row["nu_end"] / row["nu_start"] == pytest.approx((1 - eps) * (1 + eps / 2) ** 2, rel=5e-4)
+    assert row["nu_end"] < row["nu_start"] * (1 - 1e-3)
+
+
+def test_without_rebirths_the_box_measure_is_the_cells_volume(ends):
+    for test in ("drained", "undrained"):
+        path, row = ends[test]
+        # the cells' lengths integrate (1 - de) per increment: the same volume up to the
+        # increments' second-order terms (a rebirth at the mean box moves it by percent)
+        assert row["nu_box_end"] == pytest.approx(row["nu_cells_end"], rel=1e-3), test
+    path, row = ends["drained"]
+    assert abs(path["eps_v"][-1]) > 1e-3  # a test that did change volume
+    assert row["nu_cells_end"] == pytest.approx(path["volume0"] * math.exp(-path["eps_v"][-1])
+                                                / (path["volume"][0] / row["nu_start"]), rel=1e-12)
