@@ -149,7 +149,9 @@ def _regime(d1, a, n1, t1, dl1, dl2, p):
     return a11, a13, a21, a23, ca, a33, 0.0, sliding, xi
 
 
-@njit(cache=True, error_model="numpy")  # a call, not inlined: compiled once for every loop
+# inlined into each loop over cells, though compiled into each: as a call, its fourteen results
+# went through memory on every Hertz cell's update (engine benchmark)
+@njit(cache=True, inline="always", error_model="numpy")
 def _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p):
     """Eq. 1.7 of Hertz-Mindlin contacts (docs/mechanisms.md) in the regime the increment
     (dl1, dl2) takes, as :func:`_regime` (trial without sliding, Coulomb check, sliding):

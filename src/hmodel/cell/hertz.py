@@ -7,8 +7,9 @@ m = 2(1 - ν)/(2 - ν), taken at the force at the start of an increment as in th
 (δT1 = kt d1 δα). The normal force follows the law exactly: a contact at the overlap its force
 implies, δ = (N/c)^(2/3), ends the increment at N' = c (δ - δd)^(3/2), so that eq. 1.7's third
 row depends on the solution through the secant stiffnesses (N' - N)/(-δd). Rows 1-2 give δd2
-and δα as affine functions of δd1; the third row is solved for δd1 by Newton's method, from the
-solution with the tangent stiffnesses at the start of the increment.
+and δα as affine functions of δd1; the third row is solved for δd1 by Newton's method (with
+higher-order corrections near the solution), from the solution with the tangent stiffnesses at
+the start of the increment corrected by the law's Taylor series there.
 
 The law is extended to negative overlaps as N = c δ |δ|^(1/2), a virtual tension, as the
 linear law's N - kn δd may fall below zero: a contact whose force would be negative opens, as
@@ -32,6 +33,9 @@ NEWTON_PASSES = 60
 NEWTON_RTOL = 1e-12
 #: The residual's round-off: of the forces, relative to those at the start.
 FORCE_EPS = 1e-14
+#: Halley's steps at most of a cube root from y^(1/4) (:func:`overlap_root`): each at least
+#: halves the ratio to the root, which is below 2^60 for y from 1e-200 to 1e200.
+ROOT_PASSES = 100
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -39,17 +43,27 @@ def overlap_root(n, c, gap):
     """δ^(1/2) of a contact whose normal force n ≥ 0 implies the overlap δ = (n/c)^(2/3), the
     cube root of n/c. A contact loaded since it touched has the overlap gap = 2r - d to
     round-off: from its square root, Halley's steps (cubic convergence: one from a relative
-    error of 1e-10, two from 1e-5) reach the cube root at a fraction of the library's cost; a
-    force-free cell's contact, whose gap says nothing of its force, takes the library's."""
+    error of 1e-10, two from 1e-5) reach the cube root at a fraction of the library's cost. A
+    contact whose gap says nothing of its force starts from y^(1/4) instead, and Halley's steps,
+    which at least halve the ratio to the root while far from it, reach it within 2 ulp for y
+    from 1e-200 to 1e200 (not the library's cbrt: a call on this branch, never taken by a
+    loaded contact, slowed every contact's update in the engine benchmark, the compiler being
+    free to evaluate a pure call ahead of its branch)."""
     y = n / c
     if y == 0.0:
         return 0.0
     u = math.sqrt(abs(gap))
     u3 = u * u * u
     miss = abs(u3 - y)
-    if miss > 1e-4 * y:
-        return np.cbrt(y)
-    if miss > 3e-10 * y:
+    if not miss <= 1e-4 * y:
+        u = math.sqrt(math.sqrt(y))
+        u3 = u * u * u
+        for _ in range(ROOT_PASSES):
+            if abs(u3 - y) <= 3e-10 * y:
+                break
+            u = u * (u3 + 2.0 * y) / (2.0 * u3 + y)
+            u3 = u * u * u
+    elif miss > 3e-10 * y:
         u = u * (u3 + 2.0 * y) / (2.0 * u3 + y)
         u3 = u * u * u
     return u * (u3 + 2.0 * y) / (2.0 * u3 + y)
@@ -180,7 +194,23 @@ def solve(c, u1, u2, n1, n2, dl1, dl2, a11, a13, a21, a23, coef, gt, flam):
         k1 = k2 if k2 != 0.0 else 1.0
     if k2 == 0.0:
         k2 = k1
-    x = -(k2 * e0 + gt * da0 + flam) / (-coef * k1 + k2 * w + gt * q)
+    slope = -coef * k1 + k2 * w + gt * q
+    x = -(k2 * e0 + gt * da0 + flam) / slope
+    dd2 = e0 + w * x
+    if abs(x) < 0.5 * u1 * u1 and abs(dd2) < 0.5 * u2 * u2:
+        # both contacts loaded, each moved by less than half its overlap: the law's Taylor
+        # series there, c u³ (1 - s)^(3/2) = c u³ (1 - 3/2 s + 3/8 s² + 1/16 s³ + O(s⁴)) at
+        # s = δd / u², and one Newton step on the row with that cubic: a start off by O(s⁴),
+        # from which one step of the iteration below mostly converges (from the tangent
+        # start, off by O(s²), it took two)
+        iu = 1.0 / (u1 * u2)
+        t1 = x * u2 * iu  # δd1 / u1, δd2 / u2
+        t2 = dd2 * u1 * iu
+        s1 = t1 * u2 * iu
+        s2 = t2 * u1 * iu
+        curv = c * (coef * x * t1 * (0.375 + 0.0625 * s1) - dd2 * t2 * (0.375 + 0.0625 * s2))
+        dcurv = c * (coef * t1 * (0.75 + 0.1875 * s1) - w * t2 * (0.75 + 0.1875 * s2))
+        x -= curv / (slope + dcurv)
     floor = FORCE_EPS * (n1 + n2)
     for _ in range(NEWTON_PASSES):
         r, dr, size, dd2, da, f1, f2, b1, b2 = _row3(x, c, u1, u2, n1, n2, da0, q, e0, w, coef,
@@ -195,22 +225,30 @@ def solve(c, u1, u2, n1, n2, dl1, dl2, a11, a13, a21, a23, coef, gt, flam):
         if b1 == 0.0 or b2 == 0.0:
             x -= step
             continue
-        # Chebyshev's step (cubic convergence) near the solution, with the second derivative
-        # r2 of the normal laws (±3/4 c / b at each overlap, their third r3: 3/8 c / b³); its
-        # error (2 A² - B) step³, A = r2/(2 r'), B = r3/(6 r'), bounded by the terms'
-        # magnitudes, leaves a residual below tol: the new point is the solution
+        # a step of fourth order near the solution: the series reversion of the row's Taylor
+        # series at x, r + r1 t + r2 t²/2 + r3 t³/6 + r4 t⁴/24 = 0 (rk: its k-th derivative,
+        # from the normal laws' at each overlap e = b²: ±3/4 c / b, -3/8 c / b³, ±9/16 c / b⁵),
+        # is t = -h (1 + A h + (2 A² - B) h²), h = r / r1, A = r2 / (2 r1), B = r3 / (6 r1);
+        # its error (5 A³ - 5 A B + C) h⁴, C = r4 / (24 r1), bounded by the terms' magnitudes,
+        # leaves a residual below tol: the new point is the solution
         inv_b = 1.0 / (b1 * b2)
         i1 = b2 * inv_b
         i2 = b1 * inv_b
+        ww = w * w
         hs = 0.375 * c * (coef * math.copysign(i1, u1 * u1 - x)
-                          - w * w * math.copysign(i2, u2 * u2 - dd2)) * inv_dr * step
+                          - ww * math.copysign(i2, u2 * u2 - dd2)) * inv_dr * step
         if abs(hs) > 0.5:
             x -= step
             continue
-        x -= step * (1.0 + hs)
-        a_abs = 0.375 * c * (abs(coef) * i1 + w * w * i2)
-        b_abs = 0.0625 * c * (abs(coef) * i1 * i1 * i1 + abs(w * w * w) * i2 * i2 * i2)
-        if (2.0 * a_abs * a_abs * abs(inv_dr) + b_abs) * abs(step) ** 3 <= tol:
+        j1 = i1 * i1 * i1
+        j2 = i2 * i2 * i2
+        hb = 0.0625 * c * (coef * j1 - ww * w * j2) * inv_dr * step * step
+        x -= step * (1.0 + hs + 2.0 * hs * hs - hb)
+        a_abs = 0.375 * c * (abs(coef) * i1 + ww * i2) * abs(inv_dr)
+        b_abs = 0.0625 * c * (abs(coef) * j1 + abs(ww * w) * j2) * abs(inv_dr)
+        c_abs = 0.0234375 * c * (abs(coef) * j1 * i1 * i1 + ww * ww * j2 * i2 * i2) * abs(inv_dr)
+        h2 = step * step
+        if (5.0 * a_abs * (a_abs * a_abs + b_abs) + c_abs) * h2 * h2 * abs(dr) <= tol:
             da = da0 + q * x
             dd2 = e0 + w * x
             f1, b1 = law(c, u1 * u1 - x)
