@@ -4,8 +4,7 @@ Numba's on-disk cache (``@njit(cache=True)``) recognises a kernel by its own fil
 modification time and size. A kernel that inlines functions of *another* module (the closed
 form inlines :mod:`hmodel.cell.hertz` and :mod:`hmodel.cell.renewal`, the REV trials inline
 the cells) is therefore not recompiled when only that other module changes: it keeps running
-the old code, silently. This was found on 2026-12-07, when a checkout's cache reproduced a
-benchmark with kernels of older sources (docs/development.md, "The Numba cache").
+the old code, silently (docs/development.md, "The Numba cache").
 
 So the cache lives in a directory named by a digest of every source file of the package:
 ``$HMODEL_CACHE_DIR/numba-<digest>`` (default ``~/.cache/hmodel``, or ``$XDG_CACHE_HOME/hmodel``).

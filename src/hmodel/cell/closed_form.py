@@ -149,9 +149,9 @@ def _regime(d1, a, n1, t1, dl1, dl2, p):
     return a11, a13, a21, a23, ca, a33, 0.0, sliding, xi
 
 
-# a call, not inlined: inlined into each loop over cells it is compiled into each, which
-# tripled the kernels' compile time (a fresh test suite 8 -> 12 min) for a Hertz cell about 8 %
-# cheaper (docs/notes/2026-12-07-hertz-solve-speed.md)
+# a call, not inlined: inlined, it is compiled once more into every loop over cells, which
+# multiplies the kernels' compile time for a Hertz cell barely cheaper
+# (docs/notes/2026-12-07-hertz-solve-speed.md)
 @njit(cache=True, error_model="numpy")
 def _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p):
     """Eq. 1.7 of Hertz-Mindlin contacts (docs/mechanisms.md) in the regime the increment
