@@ -32,3 +32,26 @@ def test_fabric_ends_average_the_last_five_percent(tmp_path):
     path.write_text("eps_a,coordination,sliding\n" + "".join(f"{e},{a},{b}\n" for e, a, b in zip(eps, z, sliding)))
     z0, z_end, s_end = _fabric_ends(path)
     assert (z0, z_end) == (6.0, 3.5) and abs(s_end - 0.2) < 1e-12
+
+
+def test_the_sand_states_are_the_specimens_the_calibration_mapped():
+    """``critical_state --kfs``: the dense and loose states are the sand's densest and loosest
+    specimens at the α0 the KFS run itself gave them (its per-test record), not a re-derivation
+    that could drift from it."""
+    import json
+    import math
+
+    from benchmarks.model3d.critical_state import kfs_states
+    from benchmarks.model3d.pi_plane import specimen_e0
+
+    rec = json.loads((ROOT / "benchmarks" / "calibration" / "kfs_axisym_mix.json").read_text())
+    by_e0 = sorted(rec["tests"], key=lambda t: t["e0"])
+    states, _, cal = kfs_states("axisym_mix")
+    (dense_name, dense), (loose_name, loose) = states
+    assert (dense_name, loose_name) == ("dense", "loose")
+    assert cal["specimens"]["dense"][0] == by_e0[0]["test"] and cal["specimens"]["loose"][0] == by_e0[-1]["test"]
+    assert math.isclose(math.degrees(dense.alpha0), by_e0[0]["alpha0"], rel_tol=1e-9)
+    assert math.isclose(math.degrees(loose.alpha0), by_e0[-1]["alpha0"], rel_tol=1e-9)
+    assert dense.lateral == "axisymmetric" and dense.renewal == "mix" and dense.contact == "hertz-mindlin"
+    assert specimen_e0("densest") == by_e0[0]["e0"] and specimen_e0("loosest") == by_e0[-1]["e0"]
+    assert specimen_e0("0.75") == 0.75

@@ -23,8 +23,15 @@ keeps it exactly), and the box measure, ν at the start times the REV's mean box
 the end over that at the start. Each gets the issue's criterion: the largest distance of the
 ends of the tests that reached the end from one least-squares line ν = Γ - λ ln p.
 
+With ``--kfs TAG`` the tests run at a Karlsruhe fine sand calibration instead of the fixed
+parameters: the record ``benchmarks/calibration/kfs_TAG.json`` gives the variant, its calibrated
+parameters, its sphere and how its tests held their sides, and the dense and loose states are
+the sand's densest and loosest specimens (the smallest and largest e0 of the 25 tests), each at
+the α0 the variant maps its e0 on (``Variant.initial_params``): the critical state of the model
+as it was fitted to the sand, at the sand's own range of densities.
+
 Usage: ``python -m benchmarks.model3d.critical_state [--order 17] [--n-azimuth 2]
-[--strain 0.3] [--step 1e-4] [--out PATH] [--figure PATH]``.
+[--strain 0.3] [--step 1e-4] [--kfs TAG] [--out PATH] [--figure PATH]``.
 """
 
 from __future__ import annotations
@@ -70,6 +77,23 @@ def segment(undrained: bool, p0: np.ndarray, strain: float, steps: int, radial: 
         stress = (False, True, True, False, False, False)
         values = np.column_stack([np.full(len(p0), strain), p0, p0, np.zeros((len(p0), 3))])
     return Segment(stress, M, values, steps, "shear")
+
+
+def kfs_states(tag: str) -> tuple[list, Sphere, dict]:
+    """The dense and loose states of a Karlsruhe fine sand calibration (``--kfs``): the
+    parameter sets of the sand's densest and loosest specimens as the record's variant maps
+    their e0, the record's sphere, and what the JSON says of where they came from."""
+    from benchmarks.calibration.kfs import load_tests
+    from benchmarks.calibration.kfs_long import stored
+
+    variant, params, e_ref, sphere, _, radial = stored(tag)
+    e0s = {t.name: t.e0 for t in load_tests(1)[0]}
+    dense, loose = min(e0s, key=e0s.get), max(e0s, key=e0s.get)
+    states = [(state, variant.initial_params(params, 3, e0s[name], e_ref))
+              for state, name in (("dense", dense), ("loose", loose))]
+    return states, sphere, {"record": f"kfs_{tag}.json" if tag else "kfs.json", "variant": variant.name,
+                            "e_ref": e_ref, "radial": radial,
+                            "specimens": {"dense": [dense, e0s[dense]], "loose": [loose, e0s[loose]]}}
 
 
 def run(sets, p0, sphere, undrained, strain, steps, radial="free"):
@@ -171,6 +195,10 @@ def main() -> None:
     ap.add_argument("--mechanisms", default="", help="the cell's mechanisms on, NAME=VALUE,... "
                     "(docs/mechanisms.md; e.g. contact=hertz-mindlin,renewal=rebirth); the outputs "
                     "then carry the tag --tag")
+    ap.add_argument("--kfs", default=None, metavar="TAG",
+                    help="run at the calibration of benchmarks/calibration/kfs_TAG.json ('' for kfs.json), "
+                         "dense and loose at the sand's densest and loosest e0 (replaces --mechanisms, "
+                         "--dense, --loose and --sliding-rhs)")
     ap.add_argument("--tag", default="", help="suffix of the default JSON and figure names")
     ap.add_argument("--out", type=Path, default=None, help="default: critical_state[_TAG].json")
     ap.add_argument("--figure", type=Path, default=None, help="default: docs/figures/critical_state_3d[_TAG].png")
@@ -180,20 +208,28 @@ def main() -> None:
     args.figure = args.figure or FIGURES / f"critical_state_3d{suffix}.png"
     mechanisms = parse_mechanisms(args.mechanisms)
     d = Sphere()
-    sphere = Sphere(order=args.order or d.order, n_azimuth=args.n_azimuth or d.n_azimuth)
     pressures = [float(x) for x in args.pressures.split(",")]
-    states = (("dense", args.dense), ("loose", args.loose))
+    calibration = None
+    if args.kfs is not None:
+        states, sphere, calibration = kfs_states(args.kfs)
+        if args.order or args.n_azimuth:
+            sphere = Sphere(order=args.order or sphere.order, n_azimuth=args.n_azimuth or sphere.n_azimuth)
+        mechanisms = {k: v for k, v in states[0][1].to_dict().items() if v != Params().to_dict()[k]}
+    else:
+        sphere = Sphere(order=args.order or d.order, n_azimuth=args.n_azimuth or d.n_azimuth)
+        states = [(state, Params.from_strings(mechanisms, Params(alpha0=math.radians(a0), sliding_rhs=args.sliding_rhs)))
+                  for state, a0 in (("dense", args.dense), ("loose", args.loose))]
     sets, p0, labels = [], [], []
-    for state, a0 in states:
+    for state, params in states:
         for k, p in enumerate(pressures):
-            sets.append(Params.from_strings(mechanisms, Params(alpha0=math.radians(a0), sliding_rhs=args.sliding_rhs)))
+            sets.append(params)
             p0.append(p)
-            labels.append({"state": state, "alpha0": a0, "p0": p, "k": k})
+            labels.append({"state": state, "alpha0": math.degrees(params.alpha0), "p0": p, "k": k})
     p0 = np.array(p0)
     v_ref = Rev3D(Params(alpha0=math.radians(45.0)), sphere).volume0
     steps = int(round(args.strain / args.step))
     table, paths, plabels = [], [], []
-    radial = args.radial or default_radial(sets)
+    radial = args.radial or (calibration or {}).get("radial") or default_radial(sets)
     t = time.perf_counter()
     for test in ("drained", "undrained"):
         out, _ = run(sets, p0, sphere, test == "undrained", args.strain, steps, radial)
@@ -221,7 +257,8 @@ def main() -> None:
                  for key, name in MEASURES),
                ("wall time of the two batched runs [s]", wall, "-")]
     rec = record(__file__, args, 1, results, table=table, mechanisms=mechanisms,
-                 sphere={"order": sphere.order, "n_azimuth": sphere.n_azimuth}, v_ref=v_ref, radial=radial)
+                 sphere={"order": sphere.order, "n_azimuth": sphere.n_azimuth}, v_ref=v_ref, radial=radial,
+                 **({"calibration": calibration} if calibration else {}))
     args.out.write_text(json.dumps(rec, indent=2) + "\n")
     for name, value, target in results:
         print(f"{name}: {value:.4g} ({target})")

@@ -2,7 +2,11 @@
 
 - ``mechanisms-table``: the critical-state and π-plane figures of the 3D H-model with each cell
   mechanism on and off (``benchmarks.model3d.critical_state`` and ``benchmarks.model3d.pi_plane``
-  run with ``--mechanisms ... --tag TAG``; no tag: the published model);
+  run with ``--mechanisms ... --tag TAG``; no tag: the published model; tag ``sand_kfs``: with
+  ``--kfs axisym_mix``, the sand variant at its Karlsruhe fine sand calibration);
+- ``mechanisms-pi-kfs``: the π-plane of the sand variant at its KFS calibration for the sand's
+  densest specimen, its reference void ratio and its loosest specimen (``benchmarks.model3d.pi_plane
+  --kfs axisym_mix [--e0 densest|loosest] --tag sand_kfs[_densest|_loosest]``);
 - ``mechanisms-kfs``: Karlsruhe fine sand, each variant calibrated on TMD12/TMD14 and predicting
   the 25 tests (``benchmarks.calibration.kfs --model NAME --tag TAG``), and the peer
   (``benchmarks.calibration.kfs_peer``);
@@ -46,6 +50,7 @@ VARIANTS = (("", "published (none)"), ("hertz", "Hertz–Mindlin contacts"), ("r
             ("axisym", "lateral strain about the axis (lateral=axisymmetric)"),
             ("axisym_mix", "lateral=axisymmetric + rebirth at the mean box"),
             ("hertz_axisym_mix", "Hertz–Mindlin + lateral=axisymmetric + rebirth at the mean box (sand)"),
+            ("sand_kfs", "the sand variant at its Karlsruhe fine sand calibration"),
             ("kt0889", "control: linear, kt/kn = 0.889 (Mindlin's ratio at ν = 0.2)"))
 #: The issue's measure of a critical state: q/p within ±3 % of one M, |dε_v/dε₁| ≤ 0.05.
 QP_BAND, RATE_MAX = 0.03, 0.05
@@ -90,6 +95,18 @@ def _sides(radial: str | None) -> str:
     return ", one radial strain" if radial == "equal" else ""
 
 
+def _at_sand(cs: dict) -> str:
+    """What a row run at a KFS calibration (``critical_state --kfs``) adds to its label: the
+    specimens whose e0 set its dense and loose α0."""
+    cal = cs.get("calibration")
+    if not cal:
+        return ""
+    alpha = {r["state"]: r["alpha0"] for r in cs["table"]}
+    return (", dense and loose at the sand's densest and loosest specimens ("
+            + ", ".join(f"{cal['specimens'][s][0]}: e0 {cal['specimens'][s][1]:.3f}, α0 {alpha[s]:.1f}°"
+                        for s in ("dense", "loose")) + ")")
+
+
 def row(tag: str, label: str) -> str | None:
     cs, pi = _load("critical_state", tag), _load("pi_plane", tag)
     if cs is None and pi is None:
@@ -98,7 +115,7 @@ def row(tag: str, label: str) -> str | None:
     mc = _result(pi, "M_c") if pi else math.nan
     if cs is None:
         return f"| {label} | — | — | — | — | — | — | — | {mc:.3f} | {ratio:.3f} |"
-    label += _sides(cs.get("radial") or cs["options"].get("radial"))
+    label += _sides(cs.get("radial") or cs["options"].get("radial")) + _at_sand(cs)
     table = cs["table"]
     reached = [r for r in table if not r["newton_failed"]]
     qp = [r["q_p_end"] for r in reached]
@@ -343,7 +360,32 @@ def table_block() -> str:
     return _table(head, [r for r in (row(tag, label) for tag, label in VARIANTS) if r is not None])
 
 
-BLOCKS = {"mechanisms-table": table_block, "mechanisms-kfs": kfs_block, "mechanisms-kfs-long": kfs_long_block, "mechanisms-dem": dem_block,
+#: The π-plane of the sand variant at its KFS calibration, one record per density (tag, which).
+PI_KFS = (("sand_kfs_densest", "the densest specimen"), ("sand_kfs", "the calibration's reference"),
+          ("sand_kfs_loosest", "the loosest specimen"))
+
+
+def pi_kfs_block() -> str:
+    """M_e/M_c of the sand variant over the sand's densities, beside Mohr–Coulomb's ratio at the
+    same compression friction angle (φ_e = φ_c) and the issue's band for sands."""
+    head = ("| e0 (α0) | M_c | φ_c [°] | φ_e [°] | M_e/M_c (a sand: 0.65–0.80) | Mohr–Coulomb at φ_c (φ_e = φ_c) "
+            "| every Lode angle past its peak |")
+    rows = []
+    for tag, which in PI_KFS:
+        pi = _load("pi_plane", tag)
+        if pi is None:
+            continue
+        cal = pi["calibration"]
+        peaked = all(r["ended"] != "max strain" for r in pi["table"])
+        rows.append(f"| {cal['e0']:.3f} ({cal['alpha0']:.1f}°), {which} | {_result(pi, 'M_c'):.3f} "
+                    f"| {_result(pi, 'phi_c'):.1f} | {_result(pi, 'phi_e'):.1f} "
+                    f"| {_result(pi, 'strength ratio'):.3f} | {_result(pi, 'Mohr-Coulomb ratio'):.3f} "
+                    f"| {'yes' if peaked else 'no'} |")
+    return _table(head, rows)
+
+
+BLOCKS = {"mechanisms-table": table_block, "mechanisms-pi-kfs": pi_kfs_block, "mechanisms-kfs": kfs_block,
+          "mechanisms-kfs-long": kfs_long_block, "mechanisms-dem": dem_block,
           "mechanisms-dem-judge": dem_judge_block, "mechanisms-dem-fabric": dem_fabric_block,
           "mechanisms-dem-bihex": dem_bihex_block,
           "mechanisms-critical-2d": critical_2d_block}

@@ -9,8 +9,13 @@ biaxial test (:func:`hmodel.loading.run_biaxial`) at the same p0 with the same `
 mobilized friction angle sin φ = (σ1 - σ3)/(σ1 + σ3) = q/(2p) (2D p and q). A 2D plane-strain
 test has no σ2 to place it in the π-plane, so it is compared by its friction angle.
 
+With ``--kfs TAG [--e0 E]`` the surface is that of a Karlsruhe fine sand calibration
+(``benchmarks/calibration/kfs_TAG.json``: its variant, calibrated parameters and sphere) for a
+specimen at void ratio E (default: the calibration's reference void ratio), at the α0 the
+variant maps E on.
+
 Usage: ``python -m benchmarks.model3d.pi_plane [--p 200e3] [--lode 0,7.5,...,60]
-[--order N] [--n-azimuth M] [--max-strain 0.3] [--out PATH] [--figure PATH]``.
+[--order N] [--n-azimuth M] [--max-strain 0.3] [--kfs TAG [--e0 E]] [--out PATH] [--figure PATH]``.
 """
 
 from __future__ import annotations
@@ -85,6 +90,16 @@ def figure(fs, phi2d: float, out: Path) -> None:
     plt.close(fig)
 
 
+def specimen_e0(text: str) -> float:
+    """``--e0``: a void ratio, or the densest / loosest of Karlsruhe fine sand's 25 tests."""
+    if text in ("densest", "loosest"):
+        from benchmarks.calibration.kfs import load_tests
+
+        e0s = [t.e0 for t in load_tests(1)[0]]
+        return min(e0s) if text == "densest" else max(e0s)
+    return float(text)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--p", type=float, default=200e3)
@@ -95,6 +110,11 @@ def main() -> None:
     ap.add_argument("--sliding-rhs", default="equilibrium")
     ap.add_argument("--mechanisms", default="", help="the cell's mechanisms on, NAME=VALUE,... "
                     "(docs/mechanisms.md); the outputs then carry the tag --tag")
+    ap.add_argument("--kfs", default=None, metavar="TAG",
+                    help="at the calibration of benchmarks/calibration/kfs_TAG.json (replaces --mechanisms "
+                         "and --sliding-rhs)")
+    ap.add_argument("--e0", default=None, help="with --kfs: the specimen's void ratio, or densest / loosest "
+                    "(the sand's smallest / largest e0 of its 25 tests; default: the calibration's reference)")
     ap.add_argument("--tag", default="", help="suffix of the default JSON and figure names")
     ap.add_argument("--out", type=Path, default=None, help="default: pi_plane[_TAG].json")
     ap.add_argument("--figure", type=Path, default=None, help="default: docs/figures/pi_plane[_TAG].png")
@@ -106,6 +126,17 @@ def main() -> None:
     args.figure = args.figure or FIGURES / f"pi_plane{suffix}.png"
     mechanisms = parse_mechanisms(args.mechanisms)
     params = Params.from_strings(mechanisms, Params(sliding_rhs=args.sliding_rhs))
+    calibration = {}
+    if args.kfs is not None:
+        from benchmarks.calibration.kfs_long import stored
+
+        variant, fitted, e_ref, kfs_sphere, _, _ = stored(args.kfs)
+        e0 = e_ref if args.e0 is None else specimen_e0(args.e0)
+        params = variant.initial_params(fitted, 3, e0, e_ref)
+        sphere = Sphere(order=args.order or kfs_sphere.order, n_azimuth=args.n_azimuth or kfs_sphere.n_azimuth)
+        calibration = {"calibration": {"record": f"kfs_{args.kfs}.json" if args.kfs else "kfs.json",
+                                       "variant": variant.name, "e_ref": e_ref, "e0": e0,
+                                       "alpha0": math.degrees(params.alpha0), "params": params.to_dict()}}
     t0 = time.perf_counter()
     fs = failure_surface(params, args.p, [float(x) for x in args.lode.split(",")], sphere=sphere,
                          max_strain=args.max_strain)
@@ -135,7 +166,7 @@ def main() -> None:
     rec = record(__file__, args, 1, results, table=fs.table(),
                  sphere={"order": sphere.order, "n_azimuth": sphere.n_azimuth},
                  biaxial_2d={"peak_q_p": float(bi["q_p"][k]), "axial_strain_at_peak": float(bi["eps11"][k]),
-                             "phi": phi2d})
+                             "phi": phi2d}, **calibration)
     args.out.write_text(json.dumps(rec, indent=2) + "\n")
     figure(fs, phi2d, args.figure)
     print(f"written {args.out}, {args.figure}")
