@@ -30,7 +30,7 @@ def ends():
     out = {}
     for test in ("drained", "undrained"):
         paths, _ = run(sets, np.array([2e5]), SPHERE, test == "undrained", 0.06, 60, "equal")
-        out[test] = (paths[0], summary(paths[0], v_ref, 0.02))
+        out[test] = (paths[0], summary(paths[0], v_ref, 0.02, 2e5))
     return out
 
 
@@ -55,3 +55,39 @@ def test_without_rebirths_the_box_measure_is_the_cells_volume(ends):
     assert abs(path["eps_v"][-1]) > 1e-3  # a test that did change volume
     assert row["nu_cells_end"] == pytest.approx(path["volume0"] * math.exp(-path["eps_v"][-1])
                                                 / (path["volume"][0] / row["nu_start"]), rel=1e-12)
+
+
+def _path(p):
+    """A synthetic undrained path of mean stresses ``p`` (kPa-free units) for ``summary``."""
+    n = len(p)
+    e = np.linspace(0.0, 0.01 * (n - 1), n)
+    return {"eps11": e, "p": np.asarray(p, float), "q": 0.5 * np.asarray(p, float), "eps_v": np.zeros(n),
+            "volume": np.ones(n), "volume0": 1.0, "box_ratio": 1.0, "failed": None}
+
+
+def test_the_phase_transformation_needs_a_fall_and_a_rise():
+    from benchmarks.model3d.mechanisms_table import phase_transformation
+
+    turn = summary(_path([100, 80, 60, 70]), 1.0, 0.02, 100.0)   # to 0.6 p0, then up by 1/6
+    assert turn["p_min_over_p0"] == pytest.approx(0.6) and turn["axial_strain_at_p_min"] == pytest.approx(0.02)
+    assert turn["p_rises_after_min"] and phase_transformation(turn)
+    flow = summary(_path([100, 80, 60, 62]), 1.0, 0.02, 100.0)   # up by 3 % only: liquefying, no turn
+    assert not flow["p_rises_after_min"] and not phase_transformation(flow)
+    shallow = summary(_path([100, 96, 95, 100]), 1.0, 0.02, 100.0)  # rises, but fell by 5 % only
+    assert shallow["p_rises_after_min"] and not phase_transformation(shallow)
+
+
+def test_the_2d_benchmark_paths_carry_what_the_summary_reads():
+    """benchmarks.mechanisms.critical_state_2d shares ``summary`` with the 3D benchmark: its
+    paths must give every measure (a change of the summary once broke it unnoticed). Without
+    rebirths the cells' volume and the box measure agree (every length integrates δl = −l δε)."""
+    from benchmarks.mechanisms.critical_state_2d import BASE
+    from benchmarks.mechanisms.critical_state_2d import run as run_2d
+
+    sets = [Params(**BASE, n_theta=24, alpha0=math.radians(45.0))]
+    path = run_2d(sets, np.array([1e5]), False, 0.02, 20)[0]
+    row = summary(path, path["volume"][0], 0.01, 1e5)
+    assert all(math.isfinite(row[k]) for k in ("nu_end", "nu_cells_end", "nu_box_end", "p_min_over_p0"))
+    # the box over the shear against the volumetric strain after its first increment (1e-3 axial)
+    assert path["box_ratio"] == pytest.approx(math.exp(-(path["eps_v"][-1] - path["eps_v"][0])), rel=2e-3)
+    assert path["box_ratio"] != pytest.approx(1.0, abs=1e-3)  # the test moves the volume at all

@@ -71,14 +71,15 @@ def run(sets, p0, undrained, strain, steps):
     watch = lambda st, k: boxes.append(box_area(rev, st.cells.values)) or 1  # noqa: E731
     run_segment(rev, state, segment(undrained, p0, strain, steps), rec, failures=failures, chunk=watch)
     res = rec.result()
-    boxes = np.array(boxes[1:])  # (steps, B): after each increment
+    start, boxes = boxes[0], np.array(boxes[1:])  # before the first increment; (steps, B) after each
     out = []
     for b in range(len(sets)):
         r = res.point(b).columns
         eps = np.column_stack([r["eps11"], r["eps22"], r["eps12"]])
+        box = boxes[:len(eps), b]
         out.append({"eps11": r["eps11"], "p": r["p"], "q": r["q"], "eps_v": r["eps_v"],
-                    "volume": rev.macro_volume(eps, np.full(len(eps), b)),
-                    "box": boxes[:len(eps), b], "failed": failures.get(b)})
+                    "volume": rev.macro_volume(eps, np.full(len(eps), b)), "volume0": float(rev.volumes0[b]),
+                    "box": box, "box_ratio": float(box[-1] / start[b]), "failed": failures.get(b)})
     return out
 
 
@@ -137,16 +138,13 @@ def main() -> None:
                         p0.append(p)
                         labs.append({"state": state, "alpha0": a0, "p0": p, "k": k})
                 for path, lab in zip(run(sets, np.array(p0), test == "undrained", strain, steps), labs):
-                    s = summary(path, v_ref, args.window)
+                    s = summary(path, v_ref, args.window, lab["p0"])
                     e, p, q = path["eps11"], path["p"], path["q"]
                     win = e >= e[-1] - args.window
-                    kmin = int(np.argmin(p))
                     row = {"strain": strain, "renewal": renewal, "test": test,
                            **{k: v for k, v in lab.items() if k != "k"}, **s,
                            "q_p_window": float(np.mean(q[win] / p[win])),
-                           "nu_box_end": float(path["box"][-1] / box_ref),
-                           "p_min_over_p0": float(p[kmin] / lab["p0"]),
-                           "p_rises_after_min": bool(p[-1] > 1.05 * p[kmin])}
+                           "nu_box_end": float(path["box"][-1] / box_ref)}
                     rows.append(row)
                     paths.append({**path, "volume": path["box"]})  # the figure: the box measure
                     labels.append({**lab, "test": test, "v_ref": box_ref})

@@ -116,14 +116,19 @@ def run(sets, p0, sphere, undrained, strain, steps, radial="free"):
     return out, rev
 
 
-def summary(path: dict, v_ref: float, window: float) -> dict:
+def summary(path: dict, v_ref: float, window: float, p0: float) -> dict:
     e, p, q = path["eps11"], path["p"], path["q"]
     nu = path["volume"] / v_ref
     end = e >= e[-1] - window
     rate = float(np.polyfit(e[end], path["eps_v"][end], 1)[0]) if end.sum() > 2 else math.nan
     qp_rate = float(np.polyfit(e[end], q[end] / p[end], 1)[0]) if end.sum() > 2 else math.nan
     k = int(np.argmax(q / np.where(p > 0, p, np.inf)))
-    return {"axial_strain_end": float(e[-1]), "p_end": float(p[-1]), "q_end": float(q[-1]),
+    kmin = int(np.argmin(p))
+    return {"p_min_over_p0": float(p[kmin] / p0), "axial_strain_at_p_min": float(e[kmin]),
+            # a phase transformation: p turns and rises again after its lowest value (the 2D
+            # benchmark's criterion, benchmarks.mechanisms.critical_state_2d)
+            "p_rises_after_min": bool(p[-1] > 1.05 * p[kmin]),
+            "axial_strain_end": float(e[-1]), "p_end": float(p[-1]), "q_end": float(q[-1]),
             "q_p_end": float(q[-1] / p[-1]), "nu_end": float(nu[-1]), "nu_start": float(nu[0]),
             "nu_cells_end": float(path["volume0"] * math.exp(-path["eps_v"][-1]) / v_ref),
             "nu_box_end": float(nu[0] * path["box_ratio"]),
@@ -235,7 +240,7 @@ def main() -> None:
         out, _ = run(sets, p0, sphere, test == "undrained", args.strain, steps, radial)
         for path, lab in zip(out, labels):
             row = {"test": test, **{k: v for k, v in lab.items() if k != "k"},
-                   **summary(path, v_ref, args.window)}
+                   **summary(path, v_ref, args.window, lab["p0"])}
             table.append(row)
             paths.append(path)
             plabels.append({**lab, "test": test, "v_ref": v_ref})

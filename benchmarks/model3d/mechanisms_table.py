@@ -54,6 +54,8 @@ VARIANTS = (("", "published (none)"), ("hertz", "Hertz–Mindlin contacts"), ("r
             ("kt0889", "control: linear, kt/kn = 0.889 (Mindlin's ratio at ν = 0.2)"))
 #: The issue's measure of a critical state: q/p within ±3 % of one M, |dε_v/dε₁| ≤ 0.05.
 QP_BAND, RATE_MAX = 0.03, 0.05
+#: A phase transformation's fall of p first: to 90 % of p₀ or below (:func:`phase_transformation`).
+PT_FALL = 0.9
 
 
 def _table(head: str, rows) -> str:
@@ -95,6 +97,14 @@ def _sides(radial: str | None) -> str:
     return ", one radial strain" if radial == "equal" else ""
 
 
+def phase_transformation(r: dict) -> bool:
+    """Whether an undrained test's p fell by at least 10 % of p₀ and then rose again by at
+    least 5 % of its lowest value (``critical_state``'s ``p_rises_after_min``, the 2D
+    benchmark's criterion): the turn of a loose sand's undrained path; a test that stops
+    where Newton fails a few percent of p₀ below its start is not counted."""
+    return r["p_min_over_p0"] <= PT_FALL and r["p_rises_after_min"]
+
+
 def _at_sand(cs: dict) -> str:
     """What a row run at a KFS calibration (``critical_state --kfs``) adds to its label: the
     specimens whose e0 set its dense and loose α0."""
@@ -124,13 +134,14 @@ def row(tag: str, label: str) -> str | None:
     drained = [r for r in table if r["test"] == "drained"]
     steady = sum(abs(r["deps_v_deps11_end"]) <= RATE_MAX for r in drained if not r["newton_failed"])
     loose_u = [r for r in table if r["test"] == "undrained" and r["state"] == "loose"]
-    liq = min((r["p_end"] / r["p0"] for r in loose_u), default=math.nan)
+    low = min((r["p_min_over_p0"] for r in loose_u), default=math.nan)
+    turned = sum(phase_transformation(r) for r in loose_u)
     return (f"| {label} | {len(reached)} of {len(table)} | {min(qp):.3f}–{max(qp):.3f} | {within} of {len(reached)} "
             f"| {max(abs(r['deps_v_deps11_end']) for r in drained):.3f} | {steady} of {len(drained)} "
             f"| {_result(cs, 'ends off one line in (ln p, nu), macro'):.3f} / "
             f"{_result(cs, 'ends off one line in (ln p, nu), the cells'):.3f}"
             f"{'' if len(reached) == len(table) else f' (the {len(reached)} that reached it)'} "
-            f"| {liq:.2f} | {mc:.3f} | {ratio:.3f} |")
+            f"| {low:.2f}; {turned} of {len(loose_u)} | {mc:.3f} | {ratio:.3f} |")
 
 
 def _median(values) -> float:
@@ -356,7 +367,8 @@ def table_block() -> str:
     head = ("| mechanisms on | tests to 30 % | q/p at the end | within ±3 % of their mean | "
             "largest drained \\|dε_v/dε₁\\| at the end | drained with \\|dε_v/dε₁\\| ≤ 0.05 | "
             "ends off one line in (ln p, ν), macro volume / the cells' (target 0.01) | "
-            "loose undrained p_end/p₀ (lowest) | M_c (π-plane) | M_e/M_c (M_e: largest q_eq/p in extension) |")
+            "loose undrained: lowest p/p₀ along the test; phase transformations (p falls by 10 % or more, "
+            "then rises by 5 % or more) | M_c (π-plane) | M_e/M_c (M_e: largest q_eq/p in extension) |")
     return _table(head, [r for r in (row(tag, label) for tag, label in VARIANTS) if r is not None])
 
 
