@@ -79,7 +79,8 @@ def run(sets, p0, undrained, strain, steps):
         box = boxes[:len(eps), b]
         out.append({"eps11": r["eps11"], "p": r["p"], "q": r["q"], "eps_v": r["eps_v"],
                     "volume": rev.macro_volume(eps, np.full(len(eps), b)), "volume0": float(rev.volumes0[b]),
-                    "box": box, "box_ratio": float(box[-1] / start[b]), "failed": failures.get(b)})
+                    "box": box, "box_end": float(box[-1]), "box_ratio": float(box[-1] / start[b]),
+                    "failed": failures.get(b)})
     return out
 
 
@@ -138,13 +139,12 @@ def main() -> None:
                         p0.append(p)
                         labs.append({"state": state, "alpha0": a0, "p0": p, "k": k})
                 for path, lab in zip(run(sets, np.array(p0), test == "undrained", strain, steps), labs):
-                    s = summary(path, v_ref, args.window, lab["p0"])
+                    s = summary(path, v_ref, args.window, lab["p0"], box_ref)
                     e, p, q = path["eps11"], path["p"], path["q"]
                     win = e >= e[-1] - args.window
                     row = {"strain": strain, "renewal": renewal, "test": test,
                            **{k: v for k, v in lab.items() if k != "k"}, **s,
-                           "q_p_window": float(np.mean(q[win] / p[win])),
-                           "nu_box_end": float(path["box"][-1] / box_ref)}
+                           "q_p_window": float(np.mean(q[win] / p[win]))}
                     rows.append(row)
                     paths.append({**path, "volume": path["box"]})  # the figure: the box measure
                     labels.append({**lab, "test": test, "v_ref": box_ref})

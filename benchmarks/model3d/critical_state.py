@@ -19,9 +19,11 @@ grains: ν = V / V0(45°). The grains (radius, number of cells) are the same for
 measures of the ends' volume (docs/mechanisms.md, "Three measures of the REV's volume"): the
 cells' own, V0 exp(-ε_v) with ε_v the sum of the volumetric increments (every cell length
 integrates δl = -l δε, so this is the volume those lengths describe, and an undrained test
-keeps it exactly), and the box measure, ν at the start times the REV's mean box l1·l2·l3 at
-the end over that at the start. Each gets the issue's criterion: the largest distance of the
-ends of the tests that reached the end from one least-squares line ν = Γ - λ ln p.
+keeps it exactly), and the box measure, the REV's mean box l1·l2·l3 at the end over the
+α0 = 45° REV's at its start (as the 2D benchmark's, ``benchmarks.mechanisms.critical_state_2d``:
+the box at the start and at the end, where the other two start on the hexagon volume). Each
+gets the issue's criterion: the largest distance of the ends of the tests that reached the end
+from one least-squares line ν = Γ - λ ln p.
 
 With ``--kfs TAG`` the tests run at a Karlsruhe fine sand calibration instead of the fixed
 parameters: the record ``benchmarks/calibration/kfs_TAG.json`` gives the variant, its calibrated
@@ -109,14 +111,22 @@ def run(sets, p0, sphere, undrained, strain, steps, radial="free"):
         r = res.point(b).columns
         eps = np.column_stack([r[f"eps{c}"] for c in ("11", "22", "33", "23", "13", "12")])
         nu = rev.macro_volume(eps, np.full(len(eps), b))
-        box = mean_box_volume(end.cells.values[b], geo) / mean_box_volume(state.cells.values[b], geo)
+        box = mean_box_volume(end.cells.values[b], geo)
         out.append({"eps11": r["eps11"], "p": r["p"], "q": r["q"], "eps_v": r["eps_v"],
-                    "volume": nu, "volume0": float(rev.volumes0[b]), "box_ratio": float(box),
+                    "volume": nu, "volume0": float(rev.volumes0[b]), "box_end": float(box),
+                    "box_ratio": float(box / mean_box_volume(state.cells.values[b], geo)),
                     "failed": failures.get(b)})
     return out, rev
 
 
-def summary(path: dict, v_ref: float, window: float, p0: float) -> dict:
+def reference_volumes(sphere: Sphere) -> tuple[float, float]:
+    """The α0 = 45° REV's initial volume V0 and mean box l1·l2·l3 (at contact, unloaded): the
+    units of the macro and cells' measures and of the box measure."""
+    ref = Rev3D(Params(alpha0=math.radians(45.0)), sphere)
+    return ref.volume0, float(mean_box_volume(ref.initial(1).cells.values[0], ref.geometry()))
+
+
+def summary(path: dict, v_ref: float, window: float, p0: float, box_ref: float) -> dict:
     e, p, q = path["eps11"], path["p"], path["q"]
     nu = path["volume"] / v_ref
     end = e >= e[-1] - window
@@ -131,7 +141,7 @@ def summary(path: dict, v_ref: float, window: float, p0: float) -> dict:
             "axial_strain_end": float(e[-1]), "p_end": float(p[-1]), "q_end": float(q[-1]),
             "q_p_end": float(q[-1] / p[-1]), "nu_end": float(nu[-1]), "nu_start": float(nu[0]),
             "nu_cells_end": float(path["volume0"] * math.exp(-path["eps_v"][-1]) / v_ref),
-            "nu_box_end": float(nu[0] * path["box_ratio"]),
+            "nu_box_end": float(path["box_end"] / box_ref),
             "peak_q_p": float(q[k] / p[k]), "axial_strain_at_peak_q_p": float(e[k]),
             "deps_v_deps11_end": rate, "dq_p_deps11_end": qp_rate,
             "newton_failed": path["failed"] is not None}
@@ -139,7 +149,7 @@ def summary(path: dict, v_ref: float, window: float, p0: float) -> dict:
 
 #: The ends' volume measures (``summary``'s keys) and their names in the results.
 MEASURES = (("nu_end", "macro volume V0 det(I - eps)"), ("nu_cells_end", "the cells' volume V0 exp(-eps_v)"),
-            ("nu_box_end", "box measure"))
+            ("nu_box_end", "box measure, the mean l1 l2 l3 over the 45-degree REV's"))
 
 
 def line_offset(rows: list, key: str) -> float:
@@ -231,7 +241,7 @@ def main() -> None:
             p0.append(p)
             labels.append({"state": state, "alpha0": math.degrees(params.alpha0), "p0": p, "k": k})
     p0 = np.array(p0)
-    v_ref = Rev3D(Params(alpha0=math.radians(45.0)), sphere).volume0
+    v_ref, box_ref = reference_volumes(sphere)
     steps = int(round(args.strain / args.step))
     table, paths, plabels = [], [], []
     radial = args.radial or (calibration or {}).get("radial") or default_radial(sets)
@@ -240,7 +250,7 @@ def main() -> None:
         out, _ = run(sets, p0, sphere, test == "undrained", args.strain, steps, radial)
         for path, lab in zip(out, labels):
             row = {"test": test, **{k: v for k, v in lab.items() if k != "k"},
-                   **summary(path, v_ref, args.window, lab["p0"])}
+                   **summary(path, v_ref, args.window, lab["p0"], box_ref)}
             table.append(row)
             paths.append(path)
             plabels.append({**lab, "test": test, "v_ref": v_ref})
@@ -262,7 +272,7 @@ def main() -> None:
                  for key, name in MEASURES),
                ("wall time of the two batched runs [s]", wall, "-")]
     rec = record(__file__, args, 1, results, table=table, mechanisms=mechanisms,
-                 sphere={"order": sphere.order, "n_azimuth": sphere.n_azimuth}, v_ref=v_ref, radial=radial,
+                 sphere={"order": sphere.order, "n_azimuth": sphere.n_azimuth}, v_ref=v_ref, box_ref=box_ref, radial=radial,
                  **({"calibration": calibration} if calibration else {}))
     args.out.write_text(json.dumps(rec, indent=2) + "\n")
     for name, value, target in results:

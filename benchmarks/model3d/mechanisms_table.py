@@ -139,7 +139,8 @@ def row(tag: str, label: str) -> str | None:
     return (f"| {label} | {len(reached)} of {len(table)} | {min(qp):.3f}–{max(qp):.3f} | {within} of {len(reached)} "
             f"| {max(abs(r['deps_v_deps11_end']) for r in drained):.3f} | {steady} of {len(drained)} "
             f"| {_result(cs, 'ends off one line in (ln p, nu), macro'):.3f} / "
-            f"{_result(cs, 'ends off one line in (ln p, nu), the cells'):.3f}"
+            f"{_result(cs, 'ends off one line in (ln p, nu), the cells'):.3f} / "
+            f"{_result(cs, 'ends off one line in (ln p, nu), box measure'):.3f}"
             f"{'' if len(reached) == len(table) else f' (the {len(reached)} that reached it)'} "
             f"| {low:.2f}; {turned} of {len(loose_u)} | {mc:.3f} | {ratio:.3f} |")
 
@@ -366,7 +367,7 @@ def critical_2d_block(rec: dict) -> str:
 def table_block() -> str:
     head = ("| mechanisms on | tests to 30 % | q/p at the end | within ±3 % of their mean | "
             "largest drained \\|dε_v/dε₁\\| at the end | drained with \\|dε_v/dε₁\\| ≤ 0.05 | "
-            "ends off one line in (ln p, ν), macro volume / the cells' (target 0.01) | "
+            "ends off one line in (ln p, ν), macro volume / the cells' / box measure (target 0.01) | "
             "loose undrained: lowest p/p₀ along the test; phase transformations (p falls by 10 % or more, "
             "then rises by 5 % or more) | M_c (π-plane) | M_e/M_c (M_e: largest q_eq/p in extension) |")
     return _table(head, [r for r in (row(tag, label) for tag, label in VARIANTS) if r is not None])
@@ -396,11 +397,37 @@ def pi_kfs_block() -> str:
     return _table(head, rows)
 
 
+def drained_ends_block() -> str:
+    """The drained ends alone: their distance from one line in (ln p, ν) on the three volume
+    measures, where their mean box lies against the neutral bi-hexagon's (at contact at α_n, the
+    largest box of a closed cell), and their q/p."""
+    from benchmarks.model3d.critical_state import MEASURES, line_offset
+    from hmodel.cell.renewal import NEUTRAL_3D, box_at_contact
+
+    neutral = box_at_contact(NEUTRAL_3D, 1.0, 3) / box_at_contact(math.radians(45.0), 1.0, 3)
+    head = ("| mechanisms on | drained tests to the end (30 %, the last row 80 %) | drained ends off one line in (ln p, ν), macro volume / "
+            "the cells' / box measure (target 0.01) | their box / the neutral bi-hexagon's | their q/p |")
+    rows = []
+    for tag, label in (*VARIANTS, ("sand_kfs_80", "the same, to 80 %")):
+        cs = _load("critical_state", tag)
+        if cs is None:
+            continue
+        if tag != "sand_kfs_80":
+            label += _sides(cs.get("radial") or cs["options"].get("radial")) + _at_sand(cs)
+        drained = [r for r in cs["table"] if r["test"] == "drained" and not r["newton_failed"]]
+        box = [r["nu_box_end"] / neutral for r in drained]
+        qp = [r["q_p_end"] for r in drained]
+        offsets = " / ".join(f"{line_offset(drained, key):.4f}" for key, _ in MEASURES)
+        rows.append(f"| {label} | {len(drained)} of 6 | {offsets} | {min(box):.3f}–{max(box):.3f} "
+                    f"| {min(qp):.3f}–{max(qp):.3f} |")
+    return _table(head, rows)
+
+
 BLOCKS = {"mechanisms-table": table_block, "mechanisms-pi-kfs": pi_kfs_block, "mechanisms-kfs": kfs_block,
           "mechanisms-kfs-long": kfs_long_block, "mechanisms-dem": dem_block,
           "mechanisms-dem-judge": dem_judge_block, "mechanisms-dem-fabric": dem_fabric_block,
           "mechanisms-dem-bihex": dem_bihex_block,
-          "mechanisms-critical-2d": critical_2d_block}
+          "mechanisms-critical-2d": critical_2d_block, "mechanisms-drained-ends": drained_ends_block}
 
 
 def render(text: str) -> str:
