@@ -75,10 +75,25 @@ def cell_mechanisms(p):
 @njit(cache=True, inline="always", error_model="numpy")
 def _solve3(a11, a12, a13, a21, a22, a23, a31, a32, a33, b1, b2, b3):
     """Cramer's rule for a 3x3 system; returns (x1, x2, x3, det)."""
+    c11, c12, c13, det = _cofactors(a11, a12, a13, a21, a22, a23, a31, a32, a33)
+    return _solve3_with(a11, a12, a13, a21, a22, a23, a31, a32, a33, c11, c12, c13, det, b1, b2,
+                        b3)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _cofactors(a11, a12, a13, a21, a22, a23, a31, a32, a33):
+    """The part of :func:`_solve3` that depends on the matrix only: the cofactors of the first
+    row and the determinant, ``(c11, c12, c13, det)``."""
     c11 = a22 * a33 - a23 * a32
     c12 = a23 * a31 - a21 * a33
     c13 = a21 * a32 - a22 * a31
     det = a11 * c11 + a12 * c12 + a13 * c13
+    return c11, c12, c13, det
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _solve3_with(a11, a12, a13, a21, a22, a23, a31, a32, a33, c11, c12, c13, det, b1, b2, b3):
+    """:func:`_solve3` given the matrix's :func:`_cofactors`: (x1, x2, x3, det)."""
     x1 = (b1 * c11 + a12 * (a23 * b3 - b2 * a33) + a13 * (b2 * a32 - a22 * b3)) / det
     x2 = (a11 * (b2 * a33 - a23 * b3) + b1 * c12 + a13 * (a21 * b3 - b2 * a31)) / det
     x3 = (a11 * (a22 * b3 - b2 * a32) + a12 * (b2 * a31 - a21 * b3) + b1 * c13) / det
@@ -119,6 +134,56 @@ def hertz_overlaps(d1, d2, n1, n2, p):
     return u1, hertz.overlap_root(n2, c, two_r - d2), p[P_MINDLIN] * 1.5 * c * u1
 
 
+#: Width of a cell's :func:`regime_state`, the part of eq. 1.7 its committed state fixes.
+REGIME_WIDTH = 12
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def regime_state(d1, a, n1, t1, p):
+    """The part of :func:`_regime` that depends on the committed state (d1, α, N1, T1) only:
+    ``(cos α, g2 + sin α, a11, a13, a21, a23, a33, a33 sliding, c11, c12, c13, det)``, the
+    matrix of eq. 1.7 without sliding, its :func:`_cofactors`, and the third row's a33 while
+    sliding. A compiled REV trial reads it from an array filled once per committed state
+    (:func:`hmodel.rev.kernels.prepare`): Newton makes several trials from one state, and the
+    same expressions give the same values to the last bit wherever they are computed."""
+    kn = p[P_KN]
+    kt = p[P_KT]
+    # angle_rows written out: through it the published cell's REV trial ran slower (engine
+    # benchmark, four alternations against the code before it)
+    ca = math.cos(a)
+    sa = math.sin(a)
+    gs = p[P_G2] + sa
+    a11, a13, a21, a23 = _compatibility(d1, ca, sa, p)
+    # Row 3, no sliding (eqs. 1.8-1.9): equilibrium of grain 2 with dT1 = kt d1 dalpha.
+    g = n1 * sa - t1 * ca
+    a33 = (g - kt * d1 * gs) / kn
+    c11, c12, c13, det = _cofactors(a11, 1.0, a13, a21, 0.0, a23, ca, -1.0, a33)
+    return ca, gs, a11, a13, a21, a23, a33, g / kn, c11, c12, c13, det
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def regime_increment(d1, n1, t1, dl1, dl2, p, st):
+    """The regime the increment (dl1, dl2) takes from a cell whose :func:`regime_state` is
+    ``st``: ``(a11, a13, a21, a23, a31, a33, rhs3, sliding, xi, c11, c12, c13, det)``, the
+    system of eq. 1.7 (:func:`_regime`) and its matrix's :func:`_cofactors`."""
+    ca, gs, a11, a13, a21, a23, a33, a33s, c11, c12, c13, det = st
+    kn = p[P_KN]
+    kt = p[P_KT]
+    tanphi = p[P_TAN]
+    dd1, dd2, da, det = _solve3_with(a11, 1.0, a13, a21, 0.0, a23, ca, -1.0, a33, c11, c12, c13,
+                                     det, dl1, dl2, 0.0)
+    n1_new = n1 - kn * dd1
+    t1_new = t1 + kt * d1 * da
+    sliding = abs(t1_new) >= tanphi * n1_new
+    xi = 1.0 if t1_new >= 0.0 else -1.0
+    if sliding:
+        a31 = ca + xi * tanphi * gs
+        s11, s12, s13, sdet = _cofactors(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33s)
+        return (a11, a13, a21, a23, a31, a33s, _sliding_force(gs, n1, t1, xi, p) / kn, sliding,
+                xi, s11, s12, s13, sdet)
+    return a11, a13, a21, a23, ca, a33, 0.0, sliding, xi, c11, c12, c13, det
+
+
 @njit(cache=True, inline="always", error_model="numpy")
 def _regime(d1, a, n1, t1, dl1, dl2, p):
     """The system of eq. 1.7 in the regime the increment (dl1, dl2) takes: ``(a11, a13, a21,
@@ -126,27 +191,26 @@ def _regime(d1, a, n1, t1, dl1, dl2, p):
     a33]] and the third right-hand side (the first two are dl1, dl2).
 
     Within a regime the solution is affine in (dl1, dl2): its matrix and rhs3 depend on the
-    committed state only, which is what makes :func:`cell_jacobian` exact."""
-    kn = p[P_KN]
-    kt = p[P_KT]
-    tanphi = p[P_TAN]
-    # angle_rows written out: through it the published cell's REV trial ran about 10 % slower
-    # (engine benchmark, four alternations against the code before it)
-    ca = math.cos(a)
-    sa = math.sin(a)
-    gs = p[P_G2] + sa
-    a11, a13, a21, a23 = _compatibility(d1, ca, sa, p)
-    # Row 3, no sliding (eqs. 1.8-1.9): equilibrium of grain 2 with dT1 = kt d1 dalpha.
-    a33 = (n1 * sa - t1 * ca - kt * d1 * gs) / kn
-    dd1, dd2, da, det = _solve3(a11, 1.0, a13, a21, 0.0, a23, ca, -1.0, a33, dl1, dl2, 0.0)
-    n1_new = n1 - kn * dd1
-    t1_new = t1 + kt * d1 * da
-    sliding = abs(t1_new) >= tanphi * n1_new
-    xi = 1.0 if t1_new >= 0.0 else -1.0
-    if sliding:
-        return (a11, a13, a21, a23, ca + xi * tanphi * gs, (n1 * sa - t1 * ca) / kn,
-                sliding_lambda(a, n1, t1, xi, p), sliding, xi)
-    return a11, a13, a21, a23, ca, a33, 0.0, sliding, xi
+    committed state only (:func:`regime_state`), which is what makes :func:`cell_jacobian`
+    exact."""
+    r = regime_increment(d1, n1, t1, dl1, dl2, p, regime_state(d1, a, n1, t1, p))
+    return r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]
+
+
+#: Width of a Hertz-Mindlin cell's :func:`hertz_state`.
+HERTZ_WIDTH = 11
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def hertz_state(d1, d2, a, n1, n2, t1, p):
+    """The part of :func:`_hertz_regime` that depends on the committed state only: ``(cos α,
+    g2 + sin α, a11, a13, a23, q, w, u1, u2, kt, T1 cos α - N1 sin α)``, the rows of eq. 1.7,
+    their :func:`hmodel.cell.hertz.affine_state`, the contacts' :func:`hertz_overlaps` and the
+    third row's force term in δα without Mindlin's (:func:`regime_state` of the linear law)."""
+    ca, sa, gs, a11, a13, a21, a23 = angle_rows(d1, a, p)
+    u1, u2, kt = hertz_overlaps(d1, d2, n1, n2, p)
+    q, w = hertz.affine_state(a11, a13, a21, a23)
+    return ca, gs, a11, a13, a23, q, w, u1, u2, kt, t1 * ca - n1 * sa
 
 
 # a call, not inlined: inlined, it is compiled once more into every loop over cells, which
@@ -158,35 +222,40 @@ def _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p):
     (dl1, dl2) takes, as :func:`_regime` (trial without sliding, Coulomb check, sliding):
     ``(ok, δd1, δd2, δα, N1', N2', T1' without sliding, sliding, ξ, b1, b2, coef, gt, kt)``,
     the solution, its forces and what :func:`hmodel.cell.hertz.column` differentiates it
-    with.
+    with (:func:`hertz_regime_from` of the cell's :func:`hertz_state`)."""
+    return hertz_regime_from(d1, n1, n2, t1, dl1, dl2, p,
+                             hertz_state(d1, d2, a, n1, n2, t1, p))
+
+
+@njit(cache=True, error_model="numpy")
+def hertz_regime_from(d1, n1, n2, t1, dl1, dl2, p, st):
+    """:func:`_hertz_regime` of a cell whose :func:`hertz_state` is ``st``.
 
     The third row with a stiffness per contact, in forces: cos α δN1 - δN2 + (T1 cos α -
     N1 sin α) δα + (g2 + sin α) δT1 = 0 (eq. 1.6; the linear row times -kn), δNk of the exact
     law (:func:`hmodel.cell.hertz.solve`) and Mindlin's δT1 = kt d1 δα, kt = m kn(N1) at the
     start; sliding, T1 follows the Coulomb cone and λ of eq. 1.10 enters as the force kn λ
     (:func:`sliding_force`)."""
+    ca, gs, a11, a13, a23, q, w, u1, u2, kt, g = st
     c = p[P_HERTZ]
     tanphi = p[P_TAN]
-    ca, sa, gs, a11, a13, a21, a23 = angle_rows(d1, a, p)
-    u1, u2, kt = hertz_overlaps(d1, d2, n1, n2, p)
     if u1 == 0.0 and u2 == 0.0 and t1 == 0.0:  # force-free (open or reborn): no Newton needed
         ok, dd1, dd2, da, f1, f2, b1, b2, sliding, coef = hertz.free_regime(
-            c, dl1, dl2, a11, a13, a21, a23, ca, tanphi * gs)
+            c, dl1, dl2, a13, a23, q, w, ca, tanphi * gs)
         if ok:
             return ok, dd1, dd2, da, f1, f2, 0.0, sliding, 1.0, b1, b2, coef, 0.0, kt
-    g = t1 * ca - n1 * sa
     coef = ca
     gt = g + gs * kt * d1
-    ok, dd1, dd2, da, f1, f2, b1, b2 = hertz.solve(c, u1, u2, n1, n2, dl1, dl2, a11, a13, a21,
-                                                  a23, coef, gt, 0.0)
+    ok, dd1, dd2, da, f1, f2, b1, b2 = hertz.solve(c, u1, u2, n1, n2, dl1, dl2, a13, a23, q, w,
+                                                  coef, gt, 0.0)
     t1_new = t1 + kt * d1 * da
     sliding = abs(t1_new) >= tanphi * f1
     xi = 1.0 if t1_new >= 0.0 else -1.0
     if sliding:
         coef = ca + xi * tanphi * gs
         gt = g
-        ok, dd1, dd2, da, f1, f2, b1, b2 = hertz.solve(c, u1, u2, n1, n2, dl1, dl2, a11, a13, a21,
-                                                      a23, coef, gt, sliding_force(a, n1, t1, xi, p))
+        ok, dd1, dd2, da, f1, f2, b1, b2 = hertz.solve(c, u1, u2, n1, n2, dl1, dl2, a13, a23, q, w,
+                                                      coef, gt, _sliding_force(gs, n1, t1, xi, p))
     return ok, dd1, dd2, da, f1, f2, t1 + kt * d1 * da, sliding, xi, b1, b2, coef, gt, kt
 
 
@@ -209,13 +278,70 @@ def cell_update_mech(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, mech):
     (:data:`MECH_NONE`, ...): the cell the caller's loop updates, a constant there.
     """
     if mech == MECH_ANY and p[P_HERTZ] != 0.0:
-        h = _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p)
-        r = finish_update_mech(d1, d2, a, l1, l2, dl1, dl2, h[1], h[2], h[3], h[4], h[5], h[6],
-                               h[7], h[8], p, mech)
-        return ((h[0] and r[0]), r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], r[10],
-                r[11], r[12], r[13])
-    a11, a13, a21, a23, a31, a33, rhs3, sliding, xi = _regime(d1, a, n1, t1, dl1, dl2, p)
-    dd1, dd2, da, det = _solve3(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33, dl1, dl2, rhs3)
+        return _hertz_finish(d1, d2, a, l1, l2, dl1, dl2, p, mech,
+                             _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p))
+    return cell_update_linear(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, mech,
+                              regime_state(d1, a, n1, t1, p))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _hertz_finish(d1, d2, a, l1, l2, dl1, dl2, p, mech, h):
+    """:func:`cell_update_mech` of Hertz-Mindlin contacts from the cell's
+    :func:`_hertz_regime` ``h``."""
+    r = finish_update_mech(d1, d2, a, l1, l2, dl1, dl2, h[1], h[2], h[3], h[4], h[5], h[6], h[7],
+                           h[8], p, mech)
+    return ((h[0] and r[0]), r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], r[10], r[11],
+            r[12], r[13])
+
+
+#: Width of a cell's state-only part of eq. 1.7 (:func:`prepare_cell`): of :func:`regime_state`
+#: or :func:`hertz_state`.
+STATE_WIDTH = max(REGIME_WIDTH, HERTZ_WIDTH)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def prepare_cell(values, i, p, mech, pre):
+    """``pre[i]``: the part of eq. 1.7 that the committed state of H-cell ``values[i]`` fixes,
+    for every increment from it (:func:`cell_increment_prepared`): :func:`hertz_state` of
+    Hertz-Mindlin contacts, else :func:`regime_state`. A compiled REV trial reads it from an
+    array filled once per committed state: Newton makes several trials from one state, and the
+    same expressions give the same values to the last bit wherever they are computed."""
+    if mech == MECH_ANY and p[P_HERTZ] != 0.0:
+        h = hertz_state(values[i, 0], values[i, 1], values[i, 2], values[i, 3], values[i, 4],
+                        values[i, 5], p)
+        for j in range(HERTZ_WIDTH):
+            pre[i, j] = h[j]
+    else:
+        st = regime_state(values[i, 0], values[i, 2], values[i, 3], values[i, 5], p)
+        for j in range(REGIME_WIDTH):
+            pre[i, j] = st[j]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def cell_increment_prepared(values, i, dl1, dl2, p, out, flags, mech, pre):
+    """:func:`cell_increment_mech` of H-cell i (k = f = 0) from its :func:`prepare_cell`
+    ``pre[i]``: the same result to the last bit."""
+    d1, d2, a, n1, n2, t1 = values[i, 0], values[i, 1], values[i, 2], values[i, 3], values[i, 4], values[i, 5]
+    if mech == MECH_ANY and p[P_HERTZ] != 0.0:
+        h = hertz_regime_from(d1, n1, n2, t1, dl1, dl2, p,
+                              (pre[i, 0], pre[i, 1], pre[i, 2], pre[i, 3], pre[i, 4], pre[i, 5],
+                               pre[i, 6], pre[i, 7], pre[i, 8], pre[i, 9], pre[i, 10]))
+        r = _hertz_finish(d1, d2, a, values[i, 6], values[i, 7], dl1, dl2, p, mech, h)
+    else:
+        r = cell_update_linear(d1, d2, a, n1, n2, t1, values[i, 6], values[i, 7], dl1, dl2, p, mech,
+                               (pre[i, 0], pre[i, 1], pre[i, 2], pre[i, 3], pre[i, 4], pre[i, 5],
+                                pre[i, 6], pre[i, 7], pre[i, 8], pre[i, 9], pre[i, 10],
+                                pre[i, 11]))
+    return write_update(r, out, flags, i, 0, 0)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def cell_update_linear(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, mech, st):
+    """:func:`cell_update_mech` of linear contacts, from the cell's :func:`regime_state` ``st``."""
+    (a11, a13, a21, a23, a31, a33, rhs3, sliding, xi, c11, c12, c13,
+     det) = regime_increment(d1, n1, t1, dl1, dl2, p, st)
+    dd1, dd2, da, det = _solve3_with(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33, c11, c12, c13,
+                                     det, dl1, dl2, rhs3)
     n1_new, n2_new, t1_new = linear_forces(d1, n1, n2, t1, dd1, dd2, da, p)
     r = finish_update_mech(d1, d2, a, l1, l2, dl1, dl2, dd1, dd2, da, n1_new, n2_new, t1_new,
                            sliding, xi, p, mech)
@@ -370,7 +496,12 @@ def sliding_lambda(a, n1, t1, xi, p):
 def sliding_force(a, n1, t1, xi, p):
     """kn λ of :func:`sliding_lambda`: the third row's right-hand side in forces, as the
     Hertz-Mindlin row takes it (its stiffness is no constant)."""
-    gs = p[P_G2] + math.sin(a)
+    return _sliding_force(p[P_G2] + math.sin(a), n1, t1, xi, p)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _sliding_force(gs, n1, t1, xi, p):
+    """:func:`sliding_force` given gs = g2 + sin α."""
     if p[P_EQ_RHS] != 0.0:
         return gs * (xi * p[P_TAN] * n1 - t1)
     return xi * gs * (p[P_TAN] * n1 - t1)  # eq. 1.10 as corrected in docs/model.md
