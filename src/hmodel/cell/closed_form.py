@@ -148,8 +148,8 @@ def regime_state(d1, a, n1, t1, p):
     same expressions give the same values to the last bit wherever they are computed."""
     kn = p[P_KN]
     kt = p[P_KT]
-    # angle_rows written out: through it the published cell's REV trial ran slower (engine
-    # benchmark, four alternations against the code before it)
+    # angle_rows written out: through it the published cell's REV trial ran about 10 % slower
+    # (engine benchmark, four alternations against the code before it)
     ca = math.cos(a)
     sa = math.sin(a)
     gs = p[P_G2] + sa
@@ -197,22 +197,6 @@ def _regime(d1, a, n1, t1, dl1, dl2, p):
     return r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]
 
 
-#: Width of a Hertz-Mindlin cell's :func:`hertz_state`.
-HERTZ_WIDTH = 11
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def hertz_state(d1, d2, a, n1, n2, t1, p):
-    """The part of :func:`_hertz_regime` that depends on the committed state only: ``(cos α,
-    g2 + sin α, a11, a13, a23, q, w, u1, u2, kt, T1 cos α - N1 sin α)``, the rows of eq. 1.7,
-    their :func:`hmodel.cell.hertz.affine_state`, the contacts' :func:`hertz_overlaps` and the
-    third row's force term in δα without Mindlin's (:func:`regime_state` of the linear law)."""
-    ca, sa, gs, a11, a13, a21, a23 = angle_rows(d1, a, p)
-    u1, u2, kt = hertz_overlaps(d1, d2, n1, n2, p)
-    q, w = hertz.affine_state(a11, a13, a21, a23)
-    return ca, gs, a11, a13, a23, q, w, u1, u2, kt, t1 * ca - n1 * sa
-
-
 # a call, not inlined: inlined, it is compiled once more into every loop over cells, which
 # multiplies the kernels' compile time for a Hertz cell barely cheaper
 # (docs/notes/2026-12-07-hertz-solve-speed.md)
@@ -222,40 +206,35 @@ def _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p):
     (dl1, dl2) takes, as :func:`_regime` (trial without sliding, Coulomb check, sliding):
     ``(ok, δd1, δd2, δα, N1', N2', T1' without sliding, sliding, ξ, b1, b2, coef, gt, kt)``,
     the solution, its forces and what :func:`hmodel.cell.hertz.column` differentiates it
-    with (:func:`hertz_regime_from` of the cell's :func:`hertz_state`)."""
-    return hertz_regime_from(d1, n1, n2, t1, dl1, dl2, p,
-                             hertz_state(d1, d2, a, n1, n2, t1, p))
-
-
-@njit(cache=True, error_model="numpy")
-def hertz_regime_from(d1, n1, n2, t1, dl1, dl2, p, st):
-    """:func:`_hertz_regime` of a cell whose :func:`hertz_state` is ``st``.
+    with.
 
     The third row with a stiffness per contact, in forces: cos α δN1 - δN2 + (T1 cos α -
     N1 sin α) δα + (g2 + sin α) δT1 = 0 (eq. 1.6; the linear row times -kn), δNk of the exact
     law (:func:`hmodel.cell.hertz.solve`) and Mindlin's δT1 = kt d1 δα, kt = m kn(N1) at the
     start; sliding, T1 follows the Coulomb cone and λ of eq. 1.10 enters as the force kn λ
     (:func:`sliding_force`)."""
-    ca, gs, a11, a13, a23, q, w, u1, u2, kt, g = st
     c = p[P_HERTZ]
     tanphi = p[P_TAN]
+    ca, sa, gs, a11, a13, a21, a23 = angle_rows(d1, a, p)
+    u1, u2, kt = hertz_overlaps(d1, d2, n1, n2, p)
     if u1 == 0.0 and u2 == 0.0 and t1 == 0.0:  # force-free (open or reborn): no Newton needed
         ok, dd1, dd2, da, f1, f2, b1, b2, sliding, coef = hertz.free_regime(
-            c, dl1, dl2, a13, a23, q, w, ca, tanphi * gs)
+            c, dl1, dl2, a11, a13, a21, a23, ca, tanphi * gs)
         if ok:
             return ok, dd1, dd2, da, f1, f2, 0.0, sliding, 1.0, b1, b2, coef, 0.0, kt
+    g = t1 * ca - n1 * sa
     coef = ca
     gt = g + gs * kt * d1
-    ok, dd1, dd2, da, f1, f2, b1, b2 = hertz.solve(c, u1, u2, n1, n2, dl1, dl2, a13, a23, q, w,
-                                                  coef, gt, 0.0)
+    ok, dd1, dd2, da, f1, f2, b1, b2 = hertz.solve(c, u1, u2, n1, n2, dl1, dl2, a11, a13, a21,
+                                                  a23, coef, gt, 0.0)
     t1_new = t1 + kt * d1 * da
     sliding = abs(t1_new) >= tanphi * f1
     xi = 1.0 if t1_new >= 0.0 else -1.0
     if sliding:
         coef = ca + xi * tanphi * gs
         gt = g
-        ok, dd1, dd2, da, f1, f2, b1, b2 = hertz.solve(c, u1, u2, n1, n2, dl1, dl2, a13, a23, q, w,
-                                                      coef, gt, _sliding_force(gs, n1, t1, xi, p))
+        ok, dd1, dd2, da, f1, f2, b1, b2 = hertz.solve(c, u1, u2, n1, n2, dl1, dl2, a11, a13, a21,
+                                                      a23, coef, gt, sliding_force(a, n1, t1, xi, p))
     return ok, dd1, dd2, da, f1, f2, t1 + kt * d1 * da, sliding, xi, b1, b2, coef, gt, kt
 
 
@@ -278,60 +257,33 @@ def cell_update_mech(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, mech):
     (:data:`MECH_NONE`, ...): the cell the caller's loop updates, a constant there.
     """
     if mech == MECH_ANY and p[P_HERTZ] != 0.0:
-        return _hertz_finish(d1, d2, a, l1, l2, dl1, dl2, p, mech,
-                             _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p))
+        h = _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p)
+        r = finish_update_mech(d1, d2, a, l1, l2, dl1, dl2, h[1], h[2], h[3], h[4], h[5], h[6],
+                               h[7], h[8], p, mech)
+        return ((h[0] and r[0]), r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], r[10],
+                r[11], r[12], r[13])
     return cell_update_linear(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, mech,
                               regime_state(d1, a, n1, t1, p))
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _hertz_finish(d1, d2, a, l1, l2, dl1, dl2, p, mech, h):
-    """:func:`cell_update_mech` of Hertz-Mindlin contacts from the cell's
-    :func:`_hertz_regime` ``h``."""
-    r = finish_update_mech(d1, d2, a, l1, l2, dl1, dl2, h[1], h[2], h[3], h[4], h[5], h[6], h[7],
-                           h[8], p, mech)
-    return ((h[0] and r[0]), r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], r[10], r[11],
-            r[12], r[13])
-
-
-#: Width of a cell's state-only part of eq. 1.7 (:func:`prepare_cell`): of :func:`regime_state`
-#: or :func:`hertz_state`.
-STATE_WIDTH = max(REGIME_WIDTH, HERTZ_WIDTH)
+def prepare_cell(values, i, p, pre):
+    """``pre[i]``: the :func:`regime_state` of H-cell ``values[i]``'s committed state, for
+    every increment from it (:func:`cell_increment_prepared`)."""
+    st = regime_state(values[i, 0], values[i, 2], values[i, 3], values[i, 5], p)
+    for j in range(REGIME_WIDTH):
+        pre[i, j] = st[j]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def prepare_cell(values, i, p, mech, pre):
-    """``pre[i]``: the part of eq. 1.7 that the committed state of H-cell ``values[i]`` fixes,
-    for every increment from it (:func:`cell_increment_prepared`): :func:`hertz_state` of
-    Hertz-Mindlin contacts, else :func:`regime_state`. A compiled REV trial reads it from an
-    array filled once per committed state: Newton makes several trials from one state, and the
-    same expressions give the same values to the last bit wherever they are computed."""
-    if mech == MECH_ANY and p[P_HERTZ] != 0.0:
-        h = hertz_state(values[i, 0], values[i, 1], values[i, 2], values[i, 3], values[i, 4],
-                        values[i, 5], p)
-        for j in range(HERTZ_WIDTH):
-            pre[i, j] = h[j]
-    else:
-        st = regime_state(values[i, 0], values[i, 2], values[i, 3], values[i, 5], p)
-        for j in range(REGIME_WIDTH):
-            pre[i, j] = st[j]
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def cell_increment_prepared(values, i, dl1, dl2, p, out, flags, mech, pre):
-    """:func:`cell_increment_mech` of H-cell i (k = f = 0) from its :func:`prepare_cell`
-    ``pre[i]``: the same result to the last bit."""
-    d1, d2, a, n1, n2, t1 = values[i, 0], values[i, 1], values[i, 2], values[i, 3], values[i, 4], values[i, 5]
-    if mech == MECH_ANY and p[P_HERTZ] != 0.0:
-        h = hertz_regime_from(d1, n1, n2, t1, dl1, dl2, p,
-                              (pre[i, 0], pre[i, 1], pre[i, 2], pre[i, 3], pre[i, 4], pre[i, 5],
-                               pre[i, 6], pre[i, 7], pre[i, 8], pre[i, 9], pre[i, 10]))
-        r = _hertz_finish(d1, d2, a, values[i, 6], values[i, 7], dl1, dl2, p, mech, h)
-    else:
-        r = cell_update_linear(d1, d2, a, n1, n2, t1, values[i, 6], values[i, 7], dl1, dl2, p, mech,
-                               (pre[i, 0], pre[i, 1], pre[i, 2], pre[i, 3], pre[i, 4], pre[i, 5],
-                                pre[i, 6], pre[i, 7], pre[i, 8], pre[i, 9], pre[i, 10],
-                                pre[i, 11]))
+def cell_increment_prepared(values, i, dl1, dl2, p, out, flags, pre):
+    """:func:`cell_increment_mech` of the published cell (:data:`MECH_NONE`) i of H-cells
+    ``values`` (k = f = 0) from its :func:`prepare_cell` ``pre[i]``: the same result to the
+    last bit."""
+    r = cell_update_linear(values[i, 0], values[i, 1], values[i, 2], values[i, 3], values[i, 4],
+                           values[i, 5], values[i, 6], values[i, 7], dl1, dl2, p, MECH_NONE,
+                           (pre[i, 0], pre[i, 1], pre[i, 2], pre[i, 3], pre[i, 4], pre[i, 5],
+                            pre[i, 6], pre[i, 7], pre[i, 8], pre[i, 9], pre[i, 10], pre[i, 11]))
     return write_update(r, out, flags, i, 0, 0)
 
 

@@ -123,8 +123,8 @@ def _hexagon_solve(d1, d2, a, n1, n2, t1, dl1, dl2, sliding, xi, shift, p):
         flam = shift
     q, da0, w, e0 = hertz.affine(a11, a13, a21, a23, dl1, dl2)
     if c != 0.0:
-        ok, x, dd2, da, f1, f2, b1, b2 = hertz.solve(c, u1, u2, n1, n2, dl1, dl2, a13, a23, q, w,
-                                                    coef, gt, flam)
+        ok, x, dd2, da, f1, f2, b1, b2 = hertz.solve(c, u1, u2, n1, n2, dl1, dl2, a11, a13, a21,
+                                                    a23, coef, gt, flam)
         slope = -1.5 * c * (coef * b1 - b2 * w) + gt * q
     else:
         slope = -kn * coef + kn * w + gt * q

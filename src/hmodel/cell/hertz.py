@@ -101,23 +101,9 @@ def affine(a11, a13, a21, a23, dl1, dl2):
     """Rows 1-2 of eq. 1.7 (compatibility, [[a11, 1, a13], [a21, 0, a23]]) solved for δα and
     δd2 as affine functions of δd1: ``(q, δα0, w, δd20)`` of δα = δα0 + q δd1 and
     δd2 = δd20 + w δd1."""
-    q, w = affine_state(a11, a13, a21, a23)
-    da0, e0 = affine_increment(a13, a23, dl1, dl2)
-    return q, da0, w, e0
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def affine_state(a11, a13, a21, a23):
-    """The part of :func:`affine` that the matrix fixes: ``(q, w)``."""
     q = -a21 / a23
-    return q, -a11 - a13 * q
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def affine_increment(a13, a23, dl1, dl2):
-    """The part of :func:`affine` that the increment moves: ``(δα0, δd20)``."""
     da0 = dl2 / a23
-    return da0, dl1 - a13 * da0
+    return q, da0, -a11 - a13 * q, dl1 - a13 * da0
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -161,7 +147,7 @@ def free_state(c, e0, w, da0, q, coef):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def free_regime(c, dl1, dl2, a13, a23, q, w, ca, slide):
+def free_regime(c, dl1, dl2, a11, a13, a21, a23, ca, slide):
     """Eq. 1.7 of a force-free cell in the regime its increment takes, as :func:`solve` twice
     (trial without sliding, Coulomb check, sliding) but with one cube root:
     ``(ok, δd1, δd2, δα, N1', N2', b1, b2, sliding, coef)``; ``ok`` False where the closed form
@@ -170,9 +156,8 @@ def free_regime(c, dl1, dl2, a13, a23, q, w, ca, slide):
     Without sliding (coef = cos α, :func:`free_solution`) T1' = 0, so the cell is on the Coulomb
     cone iff N1' ≤ 0, iff δd1 = e0/(cos^(2/3) α - w) ≥ 0: the sign of δd1 follows from
     cos² α against w³ without the root. Sliding then goes the way ξ = +1 of T1' = 0, coef =
-    cos α + ``slide`` (tan φ (g2 + sin α)), with no sliding force (N1 = T1 = 0 in eq. 1.10).
-    (q, w): :func:`affine_state` of rows 1-2."""
-    da0, e0 = affine_increment(a13, a23, dl1, dl2)
+    cos α + ``slide`` (tan φ (g2 + sin α)), with no sliding force (N1 = T1 = 0 in eq. 1.10)."""
+    q, da0, w, e0 = affine(a11, a13, a21, a23, dl1, dl2)
     c2 = ca * ca
     w3 = w * w * w
     if not ca > 0.0 or c2 == w3:
@@ -184,7 +169,7 @@ def free_regime(c, dl1, dl2, a13, a23, q, w, ca, slide):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def solve(c, u1, u2, n1, n2, dl1, dl2, a13, a23, q, w, coef, gt, flam):
+def solve(c, u1, u2, n1, n2, dl1, dl2, a11, a13, a21, a23, coef, gt, flam):
     """Eq. 1.7 of Hertz-Mindlin contacts: ``(ok, δd1, δd2, δα, N1', N2', b1, b2)``, the
     solution, the new normal forces and the square roots of the new overlaps (tangents
     3/2 c b); ``ok`` is False where Newton found none.
@@ -195,9 +180,8 @@ def solve(c, u1, u2, n1, n2, dl1, dl2, a13, a23, q, w, coef, gt, flam):
     gt = T1 cos α - N1 sin α + (g2 + sin α) kt d1, flam = 0; sliding: coef = cos α + ξ tan φ
     (g2 + sin α), gt = T1 cos α - N1 sin α, flam = kn λ of eq. 1.10. A force-free cell (no
     overlap, gt = flam = 0, the open cells that are most of a sheared REV's) takes the closed
-    form :func:`free_solution` instead of the iteration. Rows 1-2 ([[a11, 1, a13], [a21, 0,
-    a23]]) enter by a13, a23 and their :func:`affine_state` (q, w)."""
-    da0, e0 = affine_increment(a13, a23, dl1, dl2)
+    form :func:`free_solution` instead of the iteration."""
+    q, da0, w, e0 = affine(a11, a13, a21, a23, dl1, dl2)
     if u1 == 0.0 and u2 == 0.0 and gt == 0.0 and flam == 0.0 and coef > 0.0:
         free = free_state(c, e0, w, da0, q, coef)
         if free[0]:

@@ -143,8 +143,9 @@ def fd_tangent(values, eps, x, geo, p, mode, volume0, h, out, flags, K, resp, pr
 
 @njit(cache=True, error_model="numpy")
 def _slope_trial(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp, pre, exact, u, K):
-    """:func:`~hmodel.rev.trial.point_trial_prepared`; with ``exact`` (a 2D meso surrogate), also the stress slope du along
-    u, set into K: K u = du, K unchanged on directions normal to u (a rank-one update)."""
+    """:func:`~hmodel.rev.trial.point_trial_prepared`; with ``exact`` (a 2D meso surrogate),
+    also the stress slope du along u, set into K: K u = du, K unchanged on directions normal to
+    u (a rank-one update)."""
     if not exact:
         return point_trial_prepared(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp, pre)
     du = np.empty(3)

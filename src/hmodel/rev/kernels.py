@@ -23,7 +23,8 @@ from ..cell.closed_form import (
     P_KN,
     P_R,
     P_RENEW,
-    STATE_WIDTH,
+    REGIME_WIDTH,
+    cell_increment_mech,
     cell_increment_prepared,
     cell_jacobian,
     cell_mechanisms,
@@ -134,30 +135,29 @@ def average(values, wcos2, wsin2, wsincos, kn, hertz, sets, radius, vsig):
 @njit(cache=True, inline="always", error_model="numpy")
 def prepared_width(p, resp):
     """Width of the per-cell inputs of a point's trial that its committed cells fix
-    (:func:`prepare`), with packed parameters ``p`` and learned responses ``resp`` (n, R):
-    the closed form's (R = 0), none for a learned law's."""
-    return STATE_WIDTH if resp.shape[1] == 0 else 0
+    (:func:`prepare`), with packed parameters ``p`` and learned responses ``resp`` (n, R; R = 0:
+    none): the published cell's (:func:`hmodel.cell.closed_form.regime_state`); none for other
+    cells (a Hertz-Mindlin cell's overlaps and rows, prepared so, left its trials in a drained
+    biaxial test as slow as they were)."""
+    if resp.shape[1] == 0 and cell_mechanisms(p) == MECH_NONE:
+        return REGIME_WIDTH
+    return 0
 
 
 @njit(cache=True, error_model="numpy")
 def prepare(values, p, resp, pre):
     """``pre[i]``: the part of eq. 1.7 that cell i's committed state ``values[i]`` fixes
     (:func:`hmodel.cell.closed_form.prepare_cell`), for every trial from that state
-    (:func:`trial_prepared`); nothing where ``pre`` is (n, 0) (:func:`prepared_width`)."""
+    (:func:`trial_prepared`); nothing where ``pre`` is (n, 0) (:func:`prepared_width`).
+
+    Newton makes several trials from one committed state; each computed again the cells'
+    trigonometry, their matrices of eq. 1.7 and the matrices' cofactors. The same expressions
+    give the same values to the last bit wherever they are computed, so the trials read them
+    here."""
     if pre.shape[1] == 0:
         return
-    if cell_mechanisms(p) == MECH_NONE:
-        _prepare_loop(values, p, pre, MECH_NONE)
-    else:
-        _prepare_loop(values, p, pre, MECH_ANY)
-
-
-@njit(cache=True, error_model="numpy")
-def _prepare_loop(values, p, pre, mech):
-    """:func:`prepare`'s loop of the cell ``mech`` (a literal)."""
-    literally(mech)
     for i in range(values.shape[0]):
-        prepare_cell(values, i, p, mech, pre)
+        prepare_cell(values, i, p, pre)
 
 
 @njit(cache=True, error_model="numpy")
@@ -241,7 +241,10 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
             if law == LAW_COMPLIANCE:
                 ok &= compliance_increment(values, i, dl1, dl2, resp, p, out, flags)
             else:
-                ok &= cell_increment_prepared(values, i, dl1, dl2, p, out, flags, mech, pre)
+                if mech == MECH_NONE:  # the state-only part read from ``pre`` (prepare)
+                    ok &= cell_increment_prepared(values, i, dl1, dl2, p, out, flags, pre)
+                else:
+                    ok &= cell_increment_mech(values, i, dl1, dl2, p, out, flags, 0, 0, mech)
                 if mix and (flags[i, 1] or flags[i, 2]):  # docs/mechanisms.md, "Renewal"
                     mix_rebirth(out, flags, i, area, dl1 < 0.0, two_r)
             vnn, vtt = vsigma_local(out, i, kn, hertz, two_r)
