@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from ..rev import Rev, RevState
-from ..rev.trial import point_prepared, point_trial
+from ..rev.trial import point_prepared, point_trial_prepared
 from .compiled import NOT_CONVERGED, cell_responses_of, fd_tangent, kernel_inputs, solve_point, supports
 from .newton import NewtonSettings
 
@@ -28,8 +28,10 @@ __all__ = ["strain_responses", "stress_responses", "supports"]
 def _strain_kernel(values, n_flags, eps, probes, geo, p, mode, volume0, sig, resp):
     out = np.empty_like(values)
     flags = np.empty((values.shape[0], n_flags), dtype=np.bool_)
+    pre = point_prepared(values, geo, p, resp)  # every probe starts from ``values``
     for k in range(probes.shape[0]):
-        point_trial(values, eps, probes[k], geo, p, mode, volume0, out, flags, sig[k], resp)
+        point_trial_prepared(values, eps, probes[k], geo, p, mode, volume0, out, flags, sig[k], resp,
+                             pre)
 
 
 @njit(cache=True, error_model="numpy")
