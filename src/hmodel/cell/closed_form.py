@@ -257,33 +257,56 @@ def cell_update_mech(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, mech):
     (:data:`MECH_NONE`, ...): the cell the caller's loop updates, a constant there.
     """
     if mech == MECH_ANY and p[P_HERTZ] != 0.0:
-        h = _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p)
-        r = finish_update_mech(d1, d2, a, l1, l2, dl1, dl2, h[1], h[2], h[3], h[4], h[5], h[6],
-                               h[7], h[8], p, mech)
-        return ((h[0] and r[0]), r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], r[10],
-                r[11], r[12], r[13])
+        return _hertz_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, mech)
     return cell_update_linear(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, mech,
                               regime_state(d1, a, n1, t1, p))
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _hertz_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, mech):
+    """:func:`cell_update_mech` of Hertz-Mindlin contacts."""
+    h = _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p)
+    r = finish_update_mech(d1, d2, a, l1, l2, dl1, dl2, h[1], h[2], h[3], h[4], h[5], h[6], h[7],
+                           h[8], p, mech)
+    return ((h[0] and r[0]), r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], r[10], r[11],
+            r[12], r[13])
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def prepared(p):
+    """Whether a cell of packed parameters ``p`` has a state-only part to prepare
+    (:func:`prepare_cell`): linear contacts. With Hertz-Mindlin contacts the same (their
+    overlaps' roots and rows, read from an array) left the drained biaxial test as slow as it
+    was; their trials compute it as before."""
+    return p[P_HERTZ] == 0.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def prepare_cell(values, i, p, pre):
     """``pre[i]``: the :func:`regime_state` of H-cell ``values[i]``'s committed state, for
-    every increment from it (:func:`cell_increment_prepared`)."""
+    every increment from it (:func:`cell_increment_prepared`; linear contacts,
+    :func:`prepared`)."""
     st = regime_state(values[i, 0], values[i, 2], values[i, 3], values[i, 5], p)
     for j in range(REGIME_WIDTH):
         pre[i, j] = st[j]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def cell_increment_prepared(values, i, dl1, dl2, p, out, flags, pre):
-    """:func:`cell_increment_mech` of the published cell (:data:`MECH_NONE`) i of H-cells
-    ``values`` (k = f = 0) from its :func:`prepare_cell` ``pre[i]``: the same result to the
-    last bit."""
-    r = cell_update_linear(values[i, 0], values[i, 1], values[i, 2], values[i, 3], values[i, 4],
-                           values[i, 5], values[i, 6], values[i, 7], dl1, dl2, p, MECH_NONE,
-                           (pre[i, 0], pre[i, 1], pre[i, 2], pre[i, 3], pre[i, 4], pre[i, 5],
-                            pre[i, 6], pre[i, 7], pre[i, 8], pre[i, 9], pre[i, 10], pre[i, 11]))
+def cell_increment_prepared(values, i, dl1, dl2, p, out, flags, mech, pre):
+    """:func:`cell_increment_mech` of H-cell i of ``values`` (k = f = 0), the same result to
+    the last bit: linear contacts from the cell's :func:`prepare_cell` ``pre[i]``, Hertz-Mindlin
+    contacts as :func:`cell_update_mech` does. One closed form for every loop over cells: Numba
+    compiles both branches of a test on a literal ``mech``, and a loop holding this and
+    :func:`cell_increment_mech` took longer to compile."""
+    if mech == MECH_ANY and p[P_HERTZ] != 0.0:
+        r = _hertz_update(values[i, 0], values[i, 1], values[i, 2], values[i, 3], values[i, 4],
+                          values[i, 5], values[i, 6], values[i, 7], dl1, dl2, p, mech)
+    else:
+        r = cell_update_linear(values[i, 0], values[i, 1], values[i, 2], values[i, 3],
+                               values[i, 4], values[i, 5], values[i, 6], values[i, 7], dl1, dl2,
+                               p, mech, (pre[i, 0], pre[i, 1], pre[i, 2], pre[i, 3], pre[i, 4],
+                                         pre[i, 5], pre[i, 6], pre[i, 7], pre[i, 8], pre[i, 9],
+                                         pre[i, 10], pre[i, 11]))
     return write_update(r, out, flags, i, 0, 0)
 
 

@@ -24,11 +24,11 @@ from ..cell.closed_form import (
     P_R,
     P_RENEW,
     REGIME_WIDTH,
-    cell_increment_mech,
     cell_increment_prepared,
     cell_jacobian,
     cell_mechanisms,
     prepare_cell,
+    prepared,
 )
 from ..cell.compliance_kernel import compliance_increment
 from ..cell.meso_kernel import meso_increment
@@ -136,10 +136,10 @@ def average(values, wcos2, wsin2, wsincos, kn, hertz, sets, radius, vsig):
 def prepared_width(p, resp):
     """Width of the per-cell inputs of a point's trial that its committed cells fix
     (:func:`prepare`), with packed parameters ``p`` and learned responses ``resp`` (n, R; R = 0:
-    none): the published cell's (:func:`hmodel.cell.closed_form.regime_state`); none for other
-    cells (a Hertz-Mindlin cell's overlaps and rows, prepared so, left its trials in a drained
-    biaxial test as slow as they were)."""
-    if resp.shape[1] == 0 and cell_mechanisms(p) == MECH_NONE:
+    none): a closed-form cell's with linear contacts
+    (:func:`hmodel.cell.closed_form.regime_state`); none for other cells
+    (:func:`hmodel.cell.closed_form.prepared`)."""
+    if resp.shape[1] == 0 and prepared(p):
         return REGIME_WIDTH
     return 0
 
@@ -241,10 +241,8 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
             if law == LAW_COMPLIANCE:
                 ok &= compliance_increment(values, i, dl1, dl2, resp, p, out, flags)
             else:
-                if mech == MECH_NONE:  # the state-only part read from ``pre`` (prepare)
-                    ok &= cell_increment_prepared(values, i, dl1, dl2, p, out, flags, pre)
-                else:
-                    ok &= cell_increment_mech(values, i, dl1, dl2, p, out, flags, 0, 0, mech)
+                # linear contacts' state-only part read from ``pre`` (prepare)
+                ok &= cell_increment_prepared(values, i, dl1, dl2, p, out, flags, mech, pre)
                 if mix and (flags[i, 1] or flags[i, 2]):  # docs/mechanisms.md, "Renewal"
                     mix_rebirth(out, flags, i, area, dl1 < 0.0, two_r)
             vnn, vtt = vsigma_local(out, i, kn, hertz, two_r)
