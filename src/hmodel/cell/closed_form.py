@@ -75,10 +75,25 @@ def cell_mechanisms(p):
 @njit(cache=True, inline="always", error_model="numpy")
 def _solve3(a11, a12, a13, a21, a22, a23, a31, a32, a33, b1, b2, b3):
     """Cramer's rule for a 3x3 system; returns (x1, x2, x3, det)."""
+    c11, c12, c13, det = _cofactors(a11, a12, a13, a21, a22, a23, a31, a32, a33)
+    return _solve3_with(a11, a12, a13, a21, a22, a23, a31, a32, a33, c11, c12, c13, det, b1, b2,
+                        b3)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _cofactors(a11, a12, a13, a21, a22, a23, a31, a32, a33):
+    """The part of :func:`_solve3` that depends on the matrix only: the cofactors of the first
+    row and the determinant, ``(c11, c12, c13, det)``."""
     c11 = a22 * a33 - a23 * a32
     c12 = a23 * a31 - a21 * a33
     c13 = a21 * a32 - a22 * a31
     det = a11 * c11 + a12 * c12 + a13 * c13
+    return c11, c12, c13, det
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _solve3_with(a11, a12, a13, a21, a22, a23, a31, a32, a33, c11, c12, c13, det, b1, b2, b3):
+    """:func:`_solve3` given the matrix's :func:`_cofactors`: (x1, x2, x3, det)."""
     x1 = (b1 * c11 + a12 * (a23 * b3 - b2 * a33) + a13 * (b2 * a32 - a22 * b3)) / det
     x2 = (a11 * (b2 * a33 - a23 * b3) + b1 * c12 + a13 * (a21 * b3 - b2 * a31)) / det
     x3 = (a11 * (a22 * b3 - b2 * a32) + a12 * (b2 * a31 - a21 * b3) + b1 * c13) / det
@@ -119,17 +134,20 @@ def hertz_overlaps(d1, d2, n1, n2, p):
     return u1, hertz.overlap_root(n2, c, two_r - d2), p[P_MINDLIN] * 1.5 * c * u1
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def _regime(d1, a, n1, t1, dl1, dl2, p):
-    """The system of eq. 1.7 in the regime the increment (dl1, dl2) takes: ``(a11, a13, a21,
-    a23, a31, a33, rhs3, sliding, xi)``, the matrix [[a11, 1, a13], [a21, 0, a23], [a31, -1,
-    a33]] and the third right-hand side (the first two are dl1, dl2).
+#: Width of a cell's :func:`regime_state`, the part of eq. 1.7 its committed state fixes.
+REGIME_WIDTH = 12
 
-    Within a regime the solution is affine in (dl1, dl2): its matrix and rhs3 depend on the
-    committed state only, which is what makes :func:`cell_jacobian` exact."""
+
+@njit(cache=True, inline="always", error_model="numpy")
+def regime_state(d1, a, n1, t1, p):
+    """The part of :func:`_regime` that depends on the committed state (d1, α, N1, T1) only:
+    ``(cos α, g2 + sin α, a11, a13, a21, a23, a33, a33 sliding, c11, c12, c13, det)``, the
+    matrix of eq. 1.7 without sliding, its :func:`_cofactors`, and the third row's a33 while
+    sliding. A compiled REV trial reads it from an array filled once per committed state
+    (:func:`hmodel.rev.kernels.prepare`): Newton makes several trials from one state, and the
+    same expressions give the same values to the last bit wherever they are computed."""
     kn = p[P_KN]
     kt = p[P_KT]
-    tanphi = p[P_TAN]
     # angle_rows written out: through it the published cell's REV trial ran about 10 % slower
     # (engine benchmark, four alternations against the code before it)
     ca = math.cos(a)
@@ -137,16 +155,46 @@ def _regime(d1, a, n1, t1, dl1, dl2, p):
     gs = p[P_G2] + sa
     a11, a13, a21, a23 = _compatibility(d1, ca, sa, p)
     # Row 3, no sliding (eqs. 1.8-1.9): equilibrium of grain 2 with dT1 = kt d1 dalpha.
-    a33 = (n1 * sa - t1 * ca - kt * d1 * gs) / kn
-    dd1, dd2, da, det = _solve3(a11, 1.0, a13, a21, 0.0, a23, ca, -1.0, a33, dl1, dl2, 0.0)
+    g = n1 * sa - t1 * ca
+    a33 = (g - kt * d1 * gs) / kn
+    c11, c12, c13, det = _cofactors(a11, 1.0, a13, a21, 0.0, a23, ca, -1.0, a33)
+    return ca, gs, a11, a13, a21, a23, a33, g / kn, c11, c12, c13, det
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def regime_increment(d1, n1, t1, dl1, dl2, p, st):
+    """The regime the increment (dl1, dl2) takes from a cell whose :func:`regime_state` is
+    ``st``: ``(a11, a13, a21, a23, a31, a33, rhs3, sliding, xi, c11, c12, c13, det)``, the
+    system of eq. 1.7 (:func:`_regime`) and its matrix's :func:`_cofactors`."""
+    ca, gs, a11, a13, a21, a23, a33, a33s, c11, c12, c13, det = st
+    kn = p[P_KN]
+    kt = p[P_KT]
+    tanphi = p[P_TAN]
+    dd1, dd2, da, det = _solve3_with(a11, 1.0, a13, a21, 0.0, a23, ca, -1.0, a33, c11, c12, c13,
+                                     det, dl1, dl2, 0.0)
     n1_new = n1 - kn * dd1
     t1_new = t1 + kt * d1 * da
     sliding = abs(t1_new) >= tanphi * n1_new
     xi = 1.0 if t1_new >= 0.0 else -1.0
     if sliding:
-        return (a11, a13, a21, a23, ca + xi * tanphi * gs, (n1 * sa - t1 * ca) / kn,
-                sliding_lambda(a, n1, t1, xi, p), sliding, xi)
-    return a11, a13, a21, a23, ca, a33, 0.0, sliding, xi
+        a31 = ca + xi * tanphi * gs
+        s11, s12, s13, sdet = _cofactors(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33s)
+        return (a11, a13, a21, a23, a31, a33s, _sliding_force(gs, n1, t1, xi, p) / kn, sliding,
+                xi, s11, s12, s13, sdet)
+    return a11, a13, a21, a23, ca, a33, 0.0, sliding, xi, c11, c12, c13, det
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _regime(d1, a, n1, t1, dl1, dl2, p):
+    """The system of eq. 1.7 in the regime the increment (dl1, dl2) takes: ``(a11, a13, a21,
+    a23, a31, a33, rhs3, sliding, xi)``, the matrix [[a11, 1, a13], [a21, 0, a23], [a31, -1,
+    a33]] and the third right-hand side (the first two are dl1, dl2).
+
+    Within a regime the solution is affine in (dl1, dl2): its matrix and rhs3 depend on the
+    committed state only (:func:`regime_state`), which is what makes :func:`cell_jacobian`
+    exact."""
+    r = regime_increment(d1, n1, t1, dl1, dl2, p, regime_state(d1, a, n1, t1, p))
+    return r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]
 
 
 # a call, not inlined: inlined, it is compiled once more into every loop over cells, which
@@ -209,13 +257,66 @@ def cell_update_mech(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, mech):
     (:data:`MECH_NONE`, ...): the cell the caller's loop updates, a constant there.
     """
     if mech == MECH_ANY and p[P_HERTZ] != 0.0:
-        h = _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p)
-        r = finish_update_mech(d1, d2, a, l1, l2, dl1, dl2, h[1], h[2], h[3], h[4], h[5], h[6],
-                               h[7], h[8], p, mech)
-        return ((h[0] and r[0]), r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], r[10],
-                r[11], r[12], r[13])
-    a11, a13, a21, a23, a31, a33, rhs3, sliding, xi = _regime(d1, a, n1, t1, dl1, dl2, p)
-    dd1, dd2, da, det = _solve3(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33, dl1, dl2, rhs3)
+        return _hertz_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, mech)
+    return cell_update_linear(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, mech,
+                              regime_state(d1, a, n1, t1, p))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _hertz_update(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, mech):
+    """:func:`cell_update_mech` of Hertz-Mindlin contacts."""
+    h = _hertz_regime(d1, d2, a, n1, n2, t1, dl1, dl2, p)
+    r = finish_update_mech(d1, d2, a, l1, l2, dl1, dl2, h[1], h[2], h[3], h[4], h[5], h[6], h[7],
+                           h[8], p, mech)
+    return ((h[0] and r[0]), r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9], r[10], r[11],
+            r[12], r[13])
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def prepared(p):
+    """Whether a cell of packed parameters ``p`` has a state-only part to prepare
+    (:func:`prepare_cell`): linear contacts. With Hertz-Mindlin contacts the same (their
+    overlaps' roots and rows, read from an array) left the drained biaxial test as slow as it
+    was; their trials compute it as before."""
+    return p[P_HERTZ] == 0.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def prepare_cell(values, i, p, pre):
+    """``pre[i]``: the :func:`regime_state` of H-cell ``values[i]``'s committed state, for
+    every increment from it (:func:`cell_increment_prepared`; linear contacts,
+    :func:`prepared`)."""
+    st = regime_state(values[i, 0], values[i, 2], values[i, 3], values[i, 5], p)
+    for j in range(REGIME_WIDTH):
+        pre[i, j] = st[j]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def cell_increment_prepared(values, i, dl1, dl2, p, out, flags, mech, pre):
+    """:func:`cell_increment_mech` of H-cell i of ``values`` (k = f = 0), the same result to
+    the last bit: linear contacts from the cell's :func:`prepare_cell` ``pre[i]``, Hertz-Mindlin
+    contacts as :func:`cell_update_mech` does. One closed form for every loop over cells: Numba
+    compiles both branches of a test on a literal ``mech``, and a loop holding this and
+    :func:`cell_increment_mech` took longer to compile."""
+    if mech == MECH_ANY and p[P_HERTZ] != 0.0:
+        r = _hertz_update(values[i, 0], values[i, 1], values[i, 2], values[i, 3], values[i, 4],
+                          values[i, 5], values[i, 6], values[i, 7], dl1, dl2, p, mech)
+    else:
+        r = cell_update_linear(values[i, 0], values[i, 1], values[i, 2], values[i, 3],
+                               values[i, 4], values[i, 5], values[i, 6], values[i, 7], dl1, dl2,
+                               p, mech, (pre[i, 0], pre[i, 1], pre[i, 2], pre[i, 3], pre[i, 4],
+                                         pre[i, 5], pre[i, 6], pre[i, 7], pre[i, 8], pre[i, 9],
+                                         pre[i, 10], pre[i, 11]))
+    return write_update(r, out, flags, i, 0, 0)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def cell_update_linear(d1, d2, a, n1, n2, t1, l1, l2, dl1, dl2, p, mech, st):
+    """:func:`cell_update_mech` of linear contacts, from the cell's :func:`regime_state` ``st``."""
+    (a11, a13, a21, a23, a31, a33, rhs3, sliding, xi, c11, c12, c13,
+     det) = regime_increment(d1, n1, t1, dl1, dl2, p, st)
+    dd1, dd2, da, det = _solve3_with(a11, 1.0, a13, a21, 0.0, a23, a31, -1.0, a33, c11, c12, c13,
+                                     det, dl1, dl2, rhs3)
     n1_new, n2_new, t1_new = linear_forces(d1, n1, n2, t1, dd1, dd2, da, p)
     r = finish_update_mech(d1, d2, a, l1, l2, dl1, dl2, dd1, dd2, da, n1_new, n2_new, t1_new,
                            sliding, xi, p, mech)
@@ -370,7 +471,12 @@ def sliding_lambda(a, n1, t1, xi, p):
 def sliding_force(a, n1, t1, xi, p):
     """kn λ of :func:`sliding_lambda`: the third row's right-hand side in forces, as the
     Hertz-Mindlin row takes it (its stiffness is no constant)."""
-    gs = p[P_G2] + math.sin(a)
+    return _sliding_force(p[P_G2] + math.sin(a), n1, t1, xi, p)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _sliding_force(gs, n1, t1, xi, p):
+    """:func:`sliding_force` given gs = g2 + sin α."""
     if p[P_EQ_RHS] != 0.0:
         return gs * (xi * p[P_TAN] * n1 - t1)
     return xi * gs * (p[P_TAN] * n1 - t1)  # eq. 1.10 as corrected in docs/model.md

@@ -45,7 +45,7 @@ from ..errors import PointFailure, SolverError
 from ..rev import Rev, RevState
 from ..rev.kernels import closed_form_tangent, trial, trial_tangent  # noqa: F401 (their face here)
 from ..rev.state import normal_components
-from ..rev.trial import point_trial
+from ..rev.trial import point_prepare, point_prepared, point_trial, point_trial_prepared
 from .control import Control, Tangent, solve_increment
 from .newton import (
     ASK_SLOPE,
@@ -125,28 +125,29 @@ def cell_responses_of(kernel, values: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy")
-def fd_tangent(values, eps, x, geo, p, mode, volume0, h, out, flags, K, resp):
+def fd_tangent(values, eps, x, geo, p, mode, volume0, h, out, flags, K, resp, pre):
     """K[i, j] = dsig_i / dx_j (n x n) by forward differences at trial increment x (n,): n + 1
-    trials."""
+    trials (``pre``: :func:`~hmodel.rev.trial.point_prepared` of ``values``)."""
     n = x.shape[0]
     sig0 = np.empty(n)
     sig1 = np.empty(n)
     xp = x.copy()
-    point_trial(values, eps, xp, geo, p, mode, volume0, out, flags, sig0, resp)
+    point_trial_prepared(values, eps, xp, geo, p, mode, volume0, out, flags, sig0, resp, pre)
     for j in range(n):
         xp[:] = x
         xp[j] += h
-        point_trial(values, eps, xp, geo, p, mode, volume0, out, flags, sig1, resp)
+        point_trial_prepared(values, eps, xp, geo, p, mode, volume0, out, flags, sig1, resp, pre)
         for i in range(n):
             K[i, j] = (sig1[i] - sig0[i]) / h
 
 
 @njit(cache=True, error_model="numpy")
-def _slope_trial(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp, exact, u, K):
-    """:func:`~hmodel.rev.trial.point_trial`; with ``exact`` (a 2D meso surrogate), also the stress slope du along
-    u, set into K: K u = du, K unchanged on directions normal to u (a rank-one update)."""
+def _slope_trial(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp, pre, exact, u, K):
+    """:func:`~hmodel.rev.trial.point_trial_prepared`; with ``exact`` (a 2D meso surrogate),
+    also the stress slope du along u, set into K: K u = du, K unchanged on directions normal to
+    u (a rank-one update)."""
     if not exact:
-        return point_trial(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp)
+        return point_trial_prepared(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp, pre)
     du = np.empty(3)
     ok = trial_tangent(values, eps, x, geo, p, mode, volume0, out, flags, sig, resp, u, du)
     uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2]
@@ -187,7 +188,7 @@ def _broken(flags):
 
 @njit(cache=True, error_model="numpy")
 def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, c, buf, bufflags,
-                  W, resp, guess, trials):
+                  W, resp, pre, guess, trials):
     """The one Newton (:mod:`hmodel.loading.newton`) of one point, its trials evaluated here.
 
     Returns (outcome, cur, best): ``CONVERGED`` with the solution in ``buf[cur]`` (strain
@@ -198,6 +199,8 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, c,
     # Meso cells with one stress row: each trial also gives the stress derivative along the
     # strain direction u left free by the strain rows (exact within the cells' regimes)
     u = free_direction(S, M) if resp.shape[1] > 0 and p[P_LAW] == LAW_MESO else np.zeros(0)
+    # every trial of this Newton starts from ``values``: what they fix, once for all of them
+    point_prepare(values, geo, p, resp, pre)
     exact = u.shape[0] > 0
     flag = np.zeros(1, dtype=np.bool_)
     n = S.shape[0]
@@ -211,18 +214,18 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, c,
             nxt += 1
         if act == ASK_TANGENT:
             fd_tangent(values, eps, block(W, XN, n).copy(), geo, p, mode, volume0, c[C_FD], buf[nxt],
-                       bufflags[nxt], K, resp)
+                       bufflags[nxt], K, resp, pre)
             trials[0] += n + 1
             act = told_tangent(W, K, has_K, S, M, c)
         elif act == ASK_SLOPE:
             _slope_trial(values, eps, block(W, XN, n).copy(), geo, p, mode, volume0, buf[nxt],
-                         bufflags[nxt], sig_n, resp, True, u, K)
+                         bufflags[nxt], sig_n, resp, pre, True, u, K)
             trials[0] += 1
             act = told_tangent(W, K, has_K, S, M, c)
         elif act == ASK_TRIAL:
             trials[0] += 1
             ok = _slope_trial(values, eps, block(W, XN, n).copy(), geo, p, mode, volume0, buf[nxt],
-                              bufflags[nxt], sig_n, resp, exact, u, K)
+                              bufflags[nxt], sig_n, resp, pre, exact, u, K)
             same = cur >= 0 and _same_events(bufflags[nxt], bufflags[cur])
             act = told_trial(W, K, S, M, c, sig_n, ok, _broken(bufflags[nxt]), same, exact, flag)
             cur = nxt
@@ -234,7 +237,7 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, c,
 
 @njit(cache=True, error_model="numpy")
 def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, c, max_events,
-                 buf, bufflags, resp, guess, trials):
+                 buf, bufflags, resp, pre, guess, trials):
     """One mixed-control increment of one material point, its state updated in place.
 
     The event loop of :func:`hmodel.loading.newton.after_newton`, as in
@@ -251,7 +254,7 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
     event = 0
     while True:
         act, cur, best = _newton_point(values, eps, sig, K, has_K, S, M, target, geo, p, mode,
-                                       volume0, c, buf, bufflags, W, resp,
+                                       volume0, c, buf, bufflags, W, resp, pre,
                                        guess if event == 0 else guess[:0], trials)
         then = after_newton(act, event, max_events)
         if then != COMMIT_SOLUTION and then != COMMIT_EVENT:
@@ -391,12 +394,15 @@ def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_from,
         # trial evaluates it; made here, it is checked against ``until`` before it is taken.
         x = np.empty(m)
         known = strain_only and _known_increment(S, M, start[b], end[b], k_from[b], n_steps, v, x)
+        # the inputs of the trials that the committed cells fix (solve_point fills it again)
+        pre = point_prepared(vals, gb, pb, rb)
         sig_n = np.empty(m)
         for k in range(k_from[b], k_end):
             if known:
                 trials[b] += 1
-                if not point_trial(vals, eps[b], x, gb, pb, mode, volume0[sets[b]], buf[0], bufflags[0],
-                                 sig_n, rb):
+                point_prepare(vals, gb, pb, rb, pre)
+                if not point_trial_prepared(vals, eps[b], x, gb, pb, mode, volume0[sets[b]], buf[0],
+                                            bufflags[0], sig_n, rb, pre):
                     stop[b] = k  # the state is the one before increment k
                     break
                 met = watch and _mean_normal(sig_n, n_normal) >= until[b]
@@ -422,7 +428,7 @@ def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_from,
                 kept_guess[:] = guess[b]
                 kept_has = has_K[b]
             if solve_point(vals, flg, eps[b], sig[b], K[b], has_K[b:b + 1], S, M, v, gb, pb, mode,
-                           volume0[sets[b]], c, max_events, buf, bufflags, rb, guess[b],
+                           volume0[sets[b]], c, max_events, buf, bufflags, rb, pre, guess[b],
                            trials[b:b + 1]) != OK:
                 stop[b] = k  # solve_point restored the state before increment k
                 break

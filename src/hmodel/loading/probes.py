@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from ..rev import Rev, RevState
-from ..rev.trial import point_trial
+from ..rev.trial import point_prepared, point_trial_prepared
 from .compiled import NOT_CONVERGED, cell_responses_of, fd_tangent, kernel_inputs, solve_point, supports
 from .newton import NewtonSettings
 
@@ -28,8 +28,10 @@ __all__ = ["strain_responses", "stress_responses", "supports"]
 def _strain_kernel(values, n_flags, eps, probes, geo, p, mode, volume0, sig, resp):
     out = np.empty_like(values)
     flags = np.empty((values.shape[0], n_flags), dtype=np.bool_)
+    pre = point_prepared(values, geo, p, resp)  # every probe starts from ``values``
     for k in range(probes.shape[0]):
-        point_trial(values, eps, probes[k], geo, p, mode, volume0, out, flags, sig[k], resp)
+        point_trial_prepared(values, eps, probes[k], geo, p, mode, volume0, out, flags, sig[k], resp,
+                             pre)
 
 
 @njit(cache=True, error_model="numpy")
@@ -40,6 +42,7 @@ def _stress_kernel(values, flags, eps, sig, K, targets, geo, p, mode, volume0, c
     bufflags = np.empty((4, n, flags.shape[1]), dtype=np.bool_)
     S = np.ones(n_comp, dtype=np.bool_)
     M = np.eye(n_comp)
+    pre = point_prepared(values, geo, p, resp)  # solve_point fills it again
     for k in range(targets.shape[0]):
         v = values.copy()
         f = flags.copy()
@@ -48,7 +51,7 @@ def _stress_kernel(values, flags, eps, sig, K, targets, geo, p, mode, volume0, c
         Kk = K.copy()
         has = np.ones(1, dtype=np.bool_)
         status = solve_point(v, f, e, s, Kk, has, S, M, targets[k], geo, p, mode, volume0, c, 0,
-                             buf, bufflags, resp, np.empty(0), np.zeros(1, dtype=np.int64))
+                             buf, bufflags, resp, pre, np.empty(0), np.zeros(1, dtype=np.int64))
         for j in range(n_comp):
             deps_out[k, j] = np.nan if status == NOT_CONVERGED else e[j] - eps[j]
 
@@ -78,7 +81,7 @@ def stress_responses(rev: Rev, one: RevState, targets: np.ndarray,
     K = np.empty((c, c))
     resp = cell_responses_of(rev.kernels[k], values)
     fd_tangent(values, one.eps[0], np.zeros(c), geo, p, rev.mode, rev.volumes0[k], settings.fd_step,
-               np.empty_like(values), np.empty_like(flags), K, resp)
+               np.empty_like(values), np.empty_like(flags), K, resp, point_prepared(values, geo, p, resp))
     deps = np.empty((len(targets), c))
     _stress_kernel(values, flags, one.eps[0].copy(), one.sig[0].copy(), K,
                    np.ascontiguousarray(targets, float), geo, p, rev.mode, rev.volumes0[k],

@@ -23,9 +23,12 @@ from ..cell.closed_form import (
     P_KN,
     P_R,
     P_RENEW,
-    cell_increment_mech,
+    REGIME_WIDTH,
+    cell_increment_prepared,
     cell_jacobian,
     cell_mechanisms,
+    prepare_cell,
+    prepared,
 )
 from ..cell.compliance_kernel import compliance_increment
 from ..cell.meso_kernel import meso_increment
@@ -129,6 +132,42 @@ def average(values, wcos2, wsin2, wsincos, kn, hertz, sets, radius, vsig):
         vsig[b, 2] = s12
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def prepared_width(p, resp):
+    """Width of the per-cell inputs of a point's trial that its committed cells fix
+    (:func:`prepare`), with packed parameters ``p`` and learned responses ``resp`` (n, R; R = 0:
+    none): a closed-form cell's with linear contacts
+    (:func:`hmodel.cell.closed_form.regime_state`); none for other cells
+    (:func:`hmodel.cell.closed_form.prepared`)."""
+    if resp.shape[1] == 0 and prepared(p):
+        return REGIME_WIDTH
+    return 0
+
+
+@njit(cache=True, error_model="numpy")
+def prepare(values, p, resp, pre):
+    """``pre[i]``: the part of eq. 1.7 that cell i's committed state ``values[i]`` fixes
+    (:func:`hmodel.cell.closed_form.prepare_cell`), for every trial from that state
+    (:func:`trial_prepared`); nothing where ``pre`` is (n, 0) (:func:`prepared_width`).
+
+    Newton makes several trials from one committed state; each computed again the cells'
+    trigonometry, their matrices of eq. 1.7 and the matrices' cofactors. The same expressions
+    give the same values to the last bit wherever they are computed, so the trials read them
+    here."""
+    if pre.shape[1] == 0:
+        return
+    for i in range(values.shape[0]):
+        prepare_cell(values, i, p, pre)
+
+
+@njit(cache=True, error_model="numpy")
+def new_prepared(values, p, resp):
+    """A new array of :func:`prepare`'s inputs of cells ``values``."""
+    pre = np.empty((values.shape[0], prepared_width(p, resp)))
+    prepare(values, p, resp, pre)
+    return pre
+
+
 @njit(cache=True, error_model="numpy")
 def trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
     """REV step of one material point: cells ``values`` (n, n_fields) -> ``out``, stress -> ``sig``.
@@ -139,12 +178,20 @@ def trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
     compliances (``compliance_kernel.compliance_increment``). Returns False when a cell increment
     failed.
     """
+    return trial_prepared(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
+                          new_prepared(values, p, resp))
+
+
+@njit(cache=True, error_model="numpy")
+def trial_prepared(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, pre):
+    """:func:`trial` given its state-only inputs ``pre`` (:func:`prepare` of ``values``), for a
+    caller that makes several trials from one committed state."""
     mech = cell_mechanisms(p) if resp.shape[1] == 0 else MECH_ANY
     if mech == MECH_NONE:  # the published cell's loop: none of the mechanisms' code in it
         return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
-                           False, deps, sig, MECH_NONE)
+                           False, deps, sig, MECH_NONE, pre)
     return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, False,
-                       deps, sig, MECH_ANY)
+                       deps, sig, MECH_ANY, pre)
 
 
 @njit(cache=True, error_model="numpy")
@@ -152,12 +199,12 @@ def trial_tangent(values, eps, deps, geo, p, mode, volume0, out, flags, sig, res
     """:func:`trial` of a meso surrogate that also gives ``dsig``, the derivative of the stress
     along the strain direction ``u`` (3,): exact within every cell's regime."""
     return _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, True, u,
-                       dsig, MECH_ANY)
+                       dsig, MECH_ANY, np.empty((values.shape[0], 0)))
 
 
 @njit(cache=True, error_model="numpy")
 def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, tangent, u, dsig,
-                mech):
+                mech, pre):
     literally(mech)  # a loop of its own per cell (closed_form.MECH_NONE, ...)
     two_r = 2.0 * p[P_R]
     kn = p[P_KN]
@@ -194,7 +241,8 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
             if law == LAW_COMPLIANCE:
                 ok &= compliance_increment(values, i, dl1, dl2, resp, p, out, flags)
             else:
-                ok &= cell_increment_mech(values, i, dl1, dl2, p, out, flags, 0, 0, mech)
+                # linear contacts' state-only part read from ``pre`` (prepare)
+                ok &= cell_increment_prepared(values, i, dl1, dl2, p, out, flags, mech, pre)
                 if mix and (flags[i, 1] or flags[i, 2]):  # docs/mechanisms.md, "Renewal"
                     mix_rebirth(out, flags, i, area, dl1 < 0.0, two_r)
             vnn, vtt = vsigma_local(out, i, kn, hertz, two_r)
