@@ -43,9 +43,9 @@ from ..cell.base import LAW_MESO, P_LAW
 from ..cell.state import CellFlags, CellState
 from ..errors import PointFailure, SolverError
 from ..rev import Rev, RevState
-from ..rev.kernels import closed_form_tangent, trial, trial_tangent  # noqa: F401 (their face here)
+from ..rev.kernels import closed_form_tangent, prepare, trial, trial_tangent  # noqa: F401 (their face here)
 from ..rev.state import normal_components
-from ..rev.trial import point_prepare, point_prepared, point_trial, point_trial_prepared
+from ..rev.trial import point_prepared, point_trial, point_trial_prepared
 from .control import Control, Tangent, solve_increment
 from .newton import (
     ASK_SLOPE,
@@ -200,7 +200,7 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, c,
     # strain direction u left free by the strain rows (exact within the cells' regimes)
     u = free_direction(S, M) if resp.shape[1] > 0 and p[P_LAW] == LAW_MESO else np.zeros(0)
     # every trial of this Newton starts from ``values``: what they fix, once for all of them
-    point_prepare(values, geo, p, resp, pre)
+    prepare(values, p, pre)
     exact = u.shape[0] > 0
     flag = np.zeros(1, dtype=np.bool_)
     n = S.shape[0]
@@ -400,7 +400,7 @@ def _steps(values, flags, eps, sig, K, has_K, S, M, start, end, n_steps, k_from,
         for k in range(k_from[b], k_end):
             if known:
                 trials[b] += 1
-                point_prepare(vals, gb, pb, rb, pre)
+                prepare(vals, pb, pre)
                 if not point_trial_prepared(vals, eps[b], x, gb, pb, mode, volume0[sets[b]], buf[0],
                                             bufflags[0], sig_n, rb, pre):
                     stop[b] = k  # the state is the one before increment k

@@ -145,15 +145,14 @@ def prepared_width(p, resp):
 
 
 @njit(cache=True, error_model="numpy")
-def prepare(values, p, resp, pre):
+def prepare(values, p, pre):
     """``pre[i]``: the part of eq. 1.7 that cell i's committed state ``values[i]`` fixes
     (:func:`hmodel.cell.closed_form.prepare_cell`), for every trial from that state
     (:func:`trial_prepared`); nothing where ``pre`` is (n, 0) (:func:`prepared_width`).
 
-    Newton makes several trials from one committed state; each computed again the cells'
-    trigonometry, their matrices of eq. 1.7 and the matrices' cofactors. The same expressions
-    give the same values to the last bit wherever they are computed, so the trials read them
-    here."""
+    Newton makes several trials from one committed state, and the cells' trigonometry, their
+    matrices of eq. 1.7 and the matrices' cofactors are the same in all of them: computed once
+    here with the same expressions, they are the same values to the last bit."""
     if pre.shape[1] == 0:
         return
     for i in range(values.shape[0]):
@@ -164,7 +163,7 @@ def prepare(values, p, resp, pre):
 def new_prepared(values, p, resp):
     """A new array of :func:`prepare`'s inputs of cells ``values``."""
     pre = np.empty((values.shape[0], prepared_width(p, resp)))
-    prepare(values, p, resp, pre)
+    prepare(values, p, pre)
     return pre
 
 

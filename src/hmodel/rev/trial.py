@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .kernels import prepare, prepared_width, trial, trial_prepared
+from .kernels import new_prepared, trial, trial_prepared
 from .kernels3d import GEO_WIDTH as BIHEX_WIDTH
 from .kernels3d import bihex_trial
 
@@ -44,15 +44,7 @@ def point_trial_prepared(values, eps, deps, geo, p, mode, volume0, out, flags, s
 def point_prepared(values, geo, p, resp):
     """The inputs of a point's trials that its committed cells ``values`` fix, a new array (C,
     width) for :func:`point_trial_prepared` (the 2D REV's published cells, width 0 for the
-    others); :func:`point_prepare` fills it again when the cells change."""
-    width = 0 if geo.shape[1] == BIHEX_WIDTH else prepared_width(p, resp)
-    pre = np.empty((values.shape[0], width))
-    point_prepare(values, geo, p, resp, pre)
-    return pre
-
-
-@njit(cache=True, error_model="numpy")
-def point_prepare(values, geo, p, resp, pre):
-    """Fill ``pre`` (:func:`point_prepared`) from the committed cells ``values``."""
-    if pre.shape[1] > 0:
-        prepare(values, p, resp, pre)
+    others); :func:`hmodel.rev.kernels.prepare` fills it again when the cells change."""
+    if geo.shape[1] == BIHEX_WIDTH:
+        return np.empty((values.shape[0], 0))
+    return new_prepared(values, p, resp)
