@@ -1,5 +1,6 @@
 """The 3D H-model calibrated on a DEM sphere sample (``hmodel dem sample --dim 3``), and its
-prediction of the tests it was not calibrated on (issue 35).
+prediction of the tests it was not calibrated on (issue 35); the 2D model on a DEM disk sample
+(``--dim 2``) alike.
 
 Least squares of kn, kt/kn, φg and α0 on the sample's drained triaxial tests named by
 ``--fit-on`` (default: the drained tests at the lowest and the highest pressure), at the model's
@@ -16,7 +17,10 @@ figure ``docs/figures/dem3d-calibration.png`` (every test, DEM against model).
 With ``--model NAME`` a variant of the H-model (``hmodel models``) is fitted (its own fitted
 parameters); with several sample folders one parameter set is fitted over all of them (tests
 named FOLDER/STEM; a variant that uses e0 starts each test from the e0 of its CSV's ``e``
-column): docs/mechanisms.md's DEM judge. ``--param NAME=VALUE`` fixes a parameter beyond the
+column): docs/mechanisms.md's DEM judge. Folders of biaxial tests (``drained_P0kPa.csv``,
+``undrained_P0kPa.csv``: a disk sample's) calibrate the 2D model, at its default parameters
+(``sliding_rhs`` the report's, as ``hmodel calibrate`` takes for 2D tests; ``--order`` and
+``--azimuths`` do not apply); folders of one dimension only. ``--param NAME=VALUE`` fixes a parameter beyond the
 variant's (a mechanism on a variant that lacks it: ``-p lateral=axisymmetric`` on ``density``,
 the linear contacts of the linear-contact samples); ``--radial`` holds the drained tests' sides
 (``run_triaxial``'s ``radial``; default: by the parameters).
@@ -42,7 +46,7 @@ from benchmarks.calibration.dem_calibration import _figure
 from benchmarks.timing import FIGURES, ROOT, input_files, record, write_table
 from hmodel.calibrate import Kind, Test, fit
 from hmodel.calibrate.fitting import SEARCH_RULE
-from hmodel.calibrate.model import Model, has_eps_v
+from hmodel.calibrate.model import Model, Prediction, has_eps_v
 from hmodel import Params
 from hmodel.rev import Sphere
 from hmodel.rev.model3d import params_3d
@@ -52,14 +56,15 @@ FITTED = ("kn", "kt_kn", "phi_g", "alpha0")
 AXIS = (1.0, 0.0, 0.0)  # the command line's axial axis
 
 
-def read_tests(folder: Path, prefix: str = "") -> dict[str, Test]:
-    """Every ``KIND_P0kPa.csv`` of a sample folder whose KIND is a triaxial kind, named
-    ``prefix + stem``; its e0 is the first row of the CSV's void-ratio column ``e`` where it has
-    one (``hmodel dem sample`` writes it), for the variants that start each test from its e0."""
+def read_tests(folder: Path, prefix: str = "", dim: int = 3) -> dict[str, Test]:
+    """Every ``KIND_P0kPa.csv`` of a sample folder whose KIND is a test of the ``dim``-D model
+    (triaxial kinds in 3D, biaxial ones in 2D), named ``prefix + stem``; its e0 is the first row
+    of the CSV's void-ratio column ``e`` where it has one (``hmodel dem sample`` writes it), for
+    the variants that start each test from its e0."""
     tests = {}
     for f in sorted(folder.glob("*_*kPa.csv")):
         kind, p0 = f.stem.split("_")
-        if kind in tuple(Kind) and Kind(kind).dim == 3:
+        if kind in tuple(Kind) and Kind(kind).dim == dim:
             name = prefix + f.stem
             test = Test.from_csv(f, kind, float(p0.removesuffix("kPa")) * 1e3, name)
             with f.open(encoding="utf-8") as fh:
@@ -112,26 +117,38 @@ def main() -> None:
     args = ap.parse_args()
     variant = get_variant(args.model)
     several = len(args.sample) > 1
+    dims = {Kind(k).dim for f in args.sample for k in (c.stem.split("_")[0] for c in f.glob("*_*kPa.csv"))
+            if k in tuple(Kind)}
+    if len(dims) != 1:
+        sys.exit(f"{', '.join(map(str, args.sample))}: tests of one model's dimension, biaxial (2D) or triaxial "
+                 f"(3D), expected; found {'both' if dims else 'none'}")
+    dim = dims.pop()
     tests = {}
     for folder in args.sample:
-        tests |= read_tests(folder, f"{folder.name}/" if several else "")
-    drained = sorted((t for t in tests.values() if t.kind is Kind.TRIAXIAL_DRAINED), key=lambda t: t.p0)
+        tests |= read_tests(folder, f"{folder.name}/" if several else "", dim)
+    drained_kind = Kind.DRAINED if dim == 2 else Kind.TRIAXIAL_DRAINED
+    drained = sorted((t for t in tests.values() if t.kind is drained_kind), key=lambda t: t.p0)
     chosen = args.fit_on.split(",") if args.fit_on else [t.name for t in (drained[:1] + drained[-1:])]
     chosen = list(dict.fromkeys(chosen))
     missing = [n for n in chosen if n not in tests]
     if missing or not chosen:
         sys.exit(f"no test {', '.join(missing) or '(none drained)'} in {', '.join(map(str, args.sample))}")
     kw = {k: v for k, v in (("order", args.order), ("n_azimuth", args.azimuths)) if v is not None}
-    sphere = Sphere(**kw, axis=AXIS)
+    if dim == 2 and kw:
+        sys.exit("--order and --azimuths are of the 3D model's sphere; these are biaxial (2D) tests")
+    sphere = Sphere(**kw, axis=AXIS) if dim == 3 else None
     t0 = time.perf_counter()
     fitted = FITTED if variant.name == "published" else variant.fitted
-    base = Params.parse_assignments(args.param, params_3d()) if args.param else None
+    base = (Params.parse_assignments(args.param, params_3d() if dim == 3 else Params()) if args.param
+            else None)
     cal = fit([tests[n] for n in chosen], fitted, starts=args.starts, sphere=sphere, model=variant,
               radial=args.radial, base=base)
     wall = time.perf_counter() - t0
     others = [t for n, t in tests.items() if n not in chosen]
-    pred = (Model(tuple(others), sphere=sphere, variant=variant, e_ref=cal.e_ref, radial=cal.radial
-                  ).predict([cal.params])
+    # each prediction on its own: a Model's parameter set fails as a whole where one test fails
+    alone = [Model((t,), sphere=sphere, variant=variant, e_ref=cal.e_ref, radial=cal.radial).predict([cal.params])
+             for t in others]
+    pred = (Prediction([a.q[0] for a in alone], [a.eps_v[0] for a in alone], [a.failed[0] for a in alone])
             if others else None)
     rows = [(f"fitted {k}", v, f"± {cal.stderr[k]:.3g}") for k, v in cal.fitted.items()]
     rows += [("objective (scaled residuals)", cal.cost, "-"),
@@ -142,6 +159,7 @@ def main() -> None:
               for k, t in enumerate(cal.tests)]
     if pred is not None:
         curves += [(t, pred.q[k][0], pred.eps_v[k][0], "predicted") for k, t in enumerate(others)]
+    failures = {t.name: why for t, why in zip(others, pred.failed) if why} if pred is not None else {}
     for t, q, ev, how in curves:
         if not np.all(np.isfinite(q)):
             rows.append((f"{how} {t.name}: the model's test failed", float("nan"), "-"))
@@ -154,12 +172,13 @@ def main() -> None:
                      (f"{how} {t.name}: max |d eps_v| [%]", 100 * e["max_deps_v"], "-")]
     extra = {}
     if args.bayes_steps:
-        coarse = Sphere(order=SEARCH_RULE[0], n_azimuth=SEARCH_RULE[1], axis=AXIS)
+        coarse = Sphere(order=SEARCH_RULE[0], n_azimuth=SEARCH_RULE[1], axis=AXIS) if dim == 3 else None
         t0 = time.perf_counter()
         bay = fit([tests[n] for n in chosen], fitted, model=variant, method="bayes", starts=args.starts, sphere=coarse,
                   search_rule=None, walkers=args.walkers, steps=args.bayes_steps, radial=args.radial)
-        rows.append(((f"emcee {args.walkers} x {args.bayes_steps} at order {coarse.order}, "
-                      f"m = {coarse.n_azimuth} (with its least squares) [s]"), time.perf_counter() - t0, "-"))
+        rule = f" at order {coarse.order}, m = {coarse.n_azimuth}" if coarse is not None else ""
+        rows.append((f"emcee {args.walkers} x {args.bayes_steps}{rule} (with its least squares) [s]",
+                     time.perf_counter() - t0, "-"))
         for k, s in bay.posterior.summary.items():
             rows.append((f"posterior {k}: mean (90 % interval)", s["mean"], f"{s['q05']:.4g} to {s['q95']:.4g}"))
         extra["bayes"] = {**bay.posterior.to_dict(), "least_squares": bay.fitted}
@@ -171,7 +190,7 @@ def main() -> None:
     rec = record(__file__, args, 1, rows, sample=[str(f) for f in args.sample], test_files=csvs,
                  dem_settings={k: v.get("settings") for k, v in infos.items()}, model=variant.name,
                  e0={n: t.e0 for n, t in tests.items()},
-                 fit_on=chosen, calibration=cal.to_dict(), errors=errs, **extra)
+                 fit_on=chosen, calibration=cal.to_dict(), errors=errs, prediction_failures=failures, **extra)
     write_table(rows, args.out, rec)
     if pred is not None:
         _figure(cal, others, pred, args.figure)
