@@ -42,13 +42,19 @@ from ..errors import InputError, SolverError
 from ..params import Params
 from .base import STATE_BIHEXAGON, STATE_H_CELL, CellKernel, CellSolver
 from .closed_form import (
+    MECH_ANY,
+    MECH_NONE,
     P_CROSS,
     P_HERTZ,
     P_R,
     P_RENEW,
+    REGIME_WIDTH,
     ClosedFormSolver,
-    cell_increment,
+    cell_increment_hertz,
+    cell_increment_prepared,
     kernel_params as cell_kernel_params,
+    prepare_cell,
+    prepared,
 )
 from .cross import cross_increment, cross_vsigma
 from .hertz import extra_force
@@ -95,19 +101,43 @@ def cross_contact(dn, l2, l3, two_r):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def bihex_increment(values, i, dl1, dl2, dl3, p, out, flags):
+def bihex_prepared_width(p):
+    """Width of the part of a bi-hexagon's increment that its committed state fixes
+    (:func:`hmodel.cell.closed_form.prepare_cell` of both hexagons, read by
+    :func:`bihex_increment`): both hexagons' with linear contacts
+    (:func:`hmodel.cell.closed_form.prepared`); none with Hertz-Mindlin contacts (measured in 2D
+    to gain nothing) or with contacts between the hexagons, whose coupled increment
+    (:func:`hmodel.cell.cross.cross_increment`) starts from the states themselves."""
+    if prepared(p) and p[P_CROSS] == 0.0:
+        return 2 * REGIME_WIDTH
+    return 0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def bihex_increment(values, i, dl1, dl2, dl3, p, out, flags, pre, mech):
     """Advance bi-hexagon ``values[i]`` (16 fields) by (δl1, δl2, δl3) into ``out[i]`` and
     ``flags[i]`` (11), indexed in place (no row views, see closed_form.cell_update): each
-    hexagon is the 2D increment of eq. 1.7 (closed_form.cell_increment) with the shared δl1,
-    or, with contacts between the hexagons (``P_CROSS``), the coupled increment of
-    :func:`hmodel.cell.cross.cross_increment`. Returns False when either hexagon's increment
-    failed."""
-    if p[P_CROSS] != 0.0:  # docs/mechanisms.md, "Contacts between the two hexagons"
+    hexagon is the 2D increment of eq. 1.7 with the shared δl1
+    (:func:`hmodel.cell.closed_form.cell_increment_prepared`, linear contacts from ``pre[i]``,
+    both hexagons' :func:`hmodel.cell.closed_form.prepare_cell` of ``values``, of width
+    :func:`bihex_prepared_width`), or, with contacts between the hexagons (``P_CROSS``), the
+    coupled increment of :func:`hmodel.cell.cross.cross_increment`. ``mech``
+    (:data:`~hmodel.cell.closed_form.MECH_NONE`, ...): the cell the caller's loop updates, a
+    constant there. Returns False when either hexagon's increment failed."""
+    # docs/mechanisms.md, "Contacts between the two hexagons"
+    if mech == MECH_ANY and p[P_CROSS] != 0.0:
         ok = cross_increment(values, i, dl1, dl2, dl3, p, out, flags)
+    elif mech == MECH_ANY and p[P_HERTZ] != 0.0:  # nothing prepared (bihex_prepared_width)
+        ok_a = cell_increment_hertz(values, i, dl1, dl2, p, out, flags, MECH_NONE, 0)
+        ok = cell_increment_hertz(values, i, dl1, dl3, p, out, flags, MECH_NONE, 1) and ok_a
     else:
-        ok_a = cell_increment(values, i, dl1, dl2, p, out, flags, 0, 0)
-        ok = cell_increment(values, i, dl1, dl3, p, out, flags, 8, 5) and ok_a
-    if p[P_RENEW] == RENEW_BIHEX:  # docs/mechanisms.md, "Renewal"
+        # MECH_NONE for each hexagon whatever the loop: a hexagon is never reborn as a 2D cell
+        # (kernel_params: RENEW_BIHEX below), and the 2D mechanisms' code (Hertz-Mindlin's
+        # branch, the cell's rebirth), present though never run, made this update about five
+        # times as slow in a loop of it alone (docs/notes/2026-12-07-per-state-preparation-3d.md)
+        ok_a = cell_increment_prepared(values, i, dl1, dl2, p, out, flags, MECH_NONE, pre, 0)
+        ok = cell_increment_prepared(values, i, dl1, dl3, p, out, flags, MECH_NONE, pre, 1) and ok_a
+    if mech == MECH_ANY and p[P_RENEW] == RENEW_BIHEX:  # docs/mechanisms.md, "Renewal"
         renew_bihex(out, flags, i, 2.0 * p[P_R])
     flags[i, 10] = cross_contact(0.5 * (out[i, 1] - out[i, 9]), out[i, 7], out[i, 15],
                                  2.0 * p[P_R])
@@ -146,16 +176,29 @@ def bihex_vsigma(v, i, kn, hertz, two_r, cross):
     return nn, att, btt
 
 
+#: Bi-hexagons whose state-only part :func:`bihex_step_kernel` holds at a time: one increment
+#: per state gains nothing from the preparation, and an array of every cell's (24 numbers a
+#: cell) would more than double the memory a large batch moves.
+STEP_CHUNK = 256
+
+
 @njit(cache=True, error_model="numpy")
 def bihex_step_kernel(values, dl, p, out, flags):
     """Advance every bi-hexagon (:func:`bihex_increment`); ``values``/``out`` (n, 16), ``dl``
     (n, 3) = (δl1, δl2, δl3), ``flags`` (n, 11). Returns the index of the first failed cell, or
-    -1."""
+    -1. Each cell's state-only part is prepared just before its increment, chunk by chunk
+    (:data:`STEP_CHUNK`; the compiled trial's one closed form, the same values to the last bit)."""
     bad = -1
-    for i in range(values.shape[0]):
-        ok = bihex_increment(values, i, dl[i, 0], dl[i, 1], dl[i, 2], p, out, flags)
-        if not ok and bad < 0:
-            bad = i
+    n = values.shape[0]
+    pre = np.empty((min(n, STEP_CHUNK), bihex_prepared_width(p)))
+    for s in range(0, n, STEP_CHUNK):
+        e = min(s + STEP_CHUNK, n)
+        v, o, f = values[s:e], out[s:e], flags[s:e]  # views per chunk, not per cell
+        for j in range(e - s):
+            prepare_cell(v, j, p, pre)
+            if not bihex_increment(v, j, dl[s + j, 0], dl[s + j, 1], dl[s + j, 2], p, o, f,
+                                   pre, MECH_ANY) and bad < 0:
+                bad = s + j
     return bad
 
 
@@ -400,4 +443,5 @@ class BiHexSolver(CellSolver):
 
 
 __all__ = ["BIHEX_FIELDS", "BIHEX_FLAGS", "VOLUMES_3D", "BiHexSolver", "bihex_increment",
-           "bihex_volume", "bihex_vsigma", "check_hexagon", "check_params", "initial_bihex"]
+           "bihex_prepared_width", "bihex_volume", "bihex_vsigma", "check_hexagon", "check_params",
+           "initial_bihex"]

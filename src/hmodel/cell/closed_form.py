@@ -136,6 +136,9 @@ def hertz_overlaps(d1, d2, n1, n2, p):
 
 #: Width of a cell's :func:`regime_state`, the part of eq. 1.7 its committed state fixes.
 REGIME_WIDTH = 12
+#: A hexagon's fields and flags in a cell's packed state: one H-cell, or each of a
+#: bi-hexagon's two hexagons (:mod:`hmodel.cell.bihex`).
+N_FIELDS, N_FLAGS = len(FIELDS), len(FLAGS)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -283,31 +286,48 @@ def prepared(p):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def prepare_cell(values, i, p, pre):
-    """``pre[i]``: the :func:`regime_state` of H-cell ``values[i]``'s committed state, for
-    every increment from it (:func:`cell_increment_prepared`; linear contacts,
-    :func:`prepared`)."""
-    st = regime_state(values[i, 0], values[i, 2], values[i, 3], values[i, 5], p)
-    for j in range(REGIME_WIDTH):
-        pre[i, j] = st[j]
+    """``pre[i]``: the :func:`regime_state` of each hexagon of cell ``values[i]``'s committed
+    state, for every increment from it (:func:`cell_increment_prepared`; linear contacts,
+    :func:`prepared`). ``pre``'s width says how many hexagons, :data:`REGIME_WIDTH` each: an
+    H-cell is one (its fields 0-7), a bi-hexagon two (fields 0-7 and 8-15,
+    :mod:`hmodel.cell.bihex`), so that one preparation serves both REVs."""
+    for h in range(pre.shape[1] // REGIME_WIDTH):
+        k = N_FIELDS * h
+        st = regime_state(values[i, k], values[i, k + 2], values[i, k + 3], values[i, k + 5], p)
+        for j in range(REGIME_WIDTH):
+            pre[i, REGIME_WIDTH * h + j] = st[j]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def cell_increment_prepared(values, i, dl1, dl2, p, out, flags, mech, pre):
-    """:func:`cell_increment_mech` of H-cell i of ``values`` (k = f = 0), the same result to
-    the last bit: linear contacts from the cell's :func:`prepare_cell` ``pre[i]``, Hertz-Mindlin
-    contacts as :func:`cell_update_mech` does. One closed form for every loop over cells: Numba
-    compiles both branches of a test on a literal ``mech``, and a loop holding this and
-    :func:`cell_increment_mech` took longer to compile."""
+def cell_increment_prepared(values, i, dl1, dl2, p, out, flags, mech, pre, h):
+    """:func:`cell_increment_mech` of hexagon h of cell i of ``values`` (h = 0: an H-cell, or a
+    bi-hexagon's hexagon A; 1: its hexagon B; fields from ``8 h``, flags from ``5 h``), the same
+    result to the last bit: linear contacts from the hexagon's :func:`prepare_cell` part of
+    ``pre[i]``, Hertz-Mindlin contacts as :func:`cell_update_mech` does. One closed form for
+    every loop over cells: Numba compiles both branches of a test on a literal ``mech``, and a
+    loop holding this and :func:`cell_increment_mech` took longer to compile."""
     if mech == MECH_ANY and p[P_HERTZ] != 0.0:
-        r = _hertz_update(values[i, 0], values[i, 1], values[i, 2], values[i, 3], values[i, 4],
-                          values[i, 5], values[i, 6], values[i, 7], dl1, dl2, p, mech)
-    else:
-        r = cell_update_linear(values[i, 0], values[i, 1], values[i, 2], values[i, 3],
-                               values[i, 4], values[i, 5], values[i, 6], values[i, 7], dl1, dl2,
-                               p, mech, (pre[i, 0], pre[i, 1], pre[i, 2], pre[i, 3], pre[i, 4],
-                                         pre[i, 5], pre[i, 6], pre[i, 7], pre[i, 8], pre[i, 9],
-                                         pre[i, 10], pre[i, 11]))
-    return write_update(r, out, flags, i, 0, 0)
+        return cell_increment_hertz(values, i, dl1, dl2, p, out, flags, mech, h)
+    k = N_FIELDS * h
+    c = REGIME_WIDTH * h
+    r = cell_update_linear(values[i, k], values[i, k + 1], values[i, k + 2], values[i, k + 3],
+                           values[i, k + 4], values[i, k + 5], values[i, k + 6], values[i, k + 7],
+                           dl1, dl2, p, mech,
+                           (pre[i, c], pre[i, c + 1], pre[i, c + 2], pre[i, c + 3], pre[i, c + 4],
+                            pre[i, c + 5], pre[i, c + 6], pre[i, c + 7], pre[i, c + 8],
+                            pre[i, c + 9], pre[i, c + 10], pre[i, c + 11]))
+    return write_update(r, out, flags, i, k, N_FLAGS * h)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def cell_increment_hertz(values, i, dl1, dl2, p, out, flags, mech, h):
+    """:func:`cell_increment_prepared` of Hertz-Mindlin contacts, which prepare nothing
+    (:func:`prepared`): hexagon h of cell i by :func:`cell_update_mech`'s own update."""
+    k = N_FIELDS * h
+    r = _hertz_update(values[i, k], values[i, k + 1], values[i, k + 2], values[i, k + 3],
+                      values[i, k + 4], values[i, k + 5], values[i, k + 6], values[i, k + 7], dl1,
+                      dl2, p, mech)
+    return write_update(r, out, flags, i, k, N_FLAGS * h)
 
 
 @njit(cache=True, inline="always", error_model="numpy")

@@ -147,8 +147,10 @@ def prepared_width(p, resp):
 @njit(cache=True, error_model="numpy")
 def prepare(values, p, pre):
     """``pre[i]``: the part of eq. 1.7 that cell i's committed state ``values[i]`` fixes
-    (:func:`hmodel.cell.closed_form.prepare_cell`), for every trial from that state
-    (:func:`trial_prepared`); nothing where ``pre`` is (n, 0) (:func:`prepared_width`).
+    (:func:`hmodel.cell.closed_form.prepare_cell`: an H-cell's, or each hexagon's of a
+    bi-hexagon), for every trial from that state (:func:`trial_prepared`,
+    :func:`hmodel.rev.kernels3d.bihex_trial_prepared`); nothing where ``pre`` is (n, 0)
+    (:func:`prepared_width`, :func:`hmodel.cell.bihex.bihex_prepared_width`).
 
     Newton makes several trials from one committed state, and the cells' trigonometry, their
     matrices of eq. 1.7 and the matrices' cofactors are the same in all of them: computed once
@@ -160,9 +162,11 @@ def prepare(values, p, pre):
 
 
 @njit(cache=True, error_model="numpy")
-def new_prepared(values, p, resp):
-    """A new array of :func:`prepare`'s inputs of cells ``values``."""
-    pre = np.empty((values.shape[0], prepared_width(p, resp)))
+def new_prepared(values, p, width):
+    """A new array (n, ``width``) of :func:`prepare`'s inputs of cells ``values``: ``width`` the
+    2D REV's :func:`prepared_width` or the 3D REV's
+    (:func:`hmodel.cell.bihex.bihex_prepared_width`)."""
+    pre = np.empty((values.shape[0], width))
     prepare(values, p, pre)
     return pre
 
@@ -178,7 +182,7 @@ def trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
     failed.
     """
     return trial_prepared(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
-                          new_prepared(values, p, resp))
+                          new_prepared(values, p, prepared_width(p, resp)))
 
 
 @njit(cache=True, error_model="numpy")
@@ -241,7 +245,7 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
                 ok &= compliance_increment(values, i, dl1, dl2, resp, p, out, flags)
             else:
                 # linear contacts' state-only part read from ``pre`` (prepare)
-                ok &= cell_increment_prepared(values, i, dl1, dl2, p, out, flags, mech, pre)
+                ok &= cell_increment_prepared(values, i, dl1, dl2, p, out, flags, mech, pre, 0)
                 if mix and (flags[i, 1] or flags[i, 2]):  # docs/mechanisms.md, "Renewal"
                     mix_rebirth(out, flags, i, area, dl1 < 0.0, two_r)
             vnn, vtt = vsigma_local(out, i, kn, hertz, two_r)

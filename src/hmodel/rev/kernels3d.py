@@ -16,10 +16,20 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..cell.bihex import bihex_increment, bihex_vsigma
-from ..cell.closed_form import P_CROSS, P_HERTZ, P_KN, P_R, P_RENEW
+from ..cell.bihex import bihex_increment, bihex_prepared_width, bihex_vsigma, cross_contact
+from ..cell.closed_form import (
+    MECH_ANY,
+    MECH_NONE,
+    P_CROSS,
+    P_HERTZ,
+    P_KN,
+    P_R,
+    P_RENEW,
+    cell_increment_prepared,
+    cell_mechanisms,
+)
 from ..cell.renewal import RENEW_MIX, mix_rebirth_bihex
-from .kernels import LOC_BOX
+from .kernels import LOC_BOX, new_prepared
 
 #: Per-cell kernel inputs (:func:`geometry`): the projector's 3 x 6 rows, then the weighted
 #: dyads' 3 x 6.
@@ -71,13 +81,38 @@ def bihex_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig):
     ``sig`` (6,); ``geo`` (C, 36) (:func:`geometry`), ``p`` the closed form's packed parameters,
     ``mode`` ``LOC_BOX`` (the ``box`` volume: lengths + 2r) or not. Returns False when a cell
     increment failed."""
+    return bihex_trial_prepared(values, eps, deps, geo, p, mode, volume0, out, flags, sig,
+                                new_prepared(values, p, bihex_prepared_width(p)))
+
+
+@njit(cache=True, error_model="numpy")
+def bihex_trial_prepared(values, eps, deps, geo, p, mode, volume0, out, flags, sig, pre):
+    """:func:`bihex_trial` given its state-only inputs ``pre`` (:func:`hmodel.rev.kernels.prepare`
+    of ``values``, of width :func:`hmodel.cell.bihex.bihex_prepared_width`), for a caller that
+    makes several trials from one committed state (Newton's): both hexagons' trigonometry,
+    matrices of eq. 1.7 and cofactors, the same values to the last bit."""
+    if cell_mechanisms(p) == MECH_NONE:  # the published cell's loop: none of the mechanisms' code
+        return _bihex_trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, pre,
+                                 None)
+    return _bihex_trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, pre,
+                             MECH_ANY)
+
+
+@njit(cache=True, error_model="numpy")
+def _bihex_trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, pre, mech):
+    # A loop of its own for the published bi-hexagon (``mech`` None; else MECH_ANY), as the 2D
+    # trial's, holding none of the mechanisms' code (contacts between the hexagons,
+    # Hertz-Mindlin, renewal). None, not the literal MECH_NONE: Numba prunes a test of an
+    # argument on None before it types the code, where a literal's dead branch is typed and
+    # compiled all the same (the trial's compile time 16 -> 43 s;
+    # docs/notes/2026-12-07-per-state-preparation-3d.md)
     two_r = 2.0 * p[P_R]
     kn = p[P_KN]
-    hertz = p[P_HERTZ]
-    cross = p[P_CROSS]
+    hertz = 0.0 if mech is None else p[P_HERTZ]
+    cross = 0.0 if mech is None else p[P_CROSS]
     add = two_r if mode == LOC_BOX else 0.0
     # renewal=mix: a REV quantity, the mean box l1·l2·l3 at the start of the increment
-    mix = p[P_RENEW] == RENEW_MIX
+    mix = False if mech is None else p[P_RENEW] == RENEW_MIX
     area = mean_box_volume(values, geo) if mix else 0.0
     d0, d1, d2, d3, d4, d5 = deps[0], deps[1], deps[2], deps[3], deps[4], deps[5]
     s0 = s1 = s2 = s3 = s4 = s5 = 0.0
@@ -91,8 +126,19 @@ def bihex_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig):
         e2 = (geo[i, 12] * d0 + geo[i, 13] * d1 + geo[i, 14] * d2 + geo[i, 15] * d3
               + geo[i, 16] * d4 + geo[i, 17] * d5)
         dl1 = -(values[i, 6] + add) * e0
-        ok &= bihex_increment(values, i, dl1, -(values[i, 7] + add) * e1,
-                              -(values[i, 15] + add) * e2, p, out, flags)
+        dl2 = -(values[i, 7] + add) * e1
+        dl3 = -(values[i, 15] + add) * e2
+        if mech is None:
+            # bihex_increment's published case written out: through it (a function inlined
+            # into this loop, the hexagons' updates inlined into it) the trial ran about three
+            # times as slow (docs/notes/2026-12-07-per-state-preparation-3d.md)
+            ok_a = cell_increment_prepared(values, i, dl1, dl2, p, out, flags, MECH_NONE, pre, 0)
+            ok &= cell_increment_prepared(values, i, dl1, dl3, p, out, flags, MECH_NONE, pre,
+                                          1) and ok_a
+            flags[i, 10] = cross_contact(0.5 * (out[i, 1] - out[i, 9]), out[i, 7], out[i, 15],
+                                         two_r)
+        else:
+            ok &= bihex_increment(values, i, dl1, dl2, dl3, p, out, flags, pre, mech)
         if mix:  # docs/mechanisms.md, "Rebirth at the mean box area"
             mix_rebirth_bihex(out, flags, i, area, dl1 < 0.0, two_r)
         nn, t1, t2 = bihex_vsigma(out, i, kn, hertz, two_r, cross)

@@ -11,12 +11,12 @@ REV's :func:`hmodel.rev.kernels3d.bihex_trial`).
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
-from .kernels import new_prepared, trial, trial_prepared
+from ..cell.bihex import bihex_prepared_width
+from .kernels import new_prepared, prepared_width, trial, trial_prepared
 from .kernels3d import GEO_WIDTH as BIHEX_WIDTH
-from .kernels3d import bihex_trial
+from .kernels3d import bihex_trial, bihex_trial_prepared
 
 
 @njit(cache=True, error_model="numpy")
@@ -36,15 +36,16 @@ def point_trial_prepared(values, eps, deps, geo, p, mode, volume0, out, flags, s
     ``values`` fix (:func:`point_prepared`): for a caller that makes several trials from one
     state (Newton's), which prepares them once."""
     if geo.shape[1] == BIHEX_WIDTH:
-        return bihex_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig)
+        return bihex_trial_prepared(values, eps, deps, geo, p, mode, volume0, out, flags, sig, pre)
     return trial_prepared(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, pre)
 
 
 @njit(cache=True, error_model="numpy")
 def point_prepared(values, geo, p, resp):
     """The inputs of a point's trials that its committed cells ``values`` fix, a new array (C,
-    width) for :func:`point_trial_prepared` (the 2D REV's published cells, width 0 for the
-    others); :func:`hmodel.rev.kernels.prepare` fills it again when the cells change."""
+    width) for :func:`point_trial_prepared` (the closed form's cells with linear contacts, an
+    H-cell's or both hexagons' of a bi-hexagon; width 0 for the others);
+    :func:`hmodel.rev.kernels.prepare` fills it again when the cells change."""
     if geo.shape[1] == BIHEX_WIDTH:
-        return np.empty((values.shape[0], 0))
-    return new_prepared(values, p, resp)
+        return new_prepared(values, p, bihex_prepared_width(p))
+    return new_prepared(values, p, prepared_width(p, resp))
