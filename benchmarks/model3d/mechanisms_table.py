@@ -23,7 +23,8 @@
 - ``mechanisms-critical-2d``: the 2D REV's critical state with and without ``renewal=mix``
   (``benchmarks.mechanisms.critical_state_2d``);
 - ``mechanisms-dem-judge``: each variant calibrated on two drained tests of DEM sphere samples and
-  predicting the others (``benchmarks.calibration.calibrate3d_dem ... --model NAME``).
+  predicting the others (``benchmarks.calibration.calibrate3d_dem ... --model NAME``);
+  ``mechanisms-dem-judge-2d``: the same of the 2D model on the DEM disk samples.
 
 Usage: ``python -m benchmarks.model3d.mechanisms_table`` rewrites each block between its markers
 ``<!-- NAME -->`` and ``<!-- /NAME -->`` in docs/mechanisms.md; ``--check`` exits 1 when a block
@@ -307,9 +308,27 @@ def _pct(values) -> str:
     return ", ".join(f"{100 * v:.0f}" for v in values) if values else "—"
 
 
-def dem_judge_block() -> str:
+#: The same of the 2D model on the DEM disk samples (Hertz-Mindlin, dense and loose:
+#: benchmarks/dem/granular/disks-*-hertz), no extension test there.
+DEM_JUDGE_2D = (("dem_judge2d_density.json", "density (linear contacts)"),
+                ("dem_judge2d_hertz.json", "hertz"),
+                ("dem_judge2d_rebirth.json", "rebirth (Hertz–Mindlin + rebirth)"),
+                ("dem_judge2d_mix.json", "mix (Hertz–Mindlin + rebirth at the mean box; the sand variant in 2D)"))
+
+
+def judged_kind(name: str) -> str:
+    """A DEM judge's test (FOLDER/STEM) as the table counts it: ``drained``, ``undrained`` or
+    ``extension``, triaxial (3D) or biaxial (2D) alike.
+
+    >>> [judged_kind(n) for n in ("a/triaxial-drained_100kPa", "undrained_200kPa", "b/drained_400kPa")]
+    ['drained', 'undrained', 'drained']
+    """
+    return name.rpartition("/")[2].partition("_")[0].removeprefix("triaxial-")
+
+
+def dem_judge_rows(judges) -> list[str]:
     rows = []
-    for name, label in DEM_JUDGE:
+    for name, label in judges:
         path = HERE.parent / "calibration" / name
         if not path.exists():
             continue
@@ -319,20 +338,28 @@ def dem_judge_block() -> str:
         failed = [r["measure"] for r in rec["results"] if "the model's test failed" in r["measure"]]
         fit = [e["rms_dq"] for e in errs.values() if e["how"] == "calibrated on"]
         pred = {n: e for n, e in errs.items() if e["how"] == "predicted"}
-        kinds = {k: [e["rms_dq"] for n, e in pred.items() if k in n.rpartition("/")[2]]
+        kinds = {k: [e["rms_dq"] for n, e in pred.items() if judged_kind(n) == k]
                  for k in ("drained", "undrained", "extension")}
-        kinds["drained"] = [e["rms_dq"] for n, e in pred.items()
-                            if "triaxial-drained" in n.rpartition("/")[2]]
         within = (sum(v <= DRAINED_TARGET for v in kinds["drained"])
                   + sum(v <= OTHER_TARGET for v in kinds["undrained"] + kinds["extension"]))
         dv = [e["rms_deps_v"] for e in errs.values() if "rms_deps_v" in e]
         rows.append(f"| {label} | {_pct(fit)} | {_pct(kinds['drained'])} | {_pct(kinds['undrained'])} "
                     f"| {_pct(kinds['extension'])} | {within} of {len(pred) + len(failed)} "
                     f"| {100 * max(dv):.1f} |")
-    return _table("| variant | RMS \\|Δq\\|/peak q [%]: calibrated on (2 drained) | predicted drained | "
-                  "predicted undrained | predicted extension | predictions within target (10 %; 15 % undrained "
-                  "and extension) | largest RMS Δε_v [% strain] |",
-                  rows)
+    return rows
+
+
+JUDGE_HEAD = ("| variant | RMS \\|Δq\\|/peak q [%]: calibrated on (2 drained) | predicted drained | "
+              "predicted undrained | predicted extension | predictions within target (10 %; 15 % undrained "
+              "and extension) | largest RMS Δε_v [% strain] |")
+
+
+def dem_judge_block() -> str:
+    return _table(JUDGE_HEAD, dem_judge_rows(DEM_JUDGE))
+
+
+def dem_judge_2d_block() -> str:
+    return _table(JUDGE_HEAD, dem_judge_rows(DEM_JUDGE_2D))
 
 
 @_from_record("mechanisms/critical_state_2d.json")
@@ -425,7 +452,8 @@ def drained_ends_block() -> str:
 
 BLOCKS = {"mechanisms-table": table_block, "mechanisms-pi-kfs": pi_kfs_block, "mechanisms-kfs": kfs_block,
           "mechanisms-kfs-long": kfs_long_block, "mechanisms-dem": dem_block,
-          "mechanisms-dem-judge": dem_judge_block, "mechanisms-dem-fabric": dem_fabric_block,
+          "mechanisms-dem-judge": dem_judge_block, "mechanisms-dem-judge-2d": dem_judge_2d_block,
+          "mechanisms-dem-fabric": dem_fabric_block,
           "mechanisms-dem-bihex": dem_bihex_block,
           "mechanisms-critical-2d": critical_2d_block, "mechanisms-drained-ends": drained_ends_block}
 
