@@ -17,3 +17,4 @@ def test_a_disk_folder_gives_the_2d_models_tests_and_a_sphere_folder_the_3d_ones
     assert two["disks/drained_100kPa"].kind is Kind.DRAINED and two["disks/drained_100kPa"].p0 == 1e5
     assert two["disks/undrained_200kPa"].e0 == 0.26 and two["disks/drained_100kPa"].e0 == 0.25
     assert list(three) == ["triaxial-drained_100kPa"] and three["triaxial-drained_100kPa"].e0 == 0.61
+    assert sorted(read_tests(tmp_path, dim=None)) == ["drained_100kPa", "triaxial-drained_100kPa", "undrained_200kPa"]

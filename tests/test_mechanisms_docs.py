@@ -73,9 +73,9 @@ def test_the_dem_judge_counts_biaxial_and_triaxial_tests_alike(tmp_path):
             errors["t/" + extension + "_100kPa"] = {"how": "predicted", "rms_dq": 0.16}
         return {"errors": errors, "results": [], "calibration": {"model": {}}}
 
-    for stems, expected in (((("drained", "undrained", None)), "| 2D | 20 | 9, 11 | 14 | — | 2 of 3 | 3.0 |"),
-                            (("triaxial-drained", "triaxial-undrained", "triaxial-extension"),
-                             "| 3D | 20 | 9, 11 | 14 | 16 | 2 of 4 | 3.0 |")):
-        path = tmp_path / f"{stems[0]}.json"
+    for label, stems, expected in (("2D", ("drained", "undrained", None), "| 2D | 20 | 9, 11 | 14 | — | 2 of 3 | 3.0 |"),
+                                   ("3D", ("triaxial-drained", "triaxial-undrained", "triaxial-extension"),
+                                    "| 3D | 20 | 9, 11 | 14 | 16 | 2 of 4 | 3.0 |")):
+        path = tmp_path / f"{label}.json"
         path.write_text(json.dumps(record(*stems)))
-        assert dem_judge_rows([(str(path), stems[0].startswith("triaxial") and "3D" or "2D")]) == [expected]
+        assert dem_judge_rows([(str(path), label)]) == [expected]

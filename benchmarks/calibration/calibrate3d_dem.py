@@ -56,15 +56,15 @@ FITTED = ("kn", "kt_kn", "phi_g", "alpha0")
 AXIS = (1.0, 0.0, 0.0)  # the command line's axial axis
 
 
-def read_tests(folder: Path, prefix: str = "", dim: int = 3) -> dict[str, Test]:
+def read_tests(folder: Path, prefix: str = "", dim: int | None = 3) -> dict[str, Test]:
     """Every ``KIND_P0kPa.csv`` of a sample folder whose KIND is a test of the ``dim``-D model
-    (triaxial kinds in 3D, biaxial ones in 2D), named ``prefix + stem``; its e0 is the first row
-    of the CSV's void-ratio column ``e`` where it has one (``hmodel dem sample`` writes it), for
-    the variants that start each test from its e0."""
+    (triaxial kinds in 3D, biaxial ones in 2D; None: either), named ``prefix + stem``; its e0 is
+    the first row of the CSV's void-ratio column ``e`` where it has one (``hmodel dem sample``
+    writes it), for the variants that start each test from its e0."""
     tests = {}
     for f in sorted(folder.glob("*_*kPa.csv")):
         kind, p0 = f.stem.split("_")
-        if kind in tuple(Kind) and Kind(kind).dim == dim:
+        if kind in tuple(Kind) and dim in (None, Kind(kind).dim):
             name = prefix + f.stem
             test = Test.from_csv(f, kind, float(p0.removesuffix("kPa")) * 1e3, name)
             with f.open(encoding="utf-8") as fh:
@@ -117,15 +117,14 @@ def main() -> None:
     args = ap.parse_args()
     variant = get_variant(args.model)
     several = len(args.sample) > 1
-    dims = {Kind(k).dim for f in args.sample for k in (c.stem.split("_")[0] for c in f.glob("*_*kPa.csv"))
-            if k in tuple(Kind)}
+    tests = {}
+    for folder in args.sample:
+        tests |= read_tests(folder, f"{folder.name}/" if several else "", dim=None)
+    dims = {t.kind.dim for t in tests.values()}
     if len(dims) != 1:
         sys.exit(f"{', '.join(map(str, args.sample))}: tests of one model's dimension, biaxial (2D) or triaxial "
                  f"(3D), expected; found {'both' if dims else 'none'}")
     dim = dims.pop()
-    tests = {}
-    for folder in args.sample:
-        tests |= read_tests(folder, f"{folder.name}/" if several else "", dim)
     drained_kind = Kind.DRAINED if dim == 2 else Kind.TRIAXIAL_DRAINED
     drained = sorted((t for t in tests.values() if t.kind is drained_kind), key=lambda t: t.p0)
     chosen = args.fit_on.split(",") if args.fit_on else [t.name for t in (drained[:1] + drained[-1:])]
