@@ -44,9 +44,7 @@ def census(params: Params, p0: float, strain: float, step: float, radial: str) -
     end = run_segment(rev, consolidate(rev, p), segment(False, p, strain, round(strain / step), radial), rec).state
     r = rec.result().point(0).columns
     v = end.cells.values[0]
-    geo = rev.geometry()
-    w = geo[:, 18] + geo[:, 19] + geo[:, 20]
-    w = w / w.sum()
+    w = rev.weights / rev.weights.sum()
     # "carrying": N1 above 1 % of the REV's weighted mean N1 over both hexagons; reborn cells at
     # contact take forces many orders smaller, which N1 > 0 would count (and which round-off
     # decides, docs/notes/2026-12-07-why-the-bihexagon-dilates.md)
