@@ -36,6 +36,21 @@ from hmodel.rev import Rev3D, Sphere
 SAND = "contact=hertz-mindlin,lateral=axisymmetric,renewal=mix,sliding_rhs=equilibrium"
 
 
+def carrying_hexagons(v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Whether hexagons A and B of one point's bi-hexagons ``v`` (C, 16), of weights ``w`` (C,),
+    carry: N1 above 1 % of the REV's weighted mean N1 over both hexagons. Reborn cells at contact
+    take forces many orders smaller, which N1 > 0 would count (and which round-off decides,
+    docs/notes/2026-12-07-why-the-bihexagon-dilates.md)."""
+    mean_n1 = float((w * (v[:, 3] + v[:, 11])).sum() / 2.0 / w.sum())
+    return v[:, 3] > 0.01 * mean_n1, v[:, 11] > 0.01 * mean_n1
+
+
+def carrying(v: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Bi-hexagons ``v`` (C, 16) of weights ``w`` of which a hexagon carries (:func:`carrying_hexagons`)."""
+    a, b = carrying_hexagons(v, w)
+    return a | b
+
+
 def census(params: Params, p0: float, strain: float, step: float, radial: str) -> dict:
     """The census of one drained test at its end (see the module's docstring)."""
     rev = Rev3D([params], Sphere())
@@ -45,11 +60,7 @@ def census(params: Params, p0: float, strain: float, step: float, radial: str) -
     r = rec.result().point(0).columns
     v = end.cells.values[0]
     w = rev.weights / rev.weights.sum()
-    # "carrying": N1 above 1 % of the REV's weighted mean N1 over both hexagons; reborn cells at
-    # contact take forces many orders smaller, which N1 > 0 would count (and which round-off
-    # decides, docs/notes/2026-12-07-why-the-bihexagon-dilates.md)
-    mean_n1 = float((w * (v[:, 3] + v[:, 11])).sum() / 2.0)
-    a, b = v[:, 3] > 0.01 * mean_n1, v[:, 11] > 0.01 * mean_n1
+    a, b = carrying_hexagons(v, w)
     return {"alpha0": math.degrees(params.alpha0), "eps11": float(r["eps11"][-1]),
             "q_p": float(r["q"][-1] / r["p"][-1]), "eps_v": float(r["eps_v"][-1]),
             "w_positive": float(w[(v[:, 3] > 0.0) & (v[:, 11] > 0.0)].sum()), "w_both": float(w[a & b].sum()), "w_one": float(w[a ^ b].sum()), "w_none": float(w[~a & ~b].sum()),
