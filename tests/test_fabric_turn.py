@@ -127,3 +127,23 @@ def test_every_part_of_the_probe_is_defined():
 
     for name in ("tilt_split", "dem_part", "fixed_part", "orders_part", "extension_part", "kfs_part"):
         assert callable(getattr(probe, name))
+
+
+def test_curves_follow_the_probe_in_extension_and_mark_what_it_did_not_reach():
+    # an extension test's strains are negative: its curves are the probe's at the same strains
+    from benchmarks.model3d.fabric_turn import curves
+    from hmodel.calibrate import Kind, Test
+    from hmodel.variants import get_variant
+
+    params = Params(alpha0=math.radians(55.0), **parse_mechanisms(SAND))
+    sphere = Sphere(order=7, n_azimuth=2)
+    model = (get_variant(None), params, None, sphere, 1e-3)
+    x = [math.log10(params.shear_modulus), params.poisson, math.degrees(params.phi_g), 55.0, 0.0]
+    eps = -np.array([0.0, 0.002, 0.005, 0.01])
+    test = Test(Kind("triaxial-extension"), 1e5, eps, -1e5 * np.array([0.0, 0.5, 0.8, 1.0]), np.zeros(4), name="x")
+    q, ev = curves(test, x, "off", model)
+    path = run(params, 1e5, 0.01, 1e-3, "off", sphere=sphere, extension=True)
+    k = [int(np.argmin(np.abs(path["eps11"] - e))) for e in eps]
+    np.testing.assert_allclose(q, path["q"][k], rtol=1e-9, atol=1e-6)
+    np.testing.assert_allclose(ev, path["eps_v"][k], rtol=1e-9, atol=1e-12)
+    assert np.all(q[1:] < 0.0)  # q = σ11 - σr < 0 in extension

@@ -44,10 +44,12 @@ Parts (each written to the JSON, ``--parts``):
   TMD12 and TMD14, the same residuals, α0 at e_ref) of the sand variant redone by least squares
   from the record ``kfs_axisym_mix.json``'s optimum, with the rule off (G, ν, φg, α0) and on
   (κ as well), here on the generic driver (steps of 1e-3, the record's sphere); the 25 tests
-  predicted; then the densest and loosest specimens at 100 and 400 kPa, drained and undrained,
-  to 30 %, and drained on to 80 % (the void ratio e = e0 - εv (1 + e0) on the way).
+  predicted (κ from each of :data:`KAPPA_STARTS`, the best kept); then the densest and loosest specimens at 100 and 400 kPa, drained and undrained,
+  to 30 %, and drained on to 80 % (the void ratio e = e0 - εv (1 + e0) on the way);
+- ``dem-judge``: the DEM judge of docs/mechanisms.md (record ``dem_judge_axisym_mix.json``) redone
+  the same way, with the rule off and on (:func:`dem_judge_part`).
 
-Usage: ``python -m benchmarks.model3d.fabric_turn [--parts split,dem,fixed,orders,extension,kfs] [--dem-folder DIR] [--out PATH]``. Prints
+Usage: ``python -m benchmarks.model3d.fabric_turn [--parts split,dem,fixed,orders,extension,kfs,dem-judge] [--dem-folder DIR] [--out PATH]``. Prints
 tables and writes ``fabric_turn.json``.
 """
 
@@ -63,7 +65,7 @@ import numpy as np
 
 from benchmarks.model3d.critical_state import parse_mechanisms, segment
 from benchmarks.model3d.carrying_census import SAND, carrying
-from benchmarks.timing import provenance
+from benchmarks.timing import ROOT, provenance
 from hmodel import Params
 from hmodel.cell import CellState
 from hmodel.loading import NewtonSettings, Tangent, consolidate
@@ -71,6 +73,7 @@ from hmodel.loading.segment import GenericSegment
 from hmodel.rev import Rev3D, Sphere
 from hmodel.rev.rev3d import dyads, voigt_to_tensor
 from hmodel.rev.state import RevState, deviatoric_stress, mean_stress, volumetric_strain
+from hmodel.variants import get_variant
 
 #: Fields of a bi-hexagon that hold forces (N1, N2, T1 of hexagons A and B).
 FORCES = (3, 4, 5, 11, 12, 13)
@@ -333,55 +336,105 @@ def fixed_part(rules: list[str], kappas: list[float], strain: float, marks: list
     return rows
 
 
-def kfs_part(max_nfev: int) -> dict:
+#: Free parameters of the calibrations (the sand variant's fitted ones, then κ), their bounds and
+#: scales: log10 G [Pa], ν, φg [deg], α0 at e_ref [deg], κ.
+FREE = ("log10_shear_modulus", "poisson", "phi_g_deg", "alpha0_deg", "kappa")
+LOWER, UPPER = np.array([7.0, 0.0, 5.0, 31.0, 0.0]), np.array([12.0, 0.45, 60.0, 69.1, 200.0])
+SCALE = np.array([0.3, 0.05, 2.0, 2.0, 5.0])
+
+
+def with_fitted(params: Params, x) -> Params:
+    """``params`` with the calibrated values ``x`` (:data:`FREE`, κ aside)."""
+    return replace(params, shear_modulus=10 ** x[0], poisson=x[1], phi_g=math.radians(x[2]), alpha0=math.radians(x[3]))
+
+
+def curves(test, x, rule: str, model: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """The model's q and εv at a test's axial strains (drained, undrained or extension, from its
+    e0 and p0), at the calibrated values ``x``; ``model`` = (variant, params, e_ref, sphere, step).
+    NaN where the model did not reach (its Newton failed), as the calibration benchmarks."""
+    variant, params, e_ref, sphere, step = model
+    kind = str(test.kind.value if hasattr(test.kind, "value") else test.kind)
+    extension = kind.endswith("extension")
+    sign = -1.0 if extension else 1.0
+    nan = np.full(len(test.eps11), np.nan)
+    try:
+        path = run(variant.initial_params(with_fitted(params, x), 3, test.e0, e_ref), test.p0,
+                   float(np.abs(test.eps11).max()), step, rule, x[4], undrained=kind.endswith("undrained"),
+                   sphere=sphere, extension=extension)
+    except Exception:
+        return nan, nan.copy()
+    e = sign * path["eps11"]
+    q = np.interp(sign * test.eps11, e, path["q"])
+    q[sign * test.eps11 > e[-1] + 1e-12] = np.nan
+    return q, np.interp(sign * test.eps11, e, path["eps_v"])
+
+
+def calibrate(cal: list, rule: str, k0: float, x0, max_nfev: int, model: tuple):
+    """Least squares of :data:`FREE` (κ too with the rule on) on the tests ``cal``, with
+    :func:`hmodel.calibrate.model.residuals`' scaling and weights (q over peak |q|, εv over its
+    range where the test's kind observes it, each test over the root of its rows). Returns the
+    values (κ = ``k0`` with the rule off) and scipy's result."""
     from scipy.optimize import least_squares
 
+    from hmodel.calibrate.model import has_eps_v
+
+    rows = sum(len(t.eps11) * (2 if has_eps_v(t) else 1) for t in cal)
+
+    def residuals(y):
+        x = np.r_[y, k0][:5]
+        parts = []
+        for t in cal:
+            q, ev = curves(t, x, rule, model)
+            if not np.all(np.isfinite(q)):
+                return np.full(rows, 10.0)
+            w = 1.0 / math.sqrt(len(t.eps11))
+            parts.append(w * (q - t.q) / t.q_scale)
+            if has_eps_v(t):
+                parts.append(w * (ev - t.eps_v) / t.eps_v_scale)
+        return np.concatenate(parts)
+
+    free = 5 if rule == "turn" else 4
+    sol = least_squares(residuals, np.r_[x0, k0][:free], bounds=(LOWER[:free], UPPER[:free]),
+                        x_scale=SCALE[:free], diff_step=1e-3, max_nfev=max_nfev)
+    return np.r_[sol.x, k0][:5], sol
+
+
+#: The starts of κ of a calibration with the rule on (the objective has a flat valley in κ and
+#: local minima: on the DEM judge a start at 5 stays near 5, at 0.197, where 20 and 60 reach
+#: about 47, at 0.122); the best end is kept.
+KAPPA_STARTS = (5.0, 20.0, 60.0)
+
+
+def calibrate_best(cal: list, rule: str, x0, max_nfev: int, model: tuple):
+    """:func:`calibrate` from each κ of :data:`KAPPA_STARTS` (one start with the rule off); the
+    values and result of the lowest objective, and every start's κ, end κ and objective."""
+    ends = [(k0, *calibrate(cal, rule, k0, x0, max_nfev, model)) for k0 in (KAPPA_STARTS if rule != "off" else (0.0,))]
+    k0, x, sol = min(ends, key=lambda e: e[2].cost)
+    return x, sol, [{"kappa_start": k, "kappa": float(xe[4]), "objective": float(se.cost)} for k, xe, se in ends]
+
+
+def fitted_record(x, sol, starts: list) -> dict:
+    return {"fitted": {"shear_modulus": 10 ** x[0], "poisson": x[1], "phi_g_deg": x[2], "alpha0_deg": x[3],
+                       "kappa": x[4]}, "objective": float(sol.cost), "evaluations": int(sol.nfev), "starts": starts}
+
+
+def kfs_part(max_nfev: int) -> dict:
     from benchmarks.calibration.kfs import CALIBRATION, errors, load_tests
     from benchmarks.calibration.kfs_long import stored
 
     variant, params, e_ref, sphere, step, _ = stored("axisym_mix")
+    model = (variant, params, e_ref, sphere, step)
     tests = load_tests(1)[0]
     cal = [t for t in tests if t.name in CALIBRATION]
-
-    def pset(x):
-        return replace(params, shear_modulus=10 ** x[0], poisson=x[1], phi_g=math.radians(x[2]),
-                       alpha0=math.radians(x[3]))
-
-    def curves(t, x, rule):
-        try:
-            path = run(variant.initial_params(pset(x), 3, t.e0, e_ref), t.p0, float(t.eps11[-1]), step,
-                       rule, x[4], sphere=sphere)
-        except Exception:  # a point whose Newton fails: no curve (as the KFS benchmark's NaN)
-            return np.full(len(t.eps11), np.nan), np.full(len(t.eps11), np.nan)
-        q = np.interp(t.eps11, path["eps11"], path["q"])
-        q[t.eps11 > path["eps11"][-1] + 1e-12] = np.nan
-        return q, np.interp(t.eps11, path["eps11"], path["eps_v"])
-
-    def residuals(x, rule):  # hmodel.calibrate.model.residuals' scaling and weights
-        parts = []
-        for t in cal:
-            q, ev = curves(t, x, rule)
-            if not np.all(np.isfinite(q)):
-                return np.full(2 * sum(len(t.eps11) for t in cal), 10.0)
-            w = 1.0 / math.sqrt(len(t.eps11))
-            parts += [w * (q - t.q) / t.q_scale, w * (ev - t.eps_v) / t.eps_v_scale]
-        return np.concatenate(parts)
-
     x0 = [math.log10(params.shear_modulus), max(params.poisson, 0.01), math.degrees(params.phi_g),
           math.degrees(params.alpha0)]
     out = {"record": "kfs_axisym_mix.json", "variant": variant.name, "e_ref": e_ref, "step": step,
            "sphere": {"order": sphere.order, "n_azimuth": sphere.n_azimuth}, "fits": {}}
-    for rule, k0 in (("off", 0.0), ("turn", 5.0)):
-        free = 5 if rule == "turn" else 4
-        lo, hi = np.array([7.0, 0.0, 5.0, 31.0, 0.0]), np.array([12.0, 0.45, 60.0, 69.1, 200.0])
-        scale = np.array([0.3, 0.05, 2.0, 2.0, 5.0])
-        sol = least_squares(lambda y: residuals(np.r_[y, k0][:5], rule), np.r_[x0, k0][:free],
-                            bounds=(lo[:free], hi[:free]), x_scale=scale[:free], diff_step=1e-3,
-                            max_nfev=max_nfev)
-        x = np.r_[sol.x, k0][:5]
+    for rule in ("off", "turn"):
+        x, sol, starts = calibrate_best(cal, rule, x0, max_nfev, model)
         rows = []
         for t in tests:
-            q, ev = curves(t, x, rule)
+            q, ev = curves(t, x, rule, model)
             rows.append({"test": t.name, "e0": t.e0, "p0_kPa": t.p0 / 1e3, **errors(t, q, ev)})
         dq = [r["rms_dq"] for r in rows if r["rms_dq"] is not None]
         ends = []
@@ -389,7 +442,7 @@ def kfs_part(max_nfev: int) -> dict:
             for p0 in (100e3, 400e3):
                 for undrained in (False, True):
                     try:
-                        path = run(variant.initial_params(pset(x), 3, e0, e_ref), p0, 0.3, step, rule, x[4],
+                        path = run(variant.initial_params(with_fitted(params, x), 3, e0, e_ref), p0, 0.3, step, rule, x[4],
                                    undrained=undrained, sphere=sphere)
                     except Exception as exc:
                         ends.append({"e0": e0, "p0_kPa": p0 / 1e3, "undrained": undrained,
@@ -403,7 +456,7 @@ def kfs_part(max_nfev: int) -> dict:
         long = []  # the drained tests of the densest and loosest specimens on to 80 %
         for e0 in (min(t.e0 for t in tests), max(t.e0 for t in tests)):
             for p0 in (100e3, 400e3):
-                path = run(variant.initial_params(pset(x), 3, e0, e_ref), p0, 0.8, step, rule, x[4], sphere=sphere)
+                path = run(variant.initial_params(with_fitted(params, x), 3, e0, e_ref), p0, 0.8, step, rule, x[4], sphere=sphere)
                 last = path["eps11"] >= 0.7
                 marks = [at(path, s) for s in (0.3, 0.5, 0.8)]
                 long.append({"e0": e0, "p0_kPa": p0 / 1e3, "at": marks,
@@ -411,9 +464,7 @@ def kfs_part(max_nfev: int) -> dict:
                              "e": [e0 - m["eps_v"] * (1 + e0) for m in marks], "p_end_kPa": float(path["p"][-1] / 1e3),
                              "deps_v_deps11_end": float(np.polyfit(path["eps11"][last], path["eps_v"][last], 1)[0])})
         out["fits"][rule] = {
-            "fitted": {"shear_modulus": 10 ** x[0], "poisson": x[1], "phi_g_deg": x[2], "alpha0_deg": x[3],
-                       "kappa": x[4]},
-            "objective": float(sol.cost), "evaluations": int(sol.nfev),
+            **fitted_record(x, sol, starts),
             "median_rms_dq": float(np.median(dq)), "within_10": int(sum(d <= 0.10 for d in dq)),
             "max_rms_dq": float(max(dq)),
             "median_rms_dev": float(np.median([r["rms_dev"] for r in rows if r["rms_dev"] is not None])),
@@ -438,9 +489,47 @@ def kfs_part(max_nfev: int) -> dict:
     return out
 
 
+def dem_judge_part(max_nfev: int) -> dict:
+    """The DEM judge of docs/mechanisms.md redone in the probe: the sand variant calibrated as its
+    record ``dem_judge_axisym_mix.json`` was (the dense Hertz-Mindlin sample's drained test at
+    100 kPa and the loose one's at 400 kPa, each test from the e0 of its CSV, the record's e_ref,
+    sphere and step), from the record's optimum, with the rule off and on; every other test of
+    the two samples predicted (drained, undrained, extension)."""
+    from benchmarks.calibration.calibrate3d_dem import errors, read_tests
+
+    rec = json.loads((ROOT / "benchmarks" / "calibration" / "dem_judge_axisym_mix.json").read_text())
+    m = rec["calibration"]["model"]
+    variant = get_variant(m["variant"])
+    params = Params(**m["params_rad"])
+    sphere = Sphere(order=rec["calibration"]["sphere"]["order"], n_azimuth=rec["calibration"]["sphere"]["n_azimuth"])
+    model = (variant, params, m["e_ref"], sphere, m["step"])
+    tests = {}
+    for folder in rec["options"]["sample"]:
+        tests |= read_tests(ROOT / folder, Path(folder).name + "/")
+    fit_on = rec["options"]["fit_on"].split(",")
+    x0 = [math.log10(params.shear_modulus), max(params.poisson, 0.01), math.degrees(params.phi_g),
+          math.degrees(params.alpha0)]
+    out = {"record": "dem_judge_axisym_mix.json", "variant": variant.name, "fit_on": fit_on, "fits": {}}
+    for rule in ("off", "turn"):
+        x, sol, starts = calibrate_best([tests[n] for n in fit_on], rule, x0, max_nfev, model)
+        rows = {}
+        for name, t in tests.items():
+            q, ev = curves(t, x, rule, model)
+            ok = np.all(np.isfinite(q))
+            rows[name] = {"how": "calibrated on" if name in fit_on else "predicted",
+                          **({"rms_dq": float(errors(t, q, ev)["rms_dq"])} if ok else {"rms_dq": None, "failed": True})}
+        out["fits"][rule] = {**fitted_record(x, sol, starts), "tests": rows}
+        f = out["fits"][rule]
+        print(f"DEM judge {rule}: fitted {', '.join(f'{k} {v:.4g}' for k, v in f['fitted'].items())}; objective "
+              f"{f['objective']:.5f}")
+        for n, r in rows.items():
+            print(f"   {n} ({r['how']}): " + ("failed" if r["rms_dq"] is None else f"{100 * r['rms_dq']:.1f} %"))
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--parts", default="split,dem,fixed,orders,extension,kfs")
+    ap.add_argument("--parts", default="split,dem,fixed,orders,extension,kfs,dem-judge")
     ap.add_argument("--dem-folder", type=Path, default=Path("results/fabric-dem"),
                     help="where the DEM part runs its two tests (reused when there)")
     ap.add_argument("--rules", default="off,perp,turn")
@@ -475,6 +564,8 @@ def main() -> None:
         result["extension"] = extension_part(float(args.kappas.split(",")[-1]))
     if "kfs" in parts:
         result["kfs"] = kfs_part(args.max_nfev)
+    if "dem-judge" in parts:
+        result["dem_judge"] = dem_judge_part(args.max_nfev)
     args.out.write_text(json.dumps(result, indent=2, default=float) + "\n")
     print(f"written {args.out}")
 
