@@ -147,3 +147,20 @@ def test_curves_follow_the_probe_in_extension_and_mark_what_it_did_not_reach():
     np.testing.assert_allclose(q, path["q"][k], rtol=1e-9, atol=1e-6)
     np.testing.assert_allclose(ev, path["eps_v"][k], rtol=1e-9, atol=1e-12)
     assert np.all(q[1:] < 0.0)  # q = σ11 - σr < 0 in extension
+
+
+def test_the_loose_rev_s_lateral_bihexagon_is_emptied_whenever_its_axial_contact_opens():
+    # docs/notes/2026-12-07-fabric-turn.md, "Why the lateral bi-hexagons carry nothing": the
+    # inclined contacts are pressed at every increment, the axial one hovers at 2r; a hexagon
+    # with an open contact carries nothing (report Fig. 1.5)
+    from benchmarks.model3d.fabric_turn import lateral_part
+
+    r = lateral_part(strain=0.02, increments=4)
+    d1 = [s["d1_minus_2r"] for s in r["steps"]]
+    assert all(b < a < 0.0 for a, b in zip(d1, d1[1:]))
+    assert any(any(s["open"]) for s in r["steps"]) and not all(any(s["open"]) for s in r["steps"])
+    for s in r["steps"]:
+        if any(s["open"]):
+            assert s["N1"] == s["N2"] == 0.0 and max(s["d2_minus_2r"], 0.0) > 0.0
+        else:
+            assert 0.0 < s["N1"] < 1e-3 * r["carrying_mean_N1"]

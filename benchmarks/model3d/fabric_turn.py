@@ -33,6 +33,7 @@ Parts (each written to the JSON, ``--parts``):
   the rule off and turning at the last κ of ``--kappas``;
 - ``dem``: the same split of the DEM samples' stress by their contacts' tilt (:func:`dem_part`:
   two YADE tests, reused from ``--dem-folder`` when there);
+- ``lateral``: why the REV's lateral bi-hexagons carry nothing (:func:`lateral_part`);
 - ``fixed``: the sand variant's mechanisms at the package's default parameters, α0 45° and 65°,
   drained at 100 kPa (σ22 = σ33 = p0, one radial strain) to ``--strain``, steps of 1e-4, each
   rule of ``--rules`` (``off``, ``perp``, ``turn``) at each κ of ``--kappas``.
@@ -49,7 +50,7 @@ Parts (each written to the JSON, ``--parts``):
 - ``dem-judge``: the DEM judge of docs/mechanisms.md (record ``dem_judge_axisym_mix.json``) redone
   the same way, with the rule off and on (:func:`dem_judge_part`).
 
-Usage: ``python -m benchmarks.model3d.fabric_turn [--parts split,dem,fixed,orders,extension,kfs,dem-judge] [--dem-folder DIR] [--out PATH]``. Prints
+Usage: ``python -m benchmarks.model3d.fabric_turn [--parts split,dem,lateral,fixed,orders,extension,kfs,dem-judge] [--dem-folder DIR] [--out PATH]``. Prints
 tables and writes ``fabric_turn.json``.
 """
 
@@ -275,6 +276,46 @@ def _print_split(label: str, r: dict) -> None:
     print(f"{label}: σ11/σr {r['sig11_over_sig_r']:.3f}; " + "; ".join(
         f"θ {b['theta'][0]:g}-{b['theta'][1]:g}: weight {b['weight']:.3f}, σ11 {b['sig11']:.3f}, σr {b['sig_r']:.3f}"
         for b in r["bands"]))
+
+
+def lateral_part(alpha0: float = 65.0, strain: float = 0.25, increments: int = 6) -> dict:
+    """Why the REV's lateral bi-hexagons carry nothing: the loose REV (sand variant's mechanisms,
+    defaults, α0 ``alpha0``) drained at 100 kPa to ``strain``, then its most lateral bi-hexagon
+    (axis nearest 90° from the compression axis) stepped alone, ``increments`` times, by the
+    REV's last strain increment (:func:`hmodel.rev.rev3d.Rev3D.localize` of it, the cell's own
+    lengths each time): its forces, which contacts open, and its branch lengths against 2r;
+    beside it, the weighted mean N1 of the cells that carry."""
+    params = Params(alpha0=math.radians(alpha0), **parse_mechanisms(SAND))
+    path = run(params, 100e3, strain, 1e-4, "off", 0.0)
+    rev, end = path["rev"], path["state"]
+    v = end.cells.values[0]
+    c = int(np.argmin(np.abs(rev.frames[:, 0, 0])))
+    d11 = float(path["eps11"][-1] - path["eps11"][-2])
+    dr = 0.5 * (float(path["eps_v"][-1] - path["eps_v"][-2]) - d11)  # one radial strain: ε22 = ε33
+    deps = np.array([[d11, dr, dr, 0.0, 0.0, 0.0]])
+    two_r = 2.0 * params.radius
+    cell = CellState(v[c:c + 1].copy())
+    cells = end.cells.values.copy()  # (1, C, 16): the REV's localization needs all its cells' rows
+    steps = []
+    for _ in range(increments):
+        cells[0, c] = cell.values[0]
+        dl = rev.localize(CellState(cells), deps)[0, c:c + 1]
+        cell, flags = rev.solver.step(params, cell, dl[:, 0], dl[:, 1], dl[:, 2])
+        x, f = cell.values[0], flags.flags[0]
+        steps.append({"N1": float(x[3]), "N2": float(x[4]), "open": [bool(f[k]) for k in (1, 2, 6, 7)],
+                      "d1_minus_2r": float(x[0] - two_r), "d2_minus_2r": float(x[1] - two_r),
+                      "alpha_deg": math.degrees(float(x[2]))})
+    carry = carrying(v, rev.weights)
+    out = {"alpha0": alpha0, "eps11": strain, "cell_axis": rev.frames[c, 0].tolist(),
+           "alpha_start_deg": math.degrees(float(v[c, 2])), "deps_v_deps11": (2.0 * dr + d11) / d11,
+           "carrying_mean_N1": float((rev.weights[carry] * v[carry, 3]).sum() / rev.weights[carry].sum()),
+           "steps": steps}
+    print(f"lateral bi-hexagon of the loose REV at {strain:.0%} (α {out['alpha_start_deg']:.2f}°, increments at "
+          f"dεv/dε1 {out['deps_v_deps11']:+.4f}; the carrying cells' mean N1 {out['carrying_mean_N1']:.3g} N):")
+    for k, st in enumerate(steps):
+        print(f"   {k + 1}: N1 {st['N1']:8.2f} N2 {st['N2']:7.2f}  open (A1 A2 B1 B2) "
+              f"{''.join(str(int(o)) for o in st['open'])}  d1-2r {st['d1_minus_2r']:+.2e}  d2-2r {st['d2_minus_2r']:+.2e}")
+    return out
 
 
 def orders_part(kappa: float, orders=(17, 23, 29, 35), delta: float = math.radians(15.0)) -> list[dict]:
@@ -529,7 +570,7 @@ def dem_judge_part(max_nfev: int) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--parts", default="split,dem,fixed,orders,extension,kfs,dem-judge")
+    ap.add_argument("--parts", default="split,dem,lateral,fixed,orders,extension,kfs,dem-judge")
     ap.add_argument("--dem-folder", type=Path, default=Path("results/fabric-dem"),
                     help="where the DEM part runs its two tests (reused when there)")
     ap.add_argument("--rules", default="off,perp,turn")
@@ -558,6 +599,8 @@ def main() -> None:
     if "fixed" in parts:
         result["fixed"] = fixed_part(args.rules.split(","), [float(k) for k in args.kappas.split(",")],
                                      args.strain, [float(s) for s in args.marks.split(",")])
+    if "lateral" in parts:
+        result["lateral"] = lateral_part()
     if "orders" in parts:
         result["orders"] = orders_part(float(args.kappas.split(",")[-1]))
     if "extension" in parts:
