@@ -410,7 +410,9 @@ def write_docs(rec: dict, block: str = "granular", path: Path = DOCS) -> None:
     path.write_text(pattern.sub(lambda m: f"{begin}\n{render(rec)}{end}", text))
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
+    """The benchmark's options; ``parser().parse_args([])`` gives the defaults that define its
+    samples (:func:`samples`), for another script that reruns one of them."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--parts", default=",".join(PARTS), help="comma list of " + ", ".join(PARTS) + ", or none")
     ap.add_argument("--spheres", type=int, default=600)
@@ -437,6 +439,11 @@ def main() -> None:
                     "(<!-- BLOCK: begin --> ... <!-- BLOCK: end -->)")
     ap.add_argument("--docs-only", action="store_true", help="run and collect nothing: the tables "
                                                                "from --out as it is (with --docs)")
+    return ap
+
+
+def main() -> None:
+    ap = parser()
     args = ap.parse_args()
     args.parts = [] if args.parts == "none" else [p.strip() for p in args.parts.split(",")]
     unknown = set(args.parts) - set(PARTS)

@@ -80,6 +80,12 @@ from hmodel.variants import get_variant
 FORCES = (3, 4, 5, 11, 12, 13)
 
 
+def sand(alpha0: float) -> Params:
+    """The package's default parameters with the sand variant's mechanisms (the census's), at the
+    initial opening angle ``alpha0`` [deg]."""
+    return Params(alpha0=math.radians(alpha0), **parse_mechanisms(SAND))
+
+
 def turn(n: np.ndarray, w: np.ndarray, v: np.ndarray, deps: np.ndarray, carry: np.ndarray,
          kappa: float, delta: float) -> tuple[np.ndarray, np.ndarray, float]:
     """One application of the turning rule (the module's docstring): directions ``n`` (C, 3),
@@ -222,7 +228,7 @@ def tilt_split(alpha0: float, strain: float, rule: str = "off", kappa: float = 0
     cells' tilt θ from the compression axis (:func:`band_split`; eq. 1.15 lifted, σ_tt the mean
     of the cell's two lateral components), with the REV's σ11/σr and the carrying cells' weighted
     σ_nn/σ_tt."""
-    params = Params(alpha0=math.radians(alpha0), **parse_mechanisms(SAND))
+    params = sand(alpha0)
     path = run(params, p0, strain, 1e-4, rule, kappa)
     rev, end = path["rev"], path["state"]
     vs, _ = rev.solver.meso(params, CellState(end.cells.values[0]))
@@ -263,12 +269,12 @@ def dem_part(folder: Path) -> list[dict]:
     """The granular benchmark's dense and loose Hertz-Mindlin samples of 600 spheres
     (``benchmarks/dem/granular.py``'s ``dense-hertz``, ``loose-hertz`` settings) drained at
     100 kPa to 25 %, run into ``folder`` (a test already there is reused), and their splits."""
-    from hmodel.dem.sample import SampleSettings, run_sample
+    from benchmarks.dem.granular import parser, samples
+    from hmodel.dem.sample import run_sample
 
-    hertz = dict(dim=3, disks=600, seed=0, axial_strain=0.25, rows=250, inertial_number=1e-3,
-                 contact="hertz-mindlin", shear_modulus=29e9, poisson=0.2)
-    for name, extra in (("dense-hertz", {}), ("loose-hertz", {"compaction_friction": 30.0})):
-        run_sample(SampleSettings(**hertz, **extra), [1e5], "triaxial-drained", folder / name)
+    defined = samples(parser().parse_args([]))
+    for name in ("dense-hertz", "loose-hertz"):
+        run_sample(defined[name][1], [1e5], "triaxial-drained", folder / name)
     return [dem_split(folder, name) for name in ("dense-hertz", "loose-hertz")]
 
 
@@ -285,7 +291,7 @@ def lateral_part(alpha0: float = 65.0, strain: float = 0.25, increments: int = 6
     REV's last strain increment (:func:`hmodel.rev.rev3d.Rev3D.localize` of it, the cell's own
     lengths each time): its forces, which contacts open, and its branch lengths against 2r;
     beside it, the weighted mean N1 of the cells that carry."""
-    params = Params(alpha0=math.radians(alpha0), **parse_mechanisms(SAND))
+    params = sand(alpha0)
     path = run(params, 100e3, strain, 1e-4, "off", 0.0)
     rev, end = path["rev"], path["state"]
     v = end.cells.values[0]
@@ -330,7 +336,7 @@ def orders_part(kappa: float, orders=(17, 23, 29, 35), delta: float = math.radia
         np.fill_diagonal(cos, 0.0)
         spacing = float(np.degrees(np.arccos(cos.max(axis=1))).mean())
         for a0 in (45.0, 65.0):
-            params = Params(alpha0=math.radians(a0), **parse_mechanisms(SAND))
+            params = sand(a0)
             path = run(params, 100e3, 0.3, 1e-4, "turn", kappa, sphere=Sphere(order=order, n_azimuth=2), delta=delta)
             rows.append({"order": order, "directions": len(n), "spacing_deg": spacing, "alpha0": a0,
                          "moved": path["moved"], "at": [at(path, s) for s in (0.15, 0.3)]})
@@ -347,7 +353,7 @@ def extension_part(kappa: float, strain: float = 0.2, step: float = 1e-3) -> lis
     rows = []
     for rule, k in (("off", 0.0), ("turn", kappa)):
         for a0 in (50.0, 60.0):
-            params = Params(alpha0=math.radians(a0), **parse_mechanisms(SAND))
+            params = sand(a0)
             comp = run(params, 100e3, strain, step, rule, k)
             ext = run(params, 100e3, strain, step, rule, k, extension=True)
             rc, re = comp["q"] / comp["p"], -ext["q"] / ext["p"]  # q < 0 in extension
@@ -367,7 +373,7 @@ def fixed_part(rules: list[str], kappas: list[float], strain: float, marks: list
     for rule in rules:
         for kappa in ([0.0] if rule == "off" else kappas):
             for a0 in (45.0, 65.0):
-                params = Params(alpha0=math.radians(a0), **parse_mechanisms(SAND))
+                params = sand(a0)
                 path = run(params, 100e3, strain, 1e-4, rule, kappa)
                 rows.append({"rule": rule, "kappa": kappa, "alpha0": a0, "moved": path["moved"],
                              "at": [at(path, s) for s in marks]})
@@ -389,17 +395,31 @@ def with_fitted(params: Params, x) -> Params:
     return replace(params, shear_modulus=10 ** x[0], poisson=x[1], phi_g=math.radians(x[2]), alpha0=math.radians(x[3]))
 
 
+def specimen(model: tuple, x, e0: float) -> Params:
+    """The parameters of a specimen at void ratio ``e0`` at the calibrated values ``x``;
+    ``model`` = (variant, params, e_ref, sphere, step)."""
+    variant, params, e_ref, _, _ = model
+    return variant.initial_params(with_fitted(params, x), 3, e0, e_ref)
+
+
+def start(params: Params) -> list[float]:
+    """The calibration's start (:data:`FREE` without κ) at a record's optimum ``params`` (ν
+    lifted from its bound 0 to 0.01, where least squares can move it)."""
+    return [math.log10(params.shear_modulus), max(params.poisson, 0.01), math.degrees(params.phi_g),
+            math.degrees(params.alpha0)]
+
+
 def curves(test, x, rule: str, model: tuple) -> tuple[np.ndarray, np.ndarray]:
     """The model's q and εv at a test's axial strains (drained, undrained or extension, from its
     e0 and p0), at the calibrated values ``x``; ``model`` = (variant, params, e_ref, sphere, step).
     NaN where the model did not reach (its Newton failed), as the calibration benchmarks."""
-    variant, params, e_ref, sphere, step = model
+    sphere, step = model[3:]
     kind = str(test.kind.value if hasattr(test.kind, "value") else test.kind)
     extension = kind.endswith("extension")
     sign = -1.0 if extension else 1.0
     nan = np.full(len(test.eps11), np.nan)
     try:
-        path = run(variant.initial_params(with_fitted(params, x), 3, test.e0, e_ref), test.p0,
+        path = run(specimen(model, x, test.e0), test.p0,
                    float(np.abs(test.eps11).max()), step, rule, x[4], undrained=kind.endswith("undrained"),
                    sphere=sphere, extension=extension)
     except Exception:
@@ -467,8 +487,7 @@ def kfs_part(max_nfev: int) -> dict:
     model = (variant, params, e_ref, sphere, step)
     tests = load_tests(1)[0]
     cal = [t for t in tests if t.name in CALIBRATION]
-    x0 = [math.log10(params.shear_modulus), max(params.poisson, 0.01), math.degrees(params.phi_g),
-          math.degrees(params.alpha0)]
+    x0 = start(params)
     out = {"record": "kfs_axisym_mix.json", "variant": variant.name, "e_ref": e_ref, "step": step,
            "sphere": {"order": sphere.order, "n_azimuth": sphere.n_azimuth}, "fits": {}}
     for rule in ("off", "turn"):
@@ -483,8 +502,8 @@ def kfs_part(max_nfev: int) -> dict:
             for p0 in (100e3, 400e3):
                 for undrained in (False, True):
                     try:
-                        path = run(variant.initial_params(with_fitted(params, x), 3, e0, e_ref), p0, 0.3, step, rule, x[4],
-                                   undrained=undrained, sphere=sphere)
+                        path = run(specimen(model, x, e0), p0, 0.3, step, rule, x[4], undrained=undrained,
+                                   sphere=sphere)
                     except Exception as exc:
                         ends.append({"e0": e0, "p0_kPa": p0 / 1e3, "undrained": undrained,
                                      "failed": str(exc).split(":")[0]})
@@ -497,7 +516,7 @@ def kfs_part(max_nfev: int) -> dict:
         long = []  # the drained tests of the densest and loosest specimens on to 80 %
         for e0 in (min(t.e0 for t in tests), max(t.e0 for t in tests)):
             for p0 in (100e3, 400e3):
-                path = run(variant.initial_params(with_fitted(params, x), 3, e0, e_ref), p0, 0.8, step, rule, x[4], sphere=sphere)
+                path = run(specimen(model, x, e0), p0, 0.8, step, rule, x[4], sphere=sphere)
                 last = path["eps11"] >= 0.7
                 marks = [at(path, s) for s in (0.3, 0.5, 0.8)]
                 long.append({"e0": e0, "p0_kPa": p0 / 1e3, "at": marks,
@@ -548,8 +567,7 @@ def dem_judge_part(max_nfev: int) -> dict:
     for folder in rec["options"]["sample"]:
         tests |= read_tests(ROOT / folder, Path(folder).name + "/")
     fit_on = rec["options"]["fit_on"].split(",")
-    x0 = [math.log10(params.shear_modulus), max(params.poisson, 0.01), math.degrees(params.phi_g),
-          math.degrees(params.alpha0)]
+    x0 = start(params)
     out = {"record": "dem_judge_axisym_mix.json", "variant": variant.name, "fit_on": fit_on, "fits": {}}
     for rule in ("off", "turn"):
         x, sol, starts = calibrate_best([tests[n] for n in fit_on], rule, x0, max_nfev, model)
