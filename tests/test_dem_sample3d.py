@@ -98,6 +98,16 @@ def test_consolidated_state_is_isotropic_and_the_csv_complete(sample_dir):
         assert 0.3 < rec["consolidated"]["porosity"] < 0.42  # random close packing ~ 0.36
         # sliding: none after the frictionless consolidation, some as the sample is sheared
         assert t["sliding"][0] == 0.0 and 0.0 < t["sliding"][-1] < 0.6
+        # the contact fabric (hmodel.rev.contacts): its stress ratio is the sample's σ11/σr
+        for state, row in (("consolidated", 0), ("final", -1)):
+            f = rec[state]["fabric"]
+            assert f["stress_ratio"] == pytest.approx(t["sig11"][row] / (0.5 * (t["sig22"][row] + t["sig33"][row])),
+                                                      rel=1e-9)
+            assert sum(b["contacts"] for b in f["bands"]) == pytest.approx(1.0)
+        with open(sample_dir / f"{kind}_100kPa_contact_fabric.csv", newline="") as fh:
+            fab = list(csv.DictReader(fh))
+        assert [r["state"] for r in fab] == ["consolidated"] * 4 + ["final"] * 4
+        assert float(fab[-1]["stress_ratio"]) == pytest.approx(rec["final"]["fabric"]["stress_ratio"])
 
 
 @pytest.mark.yade

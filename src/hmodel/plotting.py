@@ -302,3 +302,35 @@ def plot_result(result: PathResult, path: "str | os.PathLike") -> None:
         plot_isotropic(result, path)
     else:
         plot_strain_path(result, path)
+
+
+def plot_contact_fabric(rows: list[dict], path: "str | os.PathLike", dim: int, title: str = "") -> None:
+    """Bars of a contact-fabric table (:func:`hmodel.rev.contacts.fabric_rows`): per band of tilt
+    from the axis, the shares of the carrying contacts, of the axial and of the lateral stress,
+    one bar per (point, state) of the rows, and an isotropic fabric's shares of the contacts
+    (``dim`` 2 or 3)."""
+    from .rev.contacts import isotropic_shares
+
+    groups = list(dict.fromkeys((r.get("point", 0), r["state"]) for r in rows))
+    bands = list(dict.fromkeys((r["tilt_lo"], r["tilt_hi"]) for r in rows))
+    fig = Figure(figsize=(11, 3.6), layout="constrained")
+    axes = fig.subplots(1, 3, sharey=True)
+    x = np.arange(len(bands))
+    width = 0.8 / len(groups)
+    for ax, key, label in zip(axes, ("contacts", "sig_axial", "sig_lateral"),
+                              ("carrying contacts", "axial stress", "lateral stress")):
+        for g, (point, state) in enumerate(groups):
+            vals = [next(r[key] for r in rows if (r.get("point", 0), r["state"]) == (point, state)
+                         and (r["tilt_lo"], r["tilt_hi"]) == band) for band in bands]
+            ax.bar(x - 0.4 + width * (g + 0.5), vals, width, label=f"point {point}, {state}")
+        if key == "contacts":
+            iso = isotropic_shares(bands, dim)
+            ax.plot(x, iso, "k_", markersize=18, mew=2, label="isotropic")
+        ax.set_xticks(x, [f"{lo:g}–{hi:g}°" for lo, hi in bands])
+        ax.set(title=f"share of the {label}", xlabel="tilt of the contact from axis 1")
+        ax.grid(alpha=0.3, axis="y")
+    axes[0].set_ylabel("share")
+    axes[0].legend(frameon=False, fontsize=8)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.savefig(path, dpi=130)

@@ -144,6 +144,10 @@ def workers_opt(help: str, optional: bool = False):
 ModelOpt = Annotated[Optional[str], typer.Option(
     "--model", help="Variant of the H-model (hmodel models): published (default), density (alias sand: "
                     "alpha0 from the specimen's void ratio --e0).")]
+ContactFabricOpt = Annotated[bool, typer.Option(
+    "--contact-fabric", help="Also write contact_fabric.csv and .png: the fabric of each point's carrying contacts "
+                             "after consolidation and at the end (shares of the contacts and of the axial and lateral "
+                             "stress by tilt from axis 1), to compare with a DEM sample's.")]
 CalibrationOpt = Annotated[Optional[Path], typer.Option(
     "--calibration", help="Folder (or calibration.json) of a calibration: run its fitted model (parameters, "
                           "variant, 3D directions); -p changes parameters on top of it.")]

@@ -10,7 +10,7 @@ from typing import Annotated, Optional
 import typer
 
 from ..errors import InputError
-from ..io import read_strain_path, write_outputs
+from ..io import read_strain_path, write_outputs, write_rows
 from ..loading import (
     AXIAL_STEP,
     ISO_STEP,
@@ -25,7 +25,8 @@ from ..loading import (
     run_true_triaxial,
 )
 from ..loading.result import PathResult
-from ..plotting import plot_result
+from ..plotting import plot_contact_fabric, plot_result
+from ..rev.contacts import fabric_rows
 from ..solvers import get_solver, get_solver_3d
 from ..units import parse_pressures
 from .common3d import (
@@ -42,6 +43,7 @@ from .common3d import (
 )
 from .options import (
     CalibrationOpt,
+    ContactFabricOpt,
     E0Opt,
     ERefOpt,
     FallbackOpt,
@@ -85,8 +87,18 @@ def _gate_line(solver, gate: float | None) -> None:
 
 
 def _finish(result: PathResult, out: Path) -> None:
-    write_outputs(out, {"result.csv": result.to_csv, "result.png": lambda p: plot_result(result, p)})
-    typer.echo(f"wrote {out / 'result.csv'} ({len(result)} rows) and {out / 'result.png'}")
+    writers = {"result.csv": result.to_csv, "result.png": lambda p: plot_result(result, p)}
+    fabrics = result.meta.get("contact_fabric")
+    if fabrics is not None:
+        rows = fabric_rows([({"point": b, "state": state}, f) for state in ("consolidated", "final")
+                            for b, f in enumerate(fabrics[state]) if f is not None])
+        dim = 3 if "eps33" in result.columns else 2
+        writers["contact_fabric.csv"] = lambda p: write_rows(rows, p)
+        writers["contact_fabric.png"] = lambda p: plot_contact_fabric(
+            rows, p, dim, f"contact fabric, {result.meta.get('test', '')} test")
+    write_outputs(out, writers)
+    typer.echo(f"wrote {out / 'result.csv'} ({len(result)} rows) and {out / 'result.png'}"
+               + (" and contact_fabric.csv, .png" if fabrics is not None else ""))
 
 
 @app.command("iso")
@@ -114,7 +126,8 @@ def biaxial(p0: P0Opt = "200kPa",
                 "Axial strain increment (1e-4 here and in the 3D tests; calibrate's model runs at 1e-3)."))] = AXIAL_STEP,
             iso_step: Annotated[float, typer.Option(help=strain_help("Strain increment of the consolidation."))] = ISO_STEP,
             solver: SolverOpt = "closed-form", gate: GateOpt = None,
-        fallback: FallbackOpt = None, model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None) -> None:
+        fallback: FallbackOpt = None, model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None,
+        contact_fabric: ContactFabricOpt = False) -> None:
     """Isotropic consolidation to p0, then drained (sig22 = p0) or undrained biaxial compression."""
     pressures = parse_pressures(p0, "--p0")
     params = material_points(param, len(pressures), specimen(model, calibration, e0, e_ref, 2))
@@ -123,7 +136,8 @@ def biaxial(p0: P0Opt = "200kPa",
         cells = _solver(solver, gate, fallback)
         result = run_biaxial(params, pressures, axial_strain, undrained=undrained, solver=cells,
                              iso_step=positive(iso_step, "--iso-step"),
-                             step=positive(step, "--step"), progress=progress)
+                             step=positive(step, "--step"), progress=progress,
+                             contact_fabric=contact_fabric)
     _finish(result, out)
     _gate_line(cells, gate)
 
@@ -202,7 +216,8 @@ def triaxial(p0: P0Opt = "200kPa", axial_strain: AxialOpt = 0.1,
              param: Param3DOpt = None, order: OrderOpt = None, azimuths: AzimuthsOpt = None,
              fabric: FabricOpt = 0.0, out: OutOpt = Path("results/triaxial"), step: StepOpt = AXIAL_STEP,
              iso_step: IsoStepOpt = ISO_STEP, solver: Solver3DOpt = "closed-form",
-             model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None) -> None:
+             model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None,
+             contact_fabric: ContactFabricOpt = False) -> None:
     """The 3D H-model's triaxial test: isotropic consolidation to p0, then drained (sig22 = sig33
     = p0, or with --radial equal one radial strain) or undrained axial compression, or
     extension, along axis 1."""
@@ -213,7 +228,8 @@ def triaxial(p0: P0Opt = "200kPa", axial_strain: AxialOpt = 0.1,
         radial = spec.radial
     with LazyProgress("triaxial test") as progress:
         result = run_triaxial(params, pressures, axial_strain, undrained=undrained, extension=extension,
-                              radial=radial, progress=progress, **_steps_3d(sphere, cells, iso_step, step))
+                              radial=radial, progress=progress, contact_fabric=contact_fabric,
+                              **_steps_3d(sphere, cells, iso_step, step))
     _finish(result, out)
 
 
@@ -227,14 +243,15 @@ def true_triaxial(p0: P0Opt = "200kPa",
                   azimuths: AzimuthsOpt = None, fabric: FabricOpt = 0.0,
                   out: OutOpt = Path("results/true-triaxial"), step: StepOpt = AXIAL_STEP,
                   iso_step: IsoStepOpt = ISO_STEP, solver: Solver3DOpt = "closed-form",
-                  model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None) -> None:
+                  model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None,
+                  contact_fabric: ContactFabricOpt = False) -> None:
     """Drained true triaxial test at constant p = p0 and constant b: isotropic consolidation,
     then compression along axis 1 (the major principal stress)."""
     pressures, params, sphere, cells = setup_3d(p0, param, axial_strain, order, azimuths, fabric,
                                                  solver, specimen(model, calibration, e0, e_ref, 3))
     with LazyProgress("true triaxial test") as progress:
         result = run_true_triaxial(params, pressures, b, axial_strain, progress=progress,
-                                   **_steps_3d(sphere, cells, iso_step, step))
+                                   contact_fabric=contact_fabric, **_steps_3d(sphere, cells, iso_step, step))
     _finish(result, out)
 
 
@@ -243,14 +260,15 @@ def oedometer(p0: P0Opt = "200kPa", axial_strain: AxialOpt = 0.05, param: Param3
               order: OrderOpt = None, azimuths: AzimuthsOpt = None, fabric: FabricOpt = 0.0,
               out: OutOpt = Path("results/oedometer"), step: StepOpt = AXIAL_STEP,
               iso_step: IsoStepOpt = ISO_STEP, solver: Solver3DOpt = "closed-form",
-              model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None) -> None:
+              model: ModelOpt = None, calibration: CalibrationOpt = None, e0: E0Opt = None, e_ref: ERefOpt = None,
+              contact_fabric: ContactFabricOpt = False) -> None:
     """Oedometric compression of the 3D H-model (eps22 = eps33 = 0) from isotropic consolidation
     to p0; K0 = sig_r/sig_a at its end is printed and is the column K0 of result.csv."""
     pressures, params, sphere, cells = setup_3d(p0, param, axial_strain, order, azimuths, fabric,
                                                  solver, specimen(model, calibration, e0, e_ref, 3))
     with LazyProgress("oedometric test") as progress:
         result = run_oedometer(params, pressures, axial_strain, progress=progress,
-                               **_steps_3d(sphere, cells, iso_step, step))
+                               contact_fabric=contact_fabric, **_steps_3d(sphere, cells, iso_step, step))
     _finish(result, out)
     p0s = result.meta["p0"]
     for k, k0 in enumerate(result.meta["K0"]):

@@ -19,6 +19,7 @@ from ..errors import InputError
 from ..limits import check_rows
 from ..params import Params
 from ..rev import Rev
+from ..rev.contacts import cell_contacts, check_contacts, fabric
 from ..rev.model3d import check_3d_param_sets, params_3d
 from ..rev.rev3d import Rev3D
 from ..rev.sphere import Sphere
@@ -72,14 +73,17 @@ def run_isotropic(params: Params | Sequence[Params], p0, *, solver: CellSolver |
 def run_biaxial(params: Params | Sequence[Params], p0, axial_strain: float, *, undrained: bool = False,
                 solver: CellSolver | None = None, iso_step: float = ISO_STEP,
                 step: float = AXIAL_STEP, progress: Progress = None,
-                drop_failed: bool = False, compiled: bool | None = None) -> PathResult:
+                drop_failed: bool = False, compiled: bool | None = None,
+                contact_fabric: bool = False) -> PathResult:
     """Isotropic consolidation to each ``p0`` [Pa], then drained or undrained biaxial
     compression to ``axial_strain`` more axial strain (report §1.1.2, Fig. 1.7).
 
     With ``drop_failed``, a point whose Newton fails is dropped and the others go on; the
     result's ``meta["failed"]`` maps each dropped point to the reason (its rows stop there).
     ``compiled``: None (the compiled kernel where the cell solver has one) or False (the
-    generic driver, e.g. to time or check the two against each other)."""
+    generic driver, e.g. to time or check the two against each other). ``contact_fabric``:
+    the fabric of every point's contacts after consolidation and at the end, in
+    ``meta["contact_fabric"]`` (:func:`contact_fabrics`; docs/model3d.md, "Contact fabric")."""
     n = named_paths.strain_steps(axial_strain, step, "axial strain")  # refused before any work
     p0 = np.atleast_1d(np.asarray(p0, float))
     n_points, rows = _table_rows(params, len(p0), n + 1)
@@ -90,27 +94,49 @@ def run_biaxial(params: Params | Sequence[Params], p0, axial_strain: float, *, u
                    rev.solver_fractions)
 
     def shear(state, p0, progress, failures):
-        named_paths.biaxial(rev, state, axial_strain, undrained=undrained, lateral_stress=p0,
-                            step=step, recorder=rec, progress=progress, failures=failures,
-                            compiled=compiled)
+        return named_paths.biaxial(rev, state, axial_strain, undrained=undrained, lateral_stress=p0,
+                                   step=step, recorder=rec, progress=progress, failures=failures,
+                                   compiled=compiled)
     _consolidate_then(rev, rec, p0, shear, iso_step=iso_step, progress=progress,
-                      drop_failed=drop_failed, compiled=compiled)
+                      drop_failed=drop_failed, compiled=compiled, contact_fabric=contact_fabric)
     return rec.result()
 
 
 def _consolidate_then(rev, rec: Recorder, p0: np.ndarray, shear, *, iso_step: float,
-                      progress: Progress, drop_failed: bool, compiled: bool | None) -> None:
+                      progress: Progress, drop_failed: bool, compiled: bool | None,
+                      contact_fabric: bool = False) -> None:
     """Isotropic consolidation of ``rev``'s points to each ``p0`` (the first tenth of the
     progress), then ``shear(state, p0 per point (B,), progress, failures)``; with
-    ``drop_failed``, the points that fail are dropped and listed in ``rec.meta["failed"]``."""
+    ``drop_failed``, the points that fail are dropped and listed in ``rec.meta["failed"]``;
+    with ``contact_fabric``, the fabric of every point's contacts at the end of each stage in
+    ``rec.meta["contact_fabric"]`` (:func:`contact_fabrics`)."""
     consolidation = None if progress is None else (lambda f: progress(0.1 * f))
     rest = None if progress is None else (lambda f: progress(0.1 + 0.9 * f))
     failures = {} if drop_failed else None
+    if contact_fabric:
+        check_contacts(rev)  # before any work
     state = named_paths.consolidate(rev, p0, step=iso_step, recorder=rec, progress=consolidation,
                                     failures=failures, compiled=compiled)
-    shear(state, np.broadcast_to(p0, state.n_points).copy(), rest, failures)
+    consolidated = contact_fabrics(rev, state, failures) if contact_fabric else None
+    end = shear(state, np.broadcast_to(p0, state.n_points).copy(), rest, failures)
+    if contact_fabric:
+        rec.meta["contact_fabric"] = {"consolidated": consolidated, "final": contact_fabrics(rev, end, failures)}
     if drop_failed:
         rec.meta["failed"] = {int(b): why for b, why in sorted(failures.items())}
+
+
+def contact_fabrics(rev, state, failures: dict | None = None) -> list[dict | None]:
+    """The fabric of each point's carrying contacts in ``state`` (:func:`hmodel.rev.contacts.fabric`
+    of :func:`hmodel.rev.contacts.cell_contacts`, axis 1, as plain numbers), None for a point
+    dropped (in ``failures``), not finite, or force-free."""
+    out = []
+    for b in range(state.n_points):
+        if (failures and b in failures) or not np.all(np.isfinite(state.eps[b])):
+            out.append(None)
+            continue
+        contacts = cell_contacts(rev, state, b)
+        out.append(fabric(contacts).as_dict() if np.any(contacts.fn > 0.0) else None)
+    return out
 
 
 def run_strain_path(params: Params | Sequence[Params], eps, *, solver: CellSolver | None = None,
@@ -132,7 +158,7 @@ def run_strain_path(params: Params | Sequence[Params], eps, *, solver: CellSolve
 
 def _run_3d(params, p0, test: str, rows, n_steps: int, *, sphere: Sphere | None,
             solver, iso_step: float, progress: Progress, drop_failed: bool,
-            compiled: bool | None, **meta) -> Recorder:
+            compiled: bool | None, contact_fabric: bool = False, **meta) -> Recorder:
     """Isotropic consolidation of a :class:`Rev3D` to each ``p0``, then the stage whose rows
     ``rows(p0)`` gives (p0 per point, (B,)) in ``n_steps`` increments, recorded as ``shear``;
     ``params`` None: the 3D model's defaults with this solver (:func:`~hmodel.rev.model3d.params_3d`)."""
@@ -152,9 +178,9 @@ def _run_3d(params, p0, test: str, rows, n_steps: int, *, sphere: Sphere | None,
 
     def shear(state, p0, progress, failures):
         seg = Stage("shear", rows(p0), steps=n_steps).segment(state)
-        run_segment(rev, state, seg, rec, progress=progress, failures=failures, compiled=compiled)
+        return run_segment(rev, state, seg, rec, progress=progress, failures=failures, compiled=compiled).state
     _consolidate_then(rev, rec, p0, shear, iso_step=iso_step, progress=progress,
-                      drop_failed=drop_failed, compiled=compiled)
+                      drop_failed=drop_failed, compiled=compiled, contact_fabric=contact_fabric)
     return rec
 
 
@@ -197,7 +223,7 @@ def run_triaxial(params: Params | Sequence[Params] | None, p0, axial_strain: flo
                  undrained: bool = False, extension: bool = False, radial: str | None = None,
                  sphere: Sphere | None = None, solver=None, iso_step: float = ISO_STEP,
                  step: float = AXIAL_STEP, progress: Progress = None, drop_failed: bool = False,
-                 compiled: bool | None = None) -> PathResult:
+                 compiled: bool | None = None, contact_fabric: bool = False) -> PathResult:
     """The triaxial test of the 3D H-model (axis 1 axial, the shear strains held): isotropic
     consolidation to each ``p0`` [Pa], then ``axial_strain`` (its magnitude) of axial
     compression, or with ``extension`` of axial unloading (σ11 < σ22 = σ33), drained (σ22 =
@@ -234,7 +260,7 @@ def run_triaxial(params: Params | Sequence[Params] | None, p0, axial_strain: flo
     test = f"{'undrained' if undrained else 'drained'} triaxial {'extension' if extension else 'compression'}"
     rec = _run_3d(params, p0, test, rows, n, sphere=sphere, solver=solver, iso_step=iso_step,
                      progress=progress, drop_failed=drop_failed, compiled=compiled,
-                     axial_strain=axial_strain, step=step,
+                     contact_fabric=contact_fabric, axial_strain=axial_strain, step=step,
                      **({"radial": radial} if radial != "free" else {}))
     return rec.result()
 
@@ -242,7 +268,8 @@ def run_triaxial(params: Params | Sequence[Params] | None, p0, axial_strain: flo
 def run_true_triaxial(params: Params | Sequence[Params] | None, p0, b: float, axial_strain: float, *,
                       sphere: Sphere | None = None, solver=None, iso_step: float = ISO_STEP,
                       step: float = AXIAL_STEP, progress: Progress = None,
-                      drop_failed: bool = False, compiled: bool | None = None) -> PathResult:
+                      drop_failed: bool = False, compiled: bool | None = None,
+                      contact_fabric: bool = False) -> PathResult:
     """The drained true triaxial test at constant mean stress p = p0 and constant b: isotropic
     consolidation to each ``p0`` [Pa], then ``axial_strain`` of compression along axis 1 (the
     major principal stress) with the rows p = p0, (σ22 - σ33) - b (σ11 - σ33) = 0 (the
@@ -255,7 +282,8 @@ def run_true_triaxial(params: Params | Sequence[Params] | None, p0, b: float, ax
     rec = _run_3d(params, p0, "true triaxial", lambda p0: {"eps11": axial_strain, "p": p0, "b": b,
                                                               **_SHEARS},
                      n, sphere=sphere, solver=solver, iso_step=iso_step, progress=progress,
-                     drop_failed=drop_failed, compiled=compiled, b=b, axial_strain=axial_strain,
+                     drop_failed=drop_failed, compiled=compiled, contact_fabric=contact_fabric, b=b,
+                     axial_strain=axial_strain,
                      step=step)
     return rec.result()
 
@@ -263,7 +291,7 @@ def run_true_triaxial(params: Params | Sequence[Params] | None, p0, b: float, ax
 def run_oedometer(params: Params | Sequence[Params] | None, p0, axial_strain: float, *,
                   sphere: Sphere | None = None, solver=None, iso_step: float = ISO_STEP,
                   step: float = AXIAL_STEP, progress: Progress = None, drop_failed: bool = False,
-                  compiled: bool | None = None) -> PathResult:
+                  compiled: bool | None = None, contact_fabric: bool = False) -> PathResult:
     """Oedometric compression of the 3D H-model: isotropic consolidation to each ``p0`` [Pa],
     then ``axial_strain`` along axis 1 with no lateral strain (eps22 = eps33 = 0, the shears
     held: the ``oedometric`` stage of :data:`~hmodel.loading.stages.PRESETS_3D`).
@@ -275,7 +303,8 @@ def run_oedometer(params: Params | Sequence[Params] | None, p0, axial_strain: fl
     rec = _run_3d(params, p0, "oedometer", lambda p0: {"eps11": axial_strain, "eps22": 0.0,
                                                                  "eps33": 0.0, **_SHEARS},
                             n, sphere=sphere, solver=solver, iso_step=iso_step, progress=progress,
-                            drop_failed=drop_failed, compiled=compiled, axial_strain=axial_strain,
+                            drop_failed=drop_failed, compiled=compiled, contact_fabric=contact_fabric,
+                            axial_strain=axial_strain,
                             step=step)
     result = rec.result()
     cols = dict(result.columns)

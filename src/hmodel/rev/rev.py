@@ -96,11 +96,11 @@ class Rev(RevBatch):
             raise InputError(f"alpha0_spread > 0 is implemented for the closed-form H-cell, not "
                              f"for {solver.name} cells")
         cell0 = [solver.initial(s, ()) for s in self.sets]
-        # cells with their own meso-stress (richer DEM cells, meso surrogates), or eq. 1.12
-        self._own_meso = solver.meso(params, cell0[0]) is not None
+        #: cells with their own meso-stress (richer DEM cells, meso surrogates), or eq. 1.12
+        self.own_meso = solver.meso(params, cell0[0]) is not None
         # Initial macro volume V0 = sum_i w_i V_meso,i (eq. 1.14) per set; all cells start alike
         # but with a spread of α0
-        vol0 = np.array([float(solver.meso(s, c)[1]) if self._own_meso else float(meso_volume(s, c))
+        vol0 = np.array([float(solver.meso(s, c)[1]) if self.own_meso else float(meso_volume(s, c))
                          for s, c in zip(self.sets, cell0)])
         #: initial macro volume of each set's points (K,)
         self.volumes0 = vol0 * self.weights.sum(axis=1)
@@ -164,7 +164,7 @@ class Rev(RevBatch):
         """Macro stress (B, 3) of cells (B, n_theta) at macro strain eps (B, 3) (eq. 1.15),
         the points' parameter sets ``sets`` (B,) (None: the first for all)."""
         idx = np.zeros(cells.shape[0], np.int64) if sets is None else np.asarray(sets, np.int64)
-        if self._own_meso:
+        if self.own_meso:
             vsig = self._meso_stress(cells, idx)
         else:
             vsig = np.empty((cells.shape[0], 3))

@@ -20,7 +20,8 @@ from typing import Callable
 import numpy as np
 
 from ...errors import InputError
-from ...io import check_output_folder, write_outputs
+from ...io import check_output_folder, write_outputs, write_rows
+from ...rev.contacts import fabric_rows
 from ..yade import DEMError, run
 from .packing import initial_packing, mean_diameter
 from .result import SampleTest, file_stem, read_table
@@ -173,7 +174,10 @@ def run_sample(settings: SampleSettings, pressures: list[float], kind: str,
                 lambda n: test.table() if n == name else read_table(out / f"{n}.csv"), path)
 
         # the CSV last: a test whose CSV exists has all its files
+        fabrics = [({"state": state}, f) for state, f in (("consolidated", rec["consolidated"]["fabric"]),
+                                                           ("final", rec["final"]["fabric"])) if f is not None]
         write_outputs(out, {f"{name}.npz": test.write_npz,
+                            f"{name}_contact_fabric.csv": lambda p, rows=fabric_rows(fabrics): write_rows(rows, p),
                             "sample.json": lambda p, meta=meta: p.write_text(json.dumps(meta, indent=1)),
                             "sample.png": draw,
                             f"{name}.csv": test.write_csv})

@@ -1,5 +1,5 @@
 """A state of a DEM sample and its measures: porosity, void ratio, coordination numbers,
-rattlers, contact forces and the Love-Weber stress.
+rattlers, contact forces, their fabric and the Love-Weber stress.
 
 Stresses are (1/V) sum f (x) l over the contacts, V the cell's volume: for disks its area, and
 the stress in N/m (Pa m: Pa for a sample of unit thickness), as hmodel's DEM cells
@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...rev.contacts import fabric, grain_contacts
 from .geometry import CONTACT_COLUMNS, CONTACT_COLUMNS_3D, Grains, grains  # noqa: F401 (columns' first home)
 
 
@@ -106,6 +107,14 @@ class SampleState:
         e = l / np.linalg.norm(l, axis=1)[:, None]
         return self.grains.forces(fn, e, self.contacts)
 
+    def fabric(self) -> dict | None:
+        """The fabric of the carrying contacts relative to axis 1 (:func:`hmodel.rev.contacts.fabric`,
+        the measure of a REV's cells, ``hmodel run ... --contact-fabric``), as plain numbers; None
+        where no contact carries."""
+        if not len(self.contacts) or not np.any(self.contacts[:, 2] > 0.0):
+            return None
+        return fabric(grain_contacts(self.branches(), self.forces())).as_dict()
+
     def stress(self) -> np.ndarray:
         """Love-Weber stress (1/V) sum f (x) l, compression positive, (dim, dim) [N/m for disks,
         Pa for spheres] (report's homogenization, as the cells'; the sum is over the contacts)."""
@@ -116,7 +125,7 @@ class SampleState:
                 "coordination": self.coordination,
                 "mechanical_coordination": self.mechanical_coordination,
                 "rattlers": self.rattlers, "contacts": len(self.contacts),
-                "cell": list(self.cell)}
+                "cell": list(self.cell), "fabric": self.fabric()}
 
     def arrays(self, prefix: str) -> dict[str, np.ndarray]:
         return {f"{prefix}_cell": np.asarray(self.cell), f"{prefix}_positions": self.positions,
