@@ -21,8 +21,14 @@ Hertz-Mindlin spheres, dense and loose, drained at 100 kPa to 25 %; reused from
 ``--dem-folder``, run there when missing). The distance of two splits is the total variation
 ½ Σ_bands |a - b| (0: the same shares, 1: no band in common), per share.
 
-Usage: ``python -m benchmarks.model3d.contact_fabric [--dem-folder DIR] [--out PATH]``. Prints a
-table and writes ``contact_fabric.json``.
+**The judge** (``judge``): each 3D variant as the DEM judge calibrated it on the samples'
+stress-strain curves (``benchmarks/calibration/dem_judge_VARIANT.json``: its parameters, e_ref,
+sphere, step and sides), run from the e0 of the dense and the loose sample's drained tests at
+100 kPa (their stored CSVs) to 25 % as ``hmodel run triaxial --contact-fabric`` runs it; its final
+fabric against the DEM's, beside the record's RMS |Δq|/peak q of the same test. The calibration saw stresses only, so the fabric is a prediction.
+
+Usage: ``python -m benchmarks.model3d.contact_fabric [--parts rev,judge] [--dem-folder DIR]
+[--out PATH]``. Prints a table and writes ``contact_fabric.json``.
 """
 
 from __future__ import annotations
@@ -58,6 +64,51 @@ def rev_part(alpha0: float, strain: float, rule: str, kappa: float, p0: float = 
             "final": fabric(cell_contacts(path["rev"], path["state"])).as_dict()}
 
 
+#: The 3D variants the DEM judge calibrated (``benchmarks/calibration/dem_judge_NAME.json``).
+JUDGED = ("axisym_mix", "axisym", "mix", "rebirth", "hertz", "cross", "density")
+#: The DEM tests whose fabric the judge compares: (sample, stored CSV of its e0).
+JUDGE_TESTS = (("dense-hertz", "triaxial-drained_100kPa"), ("loose-hertz", "triaxial-drained_100kPa"))
+
+
+def judge_part(dem: dict, strain: float = 0.25) -> list[dict]:
+    """Each of :data:`JUDGED` at its DEM-judge calibration, drained at 100 kPa from each of
+    :data:`JUDGE_TESTS`' e0 to ``strain``: q/p and εv at the end, the final fabric and its
+    distance to the DEM test's (``dem``: sample -> its fabrics)."""
+    from benchmarks.calibration.calibrate3d_dem import read_tests
+    from benchmarks.timing import ROOT
+    from hmodel import Params
+    from hmodel.loading import run_triaxial
+    from hmodel.variants import get_variant
+
+    rows = []
+    for name in JUDGED:
+        rec = json.loads((ROOT / "benchmarks" / "calibration" / f"dem_judge_{name}.json").read_text())
+        cal = rec["calibration"]
+        m = cal["model"]
+        variant = get_variant(m["variant"])
+        sphere = Sphere(order=cal["sphere"]["order"], n_azimuth=cal["sphere"]["n_azimuth"])
+        for sample, stem in JUDGE_TESTS:
+            test = read_tests(ROOT / "benchmarks" / "dem" / "granular" / sample)[stem]
+            params = variant.initial_params(Params(**m["params_rad"]), 3, test.e0, m["e_ref"])
+            row = {"variant": variant.name, "record": f"dem_judge_{name}.json", "sample": sample, "e0": test.e0,
+                   "alpha0_deg": float(np.degrees(params.alpha0))}
+            error = rec["errors"].get(f"{sample}/{stem}", {})
+            row["rms_dq_judge"] = error.get("rms_dq")  # the stress's error the record measured, to 25 %
+            try:
+                r = run_triaxial(params, 1e5, strain, sphere=sphere, step=m["step"], radial=rec["options"].get("radial"),
+                                 contact_fabric=True).point(0)
+            except Exception as err:  # a Newton that fails is the variant's result, recorded
+                rows.append({**row, "failed": f"{type(err).__name__}: {str(err).split(' for cell')[0]}"})
+                continue
+            start, shear = r.stage("consolidation"), r.stage("shear")
+            f = r.meta["contact_fabric"]["final"][0]
+            ref = as_fabric(dem[sample]["final"])
+            rows.append({**row, "eps11": float(shear["eps11"][-1] - start["eps11"][-1]),
+                         "q_p": float(shear["q_p"][-1]), "eps_v": float(shear["eps_v"][-1] - start["eps_v"][-1]),
+                         "final": f, "distance_to_dem": {k: as_fabric(f).distance(ref, k) for k in SHARES}})
+    return rows
+
+
 def as_fabric(d: dict) -> Fabric:
     return Fabric(np.array(d["tensor"]), np.array(d["force_tensor"]), d["count"], d["stress_ratio"], d["bands"])
 
@@ -67,6 +118,7 @@ def main() -> None:
     ap.add_argument("--dem-folder", type=Path, default=Path("results/fabric-dem"),
                     help="the fabric probe's DEM tests (reused when there)")
     ap.add_argument("--kappa", type=float, default=20.0, help="rate of the turning rule")
+    ap.add_argument("--parts", default="rev,judge")
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("contact_fabric.json"))
     args = ap.parse_args()
     result = {**provenance(__file__, args), "bands": [list(b) for b in TILT_BANDS]}
@@ -76,10 +128,25 @@ def main() -> None:
         with np.load(args.dem_folder / name / "triaxial-drained_100kPa.npz") as z:
             states = {s: SampleState(cell=tuple(z[f"{s}_cell"]), radii=z["radii"], positions=z[f"{s}_positions"],
                                      contacts=z[f"{s}_contacts"]) for s in ("consolidated", "final")}
-        result["dem"].append({"sample": name, **{s: st.fabric() for s, st in states.items()}})
-    result["rev"] = [rev_part(a0, 0.25, rule, k) for rule, k in (("off", 0.0), ("turn", args.kappa))
-                     for a0 in (45.0, 65.0)]
+            cols = [str(c) for c in z["row_columns"]]
+            end = dict(zip(cols, z["rows"][-1]))
+        sig_r = 0.5 * (end["s22"] + end["s33"])
+        p = (end["s11"] + 2.0 * sig_r) / 3.0
+        result["dem"].append({"sample": name, "q_p": float((end["s11"] - sig_r) / p),
+                              "eps_v": float(end["eps11"] + end["eps22"] + end["eps33"]),
+                              **{s: st.fabric() for s, st in states.items()}})
+    parts = args.parts.split(",")
     dem = {r["sample"]: r for r in result["dem"]}
+    if "judge" in parts:
+        result["judge"] = judge_part(dem)
+        for r in result["judge"]:
+            print(f"judge {r['variant']} {r['sample']} (α0 {r['alpha0_deg']:.1f}°): " + (
+                r["failed"] if "failed" in r else
+                f"q/p {r['q_p']:.3f}, εv {r['eps_v']:.3f}, F11 {r['final']['tensor'][0][0]:.3f} "
+                f"(force {r['final']['force_tensor'][0][0]:.3f}), TV to DEM "
+                + " ".join(f"{r['distance_to_dem'][k]:.2f}" for k in SHARES)))
+    result["rev"] = [rev_part(a0, 0.25, rule, k) for rule, k in (("off", 0.0), ("turn", args.kappa))
+                     for a0 in (45.0, 65.0)] if "rev" in parts else []
     for r in result["rev"]:
         for state in ("consolidated", "final"):
             ref = as_fabric(dem["dense-hertz" if r["alpha0"] < 55.0 else "loose-hertz"][state])
