@@ -27,7 +27,10 @@ sphere, step and sides), run from the e0 of the dense and the loose sample's dra
 100 kPa (their stored CSVs) to 25 % as ``hmodel run triaxial --contact-fabric`` runs it; its final
 fabric against the DEM's, beside the record's RMS |Δq|/peak q of the same test. The calibration saw stresses only, so the fabric is a prediction.
 
-Usage: ``python -m benchmarks.model3d.contact_fabric [--parts rev,judge] [--dem-folder DIR]
+**The turning rule** (``turn``): the fabric probe's DEM judge of the sand variant with its turning
+rule off and on (``fabric_turn.json``'s calibrations), run the same way.
+
+Usage: ``python -m benchmarks.model3d.contact_fabric [--parts rev,judge,turn] [--dem-folder DIR]
 [--out PATH]``. Prints a table and writes ``contact_fabric.json``.
 """
 
@@ -109,6 +112,39 @@ def judge_part(dem: dict, strain: float = 0.25) -> list[dict]:
     return rows
 
 
+def turn_part(dem: dict, strain: float = 0.25) -> list[dict]:
+    """The fabric probe's DEM judge of the sand variant (``fabric_turn.json``, ``dem_judge``: its
+    calibrations with the turning rule off and on), run as that probe runs it from the e0 of each
+    of :data:`JUDGE_TESTS` to ``strain``: q/p, εv, the final fabric and its distance to the DEM's."""
+    import math
+
+    from benchmarks.calibration.calibrate3d_dem import read_tests
+    from benchmarks.model3d.fabric_turn import specimen
+    from benchmarks.timing import ROOT
+    from hmodel import Params
+    from hmodel.variants import get_variant
+
+    probe = json.loads((ROOT / "benchmarks" / "model3d" / "fabric_turn.json").read_text())["dem_judge"]
+    rec = json.loads((ROOT / "benchmarks" / "calibration" / probe["record"]).read_text())
+    m, sph = rec["calibration"]["model"], rec["calibration"]["sphere"]
+    model = (get_variant(m["variant"]), Params(**m["params_rad"]), m["e_ref"],
+             Sphere(order=sph["order"], n_azimuth=sph["n_azimuth"]), m["step"])
+    rows = []
+    for rule, fit in probe["fits"].items():
+        f = fit["fitted"]
+        x = [math.log10(f["shear_modulus"]), f["poisson"], f["phi_g_deg"], f["alpha0_deg"], f["kappa"]]
+        for sample, stem in JUDGE_TESTS:
+            test = read_tests(ROOT / "benchmarks" / "dem" / "granular" / sample)[stem]
+            params = specimen(model, x, test.e0)
+            path = run(params, 1e5, strain, m["step"], rule, x[4], sphere=model[3])
+            fab = fabric(cell_contacts(path["rev"], path["state"])).as_dict()
+            ref = as_fabric(dem[sample]["final"])
+            rows.append({"rule": rule, "kappa": x[4], "sample": sample, "alpha0_deg": float(np.degrees(params.alpha0)),
+                         "q_p": float(path["q"][-1] / path["p"][-1]), "eps_v": float(path["eps_v"][-1]), "final": fab,
+                         "distance_to_dem": {k: as_fabric(fab).distance(ref, k) for k in SHARES}})
+    return rows
+
+
 def as_fabric(d: dict) -> Fabric:
     return Fabric(np.array(d["tensor"]), np.array(d["force_tensor"]), d["count"], d["stress_ratio"], d["bands"])
 
@@ -118,7 +154,7 @@ def main() -> None:
     ap.add_argument("--dem-folder", type=Path, default=Path("results/fabric-dem"),
                     help="the fabric probe's DEM tests (reused when there)")
     ap.add_argument("--kappa", type=float, default=20.0, help="rate of the turning rule")
-    ap.add_argument("--parts", default="rev,judge")
+    ap.add_argument("--parts", default="rev,judge,turn")
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("contact_fabric.json"))
     args = ap.parse_args()
     result = {**provenance(__file__, args), "bands": [list(b) for b in TILT_BANDS]}
@@ -145,6 +181,11 @@ def main() -> None:
                 f"q/p {r['q_p']:.3f}, εv {r['eps_v']:.3f}, F11 {r['final']['tensor'][0][0]:.3f} "
                 f"(force {r['final']['force_tensor'][0][0]:.3f}), TV to DEM "
                 + " ".join(f"{r['distance_to_dem'][k]:.2f}" for k in SHARES)))
+    if "turn" in parts:
+        result["turn"] = turn_part(dem)
+        for r in result["turn"]:
+            print(f"turn {r['rule']} κ {r['kappa']:.1f} {r['sample']}: q/p {r['q_p']:.3f}, εv {r['eps_v']:.3f}, TV to DEM "
+                  + " ".join(f"{r['distance_to_dem'][k]:.2f}" for k in SHARES))
     result["rev"] = [rev_part(a0, 0.25, rule, k) for rule, k in (("off", 0.0), ("turn", args.kappa))
                      for a0 in (45.0, 65.0)] if "rev" in parts else []
     for r in result["rev"]:
