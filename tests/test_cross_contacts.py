@@ -90,6 +90,27 @@ def test_off_is_two_2d_cells_bit_for_bit():
     np.testing.assert_array_equal(after.values[:, B], b.values)
 
 
+def test_open_hexagons_that_touch_take_their_2d_increments():
+    # Both hexagons open (every contact force zero), their grains overlapping across (α 42.5° <
+    # 45°) and d2 - d2_b a round-off apart: the state a calibrated cross variant met in a dense
+    # drained test. Their rows have no stiffness (Hertz: no overlap), and nothing holds grain 2
+    # along n against the cross pairs, so the pairs transmit nothing along n: the two 2D
+    # increments (before, the increment was refused as singular).
+    hexagon = [2.028681040555, 2.030853513899, 0.742498542746, 0.0, 0.0, 0.0, 5.020235248237, 2.743390011167]
+    v = np.array([hexagon + hexagon])
+    v[0, 9] += 1e-12
+    dl = (5.268392e-08, 1.4394997e-08, 1.4394997e-08)
+    p = HERTZ.with_(radius=1.0)
+    assert cross_balance(p.kn, hertz_constants(p)[0], 2.0, v[0, 1] - v[0, 9], v[0, 7], v[0, 15])[0] != 0.0
+    after, flags = SOLVER.step(p, CellState(v), *dl)
+    two_d = ClosedFormSolver()
+    a, _ = two_d.step(p, CellState(v[:, A].copy()), dl[0], dl[1])
+    b, _ = two_d.step(p, CellState(v[:, B].copy()), dl[0], dl[2])
+    np.testing.assert_array_equal(after.values[:, A], a.values)
+    np.testing.assert_array_equal(after.values[:, B], b.values)
+    assert flags.flags[0, 10]  # the grains still overlap across: the stress keeps the pairs' forces
+
+
 @pytest.mark.parametrize("p", [ON, HERTZ], ids=["linear", "hertz"])
 def test_grain_balances_with_the_cross_forces_at_the_end_of_the_increment(p):
     # Grain 2's balance along n (eq. 1.5, g2 = 0) with the forces as 3D vectors: from grain 1

@@ -97,6 +97,12 @@ def cross_vsigma(kn, c, two_r, dd2, l2, l3):
     return w * dd2 * dd2, w * l2 * l2, w * l3 * l3
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _force_free(n1, n2, t1):
+    """Whether a hexagon's contacts carry nothing (open, or reborn at contact)."""
+    return n1 == 0.0 and n2 == 0.0 and t1 == 0.0
+
+
 @njit(cache=True, error_model="numpy")  # a call, not inlined: ten call sites would compile ten copies
 def _hexagon_solve(d1, d2, a, n1, n2, t1, dl1, dl2, sliding, xi, shift, p):
     """Eq. 1.7 of one hexagon in a given regime with the force ``shift`` added to its third row
@@ -223,6 +229,15 @@ def cross_increment(values, i, dl1, dl2, dl3, p, out, flags):
             xi_b = 1.0 if sb_[6] >= 0.0 else -1.0
         sa_ = _hexagon_solve(a_d1, a_d2, a_a, a_n1, a_n2, a_t1, dl1, dl2, slide_a, xi_a, 0.0, p)
         sb_ = _hexagon_solve(b_d1, b_d2, b_a, b_n1, b_n2, b_t1, dl1, dl3, slide_b, xi_b, 0.0, p)
+    if not ok and (_force_free(a_n1, a_n2, a_t1) or _force_free(b_n1, b_n2, b_t1)):
+        # A hexagon with every contact open holds its grains along n by nothing: the cross pairs'
+        # n-component cannot be balanced there, and its row has no stiffness to solve with (zero
+        # Hertz overlaps). Its grains give way, so the pairs transmit nothing along n over the
+        # increment: the two 2D increments, as where the hexagons do not touch.
+        ra = cell_update(a_d1, a_d2, a_a, a_n1, a_n2, a_t1, a_l1, a_l2, dl1, dl2, p)
+        rb = cell_update(b_d1, b_d2, b_a, b_n1, b_n2, b_t1, b_l1, b_l3, dl1, dl3, p)
+        ok_a = write_update(ra, out, flags, i, 0, 0)
+        return write_update(rb, out, flags, i, 8, 5) and ok_a
     fa = finish_update(a_d1, a_d2, a_a, a_l1, a_l2, dl1, dl2, sa_[1], sa_[2], sa_[3], sa_[4],
                        sa_[5], sa_[6], slide_a, xi_a, p)
     fb = finish_update(b_d1, b_d2, b_a, b_l1, b_l3, dl1, dl3, sb_[1], sb_[2], sb_[3], sb_[4],
