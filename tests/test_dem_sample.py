@@ -111,10 +111,16 @@ def test_stresses_are_love_weber_per_unit_area_and_the_figure_is_drawn(sample_di
                          positions=z["final_positions"], contacts=z["final_contacts"])
         st0 = SampleState(cell=tuple(z["consolidated_cell"]), radii=z["radii"],
                           positions=z["consolidated_positions"], contacts=z["consolidated_contacts"])
-    for state, row in ((st0, rows[0]), (st, rows[-1])):
+    meta = json.loads((out / "sample.json").read_text())["tests"]["drained_100kPa"]
+    for state, row, name in ((st0, rows[0], "consolidated"), (st, rows[-1], "final")):
         sigma = state.stress()
         assert sigma[0, 0] == pytest.approx(row[2], rel=1e-9)
         assert sigma[1, 1] == pytest.approx(row[3], rel=1e-9)
+        # the contact fabric of the same contacts (hmodel.rev.contacts), in sample.json
+        f = meta[name]["fabric"]
+        assert f["stress_ratio"] == pytest.approx(row[2] / row[3], rel=1e-9)
+        assert np.trace(np.array(f["tensor"])) == pytest.approx(1.0)
+    assert (out / "drained_100kPa_contact_fabric.csv").exists()
     lx0, ly0 = st0.cell
     assert rows[-1, 0] == pytest.approx(math.log(lx0 / st.cell[0]), rel=1e-9)  # log strains
     assert np.all(st.positions >= 0) and np.all(st.positions <= np.array(st.cell))
