@@ -27,10 +27,13 @@ sphere, step and sides), run from the e0 of the dense and the loose sample's dra
 100 kPa (their stored CSVs) to 25 % as ``hmodel run triaxial --contact-fabric`` runs it; its final
 fabric against the DEM's, beside the record's RMS |Δq|/peak q of the same test. The calibration saw stresses only, so the fabric is a prediction.
 
+**The swap** (``swap``): ``axisym`` and the sand variant each at its own DEM-judge calibration and
+at the other's, to tell the mechanism's part of the fabric from the calibrated α0's.
+
 **The turning rule** (``turn``): the fabric probe's DEM judge of the sand variant with its turning
 rule off and on (``fabric_turn.json``'s calibrations), run the same way.
 
-Usage: ``python -m benchmarks.model3d.contact_fabric [--parts rev,judge,turn] [--dem-folder DIR]
+Usage: ``python -m benchmarks.model3d.contact_fabric [--parts rev,judge,swap,turn] [--dem-folder DIR]
 [--out PATH]``. Prints a table and writes ``contact_fabric.json``.
 """
 
@@ -112,6 +115,36 @@ def judge_part(dem: dict, strain: float = 0.25) -> list[dict]:
     return rows
 
 
+def swap_part(dem: dict, strain: float = 0.25) -> list[dict]:
+    """``axisym`` and ``axisym-mix`` (the sand variant) each at its own DEM-judge calibration and at
+    the other's, run as :func:`judge_part` (one radial strain, as both records): whether the
+    fabric follows the mechanism or the calibrated α0."""
+    from benchmarks.calibration.calibrate3d_dem import read_tests
+    from benchmarks.timing import ROOT
+    from hmodel import Params
+    from hmodel.loading import run_triaxial
+    from hmodel.variants import get_variant
+
+    rows = []
+    for record in ("axisym", "axisym_mix"):
+        rec = json.loads((ROOT / "benchmarks" / "calibration" / f"dem_judge_{record}.json").read_text())
+        m, sph = rec["calibration"]["model"], rec["calibration"]["sphere"]
+        for variant in ("axisym", "axisym-mix"):
+            for sample, stem in JUDGE_TESTS:
+                test = read_tests(ROOT / "benchmarks" / "dem" / "granular" / sample)[stem]
+                params = get_variant(variant).initial_params(Params(**m["params_rad"]), 3, test.e0, m["e_ref"])
+                r = run_triaxial(params, 1e5, strain, sphere=Sphere(order=sph["order"], n_azimuth=sph["n_azimuth"]),
+                                 step=m["step"], radial=rec["options"].get("radial"), contact_fabric=True).point(0)
+                start, shear = r.stage("consolidation"), r.stage("shear")
+                f = r.meta["contact_fabric"]["final"][0]
+                rows.append({"calibration": f"dem_judge_{record}.json", "variant": variant, "sample": sample,
+                             "alpha0_deg": float(np.degrees(params.alpha0)), "q_p": float(shear["q_p"][-1]),
+                             "eps_v": float(shear["eps_v"][-1] - start["eps_v"][-1]), "final": f,
+                             "distance_to_dem": {k: as_fabric(f).distance(as_fabric(dem[sample]["final"]), k)
+                                                 for k in SHARES}})
+    return rows
+
+
 def turn_part(dem: dict, strain: float = 0.25) -> list[dict]:
     """The fabric probe's DEM judge of the sand variant (``fabric_turn.json``, ``dem_judge``: its
     calibrations with the turning rule off and on), run as that probe runs it from the e0 of each
@@ -154,7 +187,7 @@ def main() -> None:
     ap.add_argument("--dem-folder", type=Path, default=Path("results/fabric-dem"),
                     help="the fabric probe's DEM tests (reused when there)")
     ap.add_argument("--kappa", type=float, default=20.0, help="rate of the turning rule")
-    ap.add_argument("--parts", default="rev,judge,turn")
+    ap.add_argument("--parts", default="rev,judge,swap,turn")
     ap.add_argument("--out", type=Path, default=Path(__file__).with_name("contact_fabric.json"))
     args = ap.parse_args()
     result = {**provenance(__file__, args), "bands": [list(b) for b in TILT_BANDS]}
@@ -181,6 +214,11 @@ def main() -> None:
                 f"q/p {r['q_p']:.3f}, εv {r['eps_v']:.3f}, F11 {r['final']['tensor'][0][0]:.3f} "
                 f"(force {r['final']['force_tensor'][0][0]:.3f}), TV to DEM "
                 + " ".join(f"{r['distance_to_dem'][k]:.2f}" for k in SHARES)))
+    if "swap" in parts:
+        result["swap"] = swap_part(dem)
+        for r in result["swap"]:
+            print(f"swap {r['variant']} at {r['calibration']} {r['sample']} (α0 {r['alpha0_deg']:.1f}°): q/p {r['q_p']:.3f}, "
+                  f"εv {r['eps_v']:.3f}, TV to DEM " + " ".join(f"{r['distance_to_dem'][k]:.2f}" for k in SHARES))
     if "turn" in parts:
         result["turn"] = turn_part(dem)
         for r in result["turn"]:

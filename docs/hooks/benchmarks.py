@@ -414,6 +414,13 @@ def _contact_fabric(d):  # model3d/contact_fabric.json
                               ("q_p", "q/p", fixed(3)), ("eps_v", "εv", fixed(3)),
                               ("rms_dq_judge", "RMS \\|Δq\\|/peak q", scaled(100, 1)), ("failed", "failed"),
                               *[(lambda r, g=g: g(r) if r["f"] else None, h, *rest) for g, h, *rest in fab[1:]]])
+    if d.get("swap"):
+        swapped = [{**r, "f": {**r["final"], "distance_to_dem": r["distance_to_dem"]}} for r in d["swap"]]
+        out += ("\nThe axisym and sand (axisym-mix) variants, each at its own DEM-judge calibration and at the "
+                "other's (drained at 100 kPa to 25 %):\n\n")
+        out += table(swapped, [("variant", "variant"), ("calibration", "calibration"), ("sample", "sample"),
+                               ("alpha0_deg", "α0 [°]", fixed(1)), ("q_p", "q/p", fixed(3)), ("eps_v", "εv", fixed(3)),
+                               *fab[1:]])
     if d.get("turn"):
         turned = [{**r, "f": {**r["final"], "distance_to_dem": r["distance_to_dem"]}} for r in d["turn"]]
         out += ("\nThe sand variant at the fabric probe's DEM-judge calibrations, the turning rule off and on "
