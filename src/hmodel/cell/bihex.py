@@ -299,6 +299,9 @@ class BiHexSolver(CellSolver):
         self.learned = self.hexagon.learned
         #: whether both hexagons are the compiled closed form (:func:`bihex_step_kernel`)
         self.closed_form = type(self.hexagon) is ClosedFormSolver
+        #: cells may start apart, each with its α0 in its state (``alpha0_spread``): the closed
+        #: form's hexagons read nothing else of α0
+        self.spread_alpha0 = self.closed_form
         #: the hexagons' (the closed form's: Hertz-Mindlin contacts, and bi-hexagons reborn),
         #: and, in closed form, contacts between the hexagons (:mod:`hmodel.cell.cross`)
         self.mechanisms = (self.hexagon.mechanisms | {"cross_contacts=frictionless"}

@@ -37,17 +37,26 @@ from ..errors import InputError
 from ..params import Params
 from .directions import opening_angles
 
+#: Gauss-Legendre points of the 3D mean volume over a spread of α0 (:func:`initial_volume`).
+GAUSS_POINTS = 32
 #: The H-cell's opening angles (eq. 1.2 needs α in (30°, 90°)) [rad].
 ALPHA_RANGE = (math.pi / 6, math.pi / 2)
 
 
 def initial_volume(params: Params, dim: int, alpha0: float | None = None) -> float:
     """The mean meso-volume of the REV's unloaded cells at opening angle ``alpha0`` [rad]
-    (default ``params.alpha0``), for ``params.volume``; in 2D over the cells' own α0 when
-    ``alpha0_spread`` > 0. Proportional to the REV's initial volume V0."""
+    (default ``params.alpha0``), for ``params.volume``; over the cells' own α0 when
+    ``alpha0_spread`` > 0 (2D: the n_theta quantiles; 3D: the uniform distribution's mean).
+    Proportional to the REV's initial volume V0."""
     p = params if alpha0 is None else replace(params, alpha0=float(alpha0))
     if dim == 3:
-        return float(bihex_volume(p, initial_bihex(p, np.array([p.alpha0])).values)[0])
+        if p.alpha0_spread == 0:
+            return float(bihex_volume(p, initial_bihex(p, np.array([p.alpha0])).values)[0])
+        # the mean over the uniform distribution of α0 (Gauss-Legendre), of which the REV's
+        # weighted cells are the midpoint rule (weighted_opening_angles)
+        x, wq = np.polynomial.legendre.leggauss(GAUSS_POINTS)
+        a = p.alpha0 + p.alpha0_half_width * x
+        return float(0.5 * wq @ bihex_volume(p, initial_bihex(p, a).values))
     return float(np.mean(meso_volume(p, initial_cells(p, opening_angles(p)))))
 
 

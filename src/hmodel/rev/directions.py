@@ -69,3 +69,24 @@ def opening_angles(params: Params) -> np.ndarray:
     rank = np.empty(n, np.int64)
     rank[np.argsort(np.mod(np.arange(n) * GOLDEN, 1.0), kind="stable")] = np.arange(n)
     return a0 + h * (2.0 * (rank + 0.5) / n - 1.0)
+
+
+def weighted_opening_angles(params: Params, weights: np.ndarray) -> np.ndarray:
+    """Initial opening angle of each of C cells of weights ``weights`` (C,) [rad]: the 3D
+    counterpart of :func:`opening_angles` for cells of unequal weights (the bi-hexagons on the
+    sphere, docs/model3d.md).
+
+    With ``alpha0_spread`` s > 0, cell c takes α0 + h (2 q_c − 1), q_c the middle of its share
+    of the cumulative weight, the cells taken in the order of c·GOLDEN mod 1 (no order across
+    the sphere: no fabric), so that Σ w_c f(α_c) is the midpoint rule of the mean of f over the
+    uniform distribution on [α0 − h, α0 + h], h = :attr:`~hmodel.params.Params.alpha0_half_width`.
+    s = 0: α0 everywhere."""
+    w = np.asarray(weights, float)
+    if params.alpha0_spread == 0:
+        return np.full(len(w), params.alpha0)
+    order = np.argsort(np.mod(np.arange(len(w)) * GOLDEN, 1.0), kind="stable")
+    share = w[order] / w.sum()
+    q = np.cumsum(share) - 0.5 * share
+    out = np.empty(len(w))
+    out[order] = params.alpha0 + params.alpha0_half_width * (2.0 * q - 1.0)
+    return out

@@ -36,7 +36,6 @@ PARAMS_2D_ONLY = {
                    "alpha_omega in a program, Sphere(alpha_omega=...) in Python",
     "beta_omega": "the 3D fabric's axis is the sphere's: the axial axis 1 on the command line, "
                   "[sphere] axis in a program, Sphere(axis=...) in Python",
-    "alpha0_spread": "the 3D model's bi-hexagons all start at alpha0",
 }
 #: The 3D model's sliding closure where neither the parameters nor a learned cell set one.
 SLIDING_RHS_3D = "equilibrium"
@@ -53,9 +52,9 @@ def check_3d_params(names: Iterable[str], where: str = "--param") -> None:
 
 def check_3d_param_sets(params: Params | Sequence[Params]) -> None:
     """Refuse parameter sets of a 3D run that set a 2D-only field away from its default (the
-    fabric and the spread of α0; n_theta is simply unused), as :func:`check_3d_params`."""
+    fabric; n_theta is simply unused), as :func:`check_3d_params`."""
     sets = (params,) if isinstance(params, Params) else tuple(params)
-    for name in ("alpha_omega", "beta_omega", "alpha0_spread"):
+    for name in ("alpha_omega", "beta_omega"):
         if any(isinstance(p, Params) and getattr(p, name) != 0 for p in sets):
             check_3d_params([name], "parameters")
 

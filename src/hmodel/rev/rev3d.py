@@ -20,6 +20,7 @@ from ..cell.bihex import BIHEX_FLAGS, BiHexSolver, check_params
 from ..errors import InputError
 from ..params import Params, check_batch
 from .batch import RevBatch
+from .directions import weighted_opening_angles
 from .kernels import LOC_BOX, LOC_CELL
 from .kernels3d import geometry, renew_mix3d
 from .model3d import cell_solver_3d
@@ -148,10 +149,17 @@ class Rev3D(RevBatch):
         self._proj = np.ascontiguousarray(lateral_projector(projector(self.frames), self.params.lateral))
         self._wdyads = np.ascontiguousarray(self.weights[:, None, None] * dyads(self.frames))
         cell0 = [self.solver.initial(s, ()) for s in self.sets]
-        # V0 = sum_i w_i V_meso,i (eq. 1.14 lifted) per set; all cells of a set start alike.
+        # V0 = sum_i w_i V_meso,i (eq. 1.14 lifted) per set; all cells of a set start alike, but
+        # with a spread of α0 (its weighted mid-quantiles, weighted_opening_angles).
         #: initial macro volume of each set's points (K,) [m^3]
         self.volumes0 = np.array([float(self.solver.meso(s, c)[1]) for s, c in zip(self.sets, cell0)]
                                  ) * self.weights.sum()
+        for k, s in enumerate(self.sets):
+            if s.alpha0_spread > 0:
+                if not self.solver.spread_alpha0:
+                    raise InputError(f"alpha0_spread > 0 is implemented for the closed-form bi-hexagon, "
+                                     f"not for {self.solver.name} cells")
+                self.volumes0[k] = float(self.weights @ self.solver.meso(s, self._initial_cells(s, ()))[1])
         kernels = [self.solver.kernel(s) for s in self.sets]
         #: the solver's compiled increment of each set (None: the loading drivers call
         #: :meth:`step`), run by the compiled 3D trial (:func:`hmodel.rev.kernels3d.bihex_trial`)
@@ -163,6 +171,15 @@ class Rev3D(RevBatch):
     def n_cells(self) -> int:
         """Bi-hexagons per material point (directions × azimuths of :attr:`cell_sphere`)."""
         return self.cell_sphere.n_cells
+
+    def _initial_cells(self, params: Params, shape: tuple[int, ...]) -> CellState:
+        """Unloaded bi-hexagons of one set, shape (..., C), each with its own α0 where the set
+        has a spread of them (:func:`~hmodel.rev.directions.weighted_opening_angles`)."""
+        if params.alpha0_spread == 0:
+            return self.solver.initial(params, shape)
+        angles = weighted_opening_angles(params, self.weights)
+        return self.solver.initial_cells(params, np.broadcast_to(angles, (*shape[:-1], len(angles)))
+                                         if shape else angles)
 
     def _describe(self, n_points: int) -> str:
         cells = f"{self.n_cells:,}" if self.n_cells < 10**12 else f"{float(self.n_cells):.3g}"
