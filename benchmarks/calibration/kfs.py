@@ -194,6 +194,8 @@ def main() -> None:
     ap.add_argument("--radial", default=None, choices=("free", "equal"),
                     help="how the drained tests hold their sides (run_triaxial's radial; default: by "
                          "the variant's parameters)")
+    ap.add_argument("--fit", default=None, help="comma list of the parameters fitted (default: the variant's, "
+                    "hmodel models), e.g. the variant's and alpha0_spread")
     ap.add_argument("--out", type=Path, default=None, help="default: kfs[_TAG].json")
     ap.add_argument("--replot", action="store_true", help="only draw the figures again from --out (and the peer's JSON)")
     args = ap.parse_args()
@@ -214,7 +216,8 @@ def main() -> None:
     variant = get_variant(args.model)
     load0 = os.getloadavg()[0]
     # bayes: the least-squares fit, then emcee from its optimum (one call, one fit)
-    cal = fit(cal_tests, variant.fitted, base=Params(sliding_rhs="equilibrium"), starts=args.starts, sphere=sphere,
+    fitted = tuple(args.fit.split(",")) if args.fit else variant.fitted
+    cal = fit(cal_tests, fitted, base=Params(sliding_rhs="equilibrium"), starts=args.starts, sphere=sphere,
               search_rule=None, step=args.step, workers=args.workers, model=variant,
               method="bayes" if args.steps > 0 else "least-squares", walkers=args.walkers, steps=max(args.steps, 1),
               radial=args.radial)
