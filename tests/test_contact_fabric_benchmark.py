@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import benchmarks.model3d.contact_fabric as bench
-from hmodel.rev.contacts import fabric, grain_contacts
+from hmodel.rev.contacts import Fabric, fabric, grain_contacts
 
 
 def test_the_judge_runs_a_calibrated_variant_and_measures_its_distance_to_the_dem(monkeypatch):
@@ -21,6 +21,6 @@ def test_the_judge_runs_a_calibrated_variant_and_measures_its_distance_to_the_de
         # the loose specimen starts looser: a larger opening angle (the variant maps e0 to alpha0)
         d = r["distance_to_dem"]
         assert all(0.0 <= d[k] <= 1.0 for k in bench.SHARES)
-        ref = bench.as_fabric(f)
-        assert d["contacts"] == pytest.approx(bench.as_fabric(r["final"]).distance(ref, "contacts"))
+        ref = Fabric.from_dict(f)
+        assert d["contacts"] == pytest.approx(Fabric.from_dict(r["final"]).distance(ref, "contacts"))
     assert rows[1]["alpha0_deg"] > rows[0]["alpha0_deg"]

@@ -41,16 +41,20 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 
-from benchmarks.model3d.fabric_turn import dem_part, run, sand
-from benchmarks.timing import provenance
+from benchmarks.calibration.calibrate3d_dem import read_tests
+from benchmarks.model3d.fabric_turn import dem_part, run, sand, specimen
+from benchmarks.timing import ROOT, provenance
+from hmodel import Params
 from hmodel.dem.sample.state import SampleState
-from hmodel.loading import consolidate
+from hmodel.loading import consolidate, run_triaxial
 from hmodel.rev import Rev3D, Sphere
 from hmodel.rev.contacts import TILT_BANDS, Fabric, cell_contacts, fabric
+from hmodel.variants import get_variant
 
 #: The shares a fabric is compared by (:meth:`hmodel.rev.contacts.Fabric.distance`).
 SHARES = ("contacts", "sig_axial", "sig_lateral")
@@ -76,72 +80,77 @@ JUDGED = ("axisym_mix", "axisym", "mix", "rebirth", "hertz", "cross", "density")
 JUDGE_TESTS = (("dense-hertz", "triaxial-drained_100kPa"), ("loose-hertz", "triaxial-drained_100kPa"))
 
 
-def judge_part(dem: dict, strain: float = 0.25) -> list[dict]:
-    """Each of :data:`JUDGED` at its DEM-judge calibration, drained at 100 kPa from each of
-    :data:`JUDGE_TESTS`' e0 to ``strain``: q/p and εv at the end, the final fabric and its
-    distance to the DEM test's (``dem``: sample -> its fabrics)."""
-    from benchmarks.calibration.calibrate3d_dem import read_tests
-    from benchmarks.timing import ROOT
-    from hmodel import Params
-    from hmodel.loading import run_triaxial
-    from hmodel.variants import get_variant
+def judge_record(name: str) -> dict:
+    """The DEM-judge record ``benchmarks/calibration/dem_judge_NAME.json``."""
+    return json.loads((ROOT / "benchmarks" / "calibration" / f"dem_judge_{name}.json").read_text())
 
+
+def judge_test(sample: str, stem: str):
+    """The stored DEM test ``sample/stem`` (its e0 from the CSV)."""
+    return read_tests(ROOT / "benchmarks" / "dem" / "granular" / sample)[stem]
+
+
+def distances(f: dict, ref: dict) -> dict:
+    """The distance of fabric ``f`` to ``ref`` (both :meth:`Fabric.as_dict`) in each of :data:`SHARES`."""
+    a, b = Fabric.from_dict(f), Fabric.from_dict(ref)
+    return {k: a.distance(b, k) for k in SHARES}
+
+
+def judged_params(rec: dict, variant: str, e0: float) -> Params:
+    """The specimen at void ratio ``e0`` of ``variant`` at the DEM-judge record ``rec``'s calibration."""
+    m = rec["calibration"]["model"]
+    return get_variant(variant).initial_params(Params(**m["params_rad"]), 3, e0, m["e_ref"])
+
+
+def calibrated_run(rec: dict, params: Params, sample: str, dem: dict, strain: float) -> dict:
+    """The specimen ``params`` (:func:`judged_params`) run with the DEM-judge record ``rec``'s
+    sphere, step and sides, drained at 100 kPa to ``strain`` as ``hmodel run triaxial
+    --contact-fabric`` runs it: α0, the strain and volume reached, q/p, the final fabric and its
+    distance to the DEM sample's (``dem``: sample -> its fabrics). Raises where the model fails."""
+    m, sph = rec["calibration"]["model"], rec["calibration"]["sphere"]
+    r = run_triaxial(params, 1e5, strain, sphere=Sphere(order=sph["order"], n_azimuth=sph["n_azimuth"]),
+                     step=m["step"], radial=rec["options"].get("radial"), contact_fabric=True).point(0)
+    start, shear = r.stage("consolidation"), r.stage("shear")
+    f = r.meta["contact_fabric"]["final"][0]
+    return {"alpha0_deg": float(np.degrees(params.alpha0)),
+            "eps11": float(shear["eps11"][-1] - start["eps11"][-1]), "q_p": float(shear["q_p"][-1]),
+            "eps_v": float(shear["eps_v"][-1] - start["eps_v"][-1]), "final": f,
+            "distance_to_dem": distances(f, dem[sample]["final"])}
+
+
+def judge_part(dem: dict, strain: float = 0.25) -> list[dict]:
+    """Each of :data:`JUDGED` at its DEM-judge calibration (:func:`calibrated_run`) from each of
+    :data:`JUDGE_TESTS`' e0, beside the record's RMS |Δq|/peak q of the same test."""
     rows = []
     for name in JUDGED:
-        rec = json.loads((ROOT / "benchmarks" / "calibration" / f"dem_judge_{name}.json").read_text())
-        cal = rec["calibration"]
-        m = cal["model"]
-        variant = get_variant(m["variant"])
-        sphere = Sphere(order=cal["sphere"]["order"], n_azimuth=cal["sphere"]["n_azimuth"])
+        rec = judge_record(name)
+        variant = rec["calibration"]["model"]["variant"]
         for sample, stem in JUDGE_TESTS:
-            test = read_tests(ROOT / "benchmarks" / "dem" / "granular" / sample)[stem]
-            params = variant.initial_params(Params(**m["params_rad"]), 3, test.e0, m["e_ref"])
-            row = {"variant": variant.name, "record": f"dem_judge_{name}.json", "sample": sample, "e0": test.e0,
-                   "alpha0_deg": float(np.degrees(params.alpha0))}
-            error = rec["errors"].get(f"{sample}/{stem}", {})
-            row["rms_dq_judge"] = error.get("rms_dq")  # the stress's error the record measured, to 25 %
+            e0 = judge_test(sample, stem).e0
+            params = judged_params(rec, variant, e0)
+            row = {"variant": get_variant(variant).name, "record": f"dem_judge_{name}.json", "sample": sample,
+                   "e0": e0, "alpha0_deg": float(np.degrees(params.alpha0)),
+                   # the stress's error the record measured, to 25 %
+                   "rms_dq_judge": rec["errors"].get(f"{sample}/{stem}", {}).get("rms_dq")}
             try:
-                r = run_triaxial(params, 1e5, strain, sphere=sphere, step=m["step"], radial=rec["options"].get("radial"),
-                                 contact_fabric=True).point(0)
+                rows.append({**row, **calibrated_run(rec, params, sample, dem, strain)})
             except Exception as err:  # a Newton that fails is the variant's result, recorded
                 rows.append({**row, "failed": f"{type(err).__name__}: {str(err).split(' for cell')[0]}"})
-                continue
-            start, shear = r.stage("consolidation"), r.stage("shear")
-            f = r.meta["contact_fabric"]["final"][0]
-            ref = as_fabric(dem[sample]["final"])
-            rows.append({**row, "eps11": float(shear["eps11"][-1] - start["eps11"][-1]),
-                         "q_p": float(shear["q_p"][-1]), "eps_v": float(shear["eps_v"][-1] - start["eps_v"][-1]),
-                         "final": f, "distance_to_dem": {k: as_fabric(f).distance(ref, k) for k in SHARES}})
     return rows
 
 
 def swap_part(dem: dict, strain: float = 0.25) -> list[dict]:
     """``axisym`` and ``axisym-mix`` (the sand variant) each at its own DEM-judge calibration and at
-    the other's, run as :func:`judge_part` (one radial strain, as both records): whether the
-    fabric follows the mechanism or the calibrated α0."""
-    from benchmarks.calibration.calibrate3d_dem import read_tests
-    from benchmarks.timing import ROOT
-    from hmodel import Params
-    from hmodel.loading import run_triaxial
-    from hmodel.variants import get_variant
-
+    the other's (:func:`calibrated_run`; one radial strain, as both records): whether the fabric
+    follows the mechanism or the calibrated α0."""
     rows = []
     for record in ("axisym", "axisym_mix"):
-        rec = json.loads((ROOT / "benchmarks" / "calibration" / f"dem_judge_{record}.json").read_text())
-        m, sph = rec["calibration"]["model"], rec["calibration"]["sphere"]
+        rec = judge_record(record)
         for variant in ("axisym", "axisym-mix"):
             for sample, stem in JUDGE_TESTS:
-                test = read_tests(ROOT / "benchmarks" / "dem" / "granular" / sample)[stem]
-                params = get_variant(variant).initial_params(Params(**m["params_rad"]), 3, test.e0, m["e_ref"])
-                r = run_triaxial(params, 1e5, strain, sphere=Sphere(order=sph["order"], n_azimuth=sph["n_azimuth"]),
-                                 step=m["step"], radial=rec["options"].get("radial"), contact_fabric=True).point(0)
-                start, shear = r.stage("consolidation"), r.stage("shear")
-                f = r.meta["contact_fabric"]["final"][0]
+                params = judged_params(rec, variant, judge_test(sample, stem).e0)
                 rows.append({"calibration": f"dem_judge_{record}.json", "variant": variant, "sample": sample,
-                             "alpha0_deg": float(np.degrees(params.alpha0)), "q_p": float(shear["q_p"][-1]),
-                             "eps_v": float(shear["eps_v"][-1] - start["eps_v"][-1]), "final": f,
-                             "distance_to_dem": {k: as_fabric(f).distance(as_fabric(dem[sample]["final"]), k)
-                                                 for k in SHARES}})
+                             **calibrated_run(rec, params, sample, dem, strain)})
     return rows
 
 
@@ -149,14 +158,6 @@ def turn_part(dem: dict, strain: float = 0.25) -> list[dict]:
     """The fabric probe's DEM judge of the sand variant (``fabric_turn.json``, ``dem_judge``: its
     calibrations with the turning rule off and on), run as that probe runs it from the e0 of each
     of :data:`JUDGE_TESTS` to ``strain``: q/p, εv, the final fabric and its distance to the DEM's."""
-    import math
-
-    from benchmarks.calibration.calibrate3d_dem import read_tests
-    from benchmarks.model3d.fabric_turn import specimen
-    from benchmarks.timing import ROOT
-    from hmodel import Params
-    from hmodel.variants import get_variant
-
     probe = json.loads((ROOT / "benchmarks" / "model3d" / "fabric_turn.json").read_text())["dem_judge"]
     rec = json.loads((ROOT / "benchmarks" / "calibration" / probe["record"]).read_text())
     m, sph = rec["calibration"]["model"], rec["calibration"]["sphere"]
@@ -167,19 +168,13 @@ def turn_part(dem: dict, strain: float = 0.25) -> list[dict]:
         f = fit["fitted"]
         x = [math.log10(f["shear_modulus"]), f["poisson"], f["phi_g_deg"], f["alpha0_deg"], f["kappa"]]
         for sample, stem in JUDGE_TESTS:
-            test = read_tests(ROOT / "benchmarks" / "dem" / "granular" / sample)[stem]
-            params = specimen(model, x, test.e0)
+            params = specimen(model, x, judge_test(sample, stem).e0)
             path = run(params, 1e5, strain, m["step"], rule, x[4], sphere=model[3])
             fab = fabric(cell_contacts(path["rev"], path["state"])).as_dict()
-            ref = as_fabric(dem[sample]["final"])
             rows.append({"rule": rule, "kappa": x[4], "sample": sample, "alpha0_deg": float(np.degrees(params.alpha0)),
                          "q_p": float(path["q"][-1] / path["p"][-1]), "eps_v": float(path["eps_v"][-1]), "final": fab,
-                         "distance_to_dem": {k: as_fabric(fab).distance(ref, k) for k in SHARES}})
+                         "distance_to_dem": distances(fab, dem[sample]["final"])})
     return rows
-
-
-def as_fabric(d: dict) -> Fabric:
-    return Fabric(np.array(d["tensor"]), np.array(d["force_tensor"]), d["count"], d["stress_ratio"], d["bands"])
 
 
 def main() -> None:
@@ -194,11 +189,10 @@ def main() -> None:
     dem_part(args.dem_folder)  # runs the two tests where they are missing
     result["dem"] = []
     for name in ("dense-hertz", "loose-hertz"):
-        with np.load(args.dem_folder / name / "triaxial-drained_100kPa.npz") as z:
-            states = {s: SampleState(cell=tuple(z[f"{s}_cell"]), radii=z["radii"], positions=z[f"{s}_positions"],
-                                     contacts=z[f"{s}_contacts"]) for s in ("consolidated", "final")}
-            cols = [str(c) for c in z["row_columns"]]
-            end = dict(zip(cols, z["rows"][-1]))
+        npz = args.dem_folder / name / "triaxial-drained_100kPa.npz"
+        states = {s: SampleState.from_npz(npz, s) for s in ("consolidated", "final")}
+        with np.load(npz) as z:
+            end = dict(zip((str(c) for c in z["row_columns"]), z["rows"][-1]))
         sig_r = 0.5 * (end["s22"] + end["s33"])
         p = (end["s11"] + 2.0 * sig_r) / 3.0
         result["dem"].append({"sample": name, "q_p": float((end["s11"] - sig_r) / p),
@@ -228,8 +222,8 @@ def main() -> None:
                      for a0 in (45.0, 65.0)] if "rev" in parts else []
     for r in result["rev"]:
         for state in ("consolidated", "final"):
-            ref = as_fabric(dem["dense-hertz" if r["alpha0"] < 55.0 else "loose-hertz"][state])
-            r[state]["distance_to_dem"] = {k: as_fabric(r[state]).distance(ref, k) for k in SHARES}
+            ref = dem["dense-hertz" if r["alpha0"] < 55.0 else "loose-hertz"][state]
+            r[state]["distance_to_dem"] = distances(r[state], ref)
     for label, x in [*((f"DEM {r['sample']} {s}", r[s]) for r in result["dem"] for s in ("consolidated", "final")),
                      *((f"REV α0 {r['alpha0']:g} {r['rule']} {s} (q/p {r['q_p']:.3f}, εv {r['eps_v']:.3f})", r[s])
                        for r in result["rev"] for s in ("consolidated", "final"))]:

@@ -217,6 +217,11 @@ class Fabric:
             raise InputError("fabrics of different bands cannot be compared")
         return 0.5 * sum(abs(a[share] - b[share]) for a, b in zip(self.bands, other.bands))
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "Fabric":
+        """The fabric of :meth:`as_dict`'s plain numbers."""
+        return cls(np.array(d["tensor"]), np.array(d["force_tensor"]), d["count"], d["stress_ratio"], d["bands"])
+
     def as_dict(self) -> dict:
         """The fabric as plain numbers (a result's ``meta``, sample.json)."""
         return {"tensor": self.tensor.tolist(), "force_tensor": self.force_tensor.tolist(), "count": self.count,

@@ -67,8 +67,14 @@ def opening_angles(params: Params) -> np.ndarray:
         return np.full(n, a0)
     h = params.alpha0_half_width
     rank = np.empty(n, np.int64)
-    rank[np.argsort(np.mod(np.arange(n) * GOLDEN, 1.0), kind="stable")] = np.arange(n)
+    rank[golden_order(n)] = np.arange(n)
     return a0 + h * (2.0 * (rank + 0.5) / n - 1.0)
+
+
+def golden_order(n: int) -> np.ndarray:
+    """The n cells in the order of i·GOLDEN mod 1: the order in which a spread's quantiles are
+    handed out, with no low-frequency component across the cells."""
+    return np.argsort(np.mod(np.arange(n) * GOLDEN, 1.0), kind="stable")
 
 
 def weighted_opening_angles(params: Params, weights: np.ndarray) -> np.ndarray:
@@ -84,7 +90,7 @@ def weighted_opening_angles(params: Params, weights: np.ndarray) -> np.ndarray:
     w = np.asarray(weights, float)
     if params.alpha0_spread == 0:
         return np.full(len(w), params.alpha0)
-    order = np.argsort(np.mod(np.arange(len(w)) * GOLDEN, 1.0), kind="stable")
+    order = golden_order(len(w))
     share = w[order] / w.sum()
     q = np.cumsum(share) - 0.5 * share
     out = np.empty(len(w))

@@ -41,13 +41,13 @@ class SampleState:
                    contacts=np.asarray(d["contacts"], float).reshape(-1, len(contact_columns(dim))))
 
     @classmethod
-    def from_npz(cls, path: Path) -> "SampleState | None":
-        """The final state in a test's npz file (None where it was removed)."""
+    def from_npz(cls, path: Path, state: str = "final") -> "SampleState | None":
+        """A state (``final`` or ``consolidated``) in a test's npz file (None where it was removed)."""
         if not path.exists():
             return None
         with np.load(path) as z:
-            return cls(cell=tuple(float(v) for v in z["final_cell"]), radii=z["radii"],
-                       positions=z["final_positions"], contacts=z["final_contacts"])
+            return cls(cell=tuple(float(v) for v in z[f"{state}_cell"]), radii=z["radii"],
+                       positions=z[f"{state}_positions"], contacts=z[f"{state}_contacts"])
 
     @property
     def dim(self) -> int:
