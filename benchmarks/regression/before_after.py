@@ -140,6 +140,49 @@ def biaxial_batch() -> dict:
     return _columns(run_biaxial(sets, [1e5, 3e5], STRAIN, drop_failed=True))
 
 
+def _mechanisms(params, **kw) -> dict:
+    """Each cell mechanism on (docs/mechanisms.md): Hertz-Mindlin contacts alone and with each
+    renewal, and the named variants' sets, drained and undrained."""
+    from hmodel.loading import run_biaxial
+
+    return _columns(run_biaxial(params, P0, STRAIN, **kw))
+
+
+def biaxial_hertz() -> dict:
+    return _mechanisms(_params_2d().with_(contact="hertz-mindlin"))
+
+
+def biaxial_hertz_undrained() -> dict:
+    return _mechanisms(_params_2d().with_(contact="hertz-mindlin"), undrained=True)
+
+
+def biaxial_rebirth() -> dict:
+    return _mechanisms(_params_2d().with_(contact="hertz-mindlin", renewal="rebirth"))
+
+
+def biaxial_mix() -> dict:
+    return _mechanisms(_params_2d().with_(contact="hertz-mindlin", renewal="mix"))
+
+
+def _triaxial_mechanisms(options: dict, **kw) -> dict:
+    from hmodel.loading import run_triaxial
+
+    return _columns(run_triaxial(_params_3d().with_(contact="hertz-mindlin", **options), P0, STRAIN,
+                                 sphere=_sphere(), **kw))
+
+
+def triaxial_sand() -> dict:
+    return _triaxial_mechanisms({"renewal": "mix", "lateral": "axisymmetric"})
+
+
+def triaxial_sand_undrained() -> dict:
+    return _triaxial_mechanisms({"renewal": "mix", "lateral": "axisymmetric"}, undrained=True)
+
+
+def triaxial_cross() -> dict:
+    return _triaxial_mechanisms({"cross_contacts": "frictionless"})
+
+
 def _program(name: str):
     """An example program, 2D ones at the regression's n_theta, 3D ones at its sphere's order
     (the example's azimuths)."""
@@ -317,7 +360,8 @@ CASES: dict[str, Callable[[], dict]] = {f.__name__: f for f in (
     biaxial_drained, biaxial_undrained, biaxial_surrogate, biaxial_batch, triaxial_drained,
     triaxial_undrained, triaxial_extension, triaxial_surrogate, true_triaxial, oedometer,
     program_2d, program_2d_cyclic, program_2d_liquefaction, program_2d_rotating, program_3d,
-    strain_path, fem_biaxial, fem_biaxial_undrained, stability_biaxial, stability_undrained,
+    strain_path, biaxial_hertz, biaxial_hertz_undrained, biaxial_rebirth, biaxial_mix,
+    triaxial_sand, triaxial_sand_undrained, triaxial_cross, fem_biaxial, fem_biaxial_undrained, stability_biaxial, stability_undrained,
     stability_triaxial, stability_program, failure_surface, calibration, surrogate_inference)}
 
 

@@ -39,31 +39,42 @@ ROOT_PASSES = 100
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def overlap_root(n, c, gap):
-    """δ^(1/2) of a contact whose normal force n ≥ 0 implies the overlap δ = (n/c)^(2/3), the
-    cube root of n/c. A contact loaded since it touched has the overlap gap = 2r - d to
-    round-off: from its square root, Halley's steps (cubic convergence: one from a relative
-    error of 1e-10, two from 1e-5) reach the cube root at a fraction of the library's cost. A
-    contact whose gap says nothing of its force starts from y^(1/4) instead, and Halley's steps,
-    which at least halve the ratio to the root while far from it, reach it within 2 ulp for y
-    from 1e-200 to 1e200 (not the library's cbrt: a call on this branch, never taken by a
-    loaded contact, slowed every contact's update in the engine benchmark, the compiler being
-    free to evaluate a pure call ahead of its branch)."""
-    y = n / c
-    if y == 0.0:
-        return 0.0
+def gap_root(y, gap):
+    """``(u, near)``: the cube root u of y = n/c > 0 from the square root of a loaded contact's
+    gap 2r - d (its overlap to round-off) by one or two of Halley's steps, and whether the gap
+    was near enough (within 10^-4 relative) for these steps to reach it (cubic convergence:
+    one from a relative error of 1e-10, two from 1e-5). Without branches, so that a loop over
+    cells (:mod:`hmodel.cell.hertz_batch`) runs it as vector operations."""
     u = math.sqrt(abs(gap))
     u3 = u * u * u
     miss = abs(u3 - y)
-    if not miss <= 1e-4 * y:
-        u = math.sqrt(math.sqrt(y))
-        u3 = u * u * u
-        for _ in range(ROOT_PASSES):
-            if abs(u3 - y) <= 3e-10 * y:
-                break
-            u = u * (u3 + 2.0 * y) / (2.0 * u3 + y)
-            u3 = u * u * u
-    elif miss > 3e-10 * y:
+    polished = u * (u3 + 2.0 * y) / (2.0 * u3 + y)
+    u = polished if miss > 3e-10 * y else u
+    u3 = u * u * u
+    return u * (u3 + 2.0 * y) / (2.0 * u3 + y), miss <= 1e-4 * y
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def overlap_root(n, c, gap):
+    """δ^(1/2) of a contact whose normal force n ≥ 0 implies the overlap δ = (n/c)^(2/3), the
+    cube root of n/c. A contact loaded since it touched has the overlap gap = 2r - d to
+    round-off: from its square root, Halley's steps reach the cube root at a fraction of the
+    library's cost (:func:`gap_root`). A contact whose gap says nothing of its force starts
+    from y^(1/4) instead, and Halley's steps, which at least halve the ratio to the root while
+    far from it, reach it within 2 ulp for y from 1e-200 to 1e200 (not the library's cbrt: a
+    call on this branch, never taken by a loaded contact, slowed every contact's update in the
+    engine benchmark, the compiler being free to evaluate a pure call ahead of its branch)."""
+    y = n / c
+    if y == 0.0:
+        return 0.0
+    root, near = gap_root(y, gap)
+    if near:
+        return root
+    u = math.sqrt(math.sqrt(y))
+    u3 = u * u * u
+    for _ in range(ROOT_PASSES):
+        if abs(u3 - y) <= 3e-10 * y:
+            break
         u = u * (u3 + 2.0 * y) / (2.0 * u3 + y)
         u3 = u * u * u
     return u * (u3 + 2.0 * y) / (2.0 * u3 + y)
@@ -107,14 +118,22 @@ def affine(a11, a13, a21, a23, dl1, dl2):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _row3(x, c, u1, u2, n1, n2, da0, q, e0, w, coef, gt, flam):
-    """Eq. 1.7's third row at δd1 = x in forces (the linear row times -kn), its slope and the
-    sum of its terms' magnitudes: ``(r, dr/dx, size, δd2, δα, N1', N2', b1, b2)``
-    (:func:`solve`)."""
+def state_at(x, c, u1, u2, da0, q, e0, w):
+    """The cell at δd1 = x: ``(δd2, δα, N1', N2', b1, b2)``, rows 1-2 (:func:`affine`) and the
+    contacts' law (:func:`law`) at the overlaps u1² - x, u2² - δd2."""
     da = da0 + q * x
     dd2 = e0 + w * x
     f1, b1 = law(c, u1 * u1 - x)
     f2, b2 = law(c, u2 * u2 - dd2)
+    return dd2, da, f1, f2, b1, b2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _row3(x, c, u1, u2, n1, n2, da0, q, e0, w, coef, gt, flam):
+    """Eq. 1.7's third row at δd1 = x in forces (the linear row times -kn), its slope and the
+    sum of its terms' magnitudes: ``(r, dr/dx, size, δd2, δα, N1', N2', b1, b2)``
+    (:func:`solve`)."""
+    dd2, da, f1, f2, b1, b2 = state_at(x, c, u1, u2, da0, q, e0, w)
     t1 = coef * (f1 - n1)
     t2 = f2 - n2
     t3 = gt * da
@@ -186,77 +205,89 @@ def solve(c, u1, u2, n1, n2, dl1, dl2, a11, a13, a21, a23, coef, gt, flam):
         free = free_state(c, e0, w, da0, q, coef)
         if free[0]:
             return free
-    # the start: the row with the tangent stiffnesses at the start of the increment; an
-    # unloaded contact has none, and the row of two is homogeneous in them where both are
-    k1 = 1.5 * c * u1
-    k2 = 1.5 * c * u2
-    if k1 == 0.0:
-        k1 = k2 if k2 != 0.0 else 1.0
-    if k2 == 0.0:
-        k2 = k1
-    slope = -coef * k1 + k2 * w + gt * q
-    x = -(k2 * e0 + gt * da0 + flam) / slope
-    dd2 = e0 + w * x
-    if abs(x) < 0.5 * u1 * u1 and abs(dd2) < 0.5 * u2 * u2:
-        # both contacts loaded, each moved by less than half its overlap: the law's Taylor
-        # series there, c u³ (1 - s)^(3/2) = c u³ (1 - 3/2 s + 3/8 s² + 1/16 s³ + O(s⁴)) at
-        # s = δd / u², and one Newton step on the row with that cubic: a start off by O(s⁴),
-        # from which one step of the iteration below mostly converges (from the tangent
-        # start, off by O(s²), it took two)
-        iu = 1.0 / (u1 * u2)
-        t1 = x * u2 * iu  # δd1 / u1, δd2 / u2
-        t2 = dd2 * u1 * iu
-        s1 = t1 * u2 * iu
-        s2 = t2 * u1 * iu
-        curv = c * (coef * x * t1 * (0.375 + 0.0625 * s1) - dd2 * t2 * (0.375 + 0.0625 * s2))
-        dcurv = c * (coef * t1 * (0.75 + 0.1875 * s1) - w * t2 * (0.75 + 0.1875 * s2))
-        x -= curv / (slope + dcurv)
+    x = start(c, u1, u2, da0, q, e0, w, coef, gt, flam)
     floor = FORCE_EPS * (n1 + n2)
     for _ in range(NEWTON_PASSES):
-        r, dr, size, dd2, da, f1, f2, b1, b2 = _row3(x, c, u1, u2, n1, n2, da0, q, e0, w, coef,
-                                                      gt, flam)
-        tol = NEWTON_RTOL * size + floor
-        if abs(r) <= tol:
+        done, finite, settled, x_next, dd2, da, f1, f2, b1, b2 = newton_pass(
+            x, c, u1, u2, n1, n2, da0, q, e0, w, coef, gt, flam, floor)
+        if done:
             return True, x, dd2, da, f1, f2, b1, b2
-        inv_dr = 1.0 / dr
-        step = r * inv_dr
-        if not math.isfinite(step):
+        if not finite:
             break
-        if b1 == 0.0 or b2 == 0.0:
-            x -= step
-            continue
-        # a step of fourth order near the solution: the series reversion of the row's Taylor
-        # series at x, r + r1 t + r2 t²/2 + r3 t³/6 + r4 t⁴/24 = 0 (rk: its k-th derivative,
-        # from the normal laws' at each overlap e = b²: ±3/4 c / b, -3/8 c / b³, ±9/16 c / b⁵),
-        # is t = -h (1 + A h + (2 A² - B) h²), h = r / r1, A = r2 / (2 r1), B = r3 / (6 r1);
-        # its error (5 A³ - 5 A B + C) h⁴, C = r4 / (24 r1), bounded by the terms' magnitudes,
-        # leaves a residual below tol: the new point is the solution
-        inv_b = 1.0 / (b1 * b2)
-        i1 = b2 * inv_b
-        i2 = b1 * inv_b
-        ww = w * w
-        hs = 0.375 * c * (coef * math.copysign(i1, u1 * u1 - x)
-                          - ww * math.copysign(i2, u2 * u2 - dd2)) * inv_dr * step
-        if abs(hs) > 0.5:
-            x -= step
-            continue
-        j1 = i1 * i1 * i1
-        j2 = i2 * i2 * i2
-        hb = 0.0625 * c * (coef * j1 - ww * w * j2) * inv_dr * step * step
-        x -= step * (1.0 + hs + 2.0 * hs * hs - hb)
-        a_abs = 0.375 * c * (abs(coef) * i1 + ww * i2) * abs(inv_dr)
-        b_abs = 0.0625 * c * (abs(coef) * j1 + abs(ww * w) * j2) * abs(inv_dr)
-        c_abs = 0.0234375 * c * (abs(coef) * j1 * i1 * i1 + ww * ww * j2 * i2 * i2) * abs(inv_dr)
-        h2 = step * step
-        if (5.0 * a_abs * (a_abs * a_abs + b_abs) + c_abs) * h2 * h2 * abs(dr) <= tol:
-            da = da0 + q * x
-            dd2 = e0 + w * x
-            f1, b1 = law(c, u1 * u1 - x)
-            f2, b2 = law(c, u2 * u2 - dd2)
+        x = x_next
+        if settled:
+            dd2, da, f1, f2, b1, b2 = state_at(x, c, u1, u2, da0, q, e0, w)
             return True, x, dd2, da, f1, f2, b1, b2
     r, dr, size, dd2, da, f1, f2, b1, b2 = _row3(x, c, u1, u2, n1, n2, da0, q, e0, w, coef, gt,
                                                   flam)
     return False, x, dd2, da, f1, f2, b1, b2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def start(c, u1, u2, da0, q, e0, w, coef, gt, flam):
+    """δd1 where :func:`solve` starts: the row with the tangent stiffnesses at the start of
+    the increment (an unloaded contact has none, and the row of two is homogeneous in them where
+    both are), corrected where both contacts are loaded and each moves by less than half its
+    overlap by one Newton step on the row with the law's Taylor series there,
+    c u³ (1 - s)^(3/2) = c u³ (1 - 3/2 s + 3/8 s² + 1/16 s³ + O(s⁴)) at s = δd / u²: a start off
+    by O(s⁴), from which one pass of :func:`newton_pass` mostly settles (from the tangent start,
+    off by O(s²), it took two). Without branches (the correction is computed and not taken
+    where it does not apply), so that a loop over cells runs it as vector operations."""
+    k1 = 1.5 * c * u1
+    k2 = 1.5 * c * u2
+    k1 = k1 if k1 != 0.0 else (k2 if k2 != 0.0 else 1.0)
+    k2 = k2 if k2 != 0.0 else k1
+    slope = -coef * k1 + k2 * w + gt * q
+    x = -(k2 * e0 + gt * da0 + flam) / slope
+    dd2 = e0 + w * x
+    iu = 1.0 / (u1 * u2)
+    t1 = x * u2 * iu  # δd1 / u1, δd2 / u2
+    t2 = dd2 * u1 * iu
+    s1 = t1 * u2 * iu
+    s2 = t2 * u1 * iu
+    curv = c * (coef * x * t1 * (0.375 + 0.0625 * s1) - dd2 * t2 * (0.375 + 0.0625 * s2))
+    dcurv = c * (coef * t1 * (0.75 + 0.1875 * s1) - w * t2 * (0.75 + 0.1875 * s2))
+    near = (abs(x) < 0.5 * u1 * u1) & (abs(dd2) < 0.5 * u2 * u2)
+    return x - curv / (slope + dcurv) if near else x
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def newton_pass(x, c, u1, u2, n1, n2, da0, q, e0, w, coef, gt, flam, floor):
+    """One pass of :func:`solve` from δd1 = x: ``(done, finite, settled, x', δd2, δα, N1', N2',
+    b1, b2)``; ``done`` where x solves the third row (its residual within the tolerance
+    relative to its terms, the state at x returned), else the next point x' (``finite`` False
+    where the Newton step is not), ``settled`` where x' is the solution.
+
+    The step is of fourth order near the solution: the series reversion of the row's Taylor
+    series at x, r + r1 t + r2 t²/2 + r3 t³/6 + r4 t⁴/24 = 0 (rk: its k-th derivative, from the
+    normal laws' at each overlap e = b²: ±3/4 c / b, -3/8 c / b³, ±9/16 c / b⁵), is
+    t = -h (1 + A h + (2 A² - B) h²), h = r / r1, A = r2 / (2 r1), B = r3 / (6 r1); its error
+    (5 A³ - 5 A B + C) h⁴, C = r4 / (24 r1), bounded by the terms' magnitudes, leaves a residual
+    below the tolerance: x' is then the solution. Where a contact is at zero overlap or the
+    correction is large (|A h| > 1/2) the pass takes Newton's plain step. Without branches, so
+    that a loop over cells runs it as vector operations."""
+    r, dr, size, dd2, da, f1, f2, b1, b2 = _row3(x, c, u1, u2, n1, n2, da0, q, e0, w, coef, gt,
+                                                  flam)
+    tol = NEWTON_RTOL * size + floor
+    inv_dr = 1.0 / dr
+    step = r * inv_dr
+    inv_b = 1.0 / (b1 * b2)
+    i1 = b2 * inv_b
+    i2 = b1 * inv_b
+    ww = w * w
+    hs = 0.375 * c * (coef * math.copysign(i1, u1 * u1 - x)
+                      - ww * math.copysign(i2, u2 * u2 - dd2)) * inv_dr * step
+    j1 = i1 * i1 * i1
+    j2 = i2 * i2 * i2
+    hb = 0.0625 * c * (coef * j1 - ww * w * j2) * inv_dr * step * step
+    a_abs = 0.375 * c * (abs(coef) * i1 + ww * i2) * abs(inv_dr)
+    b_abs = 0.0625 * c * (abs(coef) * j1 + abs(ww * w) * j2) * abs(inv_dr)
+    c_abs = 0.0234375 * c * (abs(coef) * j1 * i1 * i1 + ww * ww * j2 * i2 * i2) * abs(inv_dr)
+    h2 = step * step
+    plain = (b1 == 0.0) | (b2 == 0.0) | (abs(hs) > 0.5)
+    x_next = x - step if plain else x - step * (1.0 + hs + 2.0 * hs * hs - hb)
+    settled = (not plain) & ((5.0 * a_abs * (a_abs * a_abs + b_abs) + c_abs) * h2 * h2 * abs(dr) <= tol)
+    return abs(r) <= tol, math.isfinite(step), settled, x_next, dd2, da, f1, f2, b1, b2
 
 
 @njit(cache=True, inline="always", error_model="numpy")

@@ -30,9 +30,11 @@ from ..cell.closed_form import (
     prepare_cell,
     prepared,
 )
+from ..cell import hertz_batch
 from ..cell.compliance_kernel import compliance_increment
 from ..cell.meso_kernel import meso_increment
 from ..cell.mesostress import vsigma_local
+from ..cell.hertz_batch import DL1, DL2
 from ..cell.renewal import RENEW_MIX, mix_rebirth
 
 # Localization modes: on which lengths the strain acts (docs/model.md, step 5).
@@ -226,8 +228,20 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
     # renewal=mix: a REV quantity, the mean box area at the start of the increment
     mix = mech != MECH_NONE and law == 0.0 and p[P_RENEW] == RENEW_MIX
     area = mean_box_area(values, geo) if mix else 0.0
+    # Hertz-Mindlin contacts: every cell's increment at once (hertz_batch says why)
+    batch = mech != MECH_NONE and law == 0.0 and p[P_HERTZ] != 0.0
+    work = hertz_batch.work(values.shape[0] if batch else 0)
+    if batch:
+        for i in range(values.shape[0]):
+            work[DL1, i], work[DL2, i] = cell_dl(values, i, e11, e22, e12, geo[i, 0], geo[i, 1],
+                                                 geo[i, 2], mode, p[P_R])
+        ok = hertz_batch.update(values, work, p, out, flags, mech, 0)
     for i in range(values.shape[0]):
-        dl1, dl2 = cell_dl(values, i, e11, e22, e12, geo[i, 0], geo[i, 1], geo[i, 2], mode, p[P_R])
+        if batch:  # the cell's increment made above
+            dl1 = work[DL1, i]
+        else:
+            dl1, dl2 = cell_dl(values, i, e11, e22, e12, geo[i, 0], geo[i, 1], geo[i, 2], mode,
+                               p[P_R])
         if meso:
             ddl1 = ddl2 = 0.0
             if tangent:  # cell_dl is linear in the strain: its derivative along u is cell_dl(u)
@@ -244,8 +258,8 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
             if law == LAW_COMPLIANCE:
                 ok &= compliance_increment(values, i, dl1, dl2, resp, p, out, flags)
             else:
-                # linear contacts' state-only part read from ``pre`` (prepare)
-                ok &= cell_increment_prepared(values, i, dl1, dl2, p, out, flags, mech, pre, 0)
+                if not batch:  # linear contacts' state-only part read from ``pre`` (prepare)
+                    ok &= cell_increment_prepared(values, i, dl1, dl2, p, out, flags, mech, pre, 0)
                 if mix and (flags[i, 1] or flags[i, 2]):  # docs/mechanisms.md, "Renewal"
                     mix_rebirth(out, flags, i, area, dl1 < 0.0, two_r)
             vnn, vtt = vsigma_local(out, i, kn, hertz, two_r)
