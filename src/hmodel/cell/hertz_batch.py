@@ -28,21 +28,24 @@ from numba import njit
 
 from . import hertz
 from .closed_form import (
+    MECH_NONE,
     N_FIELDS,
     N_FLAGS,
     P_HERTZ,
     P_MINDLIN,
     P_R,
+    P_RENEW,
     P_TAN,
     angle_rows,
     cell_increment_hertz,
     finish_update_mech,
     write_update,
 )
+from .renewal import RENEW_CELL
 
 #: Rows of the work array (:func:`work`): each cell's length increments (the caller's), then
 #: what the first loop fixes, then what the second finds.
-(DL1, DL2, N1, N2, GAP1, GAP2, Q, DA0, W, E0, COEF, G, GS, D1,
+(DL1, DL2, N1, N2, GAP1, GAP2, A11, A13, A21, A23, COEF, G, GS, D1,
  X, DD2, DA, F1, F2, KT, SETTLED) = range(21)
 ROWS = 21
 
@@ -75,15 +78,14 @@ def _rows(values, s, p, h):
         d1 = values[i, k]
         n1 = values[i, k + 3]
         ca, sa, gs, a11, a13, a21, a23 = angle_rows(d1, values[i, k + 2], p)
-        q, da0, w, e0 = hertz.affine(a11, a13, a21, a23, s[DL1, i], s[DL2, i])
         s[N1, i] = n1
         s[N2, i] = values[i, k + 4]
         s[GAP1, i] = two_r - d1
         s[GAP2, i] = two_r - values[i, k + 1]
-        s[Q, i] = q
-        s[DA0, i] = da0
-        s[W, i] = w
-        s[E0, i] = e0
+        s[A11, i] = a11
+        s[A13, i] = a13
+        s[A21, i] = a21
+        s[A23, i] = a23
         s[COEF, i] = ca
         s[G, i] = values[i, k + 5] * ca - n1 * sa
         s[GS, i] = gs
@@ -101,10 +103,8 @@ def _settle(s, c, mindlin):
         y2 = n2 / c
         u1, near1 = hertz.gap_root(y1, s[GAP1, i])
         u2, near2 = hertz.gap_root(y2, s[GAP2, i])
-        q = s[Q, i]
-        da0 = s[DA0, i]
-        w = s[W, i]
-        e0 = s[E0, i]
+        q, da0, w, e0 = hertz.affine(s[A11, i], s[A13, i], s[A21, i], s[A23, i], s[DL1, i],
+                                     s[DL2, i])
         coef = s[COEF, i]
         kt = mindlin * 1.5 * c * u1  # closed_form.hertz_overlaps
         gt = s[G, i] + s[GS, i] * kt * s[D1, i]
@@ -126,22 +126,36 @@ def _settle(s, c, mindlin):
 @njit(cache=True, error_model="numpy")
 def _finish(values, s, p, out, flags, mech, h):
     """The third loop: the Coulomb check and the new state of each settled cell that sticks;
-    the one-cell update for the others."""
+    then the one-cell update for the others (in a loop of their own: the one-cell update's code
+    in the first loop slowed every cell of it)."""
     tanphi = p[P_TAN]
+    rebirth = mech != MECH_NONE and p[P_RENEW] == RENEW_CELL
     k = N_FIELDS * h
     ok = True
+    others = np.empty(values.shape[0], np.int64)
+    n_others = 0
     for i in range(values.shape[0]):
-        if s[SETTLED, i] != 0.0:
-            d1 = values[i, k]
-            da = s[DA, i]
-            f1 = s[F1, i]
-            t1_new = values[i, k + 5] + s[KT, i] * d1 * da
-            if not abs(t1_new) >= tanphi * f1:  # _hertz_regime's check: it sticks
-                r = finish_update_mech(d1, values[i, k + 1], values[i, k + 2], values[i, k + 6],
-                                       values[i, k + 7], s[DL1, i], s[DL2, i], s[X, i], s[DD2, i],
-                                       da, f1, s[F2, i], t1_new, False,
-                                       1.0 if t1_new >= 0.0 else -1.0, p, mech)
-                ok &= write_update(r, out, flags, i, k, N_FLAGS * h)
-                continue
+        d1 = values[i, k]
+        da = s[DA, i]
+        f1 = s[F1, i]
+        t1_new = values[i, k + 5] + s[KT, i] * d1 * da
+        # _hertz_regime's check: a settled cell sticks
+        if s[SETTLED, i] == 0.0 or abs(t1_new) >= tanphi * f1:
+            others[n_others] = i
+            n_others += 1
+            continue
+        # the new state without renewal=rebirth, whose call in this loop slowed every cell of
+        # it: a cell that opens under it takes the one-cell update below
+        r = finish_update_mech(d1, values[i, k + 1], values[i, k + 2], values[i, k + 6],
+                               values[i, k + 7], s[DL1, i], s[DL2, i], s[X, i], s[DD2, i], da, f1,
+                               s[F2, i], t1_new, False, 1.0 if t1_new >= 0.0 else -1.0, p,
+                               MECH_NONE)
+        if rebirth and (r[10] or r[11]):
+            others[n_others] = i
+            n_others += 1
+            continue
+        ok &= write_update(r, out, flags, i, k, N_FLAGS * h)
+    for j in range(n_others):
+        i = others[j]
         ok &= cell_increment_hertz(values, i, s[DL1, i], s[DL2, i], p, out, flags, mech, h)
     return ok
