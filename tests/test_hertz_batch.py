@@ -30,7 +30,8 @@ def _batch(values, dl, p):
     work = hb.work(len(values))
     work[hb.DL1], work[hb.DL2] = dl[:, 0], dl[:, 1]
     ok = hb.update(values, work, p, out, flags, MECH_ANY, 0)
-    return out, flags, ok, work[hb.SETTLED]
+    carrying = int(((values[:, 3] > 0) & (values[:, 4] > 0)).sum())
+    return out, flags, ok, work[hb.SETTLED, :carrying]  # the carrying cells' first pass
 
 
 @pytest.mark.parametrize("renewal", ["none", "rebirth"])
@@ -109,3 +110,45 @@ def test_the_start_corrects_by_the_laws_taylor_series_only_near_the_overlaps():
                                  2e-3 * math.cos(1.0), 0.0, 1e-3)
     x = hertz.start(c, u1, u2, da0, q, e0, w, coef, gt, 0.0)
     assert x == -(k2 * e0 + gt * da0) / (-coef * 1.5 * c * u1 + k2 * w + gt * q)
+
+
+@pytest.mark.parametrize("options", [{}, {"renewal": "rebirth"}, {"lateral": "axisymmetric"}])
+def test_the_bihexagons_batch_is_their_one_cell_update_to_the_last_bit(options):
+    """The 3D REV's bi-hexagons along a sheared triaxial path, as above: both hexagons of every
+    cell at once against bihex_increment cell by cell, bit for bit."""
+    from hmodel.cell.bihex import bihex_hertz_increments, bihex_increment
+    from hmodel.rev import Rev3D, Sphere
+    from hmodel.rev.kernels3d import bihex_trial
+
+    params = Params(contact="hertz-mindlin", sliding_rhs="equilibrium", **options)
+    rev = Rev3D(params, Sphere(order=9, n_azimuth=2))
+    state = consolidate(rev, [2e5])
+    geo, p = rev.kernel_inputs()
+    geo, p = geo[0], p[0]
+    values = np.ascontiguousarray(state.cells.values.reshape(-1, 16))
+    n = len(values)
+    rng = np.random.default_rng(7)
+    eps = np.zeros(6)
+    settled = sliding = free = 0
+    for step in range(40):
+        for scale in (1e-6, 1e-3):
+            dl = rng.normal(size=(n, 3)) * scale * values[:, [6, 7, 15]]
+            one, one_flags = np.empty_like(values), np.zeros((n, 11), bool)
+            ok_one = all(bihex_increment(values, i, dl[i, 0], dl[i, 1], dl[i, 2], p, one, one_flags,
+                                         np.empty((n, 0)), MECH_ANY) for i in range(n))
+            out, flags = np.empty_like(values), np.zeros((n, 11), bool)
+            work_a, work_b = hb.work(n), hb.work(n)
+            work_a[hb.DL1] = work_b[hb.DL1] = dl[:, 0]
+            work_a[hb.DL2], work_b[hb.DL2] = dl[:, 1], dl[:, 2]
+            assert bihex_hertz_increments(values, work_a, work_b, p, out, flags) == ok_one
+            np.testing.assert_array_equal(out, one)
+            np.testing.assert_array_equal(flags, one_flags)
+            carrying = int(((values[:, 3] > 0) & (values[:, 4] > 0)).sum())  # hexagon A's
+            settled += int(work_a[hb.SETTLED, :carrying].sum())
+        sliding += int(flags[:, 0].sum() + flags[:, 5].sum())
+        free += int((values[:, 3] == 0).sum())
+        deps = np.array([1.5e-3, -5e-4, -5e-4, 0.0, 2e-4, 0.0])
+        out, flags = np.empty_like(values), np.zeros((n, 11), bool)
+        bihex_trial(values, eps, deps, geo, p, rev.mode, rev.volume0, out, flags, np.empty(6))
+        values, eps = out, eps + deps
+    assert min(settled, sliding, free) > 0, (settled, sliding, free)

@@ -40,6 +40,7 @@ from numba import njit
 
 from ..errors import InputError, SolverError
 from ..params import Params
+from . import hertz_batch
 from .base import STATE_BIHEXAGON, STATE_H_CELL, CellKernel, CellSolver
 from .closed_form import (
     MECH_ANY,
@@ -141,6 +142,24 @@ def bihex_increment(values, i, dl1, dl2, dl3, p, out, flags, pre, mech):
         renew_bihex(out, flags, i, 2.0 * p[P_R])
     flags[i, 10] = cross_contact(0.5 * (out[i, 1] - out[i, 9]), out[i, 7], out[i, 15],
                                  2.0 * p[P_R])
+    return ok
+
+
+@njit(cache=True, error_model="numpy")
+def bihex_hertz_increments(values, work_a, work_b, p, out, flags):
+    """:func:`bihex_increment` of every bi-hexagon of ``values`` with Hertz-Mindlin contacts and
+    none between the hexagons: hexagon A of each by its length increments ``work_a[DL1]``,
+    ``work_a[DL2]`` (δl1, δl2), B by ``work_b``'s (δl1, δl3), all at once
+    (:func:`hmodel.cell.hertz_batch.update`, the same values to the last bit), then each cell's
+    rebirth and contact flag. Returns False when a hexagon's increment failed."""
+    ok_a = hertz_batch.update(values, work_a, p, out, flags, MECH_NONE, 0)
+    ok = hertz_batch.update(values, work_b, p, out, flags, MECH_NONE, 1) and ok_a
+    two_r = 2.0 * p[P_R]
+    renew = p[P_RENEW] == RENEW_BIHEX
+    for i in range(values.shape[0]):
+        if renew:  # docs/mechanisms.md, "Renewal"
+            renew_bihex(out, flags, i, two_r)
+        flags[i, 10] = cross_contact(0.5 * (out[i, 1] - out[i, 9]), out[i, 7], out[i, 15], two_r)
     return ok
 
 

@@ -291,6 +291,21 @@ def newton_pass(x, c, u1, u2, n1, n2, da0, q, e0, w, coef, gt, flam, floor):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def first_pass(c, u1, u2, n1, n2, da0, q, e0, w, coef, gt, flam):
+    """:func:`solve`'s first pass for a cell with both contacts loaded (u1, u2 > 0), without
+    branches: ``(ok, δd1, δd2, δα, N1', N2')``, the values :func:`solve` returns to the last bit
+    where ``ok`` (the start solves the row, or one :func:`newton_pass` from it settles);
+    :mod:`hmodel.cell.hertz_batch` runs it for many cells as vector operations and hands those
+    without ``ok`` to :func:`solve`."""
+    x = start(c, u1, u2, da0, q, e0, w, coef, gt, flam)
+    done, finite, settled, x_next, dd2, da, f1, f2, b1, b2 = newton_pass(
+        x, c, u1, u2, n1, n2, da0, q, e0, w, coef, gt, flam, FORCE_EPS * (n1 + n2))
+    x = x if done else x_next
+    dd2, da, f1, f2, b1, b2 = state_at(x, c, u1, u2, da0, q, e0, w)
+    return done | (finite & settled), x, dd2, da, f1, f2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def column(c, b1, b2, q, w, coef, gt, sliding, ktd1, xitan, pdd2, pda):
     """Derivatives of the solution of :func:`solve` along a length increment that moves
     (δd2, δα) at fixed δd1 by (pdd2, pda) (rows 1-2: (1, 0) along δl1, (-a13/a23, 1/a23) along

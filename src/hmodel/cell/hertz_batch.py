@@ -4,21 +4,26 @@ across the cells of a REV trial (docs/mechanisms.md, "The secant solve").
 One cell's Hertz-Mindlin increment (:func:`hmodel.cell.closed_form._hertz_regime`) is a chain
 of square roots and divisions, each waiting for the one before: the overlaps' roots from their
 forces, the start, the third row's evaluation, the series-reversion step, the law at the
-solution. Cell after cell, a REV trial waits on every link. The chains of different cells are
-independent, so :func:`update` runs them in three loops:
+solution; and once more where the cell slides. Cell after cell, a REV trial waits on every
+link. The chains of different cells are independent, so :func:`update` runs them in turns,
+each over every cell it concerns:
 
-1. per cell (:func:`_rows`), what the committed state and the increment fix: the angle's rows
-   of eq. 1.7 and their affine solution for δd2, δα (:func:`hmodel.cell.hertz.affine`);
-2. across cells (:func:`_settle`), the part that a loaded contact takes without branching:
-   :func:`hmodel.cell.hertz.gap_root`, :func:`~hmodel.cell.hertz.start`, one
-   :func:`~hmodel.cell.hertz.newton_pass` and the law at its point, written without branches
-   so that the compiler makes the loop one of vector operations;
-3. per cell (:func:`_finish`), the Coulomb check and the new state; a cell the second loop did
-   not settle (force-free, a contact at zero force, a pass that did not end at the solution)
-   or that slides takes the one-cell update instead.
+1. per cell, what the committed state and the increment fix (the angle's rows of eq. 1.7 and
+   their affine solution for δd2, δα, :func:`hmodel.cell.hertz.affine`), for the cells whose
+   two contacts carry (the others, force-free or touching at zero force, are left to step 5);
+2. across them, without branches, the overlaps' roots (:func:`hmodel.cell.hertz.gap_root`)
+   and the first pass of the solve without sliding (:func:`hmodel.cell.hertz.first_pass`), which the
+   compiler makes a loop of vector operations;
+3. per cell, the Coulomb check: the new state of a cell that sticks, the sliding row of one
+   that slides;
+4. across the sliding cells, the first pass of their solve;
+5. per cell, the new state of the sliding cells, then the one-cell update
+   (:func:`hmodel.cell.closed_form.cell_increment_hertz`) of every cell not settled on the way.
 
-The second loop evaluates the one-cell solve's expressions in its order, so every cell's
-result is the one-cell update's to the last bit (``tests/test_hertz_batch.py``).
+Steps 2 and 4 evaluate the one-cell solve's expressions in its order, so every cell's result is
+the one-cell update's to the last bit (``tests/test_hertz_batch.py``). No step calls the
+one-cell update or the cell's rebirth inside its loop: their code in a loop slowed every cell
+of it, taken or not (a cell that opens under ``renewal=rebirth`` takes the one-cell update).
 """
 
 from __future__ import annotations
@@ -36,6 +41,7 @@ from .closed_form import (
     P_R,
     P_RENEW,
     P_TAN,
+    _sliding_force,
     angle_rows,
     cell_increment_hertz,
     finish_update_mech,
@@ -43,11 +49,12 @@ from .closed_form import (
 )
 from .renewal import RENEW_CELL
 
-#: Rows of the work array (:func:`work`): each cell's length increments (the caller's), then
-#: what the first loop fixes, then what the second finds.
-(DL1, DL2, N1, N2, GAP1, GAP2, A11, A13, A21, A23, COEF, G, GS, D1,
- X, DD2, DA, F1, F2, KT, SETTLED) = range(21)
-ROWS = 21
+#: Rows of a work array (:func:`work`): each cell's length increments (the caller's, column i
+#: for cell i), then, column j for the j-th carrying cell, its inputs and its first pass's
+#: results.
+(DL1, DL2, N1, N2, GAP1, GAP2, Q, DA0, W, E0, CA, G, GS, D1, COEF, GT, FLAM, XI, U1, U2, KT,
+ X, DD2, DA, F1, F2, SETTLED) = range(27)
+ROWS = 27
 
 
 @njit(cache=True, error_model="numpy")
@@ -62,100 +69,190 @@ def update(values, s, p, out, flags, mech, h):
     """Hexagon ``h`` of every cell of ``values`` (h = 0: an H-cell, or a bi-hexagon's hexagon A;
     1: its hexagon B) by its length increments ``s[DL1]``, ``s[DL2]`` with Hertz-Mindlin
     contacts: the new states into ``out`` and ``flags`` as
-    :func:`hmodel.cell.closed_form.cell_increment_prepared` writes them, the same values to the
+    :func:`hmodel.cell.closed_form.cell_increment_hertz` writes them, the same values to the
     last bit; ``s`` a :func:`work` array. Returns False when a cell's increment failed."""
-    _rows(values, s, p, h)
-    _settle(s, p[P_HERTZ], p[P_MINDLIN])
-    return _finish(values, s, p, out, flags, mech, h)
+    n = values.shape[0]
+    carrying = np.empty(n, np.int64)
+    sliding = np.empty(n, np.int64)
+    others = np.empty(n, np.int64)
+    slide = np.empty((ROWS, n))
+    m, n_others = _rows(values, s, p, h, carrying, others)
+    _stick(s, m, p[P_HERTZ], p[P_MINDLIN])
+    ok, n_sliding, n_others = _coulomb(values, s, m, p, out, flags, mech, h, carrying, slide,
+                                       sliding, others, n_others)
+    _slide(slide, n_sliding, p[P_HERTZ])
+    ok2, n_others = _finish_sliding(values, s, slide, n_sliding, p, out, flags, mech, h, sliding,
+                                    others, n_others)
+    ok &= ok2
+    for j in range(n_others):
+        i = others[j]
+        ok &= cell_increment_hertz(values, i, s[DL1, i], s[DL2, i], p, out, flags, mech, h)
+    return ok
 
 
 @njit(cache=True, error_model="numpy")
-def _rows(values, s, p, h):
-    """The first loop: what each cell's committed state and increment fix, into ``s``."""
+def _rows(values, s, p, h, carrying, others):
+    """Step 1: what each carrying cell's committed state and increment fix, into column j of
+    ``s`` for the j-th (``carrying[j]`` its index); the others' indices into ``others``.
+    Returns (the carrying cells' count, the others')."""
     two_r = 2.0 * p[P_R]
     k = N_FIELDS * h
-    for i in range(values.shape[0]):
-        d1 = values[i, k]
-        n1 = values[i, k + 3]
-        ca, sa, gs, a11, a13, a21, a23 = angle_rows(d1, values[i, k + 2], p)
-        s[N1, i] = n1
-        s[N2, i] = values[i, k + 4]
-        s[GAP1, i] = two_r - d1
-        s[GAP2, i] = two_r - values[i, k + 1]
-        s[A11, i] = a11
-        s[A13, i] = a13
-        s[A21, i] = a21
-        s[A23, i] = a23
-        s[COEF, i] = ca
-        s[G, i] = values[i, k + 5] * ca - n1 * sa
-        s[GS, i] = gs
-        s[D1, i] = d1
-
-
-@njit(cache=True, error_model="numpy")
-def _settle(s, c, mindlin):
-    """The second loop, without branches: each sticking cell's solution where one pass of the
-    solve from its start reaches it (``s[SETTLED]`` 1, else 0)."""
-    for i in range(s.shape[1]):
-        n1 = s[N1, i]
-        n2 = s[N2, i]
-        y1 = n1 / c
-        y2 = n2 / c
-        u1, near1 = hertz.gap_root(y1, s[GAP1, i])
-        u2, near2 = hertz.gap_root(y2, s[GAP2, i])
-        q, da0, w, e0 = hertz.affine(s[A11, i], s[A13, i], s[A21, i], s[A23, i], s[DL1, i],
-                                     s[DL2, i])
-        coef = s[COEF, i]
-        kt = mindlin * 1.5 * c * u1  # closed_form.hertz_overlaps
-        gt = s[G, i] + s[GS, i] * kt * s[D1, i]
-        x = hertz.start(c, u1, u2, da0, q, e0, w, coef, gt, 0.0)
-        done, finite, settled, x_next, dd2, da, f1, f2, b1, b2 = hertz.newton_pass(
-            x, c, u1, u2, n1, n2, da0, q, e0, w, coef, gt, 0.0, hertz.FORCE_EPS * (n1 + n2))
-        x = x if done else x_next
-        dd2, da, f1, f2, b1, b2 = hertz.state_at(x, c, u1, u2, da0, q, e0, w)
-        s[X, i] = x
-        s[DD2, i] = dd2
-        s[DA, i] = da
-        s[F1, i] = f1
-        s[F2, i] = f2
-        s[KT, i] = kt
-        ok = (y1 > 0.0) & (y2 > 0.0) & near1 & near2 & (done | (finite & settled))
-        s[SETTLED, i] = 1.0 if ok else 0.0
-
-
-@njit(cache=True, error_model="numpy")
-def _finish(values, s, p, out, flags, mech, h):
-    """The third loop: the Coulomb check and the new state of each settled cell that sticks;
-    then the one-cell update for the others (in a loop of their own: the one-cell update's code
-    in the first loop slowed every cell of it)."""
-    tanphi = p[P_TAN]
-    rebirth = mech != MECH_NONE and p[P_RENEW] == RENEW_CELL
-    k = N_FIELDS * h
-    ok = True
-    others = np.empty(values.shape[0], np.int64)
+    m = 0
     n_others = 0
     for i in range(values.shape[0]):
         d1 = values[i, k]
-        da = s[DA, i]
-        f1 = s[F1, i]
-        t1_new = values[i, k + 5] + s[KT, i] * d1 * da
-        # _hertz_regime's check: a settled cell sticks
-        if s[SETTLED, i] == 0.0 or abs(t1_new) >= tanphi * f1:
+        n1 = values[i, k + 3]
+        n2 = values[i, k + 4]
+        if not (n1 > 0.0 and n2 > 0.0):
             others[n_others] = i
             n_others += 1
             continue
-        # the new state without renewal=rebirth, whose call in this loop slowed every cell of
-        # it: a cell that opens under it takes the one-cell update below
+        ca, sa, gs, a11, a13, a21, a23 = angle_rows(d1, values[i, k + 2], p)
+        q, da0, w, e0 = hertz.affine(a11, a13, a21, a23, s[DL1, i], s[DL2, i])
+        carrying[m] = i
+        s[N1, m] = n1
+        s[N2, m] = n2
+        s[GAP1, m] = two_r - d1
+        s[GAP2, m] = two_r - values[i, k + 1]
+        s[Q, m] = q
+        s[DA0, m] = da0
+        s[W, m] = w
+        s[E0, m] = e0
+        s[CA, m] = ca
+        s[G, m] = values[i, k + 5] * ca - n1 * sa
+        s[GS, m] = gs
+        s[D1, m] = d1
+        m += 1
+    return m, n_others
+
+
+@njit(cache=True, error_model="numpy")
+def _stick(s, m, c, mindlin):
+    """Step 2, without branches: the overlaps' roots of the first ``m`` columns (Mindlin's
+    tangential stiffness from the first) and their first pass without sliding; ``s[SETTLED]``
+    1 where it is the solution (the roots' gaps near enough too), else 0."""
+    # seven rows written, every one after the reads: the compiler checks at run time that
+    # the rows written do not overlap those read, and gives up the vector loop where a write
+    # comes between reads or the rows written are more (the overlaps' roots are found again
+    # for the few cells that slide)
+    for j in range(m):
+        n1 = s[N1, j]
+        n2 = s[N2, j]
+        gap1 = s[GAP1, j]
+        gap2 = s[GAP2, j]
+        g = s[G, j]
+        gs = s[GS, j]
+        d1 = s[D1, j]
+        da0 = s[DA0, j]
+        q = s[Q, j]
+        e0 = s[E0, j]
+        w = s[W, j]
+        ca = s[CA, j]
+        y1 = n1 / c  # closed_form.hertz_overlaps, hertz.overlap_root
+        y2 = n2 / c
+        u1, near1 = hertz.gap_root(y1, gap1)
+        u2, near2 = hertz.gap_root(y2, gap2)
+        kt = mindlin * 1.5 * c * u1
+        gt = g + gs * kt * d1  # closed_form._hertz_regime
+        ok, x, dd2, da, f1, f2 = hertz.first_pass(c, u1, u2, n1, n2, da0, q, e0, w, ca, gt, 0.0)
+        s[KT, j] = kt
+        s[X, j] = x
+        s[DD2, j] = dd2
+        s[DA, j] = da
+        s[F1, j] = f1
+        s[F2, j] = f2
+        s[SETTLED, j] = 1.0 if ok & near1 & near2 & (y1 > 0.0) & (y2 > 0.0) else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _coulomb(values, s, m, p, out, flags, mech, h, carrying, slide, sliding, others, n_others):
+    """Step 3: each settled cell's Coulomb check (:func:`hmodel.cell.closed_form._hertz_regime`'s):
+    the new state of a cell that sticks into ``out`` and ``flags``, the sliding row of one that
+    slides into the next column of ``slide`` (its index into ``sliding``), the index of a cell
+    not settled, or opened under ``renewal=rebirth``, into ``others``. Returns (ok, the sliding
+    cells' count, the others')."""
+    tanphi = p[P_TAN]
+    c = p[P_HERTZ]
+    rebirth = mech != MECH_NONE and p[P_RENEW] == RENEW_CELL
+    k = N_FIELDS * h
+    ok = True
+    n_sliding = 0
+    for j in range(m):
+        i = carrying[j]
+        if s[SETTLED, j] == 0.0:
+            others[n_others] = i
+            n_others += 1
+            continue
+        d1 = values[i, k]
+        t1 = values[i, k + 5]
+        da = s[DA, j]
+        kt = s[KT, j]
+        t1_new = t1 + kt * d1 * da
+        xi = 1.0 if t1_new >= 0.0 else -1.0
+        if abs(t1_new) >= tanphi * s[F1, j]:  # it slides: eq. 1.7's third row on the cone
+            gs = s[GS, j]
+            n1 = s[N1, j]
+            for row in (N1, N2, Q, DA0, W, E0, KT):
+                slide[row, n_sliding] = s[row, j]
+            slide[U1, n_sliding] = hertz.gap_root(n1 / c, s[GAP1, j])[0]
+            slide[U2, n_sliding] = hertz.gap_root(s[N2, j] / c, s[GAP2, j])[0]
+            slide[COEF, n_sliding] = s[CA, j] + xi * tanphi * gs
+            slide[GT, n_sliding] = s[G, j]
+            slide[FLAM, n_sliding] = _sliding_force(gs, n1, t1, xi, p)
+            slide[XI, n_sliding] = xi
+            sliding[n_sliding] = i
+            n_sliding += 1
+            continue
         r = finish_update_mech(d1, values[i, k + 1], values[i, k + 2], values[i, k + 6],
-                               values[i, k + 7], s[DL1, i], s[DL2, i], s[X, i], s[DD2, i], da, f1,
-                               s[F2, i], t1_new, False, 1.0 if t1_new >= 0.0 else -1.0, p,
+                               values[i, k + 7], s[DL1, i], s[DL2, i], s[X, j], s[DD2, j], da,
+                               s[F1, j], s[F2, j], t1_new, False, xi, p, MECH_NONE)
+        if rebirth and (r[10] or r[11]):
+            others[n_others] = i
+            n_others += 1
+            continue
+        ok &= write_update(r, out, flags, i, k, N_FLAGS * h)
+    return ok, n_sliding, n_others
+
+
+@njit(cache=True, error_model="numpy")
+def _slide(s, m, c):
+    """Step 4, without branches: the first pass of the sliding row of the first ``m`` columns;
+    ``s[SETTLED]`` 1 where it is the solution, else 0."""
+    for j in range(m):
+        ok, x, dd2, da, f1, f2 = hertz.first_pass(c, s[U1, j], s[U2, j], s[N1, j], s[N2, j],
+                                                  s[DA0, j], s[Q, j], s[E0, j], s[W, j],
+                                                  s[COEF, j], s[GT, j], s[FLAM, j])
+        s[X, j] = x
+        s[DD2, j] = dd2
+        s[DA, j] = da
+        s[F1, j] = f1
+        s[F2, j] = f2
+        s[SETTLED, j] = 1.0 if ok else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _finish_sliding(values, s, slide, m, p, out, flags, mech, h, sliding, others, n_others):
+    """Step 5's first part: the new state of each sliding cell whose row settled (T1 on the
+    cone), the index of the others into ``others``. Returns (ok, the others' count)."""
+    rebirth = mech != MECH_NONE and p[P_RENEW] == RENEW_CELL
+    k = N_FIELDS * h
+    ok = True
+    for j in range(m):
+        i = sliding[j]
+        if slide[SETTLED, j] == 0.0:
+            others[n_others] = i
+            n_others += 1
+            continue
+        d1 = values[i, k]
+        da = slide[DA, j]
+        r = finish_update_mech(d1, values[i, k + 1], values[i, k + 2], values[i, k + 6],
+                               values[i, k + 7], s[DL1, i], s[DL2, i], slide[X, j], slide[DD2, j],
+                               da, slide[F1, j], slide[F2, j],
+                               values[i, k + 5] + slide[KT, j] * d1 * da, True, slide[XI, j], p,
                                MECH_NONE)
         if rebirth and (r[10] or r[11]):
             others[n_others] = i
             n_others += 1
             continue
         ok &= write_update(r, out, flags, i, k, N_FLAGS * h)
-    for j in range(n_others):
-        i = others[j]
-        ok &= cell_increment_hertz(values, i, s[DL1, i], s[DL2, i], p, out, flags, mech, h)
-    return ok
+    return ok, n_others

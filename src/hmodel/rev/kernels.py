@@ -230,8 +230,9 @@ def _trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp,
     area = mean_box_area(values, geo) if mix else 0.0
     # Hertz-Mindlin contacts: every cell's increment at once (hertz_batch says why)
     batch = mech != MECH_NONE and law == 0.0 and p[P_HERTZ] != 0.0
-    work = hertz_batch.work(values.shape[0] if batch else 0)
+    work = pre  # read below only where batch
     if batch:
+        work = hertz_batch.work(values.shape[0])
         for i in range(values.shape[0]):
             work[DL1, i], work[DL2, i] = cell_dl(values, i, e11, e22, e12, geo[i, 0], geo[i, 1],
                                                  geo[i, 2], mode, p[P_R])

@@ -16,7 +16,14 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..cell.bihex import bihex_increment, bihex_prepared_width, bihex_vsigma, cross_contact
+from ..cell import hertz_batch
+from ..cell.bihex import (
+    bihex_hertz_increments,
+    bihex_increment,
+    bihex_prepared_width,
+    bihex_vsigma,
+    cross_contact,
+)
 from ..cell.closed_form import (
     MECH_ANY,
     MECH_NONE,
@@ -28,6 +35,7 @@ from ..cell.closed_form import (
     cell_increment_prepared,
     cell_mechanisms,
 )
+from ..cell.hertz_batch import DL1, DL2
 from ..cell.renewal import RENEW_MIX, mix_rebirth_bihex
 from .kernels import LOC_BOX, new_prepared
 
@@ -74,6 +82,20 @@ def renew_mix3d(values, out, flags, geo, dl1, two_r):
             mix_rebirth_bihex(out[b], flags[b], i, area, dl1[b, i] < 0.0, two_r)
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def cell_lengths(values, geo, i, d0, d1, d2, d3, d4, d5, add):
+    """(δl1, δl2, δl3) of bi-hexagon i by the strain increment (d0, ..., d5): the normal
+    strains along its axes from its projector rows, δl_k = -L_k ε_kk (L_k its length, + ``add``,
+    2r of the box volume)."""
+    e0 = (geo[i, 0] * d0 + geo[i, 1] * d1 + geo[i, 2] * d2 + geo[i, 3] * d3 + geo[i, 4] * d4
+          + geo[i, 5] * d5)
+    e1 = (geo[i, 6] * d0 + geo[i, 7] * d1 + geo[i, 8] * d2 + geo[i, 9] * d3 + geo[i, 10] * d4
+          + geo[i, 11] * d5)
+    e2 = (geo[i, 12] * d0 + geo[i, 13] * d1 + geo[i, 14] * d2 + geo[i, 15] * d3
+          + geo[i, 16] * d4 + geo[i, 17] * d5)
+    return -(values[i, 6] + add) * e0, -(values[i, 7] + add) * e1, -(values[i, 15] + add) * e2
+
+
 @njit(cache=True, error_model="numpy")
 def bihex_trial(values, eps, deps, geo, p, mode, volume0, out, flags, sig):
     """:meth:`Rev3D.step` of one material point: cells ``values`` (C, 16) at strain ``eps`` (6,)
@@ -118,27 +140,36 @@ def _bihex_trial_core(values, eps, deps, geo, p, mode, volume0, out, flags, sig,
     s0 = s1 = s2 = s3 = s4 = s5 = 0.0
     ok = True
     # Indexed in place, no row views (closed_form.cell_update says why).
+    # Hertz-Mindlin contacts (no contacts between the hexagons): every hexagon's increment at
+    # once (hmodel.cell.hertz_batch says why)
+    batch = mech is not None and p[P_CROSS] == 0.0 and p[P_HERTZ] != 0.0
+    work_a = pre  # read below only where batch
+    if batch:
+        work_a = hertz_batch.work(values.shape[0])
+        work_b = hertz_batch.work(values.shape[0])
+        for i in range(values.shape[0]):
+            dl1, dl2, dl3 = cell_lengths(values, geo, i, d0, d1, d2, d3, d4, d5, add)
+            work_a[DL1, i] = work_b[DL1, i] = dl1
+            work_a[DL2, i] = dl2
+            work_b[DL2, i] = dl3
+        ok = bihex_hertz_increments(values, work_a, work_b, p, out, flags)
     for i in range(values.shape[0]):
-        e0 = (geo[i, 0] * d0 + geo[i, 1] * d1 + geo[i, 2] * d2 + geo[i, 3] * d3 + geo[i, 4] * d4
-              + geo[i, 5] * d5)
-        e1 = (geo[i, 6] * d0 + geo[i, 7] * d1 + geo[i, 8] * d2 + geo[i, 9] * d3 + geo[i, 10] * d4
-              + geo[i, 11] * d5)
-        e2 = (geo[i, 12] * d0 + geo[i, 13] * d1 + geo[i, 14] * d2 + geo[i, 15] * d3
-              + geo[i, 16] * d4 + geo[i, 17] * d5)
-        dl1 = -(values[i, 6] + add) * e0
-        dl2 = -(values[i, 7] + add) * e1
-        dl3 = -(values[i, 15] + add) * e2
-        if mech is None:
-            # bihex_increment's published case written out: through it (a function inlined
-            # into this loop, the hexagons' updates inlined into it) the trial ran about three
-            # times as slow (docs/notes/2026-12-07-per-state-preparation-3d.md)
-            ok_a = cell_increment_prepared(values, i, dl1, dl2, p, out, flags, MECH_NONE, pre, 0)
-            ok &= cell_increment_prepared(values, i, dl1, dl3, p, out, flags, MECH_NONE, pre,
-                                          1) and ok_a
-            flags[i, 10] = cross_contact(0.5 * (out[i, 1] - out[i, 9]), out[i, 7], out[i, 15],
-                                         two_r)
+        if batch:  # the cell's increment made above
+            dl1 = work_a[DL1, i]
         else:
-            ok &= bihex_increment(values, i, dl1, dl2, dl3, p, out, flags, pre, mech)
+            dl1, dl2, dl3 = cell_lengths(values, geo, i, d0, d1, d2, d3, d4, d5, add)
+            if mech is None:
+                # bihex_increment's published case written out: through it (a function inlined
+                # into this loop, the hexagons' updates inlined into it) the trial ran about
+                # three times as slow (docs/notes/2026-12-07-per-state-preparation-3d.md)
+                ok_a = cell_increment_prepared(values, i, dl1, dl2, p, out, flags, MECH_NONE, pre,
+                                               0)
+                ok &= cell_increment_prepared(values, i, dl1, dl3, p, out, flags, MECH_NONE, pre,
+                                              1) and ok_a
+                flags[i, 10] = cross_contact(0.5 * (out[i, 1] - out[i, 9]), out[i, 7],
+                                             out[i, 15], two_r)
+            else:
+                ok &= bihex_increment(values, i, dl1, dl2, dl3, p, out, flags, pre, mech)
         if mix:  # docs/mechanisms.md, "Rebirth at the mean box area"
             mix_rebirth_bihex(out, flags, i, area, dl1 < 0.0, two_r)
         nn, t1, t2 = bihex_vsigma(out, i, kn, hertz, two_r, cross)
