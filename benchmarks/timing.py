@@ -39,6 +39,17 @@ def best_of(fn, repeat: int) -> float:
     return min(times)
 
 
+def best_in_turn(runs: dict, repeat: int) -> dict:
+    """The best time of each of ``runs`` (name: a function of no argument), timed in turn
+    ``4 * repeat`` times after one untimed call each, so that a load beside the run weighs on
+    all alike: {name: seconds}."""
+    best = {name: best_of(run, 1) for name, run in runs.items()}
+    for _ in range(4 * repeat):
+        for name, run in runs.items():
+            best[name] = min(best[name], best_of(run, 1))
+    return best
+
+
 def command(script: str) -> str:
     """The command line that runs ``script`` (its ``__file__``) with this process's arguments,
     as a module from the repository's root: ``python -m benchmarks.GROUP.NAME ARGS``."""

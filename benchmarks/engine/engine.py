@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.timing import best_of, record, write_table
+from benchmarks.timing import best_in_turn, best_of, record, write_table
 from hmodel import Params
 from hmodel.cell import CellState
 from hmodel.cell.closed_form import ClosedFormSolver
@@ -89,11 +89,7 @@ def hertz_cost(repeat: int, n_calls: int = 500) -> tuple[float, float, float, fl
     strain about the axis is the 2D cell's own) over the linear law's): the trials timed
     in turn, ``4 * repeat`` times each, the best of each kept, so that a load beside the run
     weighs on all alike."""
-    runs = {name: _fused_trial(p, n_calls) for name, p in MECHANISMS.items()}
-    best = {name: best_of(run, 1) for name, run in runs.items()}
-    for _ in range(4 * repeat):
-        for name, run in runs.items():
-            best[name] = min(best[name], best_of(run, 1))
+    best = best_in_turn({name: _fused_trial(p, n_calls) for name, p in MECHANISMS.items()}, repeat)
     return (n_calls * 360 / best["hertz-mindlin"], best["hertz-mindlin"] / best["linear"],
             best["all"] / best["linear"], best["sand"] / best["linear"])
 

@@ -24,7 +24,10 @@
   (``benchmarks.mechanisms.critical_state_2d``);
 - ``mechanisms-dem-judge``: each variant calibrated on two drained tests of DEM sphere samples and
   predicting the others (``benchmarks.calibration.calibrate3d_dem ... --model NAME``);
-  ``mechanisms-dem-judge-2d``: the same of the 2D model on the DEM disk samples.
+  ``mechanisms-dem-judge-2d``: the same of the 2D model on the DEM disk samples;
+- the figures ``hertz-cost-*`` within sentences: a cell's cost with Hertz-Mindlin contacts and
+  with the other mechanisms over the published cell's (``benchmarks.engine.engine``,
+  ``benchmarks.engine.engine3d``).
 
 Usage: ``python -m benchmarks.model3d.mechanisms_table`` rewrites each block between its markers
 ``<!-- NAME -->`` and ``<!-- /NAME -->`` in docs/mechanisms.md; ``--check`` exits 1 when a block
@@ -458,12 +461,35 @@ BLOCKS = {"mechanisms-table": table_block, "mechanisms-pi-kfs": pi_kfs_block, "m
           "mechanisms-critical-2d": critical_2d_block, "mechanisms-drained-ends": drained_ends_block}
 
 
+def _cost(rel: str, measure: str):
+    """An inline figure: the cost ratio ``measure`` (the start of its row) of the engine record
+    ``benchmarks/REL``, to two decimals (one from 10 on)."""
+    @_from_record(rel)
+    def figure(rec: dict) -> str:
+        value = _result(rec, measure)
+        return f"{value:.1f}" if value >= 10 else f"{value:.2f}"
+    return figure
+
+
+#: Figures within sentences (no line breaks around them): the cell's cost with each mechanism.
+INLINE = {
+    "hertz-cost-2d": _cost("engine/engine.json", "cost of a cell update, Hertz-Mindlin over linear"),
+    "hertz-cost-all": _cost("engine/engine.json", "cost of a cell update, every mechanism on"),
+    "hertz-cost-sand": _cost("engine/engine.json", "cost of a cell update, the sand variant's"),
+    "hertz-cost-3d": _cost("engine/engine3d.json", "cost of a bi-hexagon update, Hertz-Mindlin contacts over"),
+    "hertz-cost-3d-sand": _cost("engine/engine3d.json", "cost of a bi-hexagon update, the sand variant's"),
+    "hertz-cost-3d-cross": _cost("engine/engine3d.json",
+                                 "cost of a bi-hexagon update, Hertz-Mindlin contacts and contacts between"),
+}
+
+
 def render(text: str) -> str:
     """``text`` with every block between its markers generated again."""
-    for name, make in BLOCKS.items():
-        begin, end = f"<!-- {name} -->", f"<!-- /{name} -->"
-        i, j = text.index(begin), text.index(end) + len(end)
-        text = text[:i] + "\n".join([begin, make(), end]) + text[j:]
+    for blocks, sep in ((BLOCKS, "\n"), (INLINE, "")):
+        for name, make in blocks.items():
+            begin, end = f"<!-- {name} -->", f"<!-- /{name} -->"
+            i, j = text.index(begin), text.index(end) + len(end)
+            text = text[:i] + sep.join([begin, make(), end]) + text[j:]
     return text
 
 

@@ -71,17 +71,16 @@ def update(values, s, p, out, flags, mech, h):
     contacts: the new states into ``out`` and ``flags`` as
     :func:`hmodel.cell.closed_form.cell_increment_hertz` writes them, the same values to the
     last bit; ``s`` a :func:`work` array. Returns False when a cell's increment failed."""
-    n = values.shape[0]
-    carrying = np.empty(n, np.int64)
-    sliding = np.empty(n, np.int64)
-    others = np.empty(n, np.int64)
-    slide = np.empty((ROWS, n))
+    index = np.empty((3, values.shape[0]), np.int64)  # carrying, sliding, other cells
+    carrying, sliding, others = index[0], index[1], index[2]
     m, n_others = _rows(values, s, p, h, carrying, others)
     _stick(s, m, p[P_HERTZ], p[P_MINDLIN])
-    ok, n_sliding, n_others = _coulomb(values, s, m, p, out, flags, mech, h, carrying, slide,
+    # the sliding rows go into s itself: the k-th sliding cell's column k is at most the column
+    # j of its first pass, and columns before j were used up by then
+    ok, n_sliding, n_others = _coulomb(values, s, m, p, out, flags, mech, h, carrying, s,
                                        sliding, others, n_others)
-    _slide(slide, n_sliding, p[P_HERTZ])
-    ok2, n_others = _finish_sliding(values, s, slide, n_sliding, p, out, flags, mech, h, sliding,
+    _slide(s, n_sliding, p[P_HERTZ])
+    ok2, n_others = _finish_sliding(values, s, s, n_sliding, p, out, flags, mech, h, sliding,
                                     others, n_others)
     ok &= ok2
     for j in range(n_others):
@@ -156,12 +155,18 @@ def _stick(s, m, c, mindlin):
         gt = g + gs * kt * d1  # closed_form._hertz_regime
         ok, x, dd2, da, f1, f2 = hertz.first_pass(c, u1, u2, n1, n2, da0, q, e0, w, ca, gt, 0.0)
         s[KT, j] = kt
-        s[X, j] = x
-        s[DD2, j] = dd2
-        s[DA, j] = da
-        s[F1, j] = f1
-        s[F2, j] = f2
-        s[SETTLED, j] = 1.0 if ok & near1 & near2 & (y1 > 0.0) & (y2 > 0.0) else 0.0
+        _store(s, j, ok & near1 & near2 & (y1 > 0.0) & (y2 > 0.0), x, dd2, da, f1, f2)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _store(s, j, ok, x, dd2, da, f1, f2):
+    """A first pass's results into column j of ``s``."""
+    s[X, j] = x
+    s[DD2, j] = dd2
+    s[DA, j] = da
+    s[F1, j] = f1
+    s[F2, j] = f2
+    s[SETTLED, j] = 1.0 if ok else 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -190,17 +195,31 @@ def _coulomb(values, s, m, p, out, flags, mech, h, carrying, slide, sliding, oth
         t1_new = t1 + kt * d1 * da
         xi = 1.0 if t1_new >= 0.0 else -1.0
         if abs(t1_new) >= tanphi * s[F1, j]:  # it slides: eq. 1.7's third row on the cone
+            # column j read whole before column n_sliding <= j is written (``slide`` may be
+            # ``s``: update)
             gs = s[GS, j]
             n1 = s[N1, j]
-            for row in (N1, N2, Q, DA0, W, E0, KT):
-                slide[row, n_sliding] = s[row, j]
-            slide[U1, n_sliding] = hertz.gap_root(n1 / c, s[GAP1, j])[0]
-            slide[U2, n_sliding] = hertz.gap_root(s[N2, j] / c, s[GAP2, j])[0]
-            slide[COEF, n_sliding] = s[CA, j] + xi * tanphi * gs
-            slide[GT, n_sliding] = s[G, j]
-            slide[FLAM, n_sliding] = _sliding_force(gs, n1, t1, xi, p)
-            slide[XI, n_sliding] = xi
-            sliding[n_sliding] = i
+            n2 = s[N2, j]
+            u1 = hertz.gap_root(n1 / c, s[GAP1, j])[0]
+            u2 = hertz.gap_root(n2 / c, s[GAP2, j])[0]
+            coef = s[CA, j] + xi * tanphi * gs
+            g = s[G, j]
+            q, da0, w, e0 = s[Q, j], s[DA0, j], s[W, j], s[E0, j]
+            col = n_sliding
+            slide[N1, col] = n1
+            slide[N2, col] = n2
+            slide[Q, col] = q
+            slide[DA0, col] = da0
+            slide[W, col] = w
+            slide[E0, col] = e0
+            slide[KT, col] = kt
+            slide[U1, col] = u1
+            slide[U2, col] = u2
+            slide[COEF, col] = coef
+            slide[GT, col] = g
+            slide[FLAM, col] = _sliding_force(gs, n1, t1, xi, p)
+            slide[XI, col] = xi
+            sliding[col] = i
             n_sliding += 1
             continue
         r = finish_update_mech(d1, values[i, k + 1], values[i, k + 2], values[i, k + 6],
@@ -222,12 +241,7 @@ def _slide(s, m, c):
         ok, x, dd2, da, f1, f2 = hertz.first_pass(c, s[U1, j], s[U2, j], s[N1, j], s[N2, j],
                                                   s[DA0, j], s[Q, j], s[E0, j], s[W, j],
                                                   s[COEF, j], s[GT, j], s[FLAM, j])
-        s[X, j] = x
-        s[DD2, j] = dd2
-        s[DA, j] = da
-        s[F1, j] = f1
-        s[F2, j] = f2
-        s[SETTLED, j] = 1.0 if ok else 0.0
+        _store(s, j, ok, x, dd2, da, f1, f2)
 
 
 @njit(cache=True, error_model="numpy")
