@@ -2,7 +2,8 @@
 
 A refactoring must leave every number as it was. This script runs small versions of the main
 paths through the Python API (2D biaxial tests on the closed form and the shipped surrogate,
-the 3D laboratory tests, loading programs, a strain path, a finite-element biaxial test,
+the 3D laboratory tests, the cell mechanisms (Hertz-Mindlin contacts, rebirth, mix, the sand
+and cross variants' sets), loading programs, a strain path, a finite-element biaxial test,
 stability along biaxial and triaxial tests and a program, a failure surface, a calibration
 and a surrogate's inference), and either stores every array it gets or compares them with
 stored ones::
