@@ -10,14 +10,16 @@ each over every cell it concerns:
 
 1. per cell, what the committed state and the increment fix (the angle's rows of eq. 1.7 and
    their affine solution for δd2, δα, :func:`hmodel.cell.hertz.affine`), for the cells whose
-   two contacts carry (the others, force-free or touching at zero force, are left to step 5);
+   two contacts carry (the others, force-free or with one contact at zero force, are left to
+   step 5);
 2. across them, without branches, the overlaps' roots (:func:`hmodel.cell.hertz.gap_root`)
    and the first pass of the solve without sliding (:func:`hmodel.cell.hertz.first_pass`), which the
    compiler makes a loop of vector operations;
 3. per cell, the Coulomb check: the new state of a cell that sticks, the sliding row of one
    that slides;
 4. across the sliding cells, the first pass of their solve;
-5. per cell, the new state of the sliding cells, then the one-cell update
+5. per cell, the new state of the sliding cells, that of the force-free cells in closed form
+   (:func:`hmodel.cell.hertz.free_regime`), then the one-cell update
    (:func:`hmodel.cell.closed_form.cell_increment_hertz`) of every cell not settled on the way.
 
 Steps 2 and 4 evaluate the one-cell solve's expressions in its order, so every cell's result is
@@ -71,9 +73,9 @@ def update(values, s, p, out, flags, mech, h):
     contacts: the new states into ``out`` and ``flags`` as
     :func:`hmodel.cell.closed_form.cell_increment_hertz` writes them, the same values to the
     last bit; ``s`` a :func:`work` array. Returns False when a cell's increment failed."""
-    index = np.empty((3, values.shape[0]), np.int64)  # carrying, sliding, other cells
-    carrying, sliding, others = index[0], index[1], index[2]
-    m, n_others = _rows(values, s, p, h, carrying, others)
+    index = np.empty((4, values.shape[0]), np.int64)  # carrying, sliding, force-free, others
+    carrying, sliding, free, others = index[0], index[1], index[2], index[3]
+    m, n_free, n_others = _rows(values, s, p, h, carrying, free, others)
     _stick(s, m, p[P_HERTZ], p[P_MINDLIN])
     # the sliding rows go into s itself: the k-th sliding cell's column k is at most the column
     # j of its first pass, and columns before j were used up by then
@@ -83,6 +85,8 @@ def update(values, s, p, out, flags, mech, h):
     ok2, n_others = _finish_sliding(values, s, s, n_sliding, p, out, flags, mech, h, sliding,
                                     others, n_others)
     ok &= ok2
+    ok3, n_others = _free(values, s, p, out, flags, mech, h, free, n_free, others, n_others)
+    ok &= ok3
     for j in range(n_others):
         i = others[j]
         ok &= cell_increment_hertz(values, i, s[DL1, i], s[DL2, i], p, out, flags, mech, h)
@@ -90,21 +94,26 @@ def update(values, s, p, out, flags, mech, h):
 
 
 @njit(cache=True, error_model="numpy")
-def _rows(values, s, p, h, carrying, others):
+def _rows(values, s, p, h, carrying, free, others):
     """Step 1: what each carrying cell's committed state and increment fix, into column j of
-    ``s`` for the j-th (``carrying[j]`` its index); the others' indices into ``others``.
-    Returns (the carrying cells' count, the others')."""
+    ``s`` for the j-th (``carrying[j]`` its index); the force-free cells' indices into
+    ``free``, the others' into ``others``. Returns the three counts."""
     two_r = 2.0 * p[P_R]
     k = N_FIELDS * h
     m = 0
+    n_free = 0
     n_others = 0
     for i in range(values.shape[0]):
         d1 = values[i, k]
         n1 = values[i, k + 3]
         n2 = values[i, k + 4]
         if not (n1 > 0.0 and n2 > 0.0):
-            others[n_others] = i
-            n_others += 1
+            if n1 == 0.0 and n2 == 0.0 and values[i, k + 5] == 0.0:
+                free[n_free] = i
+                n_free += 1
+            else:
+                others[n_others] = i
+                n_others += 1
             continue
         ca, sa, gs, a11, a13, a21, a23 = angle_rows(d1, values[i, k + 2], p)
         q, da0, w, e0 = hertz.affine(a11, a13, a21, a23, s[DL1, i], s[DL2, i])
@@ -122,7 +131,7 @@ def _rows(values, s, p, h, carrying, others):
         s[GS, m] = gs
         s[D1, m] = d1
         m += 1
-    return m, n_others
+    return m, n_free, n_others
 
 
 @njit(cache=True, error_model="numpy")
@@ -269,4 +278,36 @@ def _finish_sliding(values, s, slide, m, p, out, flags, mech, h, sliding, others
             n_others += 1
             continue
         ok &= write_update(r, out, flags, i, k, N_FLAGS * h)
+    return ok, n_others
+
+
+@njit(cache=True, error_model="numpy")
+def _free(values, s, p, out, flags, mech, h, free, m, others, n_others):
+    """Step 5's second part: the force-free cells (no force, hence no overlap: the open and
+    the reborn) in :func:`hmodel.cell.hertz.free_regime`'s closed form, as
+    :func:`hmodel.cell.closed_form._hertz_regime` takes it, in a loop of their own; the index
+    of a cell it does not apply to, or that opens under ``renewal=rebirth``, into ``others``.
+    Returns (ok, the others' count)."""
+    c = p[P_HERTZ]
+    tanphi = p[P_TAN]
+    rebirth = mech != MECH_NONE and p[P_RENEW] == RENEW_CELL
+    k = N_FIELDS * h
+    ok = True
+    for j in range(m):
+        i = free[j]
+        d1 = values[i, k]
+        dl1 = s[DL1, i]
+        dl2 = s[DL2, i]
+        ca, sa, gs, a11, a13, a21, a23 = angle_rows(d1, values[i, k + 2], p)
+        settled, dd1, dd2, da, f1, f2, b1, b2, sliding, coef = hertz.free_regime(
+            c, dl1, dl2, a11, a13, a21, a23, ca, tanphi * gs)
+        if settled:
+            r = finish_update_mech(d1, values[i, k + 1], values[i, k + 2], values[i, k + 6],
+                                   values[i, k + 7], dl1, dl2, dd1, dd2, da, f1, f2, 0.0, sliding,
+                                   1.0, p, MECH_NONE)
+            if not (rebirth and (r[10] or r[11])):
+                ok &= write_update(r, out, flags, i, k, N_FLAGS * h)
+                continue
+        others[n_others] = i
+        n_others += 1
     return ok, n_others
