@@ -286,7 +286,8 @@ def newton_pass(x, c, u1, u2, n1, n2, da0, q, e0, w, coef, gt, flam, floor):
     h2 = step * step
     plain = (b1 == 0.0) | (b2 == 0.0) | (abs(hs) > 0.5)
     x_next = x - step if plain else x - step * (1.0 + hs + 2.0 * hs * hs - hb)
-    settled = (not plain) & ((5.0 * a_abs * (a_abs * a_abs + b_abs) + c_abs) * h2 * h2 * abs(dr) <= tol)
+    bound = (5.0 * a_abs * (a_abs * a_abs + b_abs) + c_abs) * h2 * h2 * abs(dr)
+    settled = (not plain) & (bound <= tol)
     return abs(r) <= tol, math.isfinite(step), settled, x_next, dd2, da, f1, f2, b1, b2
 
 

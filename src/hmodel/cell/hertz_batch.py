@@ -13,8 +13,8 @@ each over every cell it concerns:
    two contacts carry (the others, force-free or with one contact at zero force, are left to
    step 5);
 2. across them, without branches, the overlaps' roots (:func:`hmodel.cell.hertz.gap_root`)
-   and the first pass of the solve without sliding (:func:`hmodel.cell.hertz.first_pass`), which the
-   compiler makes a loop of vector operations;
+   and the first pass of the solve without sliding (:func:`hmodel.cell.hertz.first_pass`),
+   which the compiler makes a loop of vector operations;
 3. per cell, the Coulomb check: the new state of a cell that sticks, the sliding row of one
    that slides;
 4. across the sliding cells, the first pass of their solve;
@@ -77,13 +77,11 @@ def update(values, s, p, out, flags, mech, h):
     carrying, sliding, free, others = index[0], index[1], index[2], index[3]
     m, n_free, n_others = _rows(values, s, p, h, carrying, free, others)
     _stick(s, m, p[P_HERTZ], p[P_MINDLIN])
-    # the sliding rows go into s itself: the k-th sliding cell's column k is at most the column
-    # j of its first pass, and columns before j were used up by then
-    ok, n_sliding, n_others = _coulomb(values, s, m, p, out, flags, mech, h, carrying, s,
-                                       sliding, others, n_others)
+    ok, n_sliding, n_others = _coulomb(values, s, m, p, out, flags, mech, h, carrying, sliding,
+                                       others, n_others)
     _slide(s, n_sliding, p[P_HERTZ])
-    ok2, n_others = _finish_sliding(values, s, s, n_sliding, p, out, flags, mech, h, sliding,
-                                    others, n_others)
+    ok2, n_others = _finish_sliding(values, s, n_sliding, p, out, flags, mech, h, sliding, others,
+                                    n_others)
     ok &= ok2
     ok3, n_others = _free(values, s, p, out, flags, mech, h, free, n_free, others, n_others)
     ok &= ok3
@@ -179,12 +177,16 @@ def _store(s, j, ok, x, dd2, da, f1, f2):
 
 
 @njit(cache=True, error_model="numpy")
-def _coulomb(values, s, m, p, out, flags, mech, h, carrying, slide, sliding, others, n_others):
+def _coulomb(values, s, m, p, out, flags, mech, h, carrying, sliding, others, n_others):
     """Step 3: each settled cell's Coulomb check (:func:`hmodel.cell.closed_form._hertz_regime`'s):
     the new state of a cell that sticks into ``out`` and ``flags``, the sliding row of one that
-    slides into the next column of ``slide`` (its index into ``sliding``), the index of a cell
-    not settled, or opened under ``renewal=rebirth``, into ``others``. Returns (ok, the sliding
-    cells' count, the others')."""
+    slides into the next sliding column of ``s`` (its index into ``sliding``), the index of a
+    cell not settled, or opened under ``renewal=rebirth``, into ``others``. Returns (ok, the
+    sliding cells' count, the others').
+
+    The sliding rows overwrite the carrying cells' columns in place: the k-th sliding cell's
+    column k is at most the column j of its own first pass, the columns before j are used up by
+    then, and column j is read whole before any is written."""
     tanphi = p[P_TAN]
     c = p[P_HERTZ]
     rebirth = mech != MECH_NONE and p[P_RENEW] == RENEW_CELL
@@ -204,8 +206,6 @@ def _coulomb(values, s, m, p, out, flags, mech, h, carrying, slide, sliding, oth
         t1_new = t1 + kt * d1 * da
         xi = 1.0 if t1_new >= 0.0 else -1.0
         if abs(t1_new) >= tanphi * s[F1, j]:  # it slides: eq. 1.7's third row on the cone
-            # column j read whole before column n_sliding <= j is written (``slide`` may be
-            # ``s``: update)
             gs = s[GS, j]
             n1 = s[N1, j]
             n2 = s[N2, j]
@@ -215,19 +215,19 @@ def _coulomb(values, s, m, p, out, flags, mech, h, carrying, slide, sliding, oth
             g = s[G, j]
             q, da0, w, e0 = s[Q, j], s[DA0, j], s[W, j], s[E0, j]
             col = n_sliding
-            slide[N1, col] = n1
-            slide[N2, col] = n2
-            slide[Q, col] = q
-            slide[DA0, col] = da0
-            slide[W, col] = w
-            slide[E0, col] = e0
-            slide[KT, col] = kt
-            slide[U1, col] = u1
-            slide[U2, col] = u2
-            slide[COEF, col] = coef
-            slide[GT, col] = g
-            slide[FLAM, col] = _sliding_force(gs, n1, t1, xi, p)
-            slide[XI, col] = xi
+            s[N1, col] = n1
+            s[N2, col] = n2
+            s[Q, col] = q
+            s[DA0, col] = da0
+            s[W, col] = w
+            s[E0, col] = e0
+            s[KT, col] = kt
+            s[U1, col] = u1
+            s[U2, col] = u2
+            s[COEF, col] = coef
+            s[GT, col] = g
+            s[FLAM, col] = _sliding_force(gs, n1, t1, xi, p)
+            s[XI, col] = xi
             sliding[col] = i
             n_sliding += 1
             continue
@@ -254,24 +254,25 @@ def _slide(s, m, c):
 
 
 @njit(cache=True, error_model="numpy")
-def _finish_sliding(values, s, slide, m, p, out, flags, mech, h, sliding, others, n_others):
+def _finish_sliding(values, s, m, p, out, flags, mech, h, sliding, others, n_others):
     """Step 5's first part: the new state of each sliding cell whose row settled (T1 on the
-    cone), the index of the others into ``others``. Returns (ok, the others' count)."""
+    cone; its columns the first ``m`` of ``s``), the index of the others into ``others``.
+    Returns (ok, the others' count)."""
     rebirth = mech != MECH_NONE and p[P_RENEW] == RENEW_CELL
     k = N_FIELDS * h
     ok = True
     for j in range(m):
         i = sliding[j]
-        if slide[SETTLED, j] == 0.0:
+        if s[SETTLED, j] == 0.0:
             others[n_others] = i
             n_others += 1
             continue
         d1 = values[i, k]
-        da = slide[DA, j]
+        da = s[DA, j]
         r = finish_update_mech(d1, values[i, k + 1], values[i, k + 2], values[i, k + 6],
-                               values[i, k + 7], s[DL1, i], s[DL2, i], slide[X, j], slide[DD2, j],
-                               da, slide[F1, j], slide[F2, j],
-                               values[i, k + 5] + slide[KT, j] * d1 * da, True, slide[XI, j], p,
+                               values[i, k + 7], s[DL1, i], s[DL2, i], s[X, j], s[DD2, j],
+                               da, s[F1, j], s[F2, j],
+                               values[i, k + 5] + s[KT, j] * d1 * da, True, s[XI, j], p,
                                MECH_NONE)
         if rebirth and (r[10] or r[11]):
             others[n_others] = i
