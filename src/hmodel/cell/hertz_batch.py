@@ -231,14 +231,13 @@ def _coulomb(values, s, m, p, out, flags, mech, h, carrying, sliding, others, n_
             sliding[col] = i
             n_sliding += 1
             continue
-        r = finish_update_mech(d1, values[i, k + 1], values[i, k + 2], values[i, k + 6],
-                               values[i, k + 7], s[DL1, i], s[DL2, i], s[X, j], s[DD2, j], da,
-                               s[F1, j], s[F2, j], t1_new, False, xi, p, MECH_NONE)
-        if rebirth and (r[10] or r[11]):
+        written, good = _write_state(values, i, k, h, s[DL1, i], s[DL2, i], s[X, j], s[DD2, j],
+                                     da, s[F1, j], s[F2, j], t1_new, False, xi, p, out, flags,
+                                     rebirth)
+        ok &= good
+        if not written:
             others[n_others] = i
             n_others += 1
-            continue
-        ok &= write_update(r, out, flags, i, k, N_FLAGS * h)
     return ok, n_sliding, n_others
 
 
@@ -267,18 +266,15 @@ def _finish_sliding(values, s, m, p, out, flags, mech, h, sliding, others, n_oth
             others[n_others] = i
             n_others += 1
             continue
-        d1 = values[i, k]
         da = s[DA, j]
-        r = finish_update_mech(d1, values[i, k + 1], values[i, k + 2], values[i, k + 6],
-                               values[i, k + 7], s[DL1, i], s[DL2, i], s[X, j], s[DD2, j],
-                               da, s[F1, j], s[F2, j],
-                               values[i, k + 5] + s[KT, j] * d1 * da, True, s[XI, j], p,
-                               MECH_NONE)
-        if rebirth and (r[10] or r[11]):
+        t1_new = values[i, k + 5] + s[KT, j] * values[i, k] * da
+        written, good = _write_state(values, i, k, h, s[DL1, i], s[DL2, i], s[X, j], s[DD2, j],
+                                     da, s[F1, j], s[F2, j], t1_new, True, s[XI, j], p, out,
+                                     flags, rebirth)
+        ok &= good
+        if not written:
             others[n_others] = i
             n_others += 1
-            continue
-        ok &= write_update(r, out, flags, i, k, N_FLAGS * h)
     return ok, n_others
 
 
@@ -302,13 +298,27 @@ def _free(values, s, p, out, flags, mech, h, free, m, others, n_others):
         ca, sa, gs, a11, a13, a21, a23 = angle_rows(d1, values[i, k + 2], p)
         settled, dd1, dd2, da, f1, f2, b1, b2, sliding, coef = hertz.free_regime(
             c, dl1, dl2, a11, a13, a21, a23, ca, tanphi * gs)
+        written = False
         if settled:
-            r = finish_update_mech(d1, values[i, k + 1], values[i, k + 2], values[i, k + 6],
-                                   values[i, k + 7], dl1, dl2, dd1, dd2, da, f1, f2, 0.0, sliding,
-                                   1.0, p, MECH_NONE)
-            if not (rebirth and (r[10] or r[11])):
-                ok &= write_update(r, out, flags, i, k, N_FLAGS * h)
-                continue
-        others[n_others] = i
-        n_others += 1
+            written, good = _write_state(values, i, k, h, dl1, dl2, dd1, dd2, da, f1, f2, 0.0,
+                                         sliding, 1.0, p, out, flags, rebirth)
+            ok &= good
+        if not written:
+            others[n_others] = i
+            n_others += 1
     return ok, n_others
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _write_state(values, i, k, h, dl1, dl2, dd1, dd2, da, f1, f2, t1_new, sliding, xi, p, out,
+                 flags, rebirth):
+    """Cell i's new state from its solution into ``out`` and ``flags`` (as
+    :func:`hmodel.cell.closed_form._hertz_update` makes it, without the cell's rebirth):
+    ``(written, ok)``; not written where the cell opens under ``renewal=rebirth``
+    (``rebirth``), which the one-cell update then makes."""
+    r = finish_update_mech(values[i, k], values[i, k + 1], values[i, k + 2], values[i, k + 6],
+                           values[i, k + 7], dl1, dl2, dd1, dd2, da, f1, f2, t1_new, sliding, xi,
+                           p, MECH_NONE)
+    if rebirth and (r[10] or r[11]):
+        return False, True
+    return True, write_update(r, out, flags, i, k, N_FLAGS * h)

@@ -32,9 +32,9 @@ from ..cell.closed_form import (
 )
 from ..cell import hertz_batch
 from ..cell.compliance_kernel import compliance_increment
+from ..cell.hertz_batch import DL1, DL2
 from ..cell.meso_kernel import meso_increment
 from ..cell.mesostress import vsigma_local
-from ..cell.hertz_batch import DL1, DL2
 from ..cell.renewal import RENEW_MIX, mix_rebirth
 
 # Localization modes: on which lengths the strain acts (docs/model.md, step 5).
