@@ -129,7 +129,8 @@ def grid(rows: list[dict], key: str = "rms_dq") -> tuple[np.ndarray, list[float]
             [float(np.mean([lvl[j]["p0_kPa"] for lvl in levels])) for j in range(5)])
 
 
-def plot(tests, rows, published, peer, out_grid: Path, out_curves: Path) -> None:
+def plot(tests, rows, published, peer, out_grid: Path, out_curves: Path,
+         calibration: tuple[str, ...] = CALIBRATION) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -152,7 +153,8 @@ def plot(tests, rows, published, peer, out_grid: Path, out_curves: Path) -> None
         ax.set_ylabel("e0")
         ax.set_title(title, fontsize=10)
     fig.colorbar(im, ax=axes[0].tolist(), label="RMS |Δq| / peak q [%]")
-    fig.suptitle("Karlsruhe fine sand, 25 drained triaxial tests: calibrated on TMD12 and TMD14", fontsize=11)
+    fig.suptitle(f"Karlsruhe fine sand, 25 drained triaxial tests: calibrated on {' and '.join(calibration)}",
+                 fontsize=11)
     fig.savefig(out_grid, dpi=110, bbox_inches="tight")
     plt.close(fig)
 
@@ -171,7 +173,7 @@ def plot(tests, rows, published, peer, out_grid: Path, out_curves: Path) -> None
     axes[0, 0].set_ylabel("q [kPa]")
     axes[1, 0].set_ylabel("εv [%] (contraction positive)")
     axes[0, 0].legend(fontsize=8, title="dots: test, lines: model", title_fontsize=8)
-    fig.suptitle(f"Karlsruhe fine sand: H-model ({rows[0]['variant']}) calibrated on TMD12 and TMD14, "
+    fig.suptitle(f"Karlsruhe fine sand: H-model ({rows[0]['variant']}) calibrated on {' and '.join(calibration)}, "
                  "predicting the 25 tests", fontsize=12)
     fig.tight_layout()
     fig.savefig(out_curves, dpi=100)
@@ -196,6 +198,8 @@ def main() -> None:
                          "the variant's parameters)")
     ap.add_argument("--fit", default=None, help="comma list of the parameters fitted (default: the variant's, "
                     "hmodel models), e.g. the variant's and alpha0_spread")
+    ap.add_argument("--calibrate-on", default=",".join(CALIBRATION),
+                    help="comma list of the tests calibrated on (default: %(default)s)")
     ap.add_argument("--out", type=Path, default=None, help="default: kfs[_TAG].json")
     ap.add_argument("--replot", action="store_true", help="only draw the figures again from --out (and the peer's JSON)")
     args = ap.parse_args()
@@ -208,10 +212,16 @@ def main() -> None:
     if args.replot:
         rec = json.loads(args.out.read_text())
         rows = [{**r, **rec["curves"]["model"][r["test"]]} for r in rec["tests"]]
-        plot(tests, rows, rec["published"], peer, *figures)
+        cal_on = rec.get("options", {}).get("calibrate_on")
+        plot(tests, rows, rec["published"], peer, *figures,
+             tuple(cal_on.split(",")) if cal_on else CALIBRATION)
         return
     by_name = {t.name: t for t in tests}
-    cal_tests = [by_name[n] for n in CALIBRATION]
+    calibration = tuple(args.calibrate_on.split(","))
+    unknown = [n for n in calibration if n not in by_name]
+    if unknown:
+        ap.error(f"--calibrate-on: no test {', '.join(unknown)} in the KFS data (TMD1 to TMD25)")
+    cal_tests = [by_name[n] for n in calibration]
     sphere = Sphere(order=args.order, n_azimuth=args.azimuths)
     variant = get_variant(args.model)
     load0 = os.getloadavg()[0]
@@ -237,7 +247,7 @@ def main() -> None:
     for r, t in zip(rows, tests):
         r.update(sand_ends(t))
     fractions = cell_fractions(tests, params, variant, e_ref, sphere, args.step, cal.radial)
-    plot(tests, rows, published, peer, *figures)
+    plot(tests, rows, published, peer, *figures, calibration)
     load1 = os.getloadavg()[0]
 
     table = []
