@@ -5,8 +5,7 @@ on six components, from Python, programs and the command line.
 Physics, not copied numbers: what each test holds (its rows) must hold along the path, the
 Lode angle follows from b, batches equal separate runs (a batch of pressures and bad input are
 tested for the 2D and the 3D model alike in test_loading.py). A cheap rule (Lebedev order 9, 38
-bi-hexagons) and ``sliding_rhs=equilibrium`` (the 3D command line's default; with the report's
-λ the mixed-control driver cannot yet pass the stress jumps of the 3D cells' events).
+bi-hexagons) and ``sliding_rhs=equilibrium`` (the 3D command line's default).
 """
 
 from __future__ import annotations

@@ -111,6 +111,14 @@ class CellFlags:
         h = self.hexagons
         return np.any(h[..., FLAG_IDX["open1"]] | h[..., FLAG_IDX["open2"]], axis=-1)
 
+    @property
+    def open_hexagons(self) -> np.ndarray:
+        """Per cell, its hexagons with a contact open (0 or 1 for an H-cell, up to 2 for a
+        bi-hexagon): a hexagon that opens beside an open twin changes no cell's ``broken`` but
+        drops its forces all the same (the mixed-control Newton's event count)."""
+        h = self.hexagons
+        return np.sum(h[..., FLAG_IDX["open1"]] | h[..., FLAG_IDX["open2"]], axis=-1)
+
     @classmethod
     def none(cls, shape: tuple[int, ...] = ()) -> "CellFlags":
         return cls(np.zeros((*shape, len(FLAGS)), dtype=bool))

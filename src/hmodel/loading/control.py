@@ -132,7 +132,7 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
     it jump: with ``sliding_rhs="report"`` a cell that starts sliding with T1 < 0 loses its
     contact at once (see :class:`hmodel.params.Params`). When the target lies inside such a
     jump, no increment meets it; Newton then stalls, and the fallback commits the trial where
-    the most cells broke (the event happens), and solves the rest of the increment from there
+    the most hexagons broke (the event happens), and solves the rest of the increment from there
     (strain rows already met, stress rows unchanged), at most ``settings.max_events`` times.
     """
     B, n = state.n_points, control.n_components
@@ -204,7 +204,7 @@ def _newton(rev: Rev, state: RevState, control: Control, K: np.ndarray, has_K: n
 
     Returns each point's outcome (B,) (``CONVERGED``, ``STALLED`` or a failure), their
     workspaces and a state holding, for each point, its solution or, where Newton stalled,
-    the trial with the most broken cells (an event state).
+    the trial with the most broken hexagons (an event state).
     """
     M, S, v = control.matrix, control.stress_rows, control.values
     B, n = v.shape
@@ -232,7 +232,7 @@ def _newton(rev: Rev, state: RevState, control: Control, K: np.ndarray, has_K: n
         new = rev.step(state.select(ask), trial_x[ask])
         broken = new.flags.broken
         same = tried[ask] & np.all(broken == current.flags.broken[ask], axis=1)
-        n_broken = broken.sum(axis=1)
+        n_broken = new.flags.open_hexagons.sum(axis=1)  # the event count: hexagons, not cells
         better = np.zeros(len(ask), bool)
         for j, b in enumerate(ask):
             acts[b] = told_trial(W[b], K[b], S, M, c, new.sig[j], True, n_broken[j], same[j],

@@ -8,8 +8,9 @@ solver makes, the parameters' defaults, and the 2D model's parameters refused.
   :func:`~hmodel.cell.bihex.check_hexagon`, in one line.
 - **The parameters' defaults** (:func:`sliding_rhs_3d`, :func:`params_3d`,
   :func:`assignments_3d`): ``sliding_rhs = "equilibrium"`` (with the report's λ the stress of
-  the 3D cells jumps where a cell slides with T1 < 0 and the mixed-control driver stops a drained
-  triaxial test near 1 % axial strain, docs/model3d.md), or for a learned hexagon the λ its
+  the 3D cells jumps where a cell slides with T1 < 0, and until the event loop counted hexagons
+  (2026-12-08) the mixed-control driver stopped a drained triaxial test near 1 % axial strain,
+  docs/model3d.md; the 3D figures were made with this default), or for a learned hexagon the λ its
   network was trained with (its :attr:`~hmodel.cell.base.CellSolver.trained_params`; it refuses
   any other). A :class:`~hmodel.params.Params` given is used as given: its ``sliding_rhs`` is
   a value like any other (``Params()`` is the report's λ), so the default applies where the

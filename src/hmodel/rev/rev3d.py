@@ -95,9 +95,10 @@ def dyads(frames: np.ndarray) -> np.ndarray:
 class Rev3D(RevBatch):
     """Directional averaging of bi-hexagons over the sphere, for a batch of material points.
 
-    The parameters are used as given: ``Params()`` is the report's λ, with which the tests of
-    the 3D REV under mixed control stop near 1 % strain; :func:`hmodel.rev.model3d.params_3d`
-    gives the 3D model's defaults (``sliding_rhs="equilibrium"``).
+    The parameters are used as given: ``Params()`` is the report's λ (with which the tests of
+    the 3D REV under mixed control stopped near 1 % strain until the event loop counted
+    hexagons, docs/loading.md "Cell events"); :func:`hmodel.rev.model3d.params_3d` gives the 3D
+    model's defaults (``sliding_rhs="equilibrium"``).
 
     Parameters
     ----------
