@@ -46,20 +46,20 @@ COLUMNS = ("eps11", "eps22", "eps33", "eps23", "eps13", "eps12", "sig11", "sig22
            "sig13", "sig12", "frac_sliding", "frac_open", "frac_contact14", "frac_contact26")
 
 
-def _cells_agree(a, b):
+def _cells_agree(a, b, rtol=1e-7):
     """Cell states to rtol 1e-7, each field to 1e-9 of its largest value: a sliding cell's forces
     follow the strain, met to Newton's tolerance of the macro stress, i.e. of the largest forces."""
     scale = np.abs(b).reshape(-1, b.shape[-1]).max(axis=0)
     scale[scale == 0] = 1.0
-    np.testing.assert_allclose(a / scale, b / scale, rtol=1e-7, atol=1e-9)
+    np.testing.assert_allclose(a / scale, b / scale, rtol=rtol, atol=1e-9)
 
 
-def _agree(rc, rg, sc, sg, strain_atol=1e-12):
+def _agree(rc, rg, sc, sg, rtol=1e-7, strain_atol=1e-12):
     scale = np.abs(rg["p"]).max()
     for col in COLUMNS:
-        np.testing.assert_allclose(rc[col], rg[col], rtol=1e-7, atol=1e-9 * scale if col.startswith("sig")
+        np.testing.assert_allclose(rc[col], rg[col], rtol=rtol, atol=1e-9 * scale if col.startswith("sig")
                                    else strain_atol, err_msg=col)
-    _cells_agree(sc.cells.values, sg.cells.values)
+    _cells_agree(sc.cells.values, sg.cells.values, rtol)
     np.testing.assert_array_equal(sc.flags.flags, sg.flags.flags)
     np.testing.assert_array_equal(rc["step"], rg["step"])
 
@@ -107,8 +107,10 @@ def test_compiled_equals_generic(name, rule):
     rev = Rev3D(Params(sliding_rhs=rule), SPHERE)
     (sc, rc), (sg, rg) = _both(rev, SEGMENTS[name])
     # with the report's λ the drivers commit cell events, each at a trial met to Newton's
-    # tolerance: a strain that passes near zero there agrees to 1e-10, not 1e-12
-    _agree(rc, rg, sc, sg, strain_atol=1e-10 if rule == "report" else 1e-12)
+    # tolerance, and the paths go on from there: they agree to a few 1e-7 (1e-10 absolute for
+    # a strain that passes near zero), not to round-off
+    report = rule == "report"
+    _agree(rc, rg, sc, sg, rtol=1e-6 if report else 1e-7, strain_atol=1e-10 if report else 1e-12)
     seg = SEGMENTS[name]
     M = np.asarray(seg.matrix)
     held = sc.sig[0] @ M[list(seg.stress_rows)].T
@@ -246,7 +248,7 @@ def test_a_learned_3d_kernel_is_refused_not_ignored():
         kernel_inputs3d(rev)
 
 
-def test_the_event_count_is_of_hexagons():
+def test_the_second_event_count_is_of_hexagons():
     from hmodel.cell.state import CellFlags
     from hmodel.loading.compiled import _broken
 
@@ -256,9 +258,9 @@ def test_the_event_count_is_of_hexagons():
     flags[2, 0] = flags[2, 10] = True     # sliding, hexagons touching: nothing open
     assert CellFlags(flags).open_hexagons.tolist() == [2, 1, 0]
     assert CellFlags(flags).broken.tolist() == [True, True, False]
-    assert _broken(flags) == 3
+    assert _broken(flags) == 2  # the first count, the kernel's: cells
     h_cells = np.zeros((2, 5), bool)
-    h_cells[1, 2] = True  # an H-cell counts once, as before
+    h_cells[1, 2] = True  # an H-cell: one hexagon, both counts alike
     assert _broken(h_cells) == 1 == CellFlags(h_cells).open_hexagons.sum()
 
 
@@ -266,8 +268,9 @@ def test_a_hexagon_opening_beside_its_open_twin_is_an_event_both_drivers_cross()
     """A loose REV with Hertz-Mindlin contacts in a drained triaxial test at 51 kPa: a family of
     loaded hexagons (N2 near zero) opens while their twins are open already, so the set of broken
     bi-hexagons stays as it was and the stress jumps (σ11 by a tenth). Counted by bi-hexagon, the
-    event fallback had no candidate and the increment failed near 1 % strain; counted by
-    hexagon, both drivers commit the event and hold σ22 = σ33 = p0 on."""
+    event fallback had no candidate and the increment failed near 1 % strain; the increment
+    solved again counting hexagons commits the event, in both drivers (the compiled one hands
+    the increment back), and σ22 = σ33 = p0 hold on."""
     import math
 
     p = Params(sliding_rhs="equilibrium", contact="hertz-mindlin", shear_modulus=2.25e9, poisson=0.005,
@@ -286,4 +289,5 @@ def test_a_hexagon_opening_beside_its_open_twin_is_an_event_both_drivers_cross()
         assert len(r["eps11"]) == 200 and np.isclose(s.eps[0, 0] - s0.eps[0, 0], 0.02)
         out.append((s, r))
     (sc, rc), (sg, rg) = out
-    np.testing.assert_allclose(rc["sig11"], rg["sig11"], rtol=1e-6, atol=1e-8 * p0)
+    # events committed at trials met to Newton's tolerance: the paths agree to 1e-5
+    np.testing.assert_allclose(rc["sig11"], rg["sig11"], rtol=1e-5, atol=1e-8 * p0)

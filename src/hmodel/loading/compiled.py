@@ -180,13 +180,9 @@ def _same_events(flags_a, flags_b):
 
 @njit(cache=True, error_model="numpy")
 def _broken(flags):
-    """The event fallback's count of broken hexagons (a contact open) over the cells, each of a
-    bi-hexagon's two counted (``CellFlags.open_hexagons``): a hexagon that opens beside an open
-    twin is an event too (a jump of the stress with the same broken cells)."""
     n = 0
     for i in range(flags.shape[0]):
-        for h in range(flags.shape[1] // 5):
-            n += flags[i, 5 * h + 1] or flags[i, 5 * h + 2]
+        n += _cell_broken(flags, i)
     return n
 
 
@@ -248,13 +244,17 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
     ``control.solve_increment``: when Newton stalls inside the jump of a cell event, the event
     state is committed and the rest of the increment solved from there
     (:func:`~hmodel.loading.newton.event_targets`). Returns OK, or NOT_CONVERGED with the state
-    restored to its start (slot 3 of ``buf`` keeps it).
+    restored to its start (slot 3 of ``buf`` keeps it), and the tangent too: the driver hands
+    such an increment to ``control.solve_increment``, whose first attempt is then this one and
+    whose second counts broken hexagons, as in the generic driver.
     """
     n = S.shape[0]
     W = np.empty(workspace_size(n))
     target = v.copy()
     eps0 = eps.copy()
     sig0 = sig.copy()
+    K0 = K.copy()
+    has_K0 = has_K.copy()
     event = 0
     while True:
         act, cur, best = _newton_point(values, eps, sig, K, has_K, S, M, target, geo, p, mode,
@@ -284,6 +284,8 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
         flags[:] = bufflags[3]
     eps[:] = eps0
     sig[:] = sig0
+    K[:] = K0
+    has_K[:] = has_K0
     return NOT_CONVERGED
 
 

@@ -121,7 +121,7 @@ def _fd_tangent(rev: Rev, state: RevState, x: np.ndarray, h: float) -> np.ndarra
 
 
 def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangent,
-                    settings: NewtonSettings = NewtonSettings()) -> RevState:
+                    settings: NewtonSettings = NewtonSettings(), by_hexagon: bool = False) -> RevState:
     """Advance ``state`` by one increment satisfying ``control``; updates ``tangent`` in place.
 
     Stress rows are met to ``settings.rtol`` (or the cell solver's ``stress_rtol`` where larger)
@@ -132,8 +132,14 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
     it jump: with ``sliding_rhs="report"`` a cell that starts sliding with T1 < 0 loses its
     contact at once (see :class:`hmodel.params.Params`). When the target lies inside such a
     jump, no increment meets it; Newton then stalls, and the fallback commits the trial where
-    the most hexagons broke (the event happens), and solves the rest of the increment from there
+    the most cells broke (the event happens), and solves the rest of the increment from there
     (strain rows already met, stress rows unchanged), at most ``settings.max_events`` times.
+
+    A bi-hexagon's hexagon that opens beside its open twin makes the stress jump with the same
+    broken cells, which that count does not see: a point whose increment is given up with cells
+    of two hexagons is solved again from the increment's start with broken hexagons counted
+    instead (``by_hexagon``; docs/loading.md, "Cell events"). Only increments that failed take
+    this second attempt, so every increment solved before is solved as it was.
     """
     B, n = state.n_points, control.n_components
     S, M = control.stress_rows, control.matrix
@@ -142,33 +148,47 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
         tangent.K = None
     K = np.zeros((B, n, n)) if tangent.K is None else np.array(tangent.K, float)
     has_K = np.full(B, tangent.K is not None)
+    again = None if by_hexagon else Tangent(None if tangent.K is None else K.copy(), tangent.previous)
     guess = np.full((B, n), np.nan)
     if settings.previous_first and tangent.previous is not None and tangent.previous.shape == (B, n):
         guess[:] = tangent.previous
     start = out = state
     targets = np.array(control.values, float)  # the event loop moves the strain rows
     pending = np.arange(B)
+    retry = np.zeros(0, np.int64)
     event = 0
-    while True:
+    while len(pending):
         Kp, hp = K[pending], has_K[pending]
         acts, W, reached = _newton(rev, state.select(pending), Control(S, M, targets[pending]), Kp,
-                                   hp, c, settings, guess[pending] if event == 0 else None)
+                                   hp, c, settings, guess[pending] if event == 0 else None, by_hexagon)
         K[pending], has_K[pending] = Kp, hp
         out = out.scatter(pending, reached)
         then = np.array([after_newton(a, event, settings.max_events) for a in acts])
         if np.any(then == GIVE_UP):
-            tangent.K = K
-            raise _failure(acts, then, W, state.select(pending), out.select(pending), S, M,
-                           targets[pending], settings).renumber(pending)
-        if np.all(then == COMMIT_SOLUTION):
-            tangent.K = K
-            if S.any():  # a pure strain increment had no Newton: nothing to start the next one
-                tangent.previous = out.eps - start.eps
-            return out
+            if again is None or out.flags.hexagons.shape[-2] < 2:
+                tangent.K = K
+                raise _failure(acts, then, W, state.select(pending), out.select(pending), S, M,
+                               targets[pending], settings).renumber(pending)
+            retry = np.r_[retry, pending[then == GIVE_UP]]
         # Points past a cell event go on from the event state (newton.event_targets).
         pending, state = pending[then == COMMIT_EVENT], out
         event_targets(S, targets)
         event += 1
+    if len(retry):
+        sub = Tangent(None if again.K is None else again.K[retry],
+                      None if again.previous is None else again.previous[retry])
+        try:
+            solved = solve_increment(rev, start.select(retry), control.of_points(retry), sub, settings,
+                                     by_hexagon=True)
+        except PointFailure as e:
+            tangent.K = K
+            raise e.renumber(retry)
+        out = out.scatter(retry, solved)
+        K[retry], has_K[retry] = sub.K, True
+    tangent.K = K
+    if S.any():  # a pure strain increment had no Newton: nothing to start the next one
+        tangent.previous = out.eps - start.eps
+    return out
 
 
 def _failure(acts, then, W, state: RevState, reached: RevState, S, M, targets,
@@ -196,15 +216,15 @@ def _failure(acts, then, W, state: RevState, reached: RevState, S, M, targets,
 
 
 def _newton(rev: Rev, state: RevState, control: Control, K: np.ndarray, has_K: np.ndarray,
-            c: np.ndarray, settings: NewtonSettings,
-            guess: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, RevState]:
+            c: np.ndarray, settings: NewtonSettings, guess: np.ndarray | None = None,
+            by_hexagon: bool = False) -> tuple[np.ndarray, np.ndarray, RevState]:
     """The one Newton for B points, each asking for its trials; every round evaluates the
     trials asked for in one batched REV call (and the tangents in one call on n + 1 copies
     each).
 
     Returns each point's outcome (B,) (``CONVERGED``, ``STALLED`` or a failure), their
     workspaces and a state holding, for each point, its solution or, where Newton stalled,
-    the trial with the most broken hexagons (an event state).
+    the trial with the most broken cells, or with ``by_hexagon`` hexagons (an event state).
     """
     M, S, v = control.matrix, control.stress_rows, control.values
     B, n = v.shape
@@ -232,7 +252,7 @@ def _newton(rev: Rev, state: RevState, control: Control, K: np.ndarray, has_K: n
         new = rev.step(state.select(ask), trial_x[ask])
         broken = new.flags.broken
         same = tried[ask] & np.all(broken == current.flags.broken[ask], axis=1)
-        n_broken = new.flags.open_hexagons.sum(axis=1)  # the event count: hexagons, not cells
+        n_broken = (new.flags.open_hexagons if by_hexagon else broken).sum(axis=1)
         better = np.zeros(len(ask), bool)
         for j, b in enumerate(ask):
             acts[b] = told_trial(W[b], K[b], S, M, c, new.sig[j], True, n_broken[j], same[j],

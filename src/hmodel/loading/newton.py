@@ -20,9 +20,10 @@ carried from one increment to the next:
 - a stalled Newton takes a fresh finite-difference tangent at its current trial after a third
   of its iterations; a singular Jacobian takes one at the current trial, then at no strain;
 - when Newton has not converged after ``max_iter`` corrections, the trial with the most broken
-  hexagons (a bi-hexagon's two counted apart; then the smallest residual) is the event state (a
-  target inside the jump of a cell event, see ``solve_increment``), unless every trial was held
-  at the cap (diverged).
+  cells (then the smallest residual) is the event state (a target inside the jump of a cell
+  event, see ``solve_increment``), unless every trial was held at the cap (diverged); where
+  an increment is given up, the generic driver solves it once more counting broken hexagons
+  (a bi-hexagon's two apart: ``control.solve_increment``).
 
 The algorithm is written once, as a state machine per point that asks its driver for trials
 (:func:`begin`, :func:`told_trial`, :func:`told_tangent`): the compiled driver
@@ -425,8 +426,8 @@ def told_tangent(W, K, has_K, S, M, c):
 @njit(cache=True, error_model="numpy")
 def told_trial(W, K, S, M, c, sig_n, ok, broken, same_events, exact, best):
     """The driver evaluated the asked-for trial: its stress sig_n (n,), whether every cell
-    increment was solved, its number of broken hexagons and whether the same cells are broken as
-    in the current trial. Sets ``best[0]`` when this trial is the new event candidate (the
+    increment was solved, its number of broken cells (or hexagons) and whether the same cells
+    are broken as in the current trial. Sets ``best[0]`` when this trial is the new event candidate (the
     driver keeps its state); returns the next request or the outcome."""
     n = S.shape[0]
     best[0] = False
@@ -451,7 +452,7 @@ def told_trial(W, K, S, M, c, sig_n, ok, broken, same_events, exact, best):
         if S[r]:
             res = max(res, abs(W[R * n + r]))
     key = -broken + res / (1.0 + res)
-    # the event fallback's candidate: most broken hexagons, then residual (a trial held at the cap
+    # the event fallback's candidate: most broken cells, then residual (a trial held at the cap
     # is none: a jump lies near the solution, not out there)
     if W[_s(n, HELD)] == 0.0 and key < W[_s(n, BKEY)]:
         W[_s(n, BKEY)] = key
