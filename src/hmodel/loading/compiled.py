@@ -244,9 +244,10 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
     ``control.solve_increment``: when Newton stalls inside the jump of a cell event, the event
     state is committed and the rest of the increment solved from there
     (:func:`~hmodel.loading.newton.event_targets`). Returns OK, or NOT_CONVERGED with the state
-    restored to its start (slot 3 of ``buf`` keeps it), and the tangent too: the driver hands
-    such an increment to ``control.solve_increment``, whose first attempt is then this one and
-    whose second counts broken hexagons, as in the generic driver.
+    restored to its start (slot 3 of ``buf`` keeps it), and for bi-hexagons the tangent too: the
+    driver hands such an increment to ``control.solve_increment``, whose first attempt is then
+    this one and whose second counts broken hexagons, as in the generic driver (H-cells keep the
+    tangent the failed attempt left, with which the hand-back has solved increments before).
     """
     n = S.shape[0]
     W = np.empty(workspace_size(n))
@@ -284,8 +285,9 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
         flags[:] = bufflags[3]
     eps[:] = eps0
     sig[:] = sig0
-    K[:] = K0
-    has_K[:] = has_K0
+    if flags.shape[1] > 5:  # bi-hexagons: the generic driver's two attempts start from here
+        K[:] = K0
+        has_K[:] = has_K0
     return NOT_CONVERGED
 
 
