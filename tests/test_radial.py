@@ -41,16 +41,17 @@ def test_equal_sides_hold_one_radial_strain_at_the_radial_stress():
     assert equal.meta["radial"] == "equal" and "radial" not in free.meta
 
 
-def _both(radial, monkeypatch):
+def _both(radial, monkeypatch, drop_failed=False):
     """The sand's drained test with one azimuth per direction and with six (the same REV to
     round-off: test_lateral.py)."""
     sphere = Sphere(order=11, n_azimuth=6)
     assert Rev3D(SAND, sphere).n_cells == Sphere(order=11, n_azimuth=1).n_cells
-    one = run_triaxial(SAND, [2e5], 0.02, sphere=sphere, step=1e-3, radial=radial)
+    kw = dict(sphere=sphere, step=1e-3, radial=radial, drop_failed=drop_failed)
+    one = run_triaxial(SAND, [2e5], 0.02, **kw)
     with monkeypatch.context() as m:
         m.setattr(rev3d, "cell_sphere", lambda sphere, lateral, solver: sphere)
         assert Rev3D(SAND, sphere).n_cells == sphere.n_cells
-        six = run_triaxial(SAND, [2e5], 0.02, sphere=sphere, step=1e-3, radial=radial)
+        six = run_triaxial(SAND, [2e5], 0.02, **kw)
     return one, six
 
 
@@ -58,12 +59,16 @@ def test_free_sides_bifurcate_where_no_cell_holds_the_sides_apart_and_equal_ones
     """With Hertz-Mindlin contacts, laterals about the cells' axes and rebirth, the lateral
     cells open (force-free, no stiffness) early in the test: nothing resists ε22 ≠ ε33 at
     σ22 = σ33, and round-off decides the lateral strains. Two summations of one REV then take
-    different paths with free sides, and the same one with equal sides."""
-    one, six = _both("free", monkeypatch)
+    different paths with free sides (one of them runs away until Newton diverges near 1 %, the
+    lateral strains half a unit apart: before the event loop's retry of 2026-12-08 a hand-back
+    with the tangent its failed attempt left carried it on, to 0.95 apart at 2 %), and the same
+    one with equal sides."""
+    one, six = _both("free", monkeypatch, drop_failed=True)
     assert "radial" not in one.meta
     parted = max(np.abs(r["eps22"] - r["eps33"]).max() for r in (one, six))
     assert parted > 1e-2
-    assert np.abs(one["q"] - six["q"]).max() > 0.1 * np.abs(one["q"]).max()
+    rows = min(len(one["q"]), len(six["q"]))
+    assert np.abs(one["q"][:rows] - six["q"][:rows]).max() > 0.1 * np.abs(one["q"]).max()
     one, six = _both("equal", monkeypatch)
     assert np.allclose(one["q"], six["q"], rtol=1e-9, atol=1e-3)
     # the sides these parameters get where none are named
