@@ -77,13 +77,15 @@ def update(values, s, p, out, flags, mech, h):
     carrying, sliding, free, others = index[0], index[1], index[2], index[3]
     m, n_free, n_others = _rows(values, s, p, h, carrying, free, others)
     _stick(s, m, p[P_HERTZ], p[P_MINDLIN])
-    ok, n_sliding, n_others = _coulomb(values, s, m, p, out, flags, mech, h, carrying, sliding,
+    # a cell that opens under renewal=rebirth is left to the one-cell update (_write_state)
+    rebirth = mech != MECH_NONE and p[P_RENEW] == RENEW_CELL
+    ok, n_sliding, n_others = _coulomb(values, s, m, p, out, flags, rebirth, h, carrying, sliding,
                                        others, n_others)
     _slide(s, n_sliding, p[P_HERTZ])
-    ok2, n_others = _finish_sliding(values, s, n_sliding, p, out, flags, mech, h, sliding, others,
-                                    n_others)
+    ok2, n_others = _finish_sliding(values, s, n_sliding, p, out, flags, rebirth, h, sliding,
+                                    others, n_others)
     ok &= ok2
-    ok3, n_others = _free(values, s, p, out, flags, mech, h, free, n_free, others, n_others)
+    ok3, n_others = _free(values, s, p, out, flags, rebirth, h, free, n_free, others, n_others)
     ok &= ok3
     for j in range(n_others):
         i = others[j]
@@ -177,7 +179,7 @@ def _store(s, j, ok, x, dd2, da, f1, f2):
 
 
 @njit(cache=True, error_model="numpy")
-def _coulomb(values, s, m, p, out, flags, mech, h, carrying, sliding, others, n_others):
+def _coulomb(values, s, m, p, out, flags, rebirth, h, carrying, sliding, others, n_others):
     """Step 3: each settled cell's Coulomb check (:func:`hmodel.cell.closed_form._hertz_regime`'s):
     the new state of a cell that sticks into ``out`` and ``flags``, the sliding row of one that
     slides into the next sliding column of ``s`` (its index into ``sliding``), the index of a
@@ -189,7 +191,6 @@ def _coulomb(values, s, m, p, out, flags, mech, h, carrying, sliding, others, n_
     then, and column j is read whole before any is written."""
     tanphi = p[P_TAN]
     c = p[P_HERTZ]
-    rebirth = mech != MECH_NONE and p[P_RENEW] == RENEW_CELL
     k = N_FIELDS * h
     ok = True
     n_sliding = 0
@@ -253,11 +254,10 @@ def _slide(s, m, c):
 
 
 @njit(cache=True, error_model="numpy")
-def _finish_sliding(values, s, m, p, out, flags, mech, h, sliding, others, n_others):
+def _finish_sliding(values, s, m, p, out, flags, rebirth, h, sliding, others, n_others):
     """Step 5's first part: the new state of each sliding cell whose row settled (T1 on the
     cone; its columns the first ``m`` of ``s``), the index of the others into ``others``.
     Returns (ok, the others' count)."""
-    rebirth = mech != MECH_NONE and p[P_RENEW] == RENEW_CELL
     k = N_FIELDS * h
     ok = True
     for j in range(m):
@@ -279,7 +279,7 @@ def _finish_sliding(values, s, m, p, out, flags, mech, h, sliding, others, n_oth
 
 
 @njit(cache=True, error_model="numpy")
-def _free(values, s, p, out, flags, mech, h, free, m, others, n_others):
+def _free(values, s, p, out, flags, rebirth, h, free, m, others, n_others):
     """Step 5's second part: the force-free cells (no force, hence no overlap: the open and
     the reborn) in :func:`hmodel.cell.hertz.free_regime`'s closed form, as
     :func:`hmodel.cell.closed_form._hertz_regime` takes it, in a loop of their own; the index
@@ -287,7 +287,6 @@ def _free(values, s, p, out, flags, mech, h, free, m, others, n_others):
     Returns (ok, the others' count)."""
     c = p[P_HERTZ]
     tanphi = p[P_TAN]
-    rebirth = mech != MECH_NONE and p[P_RENEW] == RENEW_CELL
     k = N_FIELDS * h
     ok = True
     for j in range(m):

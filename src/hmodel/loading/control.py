@@ -148,7 +148,8 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
         tangent.K = None
     K = np.zeros((B, n, n)) if tangent.K is None else np.array(tangent.K, float)
     has_K = np.full(B, tangent.K is not None)
-    again = None if by_hexagon else Tangent(None if tangent.K is None else K.copy(), tangent.previous)
+    # the increment's own tangent, for a retry: K is a copy, and tangent.K is only rebound below
+    entry = Tangent(tangent.K, tangent.previous)
     guess = np.full((B, n), np.nan)
     if settings.previous_first and tangent.previous is not None and tangent.previous.shape == (B, n):
         guess[:] = tangent.previous
@@ -165,7 +166,7 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
         out = out.scatter(pending, reached)
         then = np.array([after_newton(a, event, settings.max_events) for a in acts])
         if np.any(then == GIVE_UP):
-            if again is None or out.flags.hexagons.shape[-2] < 2:
+            if by_hexagon or out.flags.hexagons.shape[-2] < 2:
                 tangent.K = K
                 raise _failure(acts, then, W, state.select(pending), out.select(pending), S, M,
                                targets[pending], settings).renumber(pending)
@@ -175,8 +176,8 @@ def solve_increment(rev: Rev, state: RevState, control: Control, tangent: Tangen
         event_targets(S, targets)
         event += 1
     if len(retry):
-        sub = Tangent(None if again.K is None else again.K[retry],
-                      None if again.previous is None else again.previous[retry])
+        sub = Tangent(None if entry.K is None else entry.K[retry],
+                      None if entry.previous is None else entry.previous[retry])
         try:
             solved = solve_increment(rev, start.select(retry), control.of_points(retry), sub, settings,
                                      by_hexagon=True)
