@@ -164,14 +164,21 @@ class RevBatch:
         just stepped from ``state`` by the length increments ``dl``: ``renewal="mix"`` reborn the
         opened cells of each set that asks for it at the mean box of their point's cells, as the
         fused trial does (it needs a REV quantity, so the cell solver cannot)."""
-        for k, s in enumerate(self.sets):
+        for k in self._mix_sets:
+            s = self.sets[k]
             rows = np.flatnonzero(state.set_index == k)
-            if s.renewal == "mix" and len(rows):
+            if len(rows):
                 geo = self.kernel_inputs()[0]  # built once; one block for all sets, or one each
                 v, f = values[rows], flags[rows]
                 self._mix_kernel(state.cells.values[rows], v, f, geo[k if len(geo) > 1 else 0],
                                  dl[rows, :, 0], 2.0 * s.radius)
                 values[rows], flags[rows] = v, f
+
+    @cached_property
+    def _mix_sets(self) -> tuple[int, ...]:
+        """The parameter sets with ``renewal="mix"``: a calibration batch of many sets without
+        it pays no scan of its points per set on every step."""
+        return tuple(k for k, s in enumerate(self.sets) if s.renewal == "mix")
 
     def _by_set(self, idx: np.ndarray, call):
         """``call(set, rows)`` for each parameter set present in idx (B,), its outputs (arrays
