@@ -196,12 +196,15 @@ def cross_increment(values, i, dl1, dl2, dl3, p, out, flags):
         d_free = a_d2 + sa_[2] - b_d2 - sb_[2]
         k = -(sa_[7] + sb_[7])
         size = scale + abs(sa_[4]) + abs(sa_[5]) + abs(sb_[4]) + abs(sb_[5])
-        for _ in range(CROSS_PASSES):
+        for n_pass in range(CROSS_PASSES):
             if c != 0.0:
-                sa_ = _hexagon_solve(a_d1, a_d2, a_a, a_n1, a_n2, a_t1, dl1, dl2, slide_a, xi_a, -dy, p)
-                sb_ = _hexagon_solve(b_d1, b_d2, b_a, b_n1, b_n2, b_t1, dl1, dl3, slide_b, xi_b, dy, p)
-                if not (sa_[0] and sb_[0]):
-                    break
+                if n_pass > 0:  # the first pass is at ΔY = 0, where sa_ and sb_ were solved
+                    sa_ = _hexagon_solve(a_d1, a_d2, a_a, a_n1, a_n2, a_t1, dl1, dl2, slide_a, xi_a,
+                                         -dy, p)
+                    sb_ = _hexagon_solve(b_d1, b_d2, b_a, b_n1, b_n2, b_t1, dl1, dl3, slide_b, xi_b,
+                                         dy, p)
+                    if not (sa_[0] and sb_[0]):
+                        break
                 dn = a_d2 + sa_[2] - b_d2 - sb_[2]
                 k = -(sa_[7] + sb_[7])
             else:
