@@ -114,6 +114,26 @@ def test_a_rebirth_keeps_the_stress_and_moves_the_box_volume_by_the_area_gap(dim
     np.testing.assert_allclose(sig, mix.sig[0], rtol=1e-10, atol=1e-10 * np.abs(sig).max())
 
 
+@pytest.mark.parametrize("dim", [2, 3])
+def test_a_batch_reborns_the_cells_of_its_mix_sets_only(dim):
+    """A REV of three parameter sets, ``mix`` in the second only, stepped from the state before
+    cells open: each point's step is its own set's single REV step to the last bit, so the
+    second point is reborn and the others are not (the batch looks at its mix sets alone)."""
+    params = MIX.with_(alpha0=math.radians(40 if dim == 2 else 50))
+    rev1, state1, deps, none = _opening_step(params, dim)
+    sets = [params.with_(renewal="none"), params, params.with_(renewal="none", kt_kn=0.4)]
+    batch = Rev(sets) if dim == 2 else Rev3D(sets, Sphere(order=9, n_azimuth=2))
+    state = batch.initial(3)
+    state.cells.values[:] = state1.cells.values[0]
+    state.eps[:], state.sig[:] = state1.eps[0], state1.sig[0]
+    stepped = batch.step(state, np.repeat(deps, 3, axis=0))
+    singles = [none, rev1.step(state1, deps), _rev(sets[2], dim).step(state1, deps)]
+    for k, one in enumerate(singles):
+        np.testing.assert_array_equal(stepped.cells.values[k], one.cells.values[0])
+        np.testing.assert_array_equal(stepped.sig[k], one.sig[0])
+    assert not np.array_equal(stepped.cells.values[1], stepped.cells.values[0])
+
+
 def test_the_compiled_and_the_generic_drivers_agree_with_mix():
     p = MIX.with_(alpha0=math.radians(40))
     a = run_biaxial(p, [2e5], 0.1, step=2e-3)
