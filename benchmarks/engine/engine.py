@@ -9,7 +9,11 @@
     docs/mechanisms.md), and its cost per cell over the linear law's, the trials timed in turn;
     likewise with Hertz-Mindlin and rebirth, and with the sand variant's mechanisms
     (Hertz-Mindlin, ``renewal="mix"``, ``lateral="axisymmetric"``, which a 2D cell takes as its
-    own lateral length).
+    own lateral length);
+(d) the same costs over the published cell's trial as the compiled Newton makes it: the part
+    the committed cells fix prepared once per increment (the linear cell's rows; the mechanisms
+    have none), the trials called from a compiled loop. The Newton's trials of one increment
+    lie between (c), which prepares at every trial, and (d), which prepares once for all.
 
 Usage: ``python -m benchmarks.engine.engine [--repeat N] [--out PATH]``. The first call of each kernel
 compiles it (or loads Numba's cache); it is excluded, and the best of N runs is reported.
@@ -21,6 +25,7 @@ import argparse
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from benchmarks.timing import best_in_turn, best_of, record, write_table
 from hmodel import Params
@@ -30,6 +35,7 @@ from hmodel.loading import consolidate, run_biaxial
 from hmodel.loading.compiled import CompiledSegment
 from hmodel.loading.control import Tangent
 from hmodel.rev import Rev
+from hmodel.rev.trial import point_prepared, point_trial_prepared
 
 
 def drained_biaxial(repeat: int, compiled: bool) -> float:
@@ -51,11 +57,9 @@ def cell_updates(repeat: int, n_cells: int = 2_000_000) -> float:
     return n_cells / best_of(lambda: solver.step(params, state, dl1, dl2), repeat)
 
 
-def _fused_trial(params: Params, n_calls: int):
-    """n_calls compiled REV trials of one material point consolidated to 200 kPa (nθ = 360), a
-    strain increment of 1e-4 each: a function of no argument."""
-    from hmodel.loading.compiled import trial
-
+def _trial_args(params: Params) -> tuple:
+    """The arguments of :func:`hmodel.rev.trial.point_trial` for one material point consolidated
+    to 200 kPa (nθ = 360) and a strain increment of 1e-4."""
     rev = Rev(params.with_(n_theta=360))
     s0 = consolidate(rev, [2e5])
     seg = CompiledSegment(rev, s0, (False, True, False), np.eye(3), s0.sig,
@@ -63,12 +67,45 @@ def _fused_trial(params: Params, n_calls: int):
     out, flags, sig = np.empty((360, 8)), np.empty((360, 5), bool), np.empty(3)
     x = np.array([1e-4, -5e-5, 0.0])
     resp = np.empty((360, 0))  # the closed form: no learned responses
-    args = (seg.values[0], seg.eps[0], x, seg.geo[0], seg.p[0], rev.mode, rev.volume0, out, flags, sig, resp)
+    return (seg.values[0], seg.eps[0], x, seg.geo[0], seg.p[0], rev.mode, rev.volume0, out, flags, sig, resp)
+
+
+def _fused_trial(params: Params, n_calls: int):
+    """n_calls compiled REV trials of one material point consolidated to 200 kPa (nθ = 360), a
+    strain increment of 1e-4 each: a function of no argument."""
+    from hmodel.loading.compiled import trial
+
+    args = _trial_args(params)
 
     def run():
         for _ in range(n_calls):
             trial(*args)
     return run
+
+
+@njit(cache=False)
+def prepared_trials(n, values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp):
+    """n trials of one point as the compiled Newton makes them (``_newton_point``): the part of
+    the trial that the committed cells fix prepared once (:func:`hmodel.rev.trial.point_prepared`:
+    the linear cells' rows, nothing for Hertz-Mindlin ones), then
+    :func:`~hmodel.rev.trial.point_trial_prepared`, the loop compiled (no Python call per trial)."""
+    pre = point_prepared(values, geo, p, resp)
+    for _ in range(n):
+        point_trial_prepared(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, pre)
+
+
+def costs_prepared(trial_args, mechanisms: dict, repeat: int, n_calls: int, cells: dict) -> dict[str, float]:
+    """Cost per cell of :func:`prepared_trials` with each of ``mechanisms`` (name -> Params,
+    ``"linear"`` the published cell) over the published one's, timed in turn; ``trial_args``
+    makes a point's trial arguments, ``cells`` gives each name's cells per point."""
+    runs = {}
+    for name, params in mechanisms.items():
+        args = trial_args(params)
+        prepared_trials(1, *args)  # compiles the loop once per signature, outside the timing
+        runs[name] = (lambda a: lambda: prepared_trials(n_calls, *a))(args)
+    best = best_in_turn(runs, repeat)
+    per_cell = {name: best[name] / cells[name] for name in runs}
+    return {name: per_cell[name] / per_cell["linear"] for name in runs if name != "linear"}
 
 
 def fused_trials(repeat: int, n_calls: int = 2000, params: Params = Params()) -> float:
@@ -80,6 +117,10 @@ def fused_trials(repeat: int, n_calls: int = 2000, params: Params = Params()) ->
 MECHANISMS = {"linear": Params(), "hertz-mindlin": Params(contact="hertz-mindlin"),
               "all": Params(contact="hertz-mindlin", renewal="rebirth"),
               "sand": Params(contact="hertz-mindlin", renewal="mix", lateral="axisymmetric")}
+
+
+PREPARED_LABELS = {"hertz-mindlin": "Hertz-Mindlin contacts", "all": "every mechanism on (Hertz-Mindlin, rebirth)",
+                   "sand": "the sand variant's mechanisms (Hertz-Mindlin, rebirth at the mean box)"}
 
 
 def hertz_cost(repeat: int, n_calls: int = 500) -> tuple[float, float, float, float]:
@@ -117,6 +158,10 @@ def main() -> None:
         ("cost of a cell update, the sand variant's mechanisms (Hertz-Mindlin, rebirth at the mean box) over "
          "linear, fused REV trial", sand_ratio, "<= 1.5"),
     ]
+    prepared = costs_prepared(_trial_args, MECHANISMS, args.repeat, 500, dict.fromkeys(MECHANISMS, 360))
+    rows += [(f"cost of a cell update, {PREPARED_LABELS[name]} over linear, prepared trials as the compiled "
+              "Newton makes them (the linear cells' state-only part once per increment)", ratio, "-")
+             for name, ratio in prepared.items()]
     write_table(rows, args.out, record(__file__, args, args.repeat, rows), value_width=12)
 
 

@@ -23,10 +23,12 @@ to ``engine3d.json``.
 (g) the cost of a bi-hexagon update in the fused 3D trial with Hertz-Mindlin contacts, with
     the sand variant's mechanisms, and with Hertz-Mindlin contacts and contacts between the
     hexagons, over the published bi-hexagon's (the trials timed in turn, a consolidated REV:
-    issue 54's 1.5x lifted to 3D).
+    issue 54's 1.5x lifted to 3D);
+(h) the same costs over the published bi-hexagon's trial as the compiled Newton makes it
+    (``benchmarks.engine.engine.prepared_trials``: the linear hexagons' state-only part prepared
+    once per increment, the mechanisms having none; the trials called from a compiled loop).
 
-All tests use ``sliding_rhs="equilibrium"``: with the report's λ, Newton's event loop stops a
-3D drained triaxial test near 1 % axial strain (the same increment in both drivers). Points
+All tests use ``sliding_rhs="equilibrium"``, the 3D commands' default (docs/model3d.md). Points
 whose increment Newton cannot solve are dropped (``failures``) and counted.
 
 Usage: ``python -m benchmarks.engine.engine3d [--repeat N] [--out PATH]``. The first call of each
@@ -44,7 +46,7 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import qmc
 
-from benchmarks.engine.engine import cell_updates, fused_trials
+from benchmarks.engine.engine import cell_updates, costs_prepared, fused_trials
 from benchmarks.timing import best_in_turn, best_of, record, write_table
 from hmodel import Params
 from hmodel.cell.bihex import BiHexSolver
@@ -133,10 +135,9 @@ def bihex_updates(repeat: int, n_cells: int = 1_000_000) -> float:
     return n_cells / best_of(lambda: solver.step(params, state, dl1, dl2, dl3), repeat)
 
 
-def _fused_bihex_trial(params: Params, n_calls: int):
-    """n_calls compiled 3D REV trials of one material point consolidated to 200 kPa (default
-    rule), a strain increment of 1e-4 each: ``(run, cells)``, a function of no argument and the
-    REV's bi-hexagons."""
+def _bihex_trial_args(params: Params) -> tuple:
+    """The arguments of the compiled 3D REV trial (:func:`hmodel.rev.trial.point_trial`) of one
+    material point consolidated to 200 kPa (default rule) and a strain increment of 1e-4."""
     rev = Rev3D(params)
     s0 = consolidate(rev, [2e5])
     geo, p = kernel_inputs3d(rev)
@@ -144,12 +145,19 @@ def _fused_bihex_trial(params: Params, n_calls: int):
     C = rev.n_cells
     out, flags, sig, resp = np.empty_like(values), np.empty((C, 11), bool), np.empty(6), np.empty((C, 0))
     x = np.array([1e-4, -5e-5, -5e-5, 0.0, 0.0, 0.0])
-    args = (values, s0.eps[0], x, geo[0], p[0], rev.mode, rev.volume0, out, flags, sig, resp)
+    return (values, s0.eps[0], x, geo[0], p[0], rev.mode, rev.volume0, out, flags, sig, resp)
+
+
+def _fused_bihex_trial(params: Params, n_calls: int):
+    """n_calls compiled 3D REV trials of one material point consolidated to 200 kPa (default
+    rule), a strain increment of 1e-4 each: ``(run, cells)``, a function of no argument and the
+    REV's bi-hexagons."""
+    args = _bihex_trial_args(params)
 
     def run():
         for _ in range(n_calls):
             any_trial(*args)
-    return run, C
+    return run, len(args[0])
 
 
 def fused_bihex_trials(repeat: int, n_calls: int = 2000) -> float:
@@ -178,6 +186,14 @@ def bihex_costs(repeat: int, n_calls: int = 500) -> dict[str, float]:
     best = best_in_turn({name: run for name, (run, _) in runs.items()}, repeat)
     per_cell = {name: best[name] / runs[name][1] for name in runs}
     return {name: per_cell[name] / per_cell["linear"] for name in runs if name != "linear"}
+
+
+def bihex_costs_prepared(repeat: int, n_calls: int = 500) -> dict[str, float]:
+    """:func:`bihex_costs` over the published bi-hexagon's trial as the compiled Newton makes it
+    (:func:`benchmarks.engine.engine.prepared_trials`: the linear hexagons' state-only part
+    prepared once, the trials called from a compiled loop)."""
+    cells = {name: Rev3D(params).n_cells for name, params in BIHEX_MECHANISMS.items()}
+    return costs_prepared(_bihex_trial_args, BIHEX_MECHANISMS, repeat, n_calls, cells)
 
 
 def main() -> None:
@@ -217,6 +233,9 @@ def main() -> None:
         ("bi-hexagon updates per second, fused 3D REV trial (one core)", fused_bihex_trials(r), "-"),
         *((f"cost of a bi-hexagon update, {BIHEX_LABELS[name]} over the published one, fused 3D REV trial",
            ratio, "<= 1.5") for name, ratio in bihex_costs(r).items()),
+        *((f"cost of a bi-hexagon update, {BIHEX_LABELS[name]} over the published one, prepared trials as "
+           "the compiled Newton makes them (the linear hexagons' state-only part once per increment)", ratio, "-")
+          for name, ratio in bihex_costs_prepared(r).items()),
         ("2D cell updates per second, ClosedFormSolver.step (one core)", cell_updates(r), "-"),
         ("2D cell updates per second, fused REV trial (one core)", fused_trials(r), "-"),
     ]
