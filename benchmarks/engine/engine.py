@@ -159,8 +159,8 @@ def main() -> None:
          "linear, fused REV trial", sand_ratio, "<= 1.5"),
     ]
     prepared = costs_prepared(_trial_args, MECHANISMS, args.repeat, 500, dict.fromkeys(MECHANISMS, 360))
-    rows += [(f"cost of a cell update, {PREPARED_LABELS[name]} over linear, prepared trials as the compiled "
-              "Newton makes them (the linear cells' state-only part once per increment)", ratio, "-")
+    rows += [(f"prepared trials' cost of a cell update, {PREPARED_LABELS[name]} over linear (the linear cells' "
+              "state-only part once per increment, as the compiled Newton makes its trials)", ratio, "-")
              for name, ratio in prepared.items()]
     write_table(rows, args.out, record(__file__, args, args.repeat, rows), value_width=12)
 

@@ -480,6 +480,12 @@ INLINE = {
     "hertz-cost-3d-sand": _cost("engine/engine3d.json", "cost of a bi-hexagon update, the sand variant's"),
     "hertz-cost-3d-cross": _cost("engine/engine3d.json",
                                  "cost of a bi-hexagon update, Hertz-Mindlin contacts and contacts between"),
+    "prepared-cost-2d": _cost("engine/engine.json", "prepared trials' cost of a cell update, Hertz-Mindlin"),
+    "prepared-cost-sand": _cost("engine/engine.json", "prepared trials' cost of a cell update, the sand"),
+    "prepared-cost-3d": _cost("engine/engine3d.json", "prepared trials' cost of a bi-hexagon update, Hertz-Mindlin contacts over"),
+    "prepared-cost-3d-sand": _cost("engine/engine3d.json", "prepared trials' cost of a bi-hexagon update, the sand"),
+    "prepared-cost-3d-cross": _cost("engine/engine3d.json",
+                                    "prepared trials' cost of a bi-hexagon update, Hertz-Mindlin contacts and"),
 }
 
 
