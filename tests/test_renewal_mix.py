@@ -115,7 +115,7 @@ def test_a_rebirth_keeps_the_stress_and_moves_the_box_volume_by_the_area_gap(dim
 
 
 @pytest.mark.parametrize("dim", [2, 3])
-def test_a_batch_reborns_the_cells_of_its_mix_sets_only(dim):
+def test_a_batch_renews_the_cells_of_its_mix_sets_only(dim):
     """A REV of three parameter sets, ``mix`` in the second only, stepped from the state before
     cells open: each point's step is its own set's single REV step to the last bit, so the
     second point is reborn and the others are not (the batch looks at its mix sets alone)."""
