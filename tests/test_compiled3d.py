@@ -258,10 +258,11 @@ def test_the_second_event_count_is_of_hexagons():
     flags[2, 0] = flags[2, 10] = True     # sliding, hexagons touching: nothing open
     assert CellFlags(flags).open_hexagons.tolist() == [2, 1, 0]
     assert CellFlags(flags).broken.tolist() == [True, True, False]
-    assert _broken(flags) == 2  # the first count, the kernel's: cells
+    assert _broken(flags, False) == 2  # the kernel's first count: cells
+    assert _broken(flags, True) == 3   # its second: hexagons
     h_cells = np.zeros((2, 5), bool)
     h_cells[1, 2] = True  # an H-cell: one hexagon, both counts alike
-    assert _broken(h_cells) == 1 == CellFlags(h_cells).open_hexagons.sum()
+    assert _broken(h_cells, False) == 1 == _broken(h_cells, True) == CellFlags(h_cells).open_hexagons.sum()
 
 
 def test_a_hexagon_opening_beside_its_open_twin_is_an_event_both_drivers_cross():
@@ -269,8 +270,8 @@ def test_a_hexagon_opening_beside_its_open_twin_is_an_event_both_drivers_cross()
     loaded hexagons (N2 near zero) opens while their twins are open already, so the set of broken
     bi-hexagons stays as it was and the stress jumps (σ11 by a tenth). Counted by bi-hexagon, the
     event fallback had no candidate and the increment failed near 1 % strain; the increment
-    solved again counting hexagons commits the event, in both drivers (the compiled one hands
-    the increment back), and σ22 = σ33 = p0 hold on."""
+    solved again counting hexagons commits the event, in both drivers (the compiled one in its
+    kernel), and σ22 = σ33 = p0 hold on."""
     import math
 
     p = Params(sliding_rhs="equilibrium", contact="hertz-mindlin", shear_modulus=2.25e9, poisson=0.005,

@@ -179,17 +179,24 @@ def _same_events(flags_a, flags_b):
 
 
 @njit(cache=True, error_model="numpy")
-def _broken(flags):
+def _broken(flags, by_hexagon):
+    """The broken cells of a trial (``CellFlags.broken``), or with ``by_hexagon`` its hexagons
+    with a contact open (``CellFlags.open_hexagons``): the event fallback's count."""
     n = 0
     for i in range(flags.shape[0]):
-        n += _cell_broken(flags, i)
+        if by_hexagon:
+            for h in range(flags.shape[1] // 5):
+                n += flags[i, 5 * h + 1] or flags[i, 5 * h + 2]
+        else:
+            n += _cell_broken(flags, i)
     return n
 
 
 @njit(cache=True, error_model="numpy")
 def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, c, buf, bufflags,
-                  W, resp, pre, guess, trials):
-    """The one Newton (:mod:`hmodel.loading.newton`) of one point, its trials evaluated here.
+                  W, resp, pre, guess, trials, by_hexagon):
+    """The one Newton (:mod:`hmodel.loading.newton`) of one point, its trials evaluated here;
+    its event fallback counts broken cells, or with ``by_hexagon`` open hexagons (:func:`_broken`).
 
     Returns (outcome, cur, best): ``CONVERGED`` with the solution in ``buf[cur]`` (strain
     increment and stress in ``W[X]``, ``W[SIG]``); ``STALLED`` with the event state in
@@ -227,7 +234,8 @@ def _newton_point(values, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, c,
             ok = _slope_trial(values, eps, block(W, XN, n).copy(), geo, p, mode, volume0, buf[nxt],
                               bufflags[nxt], sig_n, resp, pre, exact, u, K)
             same = cur >= 0 and _same_events(bufflags[nxt], bufflags[cur])
-            act = told_trial(W, K, S, M, c, sig_n, ok, _broken(bufflags[nxt]), same, exact, flag)
+            act = told_trial(W, K, S, M, c, sig_n, ok, _broken(bufflags[nxt], by_hexagon), same, exact,
+                             flag)
             cur = nxt
             if flag[0]:
                 best = nxt
@@ -243,27 +251,61 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
     The event loop of :func:`hmodel.loading.newton.after_newton`, as in
     ``control.solve_increment``: when Newton stalls inside the jump of a cell event, the event
     state is committed and the rest of the increment solved from there
-    (:func:`~hmodel.loading.newton.event_targets`). Returns OK, or NOT_CONVERGED with the state
-    restored to its start (slot 3 of ``buf`` keeps it), and for bi-hexagons the tangent too: the
-    driver hands such an increment to ``control.solve_increment``, whose first attempt is then
-    this one and whose second counts broken hexagons, as in the generic driver (H-cells keep the
-    tangent the failed attempt left, with which the hand-back has solved increments before).
+    (:func:`~hmodel.loading.newton.event_targets`). An increment of bi-hexagons given up so is
+    solved once more from its start, its tangent too, with the fallback counting broken
+    hexagons, as the generic driver does (``solve_increment(..., by_hexagon=True)``;
+    docs/loading.md, "Cell events"). Returns OK, or NOT_CONVERGED with the state restored to its
+    start (slot 3 of ``buf`` keeps the cells), and for bi-hexagons the tangent too: the driver
+    then hands the increment to ``control.solve_increment``, which tries both counts again (H-cells
+    keep the tangent the failed attempt left, with which the hand-back has solved increments
+    before).
     """
+    eps0 = eps.copy()
+    sig0 = sig.copy()
+    bihex = flags.shape[1] > 5
+    K0 = K.copy()
+    has_K0 = has_K.copy()
+    for by_hexagon in (False, True):
+        outcome = _event_loop(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, c,
+                              max_events, buf, bufflags, resp, pre, guess, trials, by_hexagon)
+        if outcome == OK:
+            return OK
+        if outcome == _GIVEN_UP_AFTER_EVENTS:  # cells committed: back to the start
+            values[:] = buf[3]
+            flags[:] = bufflags[3]
+        eps[:] = eps0
+        sig[:] = sig0
+        if not bihex:
+            break
+        K[:] = K0
+        has_K[:] = has_K0
+        if max_events == 0:  # the count only picks the event state to commit, and none may be
+            break
+    return NOT_CONVERGED
+
+
+#: :func:`_event_loop` gave its increment up after committing a cell event (the cells moved).
+_GIVEN_UP_AFTER_EVENTS = 2
+
+
+@njit(cache=True, error_model="numpy")
+def _event_loop(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, c, max_events,
+                buf, bufflags, resp, pre, guess, trials, by_hexagon):
+    """:func:`solve_point`'s event loop with one count of the fallback: OK (the state updated in
+    place), NOT_CONVERGED (given up before any event: the cells as they were) or
+    :data:`_GIVEN_UP_AFTER_EVENTS` (slot 3 of ``buf`` keeps the cells of the start)."""
     n = S.shape[0]
     W = np.empty(workspace_size(n))
     target = v.copy()
     eps0 = eps.copy()
-    sig0 = sig.copy()
-    K0 = K.copy()
-    has_K0 = has_K.copy()
     event = 0
     while True:
         act, cur, best = _newton_point(values, eps, sig, K, has_K, S, M, target, geo, p, mode,
                                        volume0, c, buf, bufflags, W, resp, pre,
-                                       guess if event == 0 else guess[:0], trials)
+                                       guess if event == 0 else guess[:0], trials, by_hexagon)
         then = after_newton(act, event, max_events)
         if then != COMMIT_SOLUTION and then != COMMIT_EVENT:
-            break
+            return _GIVEN_UP_AFTER_EVENTS if event > 0 else NOT_CONVERGED
         if event == 0 and then == COMMIT_EVENT:  # keep the start state, to restore it on failure
             buf[3] = values
             bufflags[3] = flags
@@ -280,15 +322,6 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
             return OK
         event_targets(S, target)
         event += 1
-    if event > 0:
-        values[:] = buf[3]
-        flags[:] = bufflags[3]
-    eps[:] = eps0
-    sig[:] = sig0
-    if flags.shape[1] > 5:  # bi-hexagons: the generic driver's two attempts start from here
-        K[:] = K0
-        has_K[:] = has_K0
-    return NOT_CONVERGED
 
 
 @njit(cache=True, error_model="numpy")
