@@ -26,7 +26,8 @@ exact stress slope along the free strain direction (:func:`hmodel.rev.kernels.tr
 Broyden's secant there.
 
 The kernel has the generic driver's event fallback (a stress target inside the jump of a cell
-event, see ``solve_increment``). An increment it still cannot converge is handed back to the
+event, see ``solve_increment``), with its second count of broken hexagons for bi-hexagons
+(:func:`solve_point`). An increment it still cannot converge is handed back to the
 generic driver, which then either solves it or raises its error with the strain reached; the
 kernel resumes after it. Results equal the generic path's to the Newton tolerance
 (``tests/test_compiled.py``, ``tests/test_meso_compiled.py``).
