@@ -265,14 +265,20 @@ def test_the_second_event_count_is_of_hexagons():
     assert _broken(h_cells, False) == 1 == _broken(h_cells, True) == CellFlags(h_cells).open_hexagons.sum()
 
 
-def test_a_hexagon_opening_beside_its_open_twin_is_an_event_both_drivers_cross():
+def test_a_hexagon_opening_beside_its_open_twin_is_an_event_both_drivers_cross(monkeypatch):
     """A loose REV with Hertz-Mindlin contacts in a drained triaxial test at 51 kPa: a family of
     loaded hexagons (N2 near zero) opens while their twins are open already, so the set of broken
     bi-hexagons stays as it was and the stress jumps (σ11 by a tenth). Counted by bi-hexagon, the
     event fallback had no candidate and the increment failed near 1 % strain; the increment
     solved again counting hexagons commits the event, in both drivers (the compiled one in its
-    kernel), and σ22 = σ33 = p0 hold on."""
+    kernel: it hands no increment back, which the test makes an error), and σ22 = σ33 = p0 hold
+    on."""
     import math
+
+    from hmodel.loading.compiled import CompiledSegment
+
+    def handed_back(self, k, *args):
+        raise AssertionError(f"increment {k} handed back to the generic driver")
 
     p = Params(sliding_rhs="equilibrium", contact="hertz-mindlin", shear_modulus=2.25e9, poisson=0.005,
                phi_g=math.radians(40.0), alpha0=math.radians(58.0))
@@ -283,7 +289,9 @@ def test_a_hexagon_opening_beside_its_open_twin_is_an_event_both_drivers_cross()
     out = []
     for compiled in (True, False):
         rec = Recorder()
-        s = run_segment(rev, s0, seg, rec, compiled=compiled).state
+        with monkeypatch.context() as m:
+            m.setattr(CompiledSegment, "_hand_back", handed_back)
+            s = run_segment(rev, s0, seg, rec, compiled=compiled).state
         r = rec.result()
         np.testing.assert_allclose(r["sig22"], p0, rtol=1e-8)
         np.testing.assert_allclose(r["sig33"], p0, rtol=1e-8)
