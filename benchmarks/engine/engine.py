@@ -22,6 +22,7 @@ compiles it (or loads Numba's cache); it is excluded, and the best of N runs is 
 from __future__ import annotations
 
 import argparse
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -94,15 +95,15 @@ def prepared_trials(n, values, eps, deps, geo, p, mode, volume0, out, flags, sig
         point_trial_prepared(values, eps, deps, geo, p, mode, volume0, out, flags, sig, resp, pre)
 
 
-def costs_prepared(trial_args, mechanisms: dict, repeat: int, n_calls: int, cells: dict) -> dict[str, float]:
+def costs_prepared(trial_args, mechanisms: dict, repeat: int, n_calls: int) -> dict[str, float]:
     """Cost per cell of :func:`prepared_trials` with each of ``mechanisms`` (name -> Params,
     ``"linear"`` the published cell) over the published one's, timed in turn; ``trial_args``
-    makes a point's trial arguments, ``cells`` gives each name's cells per point."""
-    runs = {}
+    makes a point's trial arguments (its cells first)."""
+    runs, cells = {}, {}
     for name, params in mechanisms.items():
         args = trial_args(params)
         prepared_trials(1, *args)  # compiles the loop once per signature, outside the timing
-        runs[name] = (lambda a: lambda: prepared_trials(n_calls, *a))(args)
+        runs[name], cells[name] = partial(prepared_trials, n_calls, *args), len(args[0])
     best = best_in_turn(runs, repeat)
     per_cell = {name: best[name] / cells[name] for name in runs}
     return {name: per_cell[name] / per_cell["linear"] for name in runs if name != "linear"}
@@ -158,7 +159,7 @@ def main() -> None:
         ("cost of a cell update, the sand variant's mechanisms (Hertz-Mindlin, rebirth at the mean box) over "
          "linear, fused REV trial", sand_ratio, "<= 1.5"),
     ]
-    prepared = costs_prepared(_trial_args, MECHANISMS, args.repeat, 500, dict.fromkeys(MECHANISMS, 360))
+    prepared = costs_prepared(_trial_args, MECHANISMS, args.repeat, 500)
     rows += [(f"prepared trials' cost of a cell update, {PREPARED_LABELS[name]} over linear (the linear cells' "
               "state-only part once per increment, as the compiled Newton makes its trials)", ratio, "-")
              for name, ratio in prepared.items()]

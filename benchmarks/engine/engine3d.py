@@ -192,8 +192,7 @@ def bihex_costs_prepared(repeat: int, n_calls: int = 500) -> dict[str, float]:
     """:func:`bihex_costs` over the published bi-hexagon's trial as the compiled Newton makes it
     (:func:`benchmarks.engine.engine.prepared_trials`: the linear hexagons' state-only part
     prepared once, the trials called from a compiled loop)."""
-    cells = {name: Rev3D(params).n_cells for name, params in BIHEX_MECHANISMS.items()}
-    return costs_prepared(_bihex_trial_args, BIHEX_MECHANISMS, repeat, n_calls, cells)
+    return costs_prepared(_bihex_trial_args, BIHEX_MECHANISMS, repeat, n_calls)
 
 
 def main() -> None:

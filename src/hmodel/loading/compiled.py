@@ -184,12 +184,13 @@ def _broken(flags, by_hexagon):
     """The broken cells of a trial (``CellFlags.broken``), or with ``by_hexagon`` its hexagons
     with a contact open (``CellFlags.open_hexagons``): the event fallback's count."""
     n = 0
-    for i in range(flags.shape[0]):
-        if by_hexagon:
-            for h in range(flags.shape[1] // 5):
-                n += flags[i, 5 * h + 1] or flags[i, 5 * h + 2]
-        else:
+    if not by_hexagon:
+        for i in range(flags.shape[0]):
             n += _cell_broken(flags, i)
+        return n
+    for i in range(flags.shape[0]):
+        for h in range(flags.shape[1] // 5):
+            n += flags[i, 5 * h + 1] or flags[i, 5 * h + 2]
     return n
 
 
@@ -266,9 +267,11 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
     bihex = flags.shape[1] > 5
     K0 = K.copy()
     has_K0 = has_K.copy()
-    for by_hexagon in (False, True):
+    # the second count only picks another event state to commit: none where none may be
+    attempts = 2 if bihex and max_events > 0 else 1
+    for attempt in range(attempts):
         outcome = _event_loop(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume0, c,
-                              max_events, buf, bufflags, resp, pre, guess, trials, by_hexagon)
+                              max_events, buf, bufflags, resp, pre, guess, trials, attempt == 1)
         if outcome == OK:
             return OK
         if outcome == _GIVEN_UP_AFTER_EVENTS:  # cells committed: back to the start
@@ -276,12 +279,9 @@ def solve_point(values, flags, eps, sig, K, has_K, S, M, v, geo, p, mode, volume
             flags[:] = bufflags[3]
         eps[:] = eps0
         sig[:] = sig0
-        if not bihex:
-            break
-        K[:] = K0
-        has_K[:] = has_K0
-        if max_events == 0:  # the count only picks the event state to commit, and none may be
-            break
+        if bihex:
+            K[:] = K0
+            has_K[:] = has_K0
     return NOT_CONVERGED
 
 

@@ -22,8 +22,8 @@ carried from one increment to the next:
 - when Newton has not converged after ``max_iter`` corrections, the trial with the most broken
   cells (then the smallest residual) is the event state (a target inside the jump of a cell
   event, see ``solve_increment``), unless every trial was held at the cap (diverged); where
-  an increment is given up, the generic driver solves it once more counting broken hexagons
-  (a bi-hexagon's two apart: ``control.solve_increment``).
+  an increment of bi-hexagons is given up, either driver solves it once more counting broken
+  hexagons (a bi-hexagon's two apart: ``control.solve_increment``, ``compiled.solve_point``).
 
 The algorithm is written once, as a state machine per point that asks its driver for trials
 (:func:`begin`, :func:`told_trial`, :func:`told_tangent`): the compiled driver
